@@ -1,0 +1,1 @@
+"""Command line, datasets, tracking and the dvc pipeline of the vibro project."""

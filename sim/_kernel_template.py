@@ -1,0 +1,451 @@
+"""Template of the per-model kernel: pasted by sim.compiled after binding the model's functions.
+
+Not imported directly.  The generated module defines, before this text, the model's
+numba functions as globals ``rhs, guards, on_event, observe, bounded`` and the count
+``N_BOUNDED`` (see the model interface in sim.integrator).  Binding them as globals,
+rather than passing them as arguments, is what lets numba cache the compiled kernel
+on disk and release the GIL.
+"""
+# ruff: noqa: F821  (rhs, guards, on_event, observe, bounded, N_BOUNDED are bound by sim.compiled)
+import numpy as np
+from numba import njit
+
+from sim.integrator import *  # noqa: F401,F403  constants and helpers
+from sim.integrator import _crossed, _dense, _error_norm
+from sim.kernel import N_ACC, _rel_close, settled_period
+
+
+@njit(cache=True, nogil=True)
+def _locate(t, h, y, z, ph, p, r1, r2, r3, r4, r5, yd, gbuf, i, a, b, fa, fb, ev_tol):
+    """Illinois (modified regula falsi) root of guard i on the dense output, bisection every
+    third iteration.  Returns the right bracket (on the crossed side) within ev_tol seconds."""
+    side = 0
+    it = 0
+    while (b - a) * h > ev_tol and it < 200:
+        it += 1
+        if it % 3 == 0 or fb == fa:
+            c = 0.5 * (a + b)
+        else:
+            c = (a * fb - b * fa) / (fb - fa)
+            if not (c > a and c < b):
+                c = 0.5 * (a + b)
+        _dense(r1, r2, r3, r4, r5, c, yd)
+        guards(t + c * h, yd, z, ph, p, gbuf)
+        fc = gbuf[i]
+        if _crossed(fa, fc):
+            b = c
+            fb = fc
+            if side == -1:
+                fa *= 0.5
+            side = -1
+        else:
+            a = c
+            fa = fc
+            if side == 1:
+                fb *= 0.5
+            side = 1
+    return b
+
+
+@njit(cache=True, nogil=True)
+def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
+                     atol, record, strobe, bmin, bmax,
+                     acc, hist_t, hist_y, hist_obs, hist_ph, hist_dt, counters):
+    """Integrate ``n_cycles`` whole forcing cycles from ``t0`` (y, z, ph_arr edited in place).
+
+    strobe[c] receives the bounded coordinates at the start of cycle c, bmin/bmax
+    their per-cycle extremes.  When ``record`` is true, window statistics are
+    accumulated into ``acc``:
+        acc[0] max contact force, acc[1] sum of per-contact maxima, acc[2] number of
+        completed contacts, acc[3] contact onsets, acc[4] max deceleration (m/s²),
+        acc[5] current contact's running max, acc[6] 1 if any time was spent in contact
+    and, when hist_dt > 0, uniform samples are written to hist_* (index counters[2]).
+    counters: [steps, events, hist_index, status, reason].
+    Returns the end time.
+    """
+    ny = y.shape[0]
+    ng = 8
+    rtol = s[S_RTOL]
+    k1 = np.empty(ny); k2 = np.empty(ny); k3 = np.empty(ny); k4 = np.empty(ny)
+    k5 = np.empty(ny); k6 = np.empty(ny); k7 = np.empty(ny)
+    ytmp = np.empty(ny); y1 = np.empty(ny); err = np.empty(ny)
+    r1 = np.empty(ny); r2 = np.empty(ny); r3 = np.empty(ny); r4 = np.empty(ny); r5 = np.empty(ny)
+    yd = np.empty(ny); dyd = np.empty(ny)
+    g0 = np.empty(ng); g1 = np.empty(ng); gm = np.empty(ng)
+    obs = np.empty(N_OBS)
+    nbd = strobe.shape[1]
+    bvec = np.empty(nbd)
+    hmax = s[S_MAX_STEP_FRAC] * period
+    ev_tol = s[S_EVENT_TOL] * period
+    max_steps = int(s[S_MAX_STEPS_PER_CYCLE])
+    ph = ph_arr[0]
+    t = t0
+    h = 1e-3 * period
+    interior = np.array([0.25, 0.5, 0.75])
+    n_sub = 4  # extra force/accel samples per step in contact
+
+    for cyc in range(n_cycles):
+        t_end = t0 + (cyc + 1) * period
+        bounded(t, y, z, ph, p, bvec)
+        for j in range(nbd):
+            strobe[cyc, j] = bvec[j]
+            bmin[cyc, j] = bvec[j]
+            bmax[cyc, j] = bvec[j]
+        rhs(t, y, z, ph, p, k1)
+        guards(t, y, z, ph, p, g0)
+        steps_this_cycle = 0
+        while t < t_end:
+            if t_end - t <= 1e-12 * period:
+                t = t_end
+                break
+            steps_this_cycle += 1
+            if steps_this_cycle > max_steps:
+                counters[3] = STATUS_FAILED
+                counters[4] = REASON_TOO_MANY_STEPS
+                ph_arr[0] = ph
+                return t
+            h = min(h, hmax, t_end - t)
+            if h < 1e-14 * period:
+                counters[3] = STATUS_FAILED
+                counters[4] = REASON_STEP_UNDERFLOW
+                ph_arr[0] = ph
+                return t
+            # ---- one DOPRI5 step
+            for i in range(ny):
+                ytmp[i] = y[i] + h * A21 * k1[i]
+            rhs(t + C2 * h, ytmp, z, ph, p, k2)
+            for i in range(ny):
+                ytmp[i] = y[i] + h * (A31 * k1[i] + A32 * k2[i])
+            rhs(t + C3 * h, ytmp, z, ph, p, k3)
+            for i in range(ny):
+                ytmp[i] = y[i] + h * (A41 * k1[i] + A42 * k2[i] + A43 * k3[i])
+            rhs(t + C4 * h, ytmp, z, ph, p, k4)
+            for i in range(ny):
+                ytmp[i] = y[i] + h * (A51 * k1[i] + A52 * k2[i] + A53 * k3[i] + A54 * k4[i])
+            rhs(t + C5 * h, ytmp, z, ph, p, k5)
+            for i in range(ny):
+                ytmp[i] = y[i] + h * (A61 * k1[i] + A62 * k2[i] + A63 * k3[i] + A64 * k4[i] + A65 * k5[i])
+            rhs(t + h, ytmp, z, ph, p, k6)
+            for i in range(ny):
+                y1[i] = y[i] + h * (A71 * k1[i] + A73 * k3[i] + A74 * k4[i] + A75 * k5[i] + A76 * k6[i])
+            rhs(t + h, y1, z, ph, p, k7)
+            for i in range(ny):
+                err[i] = h * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i])
+            en = _error_norm(y, y1, err, atol, rtol)
+            if not np.isfinite(en):
+                h *= 0.1
+                if h < 1e-14 * period:
+                    counters[3] = STATUS_FAILED
+                    counters[4] = REASON_NONFINITE
+                    ph_arr[0] = ph
+                    return t
+                continue
+            if en > 1.0:
+                h *= max(0.2, 0.9 * en ** -0.2)
+                continue
+            counters[0] += 1
+            # ---- dense output coefficients
+            for i in range(ny):
+                r1[i] = y[i]
+                ydiff = y1[i] - y[i]
+                r2[i] = ydiff
+                bspl = h * k1[i] - ydiff
+                r3[i] = bspl
+                r4[i] = ydiff - h * k7[i] - bspl
+                r5[i] = h * (D1 * k1[i] + D3 * k3[i] + D4 * k4[i] + D5 * k5[i] + D6 * k6[i] + D7 * k7[i])
+            # ---- event detection: end point and interior points
+            guards(t + h, y1, z, ph, p, g1)
+            th_lo = 0.0
+            th_hi = 2.0
+            k_ev = -1
+            # earliest bracket: scan interior points in order
+            prev_th = 0.0
+            for q in range(4):
+                if q < 3:
+                    th = interior[q]
+                    _dense(r1, r2, r3, r4, r5, th, yd)
+                    guards(t + th * h, yd, z, ph, p, gm)
+                else:
+                    th = 1.0
+                    for i in range(ng):
+                        gm[i] = g1[i]
+                for i in range(ng):
+                    if k_ev < 0 and _crossed(g0[i], gm[i]):
+                        k_ev = i
+                        th_lo = prev_th
+                        th_hi = th
+                if k_ev >= 0:
+                    break
+                # advance the lower reference: g0 becomes guard values at this sample
+                for i in range(ng):
+                    g0[i] = gm[i]
+                prev_th = th
+            if k_ev >= 0:
+                # refine every guard that crossed in [th_lo, th_hi]; take the earliest root
+                _dense(r1, r2, r3, r4, r5, th_lo, yd)
+                guards(t + th_lo * h, yd, z, ph, p, g0)
+                _dense(r1, r2, r3, r4, r5, th_hi, yd)
+                guards(t + th_hi * h, yd, z, ph, p, gm)
+                th_ev = th_hi
+                best_k = -1
+                for i in range(ng):
+                    if _crossed(g0[i], gm[i]):
+                        b = _locate(t, h, y, z, ph, p, r1, r2, r3, r4, r5, yd, g1, i,
+                                    th_lo, th_hi, g0[i], gm[i], ev_tol)
+                        if best_k < 0 or b < th_ev:
+                            th_ev = b
+                            best_k = i
+                k_ev = best_k
+            else:
+                th_ev = 1.0
+            # ---- accepted (possibly truncated) sub-step [t, t + th_ev*h]
+            t_new = t + th_ev * h
+            if th_ev < 1.0:
+                _dense(r1, r2, r3, r4, r5, th_ev, y1)
+            # monitoring: end point (and interior samples while in contact)
+            if record:
+                if ph > 0:
+                    acc[6] = 1.0
+                    for q in range(1, n_sub + 1):
+                        th = th_ev * q / (n_sub + 1)
+                        _dense(r1, r2, r3, r4, r5, th, yd)
+                        observe(t + th * h, yd, z, ph, p, obs, dyd)
+                        f = obs[OBS_FORCE]
+                        if f > acc[0]:
+                            acc[0] = f
+                        if f > acc[5]:
+                            acc[5] = f
+                        if -obs[OBS_ACCEL] > acc[4]:
+                            acc[4] = -obs[OBS_ACCEL]
+                observe(t_new, y1, z, ph, p, obs, dyd)
+                f = obs[OBS_FORCE]
+                if ph > 0:
+                    if f > acc[0]:
+                        acc[0] = f
+                    if f > acc[5]:
+                        acc[5] = f
+                if -obs[OBS_ACCEL] > acc[4]:
+                    acc[4] = -obs[OBS_ACCEL]
+                # uniform history samples
+                if hist_dt > 0.0:
+                    idx = counters[2]
+                    while idx < hist_t.shape[0]:
+                        ts = hist_t[idx]
+                        if ts > t_new + 1e-12 * period:
+                            break
+                        th = (ts - t) / h
+                        if th < 0.0:
+                            th = 0.0
+                        _dense(r1, r2, r3, r4, r5, th, yd)
+                        observe(ts, yd, z, ph, p, obs, dyd)
+                        for i in range(ny):
+                            hist_y[idx, i] = yd[i]
+                        for i in range(N_OBS):
+                            hist_obs[idx, i] = obs[i]
+                        hist_ph[idx] = ph
+                        idx += 1
+                    counters[2] = idx
+            bounded(t_new, y1, z, ph, p, bvec)
+            for j in range(nbd):
+                if bvec[j] < bmin[cyc, j]:
+                    bmin[cyc, j] = bvec[j]
+                if bvec[j] > bmax[cyc, j]:
+                    bmax[cyc, j] = bvec[j]
+            # ---- commit
+            for i in range(ny):
+                y[i] = y1[i]
+            t = t_new
+            if k_ev >= 0:
+                counters[1] += 1
+                old = ph
+                ph = on_event(t, y, z, ph, p, k_ev)
+                if record:
+                    if old == 0 and ph > 0:
+                        acc[3] += 1.0
+                        acc[5] = 0.0
+                        observe(t, y, z, ph, p, obs, dyd)
+                        acc[5] = max(obs[OBS_FORCE], 0.0)
+                    elif old > 0 and ph == 0:
+                        acc[1] += acc[5]
+                        acc[2] += 1.0
+                        acc[5] = 0.0
+                rhs(t, y, z, ph, p, k1)
+                guards(t, y, z, ph, p, g0)
+                # the step that ended on a switch was accurate; restart with a modest step
+                h = max(h * th_ev, 1e-6 * period)
+            else:
+                for i in range(ny):
+                    k1[i] = k7[i]
+                for i in range(ng):
+                    g0[i] = g1[i]
+                fac = 0.9 * max(en, 1e-10) ** -0.2
+                h *= min(5.0, max(0.2, fac))
+            if t_end - t <= 1e-12 * period:
+                t = t_end
+        t = t_end
+    ph_arr[0] = ph
+    return t
+
+
+
+@njit(cache=True, nogil=True)
+def _progress(t, y, z, ph, p, obs, dy):
+    observe(t, y, z, ph, p, obs, dy)
+    return obs[OBS_PROGRESS]
+
+
+@njit(cache=True, nogil=True)
+def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph):
+    """Simulate one point from the initial state (y, z, ph_io[0]) and return the label vector.
+
+    y, z and ph_io are updated in place to the final state (for continuation sweeps).
+
+    hist_t: sample times *relative to the window start* (empty: no history).  On return
+    hist_t holds absolute times.  Labels layout: sim.integrator.L_*.
+    """
+    labels = np.zeros(N_LABELS)
+    counters = np.zeros(5, dtype=np.int64)
+    ph_arr = ph_io
+    min_tr = int(s[S_MIN_TRANSIENT])
+    max_tr = int(s[S_MAX_TRANSIENT])
+    n_win = int(s[S_WINDOW])
+    runaway_check = s[S_RUNAWAY_CHECK] > 0.0
+    if runaway_check:
+        max_tr = max(min(max_tr, 40), 12)
+    obs = np.empty(N_OBS)
+    dy = np.empty(y.shape[0])
+    acc_dummy = np.zeros(N_ACC)
+    empty_t = np.empty(0)
+    empty_2 = np.empty((0, y.shape[0]))
+    empty_o = np.empty((0, N_OBS))
+    empty_p = np.empty(0, dtype=np.int64)
+    strobe = np.zeros((max(max_tr, 1), N_BOUNDED))
+    bmin = np.zeros((max(max_tr, 1), N_BOUNDED))
+    bmax = np.zeros((max(max_tr, 1), N_BOUNDED))
+    prog = np.zeros(max_tr + 1)
+    t = 0.0
+    prog[0] = _progress(t, y, z, ph_arr[0], p, obs, dy)
+    settled = False
+    n_tr = 0
+    for c in range(max_tr):
+        t = integrate_cycles(p, y, z, ph_arr, t, period, 1, s,
+                             atol, False, strobe[c:c + 1], bmin[c:c + 1], bmax[c:c + 1], acc_dummy,
+                             empty_t, empty_2, empty_o, empty_p, 0.0, counters)
+        n_tr = c + 1
+        prog[c + 1] = _progress(t, y, z, ph_arr[0], p, obs, dy)
+        if counters[3] == STATUS_FAILED:
+            break
+        if (not runaway_check) and n_tr >= min_tr and settled_period(strobe, bmin, bmax, c, s[S_SETTLE_TOL]) > 0:
+            settled = True
+            break
+    labels[L_TRANSIENT] = n_tr
+    labels[L_STEPS] = counters[0]
+    labels[L_EVENTS] = counters[1]
+    if counters[3] == STATUS_FAILED:
+        labels[L_STATUS] = STATUS_FAILED
+        labels[L_REASON] = counters[4]
+        return labels
+    # ---- runaway: progression increments that grow linearly (constant drift acceleration)
+    if n_tr >= 12 and not settled:
+        m = n_tr
+        d_last = prog[m] - prog[m - 1]
+        dd_first = (prog[m - 8] - prog[m - 9]) - (prog[m - 9] - prog[m - 10])
+        dd_last = d_last - (prog[m - 1] - prog[m - 2])
+        growing = d_last > 0.0 and dd_first > 0.0 and dd_last > 0.0 and dd_last > 0.5 * dd_first
+        for k in range(m - 9, m):
+            if (prog[k + 1] - prog[k]) <= (prog[k] - prog[k - 1]):
+                growing = False
+        if growing or runaway_check:
+            labels[L_STATUS] = STATUS_RUNAWAY
+            labels[L_REASON] = REASON_DRIFT if growing else REASON_PRECHECK
+            labels[L_DRIFT_ACC] = dd_last / (period * period)
+            return labels
+    # ---- recorded window, in two halves
+    n1 = n_win // 2
+    n2 = n_win - n1
+    ws = np.zeros((n_win, N_BOUNDED))
+    wmin = np.zeros((n_win, N_BOUNDED))
+    wmax = np.zeros((n_win, N_BOUNDED))
+    acc1 = np.zeros(N_ACC)
+    acc2 = np.zeros(N_ACC)
+    t_win = t
+    for i in range(hist_t.shape[0]):
+        hist_t[i] += t_win
+    ny = y.shape[0]
+    prog0 = _progress(t, y, z, ph_arr[0], p, obs, dy)
+    w0 = y[ny - 1]
+    ph_start = ph_arr[0]
+    acc1[6] = 1.0 if ph_start > 0 else 0.0
+    t = integrate_cycles(p, y, z, ph_arr, t, period, n1, s,
+                         atol, True, ws[0:n1], wmin[0:n1], wmax[0:n1], acc1,
+                         hist_t, hist_y, hist_obs, hist_ph, 1.0 if hist_t.shape[0] > 0 else 0.0, counters)
+    prog_mid = _progress(t, y, z, ph_arr[0], p, obs, dy)
+    w_mid = y[ny - 1]
+    if counters[3] != STATUS_FAILED:
+        acc2[5] = acc1[5]
+        acc2[6] = 1.0 if ph_arr[0] > 0 else 0.0
+        t = integrate_cycles(p, y, z, ph_arr, t, period, n2, s,
+                             atol, True, ws[n1:n_win], wmin[n1:n_win], wmax[n1:n_win], acc2,
+                             hist_t, hist_y, hist_obs, hist_ph, 1.0 if hist_t.shape[0] > 0 else 0.0, counters)
+    labels[L_STEPS] = counters[0]
+    labels[L_EVENTS] = counters[1]
+    if counters[3] == STATUS_FAILED:
+        labels[L_STATUS] = STATUS_FAILED
+        labels[L_REASON] = counters[4]
+        return labels
+    prog1 = _progress(t, y, z, ph_arr[0], p, obs, dy)
+    w1 = y[ny - 1]
+    t_w = n_win * period
+    # contact that spans a half boundary: acc2 carried its running max; count it once.
+    # (acc1's open contact continues in acc2 and is closed there.)
+    peak = max(acc1[0], acc2[0])
+    n_closed = acc1[2] + acc2[2]
+    sum_peaks = acc1[1] + acc2[1]
+    if ph_arr[0] > 0:
+        sum_peaks += acc2[5]
+        n_closed += 1.0
+    onsets = acc1[3] + acc2[3]
+    labels[L_ROP] = (prog1 - prog0) / t_w
+    labels[L_PEAK_F] = peak
+    labels[L_MEAN_PEAK_F] = sum_peaks / n_closed if n_closed > 0 else 0.0
+    labels[L_IMPACTS] = onsets / n_win
+    labels[L_DECEL] = max(acc1[4], acc2[4]) / G_ACCEL
+    labels[L_ENERGY] = (w1 - w0) / n_win
+    dprog = prog1 - prog0
+    labels[L_SPEC_E] = (w1 - w0) / dprog if dprog > 0.0 else np.inf
+    # period over the window
+    ranges = np.empty(N_BOUNDED)
+    for j in range(N_BOUNDED):
+        lo = wmin[0, j]
+        hi = wmax[0, j]
+        for k in range(n_win):
+            lo = min(lo, wmin[k, j])
+            hi = max(hi, wmax[k, j])
+        ranges[j] = hi - lo
+    per = periodicity(ws, ranges, s[S_PERIOD_TOL], n_win)
+    labels[L_PERIOD] = per
+    in_contact = acc1[6] > 0.0 or acc2[6] > 0.0 or peak > 0.0
+    if not in_contact:
+        labels[L_STATUS] = STATUS_NO_CONTACT
+        labels[L_ROP] = 0.0 if abs(labels[L_ROP]) < 1e-15 else labels[L_ROP]
+        return labels
+    if settled or per > 0:
+        labels[L_STATUS] = STATUS_OK
+        return labels
+    # non-periodic: steady if the two half-windows agree statistically
+    tol = s[S_STAT_TOL]
+    r1 = (prog_mid - prog0) / (n1 * period)
+    r2 = (prog1 - prog_mid) / (n2 * period)
+    i1 = acc1[3] / n1
+    i2 = acc2[3] / n2
+    fscale = max(acc1[0], acc2[0])
+    rscale = max(abs(r1), abs(r2))
+    steady = (_rel_close(r1, r2, tol, 1e-3 * rscale + 1e-12) and _rel_close(acc1[0], acc2[0], tol, 1e-9 * fscale)
+              and _rel_close(i1, i2, tol, 0.0)
+              and _rel_close(w_mid - w0, w1 - w_mid, tol, 1e-12))
+    if steady:
+        labels[L_STATUS] = STATUS_OK
+    else:
+        labels[L_STATUS] = STATUS_NOT_SETTLED
+        labels[L_REASON] = REASON_NOT_PERIODIC
+    return labels

@@ -1,0 +1,274 @@
+"""Public simulation API: ``simulate`` one point, ``simulate_batch`` many in parallel."""
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+import pandas as pd
+
+from sim import integrator as I
+from sim.compiled import kernels
+from sim.models.base import ModelSpec, ParameterError
+from sim.registry import get_model
+
+LABELS = ("rop_m_s", "peak_force_n", "mean_peak_force_n", "impacts_per_cycle", "period", "peak_decel_g",
+          "energy_per_cycle_j", "specific_energy_j_m")
+"""Numeric labels of MODELS.md §5 (plus ``status`` and ``reason``)."""
+
+DIAGNOSTICS = ("transient_cycles", "n_steps", "n_events")
+
+STATUS_NAMES = {I.STATUS_OK: "ok", I.STATUS_NO_CONTACT: "no_contact", I.STATUS_RUNAWAY: "runaway",
+                I.STATUS_NOT_SETTLED: "not_settled", I.STATUS_FAILED: "failed"}
+REASONS = {
+    I.REASON_NONE: "",
+    I.REASON_STEP_UNDERFLOW: "step size underflow (the integrator could not advance)",
+    I.REASON_TOO_MANY_STEPS: "too many steps in one forcing cycle (chattering or unresolved contact)",
+    I.REASON_NONFINITE: "non-finite state (the solution blew up)",
+    I.REASON_DRIFT: "centre of mass accelerates every cycle: no bounded steady state",
+    I.REASON_PRECHECK: "pre-check: static force exceeds the progression threshold",
+    I.REASON_NOT_PERIODIC: "no period <= 8 found and the two half-windows disagree: still transient at the cap",
+}
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Numerical settings of a run (all in forcing cycles unless stated).
+
+    rtol: relative tolerance of the DOPRI5 error control (absolute tolerances are set per
+    state from the model's scales ×1e-3 × rtol-equivalent).  min_transient / max_transient:
+    cycles discarded before the window (settlement is detected in between).  window:
+    recorded cycles.  period_tol: tolerance of the periodicity test relative to each
+    bounded coordinate's range.  event_tol: switch location tolerance as a fraction of
+    the period.  samples_per_cycle: history sampling when a history is requested.
+    """
+
+    rtol: float = 1e-8
+    min_transient: int = 20
+    max_transient: int = 400
+    window: int = 32
+    period_tol: float = 1e-3
+    settle_tol: float = 5e-4
+    max_steps_per_cycle: int = 200_000
+    event_tol: float = 1e-10
+    max_step_frac: float = 0.02
+    stat_tol: float = 0.05
+    samples_per_cycle: int = 400
+
+    def validate(self) -> "Settings":
+        checks = {
+            "rtol": 0 < self.rtol < 1, "min_transient": self.min_transient >= 0,
+            "max_transient": self.max_transient >= self.min_transient, "window": self.window >= 2,
+            "period_tol": self.period_tol > 0, "settle_tol": self.settle_tol > 0,
+            "max_steps_per_cycle": self.max_steps_per_cycle > 10, "event_tol": 0 < self.event_tol < 1e-3,
+            "max_step_frac": 0 < self.max_step_frac <= 1, "stat_tol": self.stat_tol > 0,
+            "samples_per_cycle": self.samples_per_cycle >= 2,
+        }
+        for name, ok in checks.items():
+            if not ok:
+                raise ParameterError(f"setting '{name}' has an invalid value {getattr(self, name)!r}")
+        return self
+
+    def to_array(self, runaway_check: bool = False) -> np.ndarray:
+        s = np.zeros(I.N_SETTINGS)
+        s[I.S_RTOL] = self.rtol
+        s[I.S_MIN_TRANSIENT] = self.min_transient
+        s[I.S_MAX_TRANSIENT] = self.max_transient
+        s[I.S_WINDOW] = self.window
+        s[I.S_PERIOD_TOL] = self.period_tol
+        s[I.S_SETTLE_TOL] = self.settle_tol
+        s[I.S_MAX_STEPS_PER_CYCLE] = self.max_steps_per_cycle
+        s[I.S_EVENT_TOL] = self.event_tol
+        s[I.S_MAX_STEP_FRAC] = self.max_step_frac
+        s[I.S_STAT_TOL] = self.stat_tol
+        s[I.S_RUNAWAY_CHECK] = 1.0 if runaway_check else 0.0
+        return s
+
+
+SETTING_NAMES = tuple(f for f in Settings.__dataclass_fields__)
+
+
+def make_settings(spec: ModelSpec, settings: Settings | dict | None) -> Settings:
+    base = Settings(**{k: v for k, v in spec.default_settings.items()})
+    if settings is None:
+        return base.validate()
+    if isinstance(settings, Settings):
+        return settings.validate()
+    unknown = set(settings) - set(SETTING_NAMES)
+    if unknown:
+        raise ParameterError(f"unknown setting(s) {sorted(unknown)}; known: {', '.join(SETTING_NAMES)}")
+    return replace(base, **settings).validate()
+
+
+@dataclass
+class SimulationResult:
+    """Labels of one run (MODELS.md §5) and, if requested, its time history."""
+
+    model: str
+    params: dict[str, float]
+    labels: dict
+    history: pd.DataFrame | None = None
+    settings: Settings = field(default_factory=Settings)
+    final_state: tuple | None = None   # (y, z, phase) at the end: pass as initial_state to continue
+
+    @property
+    def status(self) -> str:
+        return self.labels["status"]
+
+
+def _labels_from_vector(v: np.ndarray, precheck_msg: str | None) -> dict:
+    status_code = int(v[I.L_STATUS])
+    status = STATUS_NAMES[status_code]
+    reason = REASONS.get(int(v[I.L_REASON]), "")
+    if status == "runaway" and precheck_msg:
+        drift = v[I.L_DRIFT_ACC]
+        reason = precheck_msg + (f"; confirmed by the drift: the bit's progression accelerates at {drift:.3g} m/s^2"
+                                 if int(v[I.L_REASON]) == I.REASON_DRIFT else "")
+    out = {}
+    valid = status in ("ok", "no_contact", "not_settled")
+    for name, idx in zip(LABELS, (I.L_ROP, I.L_PEAK_F, I.L_MEAN_PEAK_F, I.L_IMPACTS, I.L_PERIOD, I.L_DECEL,
+                                  I.L_ENERGY, I.L_SPEC_E)):
+        val = float(v[idx])
+        if not valid or (math.isnan(val)):
+            out[name] = None
+        else:
+            out[name] = int(val) if name == "period" else val
+    out["status"] = status
+    out["reason"] = reason
+    out["transient_cycles"] = int(v[I.L_TRANSIENT])
+    out["n_steps"] = int(v[I.L_STEPS])
+    out["n_events"] = int(v[I.L_EVENTS])
+    return out
+
+
+def _prepare(spec: ModelSpec, values: dict[str, float], rtol: float):
+    """Kernel inputs: parameter vector, initial state, phase, period and absolute tolerances
+    (rtol × the model's typical magnitude of each state)."""
+    p = spec.vector(values)
+    y0, z0, ph0 = spec.initial(p)
+    period = 1.0 / values["frequency_hz"]
+    return p, y0, z0, int(ph0), period, rtol * np.asarray(spec.atol(p), dtype=np.float64)
+
+
+def _check_state(spec: ModelSpec, state) -> tuple[np.ndarray, np.ndarray, int]:
+    try:
+        y, z, ph = state
+        y = np.array(y, dtype=np.float64)
+        z = np.array(z, dtype=np.float64)
+        ph = int(ph)
+    except (TypeError, ValueError):
+        raise ParameterError("initial_state must be (y, z, phase) as returned in SimulationResult.final_state") from None
+    if y.shape != (len(spec.states),) or not np.all(np.isfinite(y)):
+        raise ParameterError(f"initial_state: y must hold {len(spec.states)} finite values ({', '.join(spec.states)})")
+    if z.shape != (max(len(spec.z_names), 1),) and z.shape != (len(spec.z_names),):
+        raise ParameterError(f"initial_state: z must hold the discrete states ({', '.join(spec.z_names) or 'none'})")
+    return y, (z if z.size else np.zeros(1)), ph
+
+
+def simulate(model: str, preset: str | None = None, settings: Settings | dict | None = None,
+             history: bool = False, initial_state=None, **params) -> SimulationResult:
+    """Simulate one parameter point of ``model`` to a labelled steady state.
+
+    ``params`` override the model defaults (after ``preset``) by name, e.g.
+    ``simulate("drill", preset="lab", frequency_hz=120, amplitude_n=800)``.
+    With ``history=True`` the recorded window is returned as a DataFrame sampled
+    uniformly (``settings.samples_per_cycle`` per cycle): time ``t_s``, every state,
+    the phase, contact force ``force_n``, acceleration ``accel_m_s2``, displacement
+    ``disp_m`` and velocity ``vel_m_s`` of the impacting mass and ``progression_m``.
+    ``initial_state`` = ``(y, z, phase)`` (e.g. a previous result's ``final_state``) starts
+    from that state instead of rest — used by continuation sweeps (bifurcation diagrams,
+    up/down frequency sweeps); time restarts at 0, i.e. at the same forcing phase as the
+    end of the previous run's last whole cycle.
+    """
+    spec = get_model(model)
+    values = spec.resolve(preset, **params)
+    st = make_settings(spec, settings)
+    p, y0, z0, ph0, period, atol = _prepare(spec, values, st.rtol)
+    msg = spec.precheck(p)
+    s = st.to_array(runaway_check=msg is not None)
+    if history:
+        n = st.window * st.samples_per_cycle
+        ht = np.arange(n) * (period / st.samples_per_cycle)
+    else:
+        n = 0
+        ht = np.empty(0)
+    hy = np.zeros((n, y0.shape[0]))
+    ho = np.zeros((n, I.N_OBS))
+    hp = np.zeros(n, dtype=np.int64)
+    if initial_state is not None:
+        y0, z0, ph0 = _check_state(spec, initial_state)
+    y, z, ph = y0.copy(), z0.copy(), np.array([ph0], dtype=np.int64)
+    run_one = kernels(spec.funcs, spec.n_bounded)
+    v = run_one(p, y, z, ph, period, s, atol, ht, hy, ho, hp)
+    labels = _labels_from_vector(v, msg)
+    hist = None
+    if history and labels["status"] not in ("runaway", "failed"):
+        hist = pd.DataFrame({"t_s": ht})
+        for i, name in enumerate(spec.states):
+            hist[name] = hy[:, i]
+        hist["phase"] = hp
+        for i, name in enumerate(("force_n", "accel_m_s2", "disp_m", "progression_m", "vel_m_s")):
+            hist[name] = ho[:, i]
+    res = SimulationResult(model=spec.name, params=values, labels=labels, history=hist, settings=st,
+                           final_state=(y, z, int(ph[0])))
+    if spec.postprocess is not None:
+        res = spec.postprocess(res)
+    return res
+
+
+def simulate_batch(model: str, table, preset: str | None = None, settings: Settings | dict | None = None,
+                   n_threads: int | None = None) -> pd.DataFrame:
+    """Simulate every row of ``table`` (DataFrame or list of dicts of parameter overrides) in parallel.
+
+    Returns a DataFrame: the full resolved parameters of each row, every label of MODELS.md §5,
+    ``status`` and ``reason``.  Rows are validated first; a bad value raises ParameterError naming
+    the row and the column, before anything runs.
+    """
+    spec = get_model(model)
+    df = pd.DataFrame(table).reset_index(drop=True)
+    st = make_settings(spec, settings)
+    rows, msgs = [], []
+    for i, rec in enumerate(df.to_dict("records")):
+        rec = {k: v for k, v in rec.items() if not (isinstance(v, float) and math.isnan(v) and k not in spec.param_names)}
+        try:
+            values = spec.resolve(preset, **rec)
+        except ParameterError as e:
+            raise ParameterError(f"row {i}: {e}") from None
+        rows.append(values)
+    if not rows:
+        return pd.DataFrame(columns=list(spec.param_names) + list(LABELS) + ["status", "reason"] + list(DIAGNOSTICS))
+    prepared = [_prepare(spec, v, st.rtol) for v in rows]
+    P = np.stack([x[0] for x in prepared])
+    Y0 = np.stack([x[1] for x in prepared])
+    Z0 = np.stack([x[2] for x in prepared])
+    PH0 = np.array([x[3] for x in prepared], dtype=np.int64)
+    periods = np.array([x[4] for x in prepared])
+    ATOL = np.stack([x[5] for x in prepared])
+    msgs = [spec.precheck(x[0]) for x in prepared]
+    flagged = np.array([m is not None for m in msgs])
+    out = np.empty((len(rows), I.N_LABELS))
+    run_one = kernels(spec.funcs, spec.n_bounded)
+    arrays = {flag: st.to_array(runaway_check=flag) for flag in (False, True)}
+    empty = (np.empty(0), np.empty((0, Y0.shape[1])), np.empty((0, I.N_OBS)), np.empty(0, dtype=np.int64))
+
+    def work(i: int) -> None:  # run_one releases the GIL: threads run on all cores
+        out[i] = run_one(P[i], Y0[i].copy(), Z0[i].copy(), PH0[i:i + 1].copy(), periods[i],
+                         arrays[bool(flagged[i])], ATOL[i], *empty)
+
+    workers = n_threads or os.cpu_count() or 1
+    if workers == 1 or len(rows) == 1:
+        for i in range(len(rows)):
+            work(i)
+    else:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            list(pool.map(work, range(len(rows))))
+    labels = [_labels_from_vector(out[i], msgs[i]) for i in range(len(rows))]
+    res = pd.concat([pd.DataFrame(rows), pd.DataFrame(labels)], axis=1)
+    for i, values in enumerate(rows):
+        if spec.needs_history(values):   # e.g. the sensor low-pass works on the time history
+            r = simulate(model, settings=st, **{k: v for k, v in values.items()})
+            for k, v in r.labels.items():
+                res.at[i, k] = v
+    return res

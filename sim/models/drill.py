@@ -1,0 +1,201 @@
+"""Three-mass vibro-impact drilling model with a drifting rock slider (MODELS.md §2).
+
+States y = [x1, v1, x2, v2, x3, v3, xt, xb, W] (bit, exciter, top mass, rock surface,
+slider base, excitation work).  Phases: 0 = I no contact, 1 = II contact without
+progression, 2 = III contact with progression (Pc = Pr).  In contact phases xt is
+integrated with ẋt = ẋ1 from xt = x1, so it equals x1 exactly.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from sim.models.base import ModelSpec, Param
+
+# parameter vector layout
+M1, M2, M3, K1, K2, K3, C1, C2, C3, PR, GAP, FS, F0, FREQ, GAMMA = range(15)
+NP = 15
+IX1, IV1, IX2, IV2, IX3, IV3, IXT, IXB, IW = range(9)
+NY = 9
+N_BOUNDED = 7
+
+
+@njit(cache=True, inline="always")
+def _pr_eff(y, p):
+    """Rock threshold, raised by tip blunting (MODELS.md §6 `tip_blunting`)."""
+    return p[PR] * (1.0 + p[GAMMA] * (y[IXB] - p[GAP]) / 1e-3)
+
+
+@njit(cache=True, inline="always")
+def _pc_expr(y, p):
+    return p[K1] * (y[IX1] - y[IXB]) + p[C1] * y[IV1]
+
+
+@njit(cache=True, inline="always")
+def _contact_force(y, ph, p):
+    if ph == 0:
+        return 0.0
+    if ph == 1:
+        return _pc_expr(y, p)
+    return _pr_eff(y, p)
+
+
+@njit(cache=True)
+def rhs(t, y, z, ph, p, dy):
+    om = 2.0 * math.pi * p[FREQ]
+    fh = p[F0] * math.cos(om * t)
+    x1, v1, x2, v2, x3, v3 = y[IX1], y[IV1], y[IX2], y[IV2], y[IX3], y[IV3]
+    pc = _contact_force(y, ph, p)
+    s12 = p[C2] * (v1 - v2) + p[K2] * (x1 - x2)
+    s23 = p[C3] * (v2 - v3) + p[K3] * (x2 - x3)
+    dy[IX1] = v1
+    dy[IV1] = (fh - s12 - pc) / p[M1]
+    dy[IX2] = v2
+    dy[IV2] = (p[FS] + s12 - s23) / p[M2]
+    dy[IX3] = v3
+    dy[IV3] = s23 / p[M3]
+    if ph == 0:
+        dy[IXT] = -(p[K1] / p[C1]) * (y[IXT] - y[IXB])
+        dy[IXB] = 0.0
+    elif ph == 1:
+        dy[IXT] = v1
+        dy[IXB] = 0.0
+    else:
+        dy[IXT] = v1
+        dy[IXB] = (_pc_expr(y, p) - _pr_eff(y, p)) / p[C1]
+    dy[IW] = fh * v1
+
+
+@njit(cache=True)
+def guards(t, y, z, ph, p, g):
+    for i in range(g.shape[0]):
+        g[i] = -1.0
+    if ph == 0:
+        g[0] = y[IX1] - y[IXT]                      # I -> II/III: bit reaches the rock surface
+    elif ph == 1:
+        pc = _pc_expr(y, p)
+        g[0] = -pc                                  # II -> I: contact force falls to zero
+        g[1] = pc - _pr_eff(y, p)                   # II -> III: force reaches the threshold
+    else:
+        g[0] = _pr_eff(y, p) - _pc_expr(y, p)       # III -> II: slider velocity falls to zero
+
+
+@njit(cache=True)
+def classify(y, p, ph):
+    """Phase the state belongs to (checked at the start of every segment)."""
+    if ph == 0 and y[IX1] < y[IXT]:
+        return 0
+    pc = _pc_expr(y, p)
+    if pc >= _pr_eff(y, p):
+        return 2
+    if pc > 0.0:
+        return 1
+    return 0
+
+
+@njit(cache=True)
+def on_event(t, y, z, ph, p, k):
+    if ph == 0:                      # onset: the bit meets the surface; II, or straight to III
+        y[IXT] = y[IX1]
+        return classify(y, p, 1)
+    if ph == 1 and k == 0:           # release: the surface relaxes from where the bit leaves it
+        y[IXT] = y[IX1]
+        return 0
+    return classify(y, p, ph)
+
+
+@njit(cache=True)
+def observe(t, y, z, ph, p, obs, dy):
+    rhs(t, y, z, ph, p, dy)
+    obs[0] = _contact_force(y, ph, p)
+    obs[1] = dy[IV1]
+    obs[2] = y[IX1]
+    obs[3] = y[IXB]
+    obs[4] = y[IV1]
+
+
+@njit(cache=True)
+def bounded(t, y, z, ph, p, b):
+    xb = y[IXB]
+    b[0] = y[IX1] - xb
+    b[1] = y[IX2] - xb
+    b[2] = y[IX3] - xb
+    b[3] = y[IXT] - xb
+    b[4] = y[IV1]
+    b[5] = y[IV2]
+    b[6] = y[IV3]
+
+
+def _initial(p: np.ndarray):
+    """Rest, springs unstretched, rock surface and slider at the gap; G = 0 starts touching."""
+    y = np.zeros(NY)
+    y[IXT] = p[GAP]
+    y[IXB] = p[GAP]
+    ph = int(classify(y, p, 1)) if p[GAP] <= 0.0 else 0
+    return y, np.zeros(1), ph
+
+
+def _precheck(p: np.ndarray) -> str | None:
+    if p[FS] >= p[PR]:
+        return (f"static force Fs = {p[FS]:g} N >= rock threshold Pr = {p[PR]:g} N: no bounded steady state, "
+                f"the string accelerates at about (Fs - Pr)/sum(M) = {(p[FS] - p[PR]) / (p[M1] + p[M2] + p[M3]):.3g} m/s^2")
+    return None
+
+
+def _atol(p: np.ndarray) -> np.ndarray:
+    xs = max(p[F0] + p[FS], 1.0) / p[K2]          # a deflection scale of the bit spring
+    om = 2.0 * math.pi * p[FREQ]
+    vs = xs * om
+    return np.array([xs, vs, xs, vs, xs, vs, xs, xs, max(p[F0], 1.0) * xs])
+
+
+PARAMS = (
+    Param("M1", 2.0, "kg", "drill-bit mass", positive=True),
+    Param("M2", 8.0, "kg", "exciter (RED module) mass", positive=True),
+    Param("M3", 20.0, "kg", "top mass / frame", positive=True),
+    Param("K1", 2e7, "N/m", "rock stiffness", positive=True),
+    Param("K2", 2e6, "N/m", "bit-exciter spring", positive=True),
+    Param("K3", 5e5, "N/m", "exciter-top spring", positive=True),
+    Param("C1", 5e3, "N s/m", "rock damping", positive=True),
+    Param("C2", 400.0, "N s/m", "bit-exciter damping", nonnegative=True),
+    Param("C3", 1000.0, "N s/m", "exciter-top damping", nonnegative=True),
+    Param("Pr", 1500.0, "N", "rock progression threshold (plastic limit of the slider)", positive=True),
+    Param("gap_m", 0.0, "m", "initial gap G between bit and rock", nonnegative=True),
+    Param("static_force_n", 700.0, "N", "static force Fs on M2 (gravity folded in)", nonnegative=True),
+    Param("amplitude_n", 1500.0, "N", "harmonic force amplitude F0 on M1 (F0 cos Ωt)", nonnegative=True),
+    Param("frequency_hz", 200.0, "Hz", "forcing frequency f", positive=True),
+    Param("gamma", 0.0, "-", "tip_blunting: Pr -> Pr (1 + γ (xb - G)/1 mm); 0 = off", nonnegative=True),
+)
+
+STATES = ("x1", "v1", "x2", "v2", "x3", "v3", "xt", "xb", "work")
+BOUNDED = ("x1-xb", "x2-xb", "x3-xb", "xt-xb", "v1", "v2", "v3")
+
+PRESETS = {
+    # Seed 003's own parameter table (MODELS.md §2): Fs = 1260 kN >= Pr = 95 kN, a runaway.
+    "seed-003": {"M1": 50142.0, "M2": 28054.5, "M3": 60790.3, "K1": 3.75e6, "K2": 701.4e3, "K3": 1095e3,
+                 "C1": 16697.4, "C2": 18753.0, "C3": 25800.0, "gap_m": 0.001, "Pr": 95e3,
+                 "static_force_n": 1260e3, "amplitude_n": 995e3, "frequency_hz": 0.1 / (2.0 * math.pi)},
+    # MODELS.md §2 starting point, kept for comparison with its independent solution (ROP ~ m/s: too fast).
+    "models-start": {},
+}
+
+SPEC = ModelSpec(
+    name="drill",
+    description="three-mass vibro-impact drilling with a drifting rock slider (MODELS.md §2)",
+    params=PARAMS,
+    states=STATES,
+    z_names=(),
+    bounded=BOUNDED,
+    funcs=(rhs, guards, on_event, observe, bounded),
+    n_bounded=N_BOUNDED,
+    initial=_initial,
+    atol=_atol,
+    precheck=_precheck,
+    effects={"tip_blunting": ("gamma",)},
+    presets=PRESETS,
+    impacting_mass="M1 (drill bit)",
+    progression="xb (rock slider base)",
+    default_settings={"min_transient": 20, "max_transient": 400, "window": 32},
+)

@@ -1,0 +1,344 @@
+"""Indenter rig: three masses, metal or sandstone sample (MODELS.md §1), with the §6 effects.
+
+States y = [x1, v1, x2, v2, x3, v3, Fem, W]: armature+indenter, shaker body, piston head,
+electromagnetic force (a state only with `shaker_coil`), excitation work.
+Discrete states z = [xp, xf] (sandstone crater floor and unloading end point).
+Phases: metal 0 free / 1 contact; sandstone 0 free / 1 loading / 2 unloading.
+
+Effects (MODELS.md §6; all off at their default 0):
+  shaker_coil (tau [s], beta [N s/m]), rate_stiffening (alpha [s/m]), guide_friction (mu [N]),
+  tip_blunting (gamma [-], sandstone), suspension_hardening (kappa [1/m^2]),
+  sensor_lowpass (fc [Hz]: applied to the recorded acceleration, see `_sensor_lowpass`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+from numba import njit
+
+from sim.models.base import ModelSpec, Param
+
+(M1, M2, M3, K2, C2, K3, C3, PM, GAP, FP, FA, FREQ, VEPS, K1, C1, KL, KU, NL, NU,
+ TAU, BETA, ALPHA, MU, GAMMA, KAPPA, FC) = range(26)
+IX1, IV1, IX2, IV2, IX3, IV3, IFEM, IW = range(8)
+NY = 8
+IXP, IXF = 0, 1
+N_BOUNDED = 4
+
+
+def air_damping(fa_n: float, f_hz: float) -> float:
+    """Equivalent air damping c3 [N s/m] of the pneumatic cylinder (seed Eq. 6 as restated
+    in MODELS.md §1: c3 = 78.6 π² Fa / f)."""
+    return 78.6 * math.pi ** 2 * fa_n / f_hz
+
+
+def pneumatic_force(p_bar: float, d_m: float) -> float:
+    """Pneumatic force Fp [N] = (101325/4) P π D² (seed Eq. 5)."""
+    return (101325.0 / 4.0) * p_bar * math.pi * d_m ** 2
+
+
+# ----------------------------------------------------------------------------- shared body
+@njit(cache=True, inline="always")
+def _sgn(v, veps):
+    return math.tanh(v / veps)
+
+
+@njit(cache=True, inline="always")
+def _fem(t, y, p):
+    if p[TAU] > 0.0:
+        return y[IFEM]
+    om = 2.0 * math.pi * p[FREQ]
+    return p[FA] * math.sin(om * t) - p[BETA] * (y[IV1] - y[IV2])
+
+
+@njit(cache=True, inline="always")
+def _body(t, y, p, fr, dy):
+    """Equations of motion given the sample's reaction fr on m1."""
+    om = 2.0 * math.pi * p[FREQ]
+    phi1 = y[IX1] - y[IX2]
+    dphi1 = y[IV1] - y[IV2]
+    phi2 = y[IX2] - y[IX3]
+    dphi2 = y[IV2] - y[IV3]
+    fem = _fem(t, y, p)
+    spring = p[K2] * phi1 * (1.0 + p[KAPPA] * phi1 * phi1)
+    guide = p[MU] * _sgn(dphi1, p[VEPS])
+    inner = p[C2] * dphi1 + spring + guide
+    dy[IX1] = y[IV1]
+    dy[IV1] = (fem - inner - fr) / p[M1]
+    dy[IX2] = y[IV2]
+    dy[IV2] = (-fem + inner - p[C3] * dphi2 - p[K3] * phi2) / p[M2]
+    dy[IX3] = y[IV3]
+    dy[IV3] = (p[FP] + p[C3] * dphi2 + p[K3] * phi2 - p[PM] * _sgn(y[IV2], p[VEPS])) / p[M3]
+    if p[TAU] > 0.0:
+        dy[IFEM] = (p[FA] * math.sin(om * t) - p[BETA] * dphi1 - y[IFEM]) / p[TAU]
+    else:
+        dy[IFEM] = 0.0
+    dy[IW] = fem * dphi1
+
+
+@njit(cache=True, inline="always")
+def _stiff_factor(v1, p):
+    """rate_stiffening: k -> k (1 + α max(δ̇, 0))."""
+    return 1.0 + p[ALPHA] * max(v1, 0.0)
+
+
+# ----------------------------------------------------------------------------- metal sample
+@njit(cache=True, inline="always")
+def _metal_expr(y, p):
+    return p[K1] * _stiff_factor(y[IV1], p) * (y[IX1] - p[GAP]) + p[C1] * y[IV1]
+
+
+@njit(cache=True)
+def metal_rhs(t, y, z, ph, p, dy):
+    fr = _metal_expr(y, p) if ph > 0 else 0.0
+    _body(t, y, p, fr, dy)
+
+
+@njit(cache=True)
+def metal_guards(t, y, z, ph, p, g):
+    for i in range(g.shape[0]):
+        g[i] = -1.0
+    # contact iff x1 >= G and force expression > 0: both are switching surfaces
+    ind = min(y[IX1] - p[GAP], _metal_expr(y, p) * 1e-7)
+    g[0] = ind if ph == 0 else -ind
+
+
+@njit(cache=True)
+def metal_on_event(t, y, z, ph, p, k):
+    return 1 if (y[IX1] >= p[GAP] and _metal_expr(y, p) > 0.0) else 0
+
+
+@njit(cache=True)
+def metal_observe(t, y, z, ph, p, obs, dy):
+    metal_rhs(t, y, z, ph, p, dy)
+    obs[0] = max(_metal_expr(y, p), 0.0) if ph > 0 else 0.0
+    obs[1] = dy[IV1]
+    obs[2] = y[IX1]
+    obs[3] = 0.0
+    obs[4] = y[IV1]
+
+
+@njit(cache=True)
+def metal_bounded(t, y, z, ph, p, b):
+    b[0] = y[IX1]
+    b[1] = y[IV1]
+    b[2] = y[IX2]
+    b[3] = y[IV2]
+
+
+# ----------------------------------------------------------------------------- sandstone sample
+@njit(cache=True, inline="always")
+def _blunt(z, p):
+    """tip_blunting: kl, ku -> (1 + γ xp / 1 mm); uses the crater floor at the current impact's start."""
+    return 1.0 + p[GAMMA] * z[IXP] / 1e-3
+
+
+@njit(cache=True, inline="always")
+def _load_force(y, z, p):
+    phi3 = max(y[IX1] - p[GAP] - z[IXP], 0.0)
+    return p[KL] * _blunt(z, p) * _stiff_factor(y[IV1], p) * phi3 ** p[NL]
+
+
+@njit(cache=True, inline="always")
+def _unload_force(y, z, p):
+    phi4 = max(y[IX1] - p[GAP] - z[IXF], 0.0)
+    return p[KU] * _blunt(z, p) * _stiff_factor(y[IV1], p) * phi4 ** p[NU]
+
+
+@njit(cache=True, inline="always")
+def _sand_force(y, z, ph, p):
+    if ph == 1:
+        return _load_force(y, z, p)
+    if ph == 2:
+        return _unload_force(y, z, p)
+    return 0.0
+
+
+@njit(cache=True, inline="always")
+def _xp_unloading(y, z, p):
+    """Crater floor that keeps the loading branch through the current (depth, force) point."""
+    f = _unload_force(y, z, p)
+    kl = p[KL] * _blunt(z, p) * _stiff_factor(y[IV1], p)
+    return y[IX1] - p[GAP] - (f / kl) ** (1.0 / p[NL])
+
+
+@njit(cache=True)
+def sand_rhs(t, y, z, ph, p, dy):
+    _body(t, y, p, _sand_force(y, z, ph, p), dy)
+
+
+@njit(cache=True)
+def sand_guards(t, y, z, ph, p, g):
+    for i in range(g.shape[0]):
+        g[i] = -1.0
+    if ph == 0:
+        g[0] = y[IX1] - p[GAP] - z[IXP]            # reaches the crater floor
+    elif ph == 1:
+        g[0] = -y[IV1]                              # loading -> unloading (velocity reverses)
+        g[1] = -(y[IX1] - p[GAP] - z[IXP])          # safety: leaves the floor
+    else:
+        g[0] = -(y[IX1] - p[GAP] - z[IXF])          # unloading ends: no contact, xp = xf
+        g[1] = y[IV1]                               # unloading -> loading (reloads)
+
+
+@njit(cache=True)
+def sand_on_event(t, y, z, ph, p, k):
+    if ph == 0:
+        return 1 if y[IV1] >= 0.0 else 0
+    if ph == 1:
+        if k == 0:   # reversal: fix the end point of the unloading branch
+            f = _load_force(y, z, p)
+            ku = p[KU] * _blunt(z, p) * _stiff_factor(y[IV1], p)
+            z[IXF] = y[IX1] - p[GAP] - (f / ku) ** (1.0 / p[NU])
+            return 2
+        return 0
+    if k == 0:       # fully unloaded: the crater floor has moved to xf
+        z[IXP] = z[IXF]
+        return 0
+    z[IXP] = _xp_unloading(y, z, p)
+    return 1
+
+
+@njit(cache=True)
+def sand_observe(t, y, z, ph, p, obs, dy):
+    sand_rhs(t, y, z, ph, p, dy)
+    obs[0] = _sand_force(y, z, ph, p)
+    obs[1] = dy[IV1]
+    obs[2] = y[IX1]
+    obs[3] = _xp_unloading(y, z, p) if ph == 2 else z[IXP]
+    obs[4] = y[IV1]
+
+
+@njit(cache=True)
+def sand_bounded(t, y, z, ph, p, b):
+    xp = _xp_unloading(y, z, p) if ph == 2 else z[IXP]
+    b[0] = y[IX1] - xp
+    b[1] = y[IV1]
+    b[2] = y[IX2] - xp
+    b[3] = y[IV2]
+
+
+# ----------------------------------------------------------------------------- parameters
+def _initial(p: np.ndarray):
+    """Rest, springs unstretched, x = 0 (the assembly drifts forward under Fp to the sample)."""
+    return np.zeros(NY), np.zeros(2), 0   # with G = 0 the first step's guard catches the touch
+
+
+def _atol(p: np.ndarray) -> np.ndarray:
+    xs = max(p[GAP], 1e-4)
+    om = 2.0 * math.pi * p[FREQ]
+    return np.array([xs, xs * om, xs, xs * om, xs, xs * om, max(p[FA], 1.0), max(p[FA], 1.0) * xs])
+
+
+COMMON = (
+    Param("m1", 3.46, "kg", "armature + load cell + indenter", positive=True),
+    Param("m2", 60.0, "kg", "shaker body on carriages", positive=True),
+    Param("m3", 0.5, "kg", "pneumatic piston head", positive=True),
+    Param("k2", 2.30e5, "N/m", "armature suspension stiffness", positive=True),
+    Param("c2", 2.30e3, "N s/m", "armature suspension damping", nonnegative=True),
+    Param("k3", 2.0e4, "N/m", "air spring of the piston", positive=True),
+    Param("c3", None, "N s/m", "air damping; default 78.6 π² Fa / f (sim.models.indenter.air_damping)", nonnegative=True),
+    Param("pm", 20.0, "N", "seal friction, Coulomb on the shaker body's velocity", nonnegative=True),
+    Param("gap_m", 1e-3, "m", "initial gap G between indenter and sample", nonnegative=True),
+    Param("static_force_n", None, "N", "pneumatic force Fp; default (101325/4) P π D²", nonnegative=True),
+    Param("amplitude_n", 440.0, "N", "electromagnetic force amplitude Fa (Fa sin Ωt)", nonnegative=True),
+    Param("frequency_hz", 60.0, "Hz", "forcing frequency f", positive=True),
+    Param("v_eps", 1e-4, "m/s", "tanh regularisation speed of the Coulomb terms", positive=True),
+    Param("k1", 1.0e7, "N/m", "metal contact stiffness", positive=True),
+    Param("c1", 300.0, "N s/m", "metal contact damping", nonnegative=True),
+    Param("kl", 5.0e6, "N/m^nl", "sandstone loading stiffness", positive=True),
+    Param("ku", 2.0e7, "N/m^nu", "sandstone unloading stiffness", positive=True),
+    Param("nl", 1.0, "-", "sandstone loading exponent", positive=True),
+    Param("nu", 1.0, "-", "sandstone unloading exponent", positive=True),
+    Param("tau", 0.0, "s", "shaker_coil: electrical time constant L/R (0 with beta=0: ideal force source)", nonnegative=True),
+    Param("beta", 0.0, "N s/m", "shaker_coil: back-EMF damping (Bl)^2/R", nonnegative=True),
+    Param("alpha", 0.0, "s/m", "rate_stiffening: k -> k (1 + α max(δ̇,0))", nonnegative=True),
+    Param("mu", 0.0, "N", "guide_friction: Coulomb friction on the armature guides", nonnegative=True),
+    Param("gamma", 0.0, "-", "tip_blunting (sandstone): kl, ku -> (1 + γ xp / 1 mm)", nonnegative=True),
+    Param("kappa", 0.0, "1/m^2", "suspension_hardening: k2 φ1 -> k2 φ1 (1 + κ φ1²)", nonnegative=True),
+    Param("fc", 0.0, "Hz", "sensor_lowpass: accelerometer bandwidth (2nd-order Butterworth); 0 = ideal", nonnegative=True),
+    Param("P", 1.0, "bar", "pneumatic pressure", positive=True),
+    Param("D", 0.05, "m", "piston diameter", positive=True),
+)
+# The kernel's parameter vector is the first 26 entries; P and D only feed static_force_n.
+
+
+def _derive(values: dict) -> dict:
+    v = dict(values)
+    if v.get("c3") is None:
+        v["c3"] = air_damping(v["amplitude_n"], v["frequency_hz"])
+    if v.get("static_force_n") is None:
+        v["static_force_n"] = pneumatic_force(v["P"], v["D"])
+    return v
+
+
+def _sensor_lowpass(res):
+    """MODELS.md §6 `sensor_lowpass`: the measured acceleration is a 2nd-order Butterworth
+    low-pass (fc) of the true one.  Needs the time history: peak_decel_g is recomputed
+    from the filtered signal (filter run over the whole recorded window, steady state
+    assumed: the window is prepended with itself to remove the filter's start-up)."""
+    fc = res.params.get("fc", 0.0)
+    if not fc or res.labels["status"] in ("runaway", "failed"):
+        return res
+    from scipy.signal import butter, sosfilt
+
+    from sim.api import simulate
+    hist = res.history
+    if hist is None:
+        settings = replace(res.settings, samples_per_cycle=max(res.settings.samples_per_cycle, 400))
+        params = {k: v for k, v in res.params.items() if k not in ("P", "D")}
+        full = simulate(res.model, settings=settings, history=True, **{**params, "fc": 0.0})
+        hist = full.history
+    fs = 1.0 / float(hist["t_s"].iloc[1] - hist["t_s"].iloc[0])
+    if fc >= 0.5 * fs:
+        return res
+    sos = butter(2, fc, btype="low", fs=fs, output="sos")
+    a = hist["accel_m_s2"].to_numpy()
+    filt = sosfilt(sos, np.concatenate([a, a]))[a.size:]
+    res.labels["peak_decel_g"] = float(max(-filt.min(), 0.0) / 9.81)
+    if res.history is not None:
+        res.history["accel_true_m_s2"] = a
+        res.history["accel_m_s2"] = filt
+    return res
+
+
+def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effects: dict, progression: str) -> ModelSpec:
+    return ModelSpec(
+        name=name,
+        description=f"indenter rig, {name.split('-')[1]} sample (MODELS.md §1)",
+        params=COMMON,
+        states=("x1", "v1", "x2", "v2", "x3", "v3", "fem", "work"),
+        z_names=z,
+        bounded=bounded,
+        funcs=funcs,
+        n_bounded=N_BOUNDED,
+        initial=_initial,
+        atol=_atol,
+        effects=effects,
+        impacting_mass="m1 (armature + indenter)",
+        progression=progression,
+        presets=presets,
+        derive=_derive,
+        default_settings={"min_transient": 40, "max_transient": 600, "window": 16, "max_step_frac": 0.01},
+        postprocess=_sensor_lowpass,
+        needs_history=lambda values: values.get("fc", 0.0) > 0.0,
+    )
+
+
+TABLE1 = {30: 220.0, 40: 300.0, 50: 370.0, 60: 440.0, 70: 540.0, 80: 650.0, 90: 840.0, 100: 900.0}
+"""Seed 000 Table 1: forcing amplitude Fa [N] used at each frequency [Hz]."""
+
+_PRESETS = {f"table1-{f}hz": {"frequency_hz": float(f), "amplitude_n": fa} for f, fa in TABLE1.items()}
+_COMMON_EFFECTS = {"shaker_coil": ("tau", "beta"), "rate_stiffening": ("alpha",), "guide_friction": ("mu",),
+                   "suspension_hardening": ("kappa",), "sensor_lowpass": ("fc",)}
+
+SPECS = {
+    "indenter-metal": _spec("indenter-metal", (metal_rhs, metal_guards, metal_on_event, metal_observe, metal_bounded),
+                            (), ("x1", "v1", "x2", "v2"), _PRESETS, _COMMON_EFFECTS, "none (metal does not progress)"),
+    "indenter-sandstone": _spec("indenter-sandstone",
+                                (sand_rhs, sand_guards, sand_on_event, sand_observe, sand_bounded),
+                                ("xp", "xf"), ("x1-xp", "v1", "x2-xp", "v2"), _PRESETS,
+                                {**_COMMON_EFFECTS, "tip_blunting": ("gamma",)}, "xp (crater floor)"),
+}

@@ -1,0 +1,29 @@
+"""Name → model lookup.  Models register by module; import is lazy to keep start-up fast."""
+from __future__ import annotations
+
+import importlib
+
+from sim.models.base import ModelSpec, ParameterError
+
+_MODULES = {
+    "drill": "sim.models.drill",
+    "indenter-metal": "sim.models.indenter",
+    "indenter-sandstone": "sim.models.indenter",
+    "pendulum": "sim.models.pendulum",
+    "rimd": "sim.models.rimd",
+}
+
+
+def model_names() -> tuple[str, ...]:
+    return tuple(_MODULES)
+
+
+def get_model(name: str) -> ModelSpec:
+    """The ModelSpec of ``name`` (ParameterError naming the known models otherwise)."""
+    if name not in _MODULES:
+        raise ParameterError(f"unknown model '{name}'; known models: {', '.join(_MODULES)}")
+    mod = importlib.import_module(_MODULES[name])
+    specs = getattr(mod, "SPECS", None)
+    if specs is not None:
+        return specs[name]
+    return mod.SPEC

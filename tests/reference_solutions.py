@@ -1,0 +1,941 @@
+"""Independent high-accuracy reference solutions of the vibro-impact models of MODELS.md (sections 1-5).
+
+Pure numpy/scipy.  Deliberately shares NO code with the fast simulator in ``sim/``: it is the yardstick
+the simulator is validated and benchmarked against.
+
+Method
+------
+* Every smooth branch (free flight, contact, progression, loading, unloading, ...) is integrated with a
+  scipy.integrate solver class (``method``, ``rtol`` as given: the steppers solve_ivp uses) driven step by
+  step, with terminal event functions for every switching surface of that branch (with crossing
+  direction).  Events are searched on the dense output of every step at 16 sub-intervals, and local
+  extrema of an event function near 0 are refined, so a surface crossed twice inside one step (which
+  solve_ivp, comparing signs at step ends only, misses) is still found; roots by brentq on the
+  interpolant.  Each event ends the segment; the next
+  segment restarts on the branch decided from the state (``classify``) -- never from "which event fired"
+  alone -- so an immediate exit or a very short visit is not missed.
+* Switching surfaces carry a tiny hysteresis ``eta`` (1e-13 m for positions, 1e-10*Pr for the drill force,
+  1e-12 m/s for velocities): the entry surface of a branch is ``h = g - eta`` and the exit surface
+  ``h = g + eta``.  A segment that starts *on* a surface (|g| <= eta) is put on the side the flow moves to
+  (sign of dg/dt, computed analytically); if even that is ambiguous (grazing, or an equilibrium lying
+  exactly on the surface) the non-contact side is taken and an entry is then caught as soon as g exceeds
+  eta.  So a segment never starts on its own triggering side: no zero-length event loops, and an
+  equilibrium on a surface (e.g. RIMD with F0 = 0 and gap 0) does not fire events forever.  The location
+  error this introduces is eta / |dg/dt| (~1e-12 s), far below any contact duration.
+* Integration runs cycle by cycle in *local* cycle time tau in [0, T) (all forcings are T-periodic), which
+  keeps the time resolution of event location at ~1e-16*T however long the run; every cycle boundary is
+  a segment end, giving exact stroboscopic samples.
+* Contact-force maxima and the largest deceleration are found on the dense output: 200 samples per
+  contact segment (about 200 per cycle, min 16, in free segments), then the best sample is refined with a
+  bounded Brent search on the interpolant.
+* The excitation work W is an extra ODE state.
+
+Tolerances
+----------
+``atol_i = rtol * atol_scale * s_i`` with ``s_i`` = 1 for a position in metres (so positions are "atol_scale
+metres" typical, 1 mm by default), Omega for a velocity (1 mm * Omega: ~0.4-2.5 m/s for these models),
+1/l for the pendulum angle, Omega/l for its rate, and a force scale (F0, Fa, Fs, Pr ... whichever is
+largest, N) for the work state W.  ``max_step = max_step_fraction * T`` (default T/20) so that a low-order
+baseline (e.g. method="RK45", rtol=1e-6) cannot stride over the forcing.
+
+Public entry point: :func:`reference_run`.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolution, Radau
+from scipy.optimize import brentq, minimize_scalar
+
+G_ACC = 9.81              # g used to express decelerations in g
+ETA_X = 1e-13             # hysteresis on position-like switching functions [m]
+ETA_V = 1e-12             # hysteresis on velocity switching functions [m/s]
+N_CONTACT_SAMPLES = 200   # dense-output samples per contact segment
+N_FREE_PER_CYCLE = 200    # dense-output samples per cycle in non-contact segments (min 16 per segment)
+
+MODELS = ("drill", "indenter-metal", "indenter-sandstone", "pendulum", "rimd")
+
+
+def _req(params: dict, names, model: str) -> dict:
+    missing = [n for n in names if n not in params]
+    if missing:
+        raise KeyError(f"reference_run({model!r}): missing parameter(s) {missing}")
+    return {n: float(params[n]) for n in names}
+
+
+# =====================================================================================================
+# Model definitions.  Conventions:
+#   * t is the local time in the current forcing cycle; forcing is periodic in T.
+#   * rhs(t, y, br, disc) -> list (scalar, hot path)
+#   * vectorised post-processing: force / accel / disp / progression / bounded with t (N,), Y (n, N)
+#   * classify(t, y, disc) -> (branch, y, disc) decides the branch at the start of every segment
+#   * events(br, disc) -> list of (function, direction, ) (terminal)
+#   * on_segment_end / on_event update the discrete state disc
+# =====================================================================================================
+class _Model:
+    name = ""
+    bounded_names: tuple = ()
+    contact_branches: tuple = (1,)
+
+    def __init__(self, p: dict):
+        self.p = p
+        self.f = p["frequency_hz"]
+        if not self.f > 0:
+            raise ValueError("frequency_hz must be > 0")
+        self.T = 1.0 / self.f
+        self.Om = 2.0 * math.pi * self.f
+
+    # defaults ------------------------------------------------------------------------------------
+    def is_contact(self, br) -> bool:
+        return br in self.contact_branches
+
+    def on_segment_end(self, br, t, y, disc):
+        return disc
+
+    def on_event(self, br, idx, t, y, disc):
+        return y, disc
+
+    def progression_scalar(self, y, disc) -> float:
+        return 0.0
+
+    def progression(self, t, Y, br, disc):
+        return np.zeros_like(t)
+
+    def atol(self, rtol, atol_scale):
+        return rtol * atol_scale * np.asarray(self.scales, dtype=float)
+
+
+class _TwoIndicatorModel(_Model):
+    """Two-branch model (0 = free, 1 = contact) whose contact set is {g1 >= 0 and g2 > 0}.
+
+    g = min(g1, g2) is continuous; entry = g rising through +eta, exit = g falling through -eta.
+    Subclasses give indicators(t, y) -> (g1, g2) and free-flow rates(t, y) -> (dg1/dt, dg2/dt)
+    (on the boundary the contact force is zero, or about to jump up, so the free flow decides).
+    """
+
+    eta = ETA_X
+
+    def classify(self, t, y, disc):
+        g1, g2 = self.indicators(t, y)
+        g = min(g1, g2)
+        if g > self.eta:
+            return 1, y, disc
+        if g < -self.eta:
+            return 0, y, disc
+        r1, r2 = self.rates(t, y)
+        active = [r for gi, r in ((g1, r1), (g2, r2)) if gi <= self.eta]
+        return (1 if min(active) > 0.0 else 0), y, disc
+
+    def events(self, br, disc):
+        eta = self.eta
+        ind = self.indicators
+        if br == 0:
+            def enter(t, y):
+                a, b = ind(t, y)
+                return np.minimum(a, b) - eta
+            return [(enter, 1.0)]
+
+        def leave(t, y):
+            a, b = ind(t, y)
+            return np.minimum(a, b) + eta
+        return [(leave, -1.0)]
+
+
+# ---------------------------------------------------------------------------------------------------
+# 2. drill
+# ---------------------------------------------------------------------------------------------------
+class _Drill(_Model):
+    name = "drill"
+    # phases: 0 = I (no contact), 1 = II (contact, no progression), 2 = III (contact with progression)
+    contact_branches = (1, 2)
+    bounded_names = ("x1-xb", "x2-xb", "x3-xb", "xt-xb", "v1", "v2", "v3")
+    PARAMS = ("M1", "M2", "M3", "K1", "K2", "K3", "C1", "C2", "C3", "Pr",
+              "gap_m", "static_force_n", "amplitude_n", "frequency_hz")
+
+    def __init__(self, params):
+        p = _req(params, self.PARAMS, self.name)
+        super().__init__(p)
+        self.G, self.Fs, self.F0 = p["gap_m"], p["static_force_n"], p["amplitude_n"]
+        fsc = max(abs(self.F0), abs(self.Fs), p["Pr"], 1.0)
+        # state [x1, v1, x2, v2, x3, v3, xt, xb, W]
+        self.scales = [1, self.Om, 1, self.Om, 1, self.Om, 1, 1, fsc]
+        self.etaP = 1e-10 * max(p["Pr"], 1.0)
+        self.bscales = np.array([1, 1, 1, 1, self.Om, self.Om, self.Om])
+
+    def initial(self):
+        G = self.G
+        return np.array([0, 0, 0, 0, 0, 0, G, G, 0.0]), None
+
+    def rhs(self, t, y, br, disc):
+        p = self.p
+        x1, v1, x2, v2, x3, v3, xt, xb, _ = y
+        K1, C1, Pr = p["K1"], p["C1"], p["Pr"]
+        if br == 0:
+            Pc = 0.0
+            dxt = -(K1 / C1) * (xt - xb)
+            dxb = 0.0
+        elif br == 1:
+            Pc = K1 * (x1 - xb) + C1 * v1
+            dxt = v1
+            dxb = 0.0
+        else:
+            Pc = Pr
+            dxt = v1
+            dxb = v1 + (K1 / C1) * (x1 - xb) - Pr / C1
+        F = self.F0 * math.cos(self.Om * t)
+        a1 = (F - p["C2"] * (v1 - v2) - p["K2"] * (x1 - x2) - Pc) / p["M1"]
+        a2 = (self.Fs - p["C2"] * (v2 - v1) - p["K2"] * (x2 - x1)
+              - p["C3"] * (v2 - v3) - p["K3"] * (x2 - x3)) / p["M2"]
+        a3 = (-p["C3"] * (v3 - v2) - p["K3"] * (x3 - x2)) / p["M3"]
+        return [v1, a1, v2, a2, v3, a3, dxt, dxb, F * v1]
+
+    def _a1(self, t, y, Pc):
+        p = self.p
+        return (self.F0 * math.cos(self.Om * t) - p["C2"] * (y[1] - y[3])
+                - p["K2"] * (y[0] - y[2]) - Pc) / p["M1"]
+
+    def classify(self, t, y, disc):
+        p = self.p
+        K1, C1, Pr = p["K1"], p["C1"], p["Pr"]
+        x1, v1, xt, xb = y[0], y[1], y[6], y[7]
+        d = x1 - xt
+        if d < -ETA_X:
+            return 0, y, disc
+        # at (or beyond) the plate: d(x1 - xt)/dt in phase I equals P/C1, so P decides
+        P = K1 * (x1 - xb) + C1 * v1
+        eP = self.etaP
+        if P > Pr + eP:
+            br = 2
+        elif P >= Pr - eP:                     # on the II/III surface: where does P go?
+            Pdot = K1 * v1 + C1 * self._a1(t, y, Pr)
+            br = 2 if Pdot > 0.0 else 1
+        elif P > eP:
+            br = 1
+        elif P >= -eP:                         # on the I/II surface
+            Pdot = K1 * v1 + C1 * self._a1(t, y, 0.0)
+            br = 1 if Pdot > 0.0 else 0
+        else:
+            br = 0
+        if br != 0:
+            y = y.copy()
+            y[6] = x1          # plate rides on the bit
+        return br, y, disc
+
+    def events(self, br, disc):
+        p = self.p
+        K1, C1, Pr, eP = p["K1"], p["C1"], p["Pr"], self.etaP
+        if br == 0:
+            return [(lambda t, y: y[0] - y[6] - ETA_X, 1.0)]
+        if br == 1:
+            return [(lambda t, y: K1 * (y[0] - y[7]) + C1 * y[1] + eP, -1.0),        # -> I
+                    (lambda t, y: K1 * (y[0] - y[7]) + C1 * y[1] - Pr - eP, 1.0)]    # -> III
+        return [(lambda t, y: K1 * (y[0] - y[7]) + C1 * y[1] - Pr + eP, -1.0)]       # -> II
+
+    def on_event(self, br, idx, t, y, disc):
+        if br != 0:
+            y = y.copy()
+            y[6] = y[0]
+        return y, disc
+
+    # vectorised ------------------------------------------------------------------------------------
+    def force(self, t, Y, br, disc):
+        p = self.p
+        if br == 0:
+            return np.zeros_like(t)
+        if br == 1:
+            return np.maximum(p["K1"] * (Y[0] - Y[7]) + p["C1"] * Y[1], 0.0)
+        return np.full_like(t, p["Pr"])
+
+    def accel(self, t, Y, br, disc):
+        p = self.p
+        if br == 0:
+            Pc = 0.0
+        elif br == 1:
+            Pc = p["K1"] * (Y[0] - Y[7]) + p["C1"] * Y[1]
+        else:
+            Pc = p["Pr"]
+        return (self.F0 * np.cos(self.Om * t) - p["C2"] * (Y[1] - Y[3])
+                - p["K2"] * (Y[0] - Y[2]) - Pc) / p["M1"]
+
+    def disp(self, t, Y, br, disc):
+        return Y[0]
+
+    def progression(self, t, Y, br, disc):
+        return Y[7]
+
+    def progression_scalar(self, y, disc):
+        return float(y[7])
+
+    def bounded(self, t, Y, br, disc):
+        xb = Y[7]
+        return np.array([Y[0] - xb, Y[2] - xb, Y[4] - xb, Y[6] - xb, Y[1], Y[3], Y[5]])
+
+
+# ---------------------------------------------------------------------------------------------------
+# 1. indenter (shared part)
+# ---------------------------------------------------------------------------------------------------
+class _IndenterBase(_Model):
+    COMMON = ("m1", "m2", "m3", "k2", "c2", "k3", "c3", "pm",
+              "gap_m", "static_force_n", "amplitude_n", "frequency_hz")
+
+    def _setup(self, params, extra):
+        params = dict(params)
+        params.setdefault("v_eps", 1e-4)
+        p = _req(params, self.COMMON + ("v_eps",) + extra, self.name)
+        _Model.__init__(self, p)
+        self.G, self.Fp, self.Fa = p["gap_m"], p["static_force_n"], p["amplitude_n"]
+        fsc = max(abs(self.Fa), abs(self.Fp), 1.0)
+        # state [x1, v1, x2, v2, x3, v3, W]
+        self.scales = [1, self.Om, 1, self.Om, 1, self.Om, fsc]
+
+    def initial(self):
+        return np.zeros(7), self._disc0()
+
+    def _disc0(self):
+        return None
+
+    def _body(self, t, y, Fr):
+        """Accelerations and work rate for a given contact force Fr (scalar path)."""
+        p = self.p
+        x1, v1, x2, v2, x3, v3 = y[0], y[1], y[2], y[3], y[4], y[5]
+        Fem = self.Fa * math.sin(self.Om * t)
+        f1 = p["c2"] * (v1 - v2) + p["k2"] * (x1 - x2)
+        f2 = p["c3"] * (v2 - v3) + p["k3"] * (x2 - x3)
+        a1 = (Fem - f1 - Fr) / p["m1"]
+        a2 = (-Fem + f1 - f2) / p["m2"]
+        a3 = (self.Fp + f2 - p["pm"] * math.tanh(v2 / p["v_eps"])) / p["m3"]
+        return [v1, a1, v2, a2, v3, a3, Fem * (v1 - v2)]
+
+    def _a1_vec(self, t, Y, Fr):
+        p = self.p
+        Fem = self.Fa * np.sin(self.Om * t)
+        return (Fem - p["c2"] * (Y[1] - Y[3]) - p["k2"] * (Y[0] - Y[2]) - Fr) / p["m1"]
+
+    def disp(self, t, Y, br, disc):
+        return Y[0]
+
+
+class _IndenterMetal(_TwoIndicatorModel, _IndenterBase):
+    name = "indenter-metal"
+    bounded_names = ("x1", "v1", "x2", "v2")
+
+    def __init__(self, params):
+        self._setup(params, ("k1", "c1"))
+        self.tau = self.p["c1"] / self.p["k1"]
+        self.bscales = np.array([1, self.Om, 1, self.Om])
+
+    def _Fr(self, y):
+        return max(0.0, self.p["k1"] * (y[0] - self.G) + self.p["c1"] * y[1])
+
+    def rhs(self, t, y, br, disc):
+        return self._body(t, y, self._Fr(y) if br == 1 else 0.0)
+
+    def indicators(self, t, y):
+        d = y[0] - self.G
+        return d, d + self.tau * y[1]
+
+    def rates(self, t, y):
+        a1 = self._body(t, y, 0.0)[1]
+        return y[1], y[1] + self.tau * a1
+
+    def force(self, t, Y, br, disc):
+        if br == 0:
+            return np.zeros_like(t)
+        return np.maximum(self.p["k1"] * (Y[0] - self.G) + self.p["c1"] * Y[1], 0.0)
+
+    def accel(self, t, Y, br, disc):
+        return self._a1_vec(t, Y, self.force(t, Y, br, disc))
+
+    def bounded(self, t, Y, br, disc):
+        return np.array([Y[0], Y[1], Y[2], Y[3]])
+
+
+class _IndenterSandstone(_IndenterBase):
+    """Branches: 0 free, 1 loading, 2 unloading.  disc = (xp, xf), kept current at every segment end."""
+    name = "indenter-sandstone"
+    contact_branches = (1, 2)
+    bounded_names = ("x1-xp", "v1", "x2-xp", "v2")
+
+    def __init__(self, params):
+        self._setup(params, ("kl", "ku", "nl", "nu"))
+        p = self.p
+        self.kl, self.ku, self.nl, self.nu = p["kl"], p["ku"], p["nl"], p["nu"]
+        self.eta4 = ETA_X * min(1.0, self.kl / self.ku)
+        self.bscales = np.array([1, self.Om, 1, self.Om])
+
+    def _disc0(self):
+        return (0.0, 0.0)
+
+    # algebraic relations of seed Eqs. 9-10 (exact form, MODELS.md 1b)
+    def _xf_from_xp(self, x1, xp):
+        phi3 = max(x1 - self.G - xp, 0.0)
+        return x1 - self.G - (self.kl * phi3 ** self.nl / self.ku) ** (1.0 / self.nu)
+
+    def _xp_from_xf(self, x1, xf):
+        phi4 = max(x1 - self.G - xf, 0.0)
+        return x1 - self.G - (self.ku * phi4 ** self.nu / self.kl) ** (1.0 / self.nl)
+
+    def _Fr(self, x1, br, disc):
+        if br == 1:
+            return self.kl * max(x1 - self.G - disc[0], 0.0) ** self.nl
+        if br == 2:
+            return self.ku * max(x1 - self.G - disc[1], 0.0) ** self.nu
+        return 0.0
+
+    def rhs(self, t, y, br, disc):
+        return self._body(t, y, self._Fr(y[0], br, disc))
+
+    def classify(self, t, y, disc):
+        xp, xf = disc
+        x1, v1 = y[0], y[1]
+        phi3 = x1 - self.G - xp
+        if phi3 < -ETA_X:
+            return 0, y, (xp, xp)
+        if phi3 > ETA_X:
+            contact = True
+        else:
+            contact = v1 > ETA_V or (abs(v1) <= ETA_V and self._body(t, y, 0.0)[1] > 0.0)
+        if not contact:
+            return 0, y, (xp, xp)
+        F = self.kl * max(phi3, 0.0) ** self.nl
+        loading = v1 > ETA_V or (abs(v1) <= ETA_V and self._body(t, y, F)[1] > 0.0)
+        xf = self._xf_from_xp(x1, xp)
+        return (1 if loading else 2), y, (xp, xf)
+
+    def events(self, br, disc):
+        xp, xf = disc
+        G = self.G
+        if br == 0:
+            return [(lambda t, y: y[0] - G - xp - ETA_X, 1.0)]
+        if br == 1:
+            return [(lambda t, y: y[1] + ETA_V, -1.0),                 # velocity reversal -> unloading
+                    (lambda t, y: y[0] - G - xp + ETA_X, -1.0)]        # (safety) back off the floor
+        return [(lambda t, y: y[0] - G - xf + self.eta4, -1.0),        # fully unloaded -> free
+                (lambda t, y: y[1] - ETA_V, 1.0)]                      # reversal -> reloading
+
+    def on_segment_end(self, br, t, y, disc):
+        xp, xf = disc
+        if br == 1:
+            return (xp, self._xf_from_xp(y[0], xp))
+        if br == 2:
+            return (self._xp_from_xf(y[0], xf), xf)
+        return disc
+
+    def on_event(self, br, idx, t, y, disc):
+        xp, xf = disc
+        if br == 2 and idx == 0:       # left contact while unloading: crater floor = end of unloading branch
+            return y, (xf, xf)
+        if br == 1 and idx == 1:
+            return y, (xp, xp)
+        return y, disc
+
+    def _xp_vec(self, Y, br, disc):
+        xp, xf = disc
+        if br == 2:
+            phi4 = np.maximum(Y[0] - self.G - xf, 0.0)
+            return Y[0] - self.G - (self.ku * phi4 ** self.nu / self.kl) ** (1.0 / self.nl)
+        return np.full(Y.shape[1], xp)
+
+    def force(self, t, Y, br, disc):
+        xp, xf = disc
+        if br == 1:
+            return self.kl * np.maximum(Y[0] - self.G - xp, 0.0) ** self.nl
+        if br == 2:
+            return self.ku * np.maximum(Y[0] - self.G - xf, 0.0) ** self.nu
+        return np.zeros_like(t)
+
+    def accel(self, t, Y, br, disc):
+        return self._a1_vec(t, Y, self.force(t, Y, br, disc))
+
+    def progression(self, t, Y, br, disc):
+        return self._xp_vec(Y, br, disc)
+
+    def progression_scalar(self, y, disc):
+        return float(disc[0])
+
+    def bounded(self, t, Y, br, disc):
+        xp = self._xp_vec(Y, br, disc)
+        return np.array([Y[0] - xp, Y[1], Y[2] - xp, Y[3]])
+
+
+# ---------------------------------------------------------------------------------------------------
+# 3. pendulum
+# ---------------------------------------------------------------------------------------------------
+class _Pendulum(_TwoIndicatorModel):
+    name = "pendulum"
+    bounded_names = ("theta", "theta_dot")
+    PARAMS = ("m", "l", "amplitude_m", "ki", "ci", "zeta", "gap_m", "frequency_hz")
+
+    def __init__(self, params):
+        params = dict(params)
+        params.setdefault("g", 9.81)
+        p = _req(params, self.PARAMS + ("g",), self.name)
+        super().__init__(p)
+        self.l, self.A0, self.gap, self.m = p["l"], p["amplitude_m"], p["gap_m"], p["m"]
+        self.w0 = math.sqrt(p["g"] / self.l)
+        self.Aacc = self.A0 * self.Om ** 2 / self.l
+        self.tau = p["ci"] / p["ki"]
+        fsc = max(self.m * self.A0 * self.Om ** 2, 1e-3)
+        # state [theta, theta_dot, W]; W in J = N * m  -> scale force * 1 m
+        self.scales = [1.0 / self.l, self.Om / self.l, fsc]
+        self.bscales = np.array([1.0 / self.l, self.Om / self.l])
+
+    def initial(self):
+        return np.zeros(3), None
+
+    def _thdd(self, t, th, om, Fi):
+        p = self.p
+        c = math.cos(th)
+        return (self.Aacc * c * math.sin(self.Om * t) - (p["g"] / self.l) * math.sin(th)
+                - 2.0 * p["zeta"] * self.w0 * om - Fi * c / (self.m * self.l))
+
+    def _Fi(self, th, om):
+        c = math.cos(th)
+        return max(0.0, self.p["ki"] * (self.l * math.sin(th) - self.gap) + self.p["ci"] * self.l * om * c)
+
+    def rhs(self, t, y, br, disc):
+        th, om = y[0], y[1]
+        Fi = self._Fi(th, om) if br == 1 else 0.0
+        W = self.m * self.l * self.A0 * self.Om ** 2 * math.sin(self.Om * t) * math.cos(th) * om
+        return [om, self._thdd(t, th, om, Fi), W]
+
+    def indicators(self, t, y):
+        th, om = y[0], y[1]
+        d = self.l * np.sin(th) - self.gap
+        return d, d + self.tau * self.l * om * np.cos(th)
+
+    def rates(self, t, y):
+        th, om = y[0], y[1]
+        dd = self.l * om * math.cos(th)
+        thdd = self._thdd(t, th, om, 0.0)
+        ddd = self.l * (thdd * math.cos(th) - om * om * math.sin(th))
+        return dd, dd + self.tau * ddd
+
+    def force(self, t, Y, br, disc):
+        if br == 0:
+            return np.zeros_like(t)
+        p = self.p
+        return np.maximum(p["ki"] * (self.l * np.sin(Y[0]) - self.gap)
+                          + p["ci"] * self.l * Y[1] * np.cos(Y[0]), 0.0)
+
+    def accel(self, t, Y, br, disc):
+        p = self.p
+        th, om = Y[0], Y[1]
+        Fi = self.force(t, Y, br, disc)
+        c = np.cos(th)
+        thdd = (self.Aacc * c * np.sin(self.Om * t) - (p["g"] / self.l) * np.sin(th)
+                - 2.0 * p["zeta"] * self.w0 * om - Fi * c / (self.m * self.l))
+        return self.l * (thdd * c - om * om * np.sin(th)) - self.A0 * self.Om ** 2 * np.sin(self.Om * t)
+
+    def disp(self, t, Y, br, disc):
+        return self.l * np.sin(Y[0]) + self.A0 * np.sin(self.Om * t)
+
+    def bounded(self, t, Y, br, disc):
+        return np.array([Y[0], Y[1]])
+
+
+# ---------------------------------------------------------------------------------------------------
+# 4. RIMD
+# ---------------------------------------------------------------------------------------------------
+class _Rimd(_TwoIndicatorModel):
+    name = "rimd"
+    bounded_names = ("x1", "v1", "x2", "v2")
+    PARAMS = ("m1", "k1", "c1", "m2", "k2", "c2", "ki", "lambda_i", "ni",
+              "amplitude_n", "gap_m", "frequency_hz")
+    LS = 1e-3   # length scale multiplying the dimensionless indicator (1 + lambda*v2) [m]
+
+    def __init__(self, params):
+        p = _req(params, self.PARAMS, self.name)
+        super().__init__(p)
+        self.F0, self.gap = p["amplitude_n"], p["gap_m"]
+        fsc = max(abs(self.F0), 1e-3)
+        self.scales = [1, self.Om, 1, self.Om, fsc]
+        self.bscales = np.array([1, self.Om, 1, self.Om])
+
+    def initial(self):
+        return np.zeros(5), None
+
+    def _Fi(self, y):
+        p = self.p
+        d = y[2] - self.gap
+        if d <= 0.0:
+            return 0.0
+        return p["ki"] * d ** p["ni"] * max(0.0, 1.0 + p["lambda_i"] * y[3])
+
+    def _acc(self, t, y, Fi):
+        p = self.p
+        x1, v1, x2, v2 = y[0], y[1], y[2], y[3]
+        F = self.F0 * math.sin(self.Om * t)
+        a1 = (-(p["c1"] + p["c2"]) * v1 - (p["k1"] + p["k2"]) * x1 + F + p["c2"] * v2 + p["k2"] * x2) / p["m1"]
+        a2 = (-p["c2"] * v2 - p["k2"] * x2 + p["c2"] * v1 + p["k2"] * x1 - Fi) / p["m2"]
+        return a1, a2, F * v1
+
+    def rhs(self, t, y, br, disc):
+        a1, a2, w = self._acc(t, y, self._Fi(y) if br == 1 else 0.0)
+        return [y[1], a1, y[3], a2, w]
+
+    def indicators(self, t, y):
+        return y[2] - self.gap, self.LS * (1.0 + self.p["lambda_i"] * y[3])
+
+    def rates(self, t, y):
+        a2 = self._acc(t, y, 0.0)[1]
+        return y[3], self.LS * self.p["lambda_i"] * a2
+
+    def force(self, t, Y, br, disc):
+        if br == 0:
+            return np.zeros_like(t)
+        p = self.p
+        d = np.maximum(Y[2] - self.gap, 0.0)
+        return p["ki"] * d ** p["ni"] * np.maximum(0.0, 1.0 + p["lambda_i"] * Y[3])
+
+    def accel(self, t, Y, br, disc):
+        p = self.p
+        Fi = self.force(t, Y, br, disc)
+        return (-p["c2"] * Y[3] - p["k2"] * Y[2] + p["c2"] * Y[1] + p["k2"] * Y[0] - Fi) / p["m2"]
+
+    def disp(self, t, Y, br, disc):
+        return Y[2]
+
+    def bounded(self, t, Y, br, disc):
+        return np.array([Y[0], Y[1], Y[2], Y[3]])
+
+
+def _make_model(model: str, params: dict) -> _Model:
+    if model == "drill":
+        return _Drill(params)
+    if model == "indenter-metal":
+        return _IndenterMetal(params)
+    if model == "indenter-sandstone":
+        return _IndenterSandstone(params)
+    if model == "pendulum":
+        return _Pendulum(params)
+    if model == "rimd":
+        return _Rimd(params)
+    raise ValueError(f"unknown model {model!r}; expected one of {MODELS}")
+
+
+# =====================================================================================================
+# Recording of window statistics
+# =====================================================================================================
+def _refined_max(fun, dense, ts, vals):
+    """Max of fun over [ts[0], ts[-1]] given samples vals = fun(ts); refine an interior max with Brent."""
+    i = int(np.argmax(vals))
+    best = float(vals[i])
+    if 0 < i < len(ts) - 1:
+        a, b = float(ts[i - 1]), float(ts[i + 1])
+
+        def neg(tt):
+            return -float(fun(np.array([tt]), dense(tt)[:, None])[0])
+        res = minimize_scalar(neg, bounds=(a, b), method="bounded",
+                              options={"xatol": max((b - a) * 1e-9, 1e-300)})
+        if -res.fun > best:
+            best = -float(res.fun)
+    return best
+
+
+class _Recorder:
+    def __init__(self, model: _Model, window_cycles: int, samples_per_cycle: int):
+        self.m = model
+        self.prev_contact = False
+        self.cur = None            # open contact interval: [max_force, counted]
+        self.interval_max = []     # maxima of intervals whose onset lies in the window
+        self.n_onsets = 0
+        self.peak_force = 0.0
+        self.any_contact = False
+        self.peak_decel = -math.inf
+        nb = len(model.bounded_names)
+        self.bmin = np.full(nb, np.inf)
+        self.bmax = np.full(nb, -np.inf)
+        self.spc = samples_per_cycle
+        if samples_per_cycle > 0:
+            n = window_cycles * samples_per_cycle
+            self.hist = {k: np.full(n, np.nan) for k in
+                         ("t_s", "disp_m", "force_n", "accel_m_s2", "progression_m")}
+        self.tail_closed = False
+
+    def segment(self, kwin, phase, tau0, tau1, dense, br, disc, t_cycle0):
+        m = self.m
+        contact = m.is_contact(br)
+        # ---- contact interval bookkeeping (all phases) ----
+        if contact and not self.prev_contact:
+            if phase == "tail":          # new onset after the window: not ours
+                self.tail_closed = True
+                return
+            self.cur = [0.0, phase == "window"]
+            if phase == "window":
+                self.n_onsets += 1
+        elif not contact and self.prev_contact:
+            if self.cur is not None and self.cur[1]:
+                self.interval_max.append(self.cur[0])
+            self.cur = None
+            if phase == "tail":
+                self.tail_closed = True
+        elif contact and self.cur is None:
+            self.cur = [0.0, False]
+        self.prev_contact = contact
+        if phase == "transient" or tau1 <= tau0:
+            return
+        if phase == "tail":
+            if contact and self.cur is not None:
+                n = N_CONTACT_SAMPLES
+                ts = np.linspace(tau0, tau1, n)
+                Y = dense(ts)
+                self.cur[0] = max(self.cur[0], _refined_max(
+                    lambda t, Yv: m.force(t, Yv, br, disc), dense, ts, m.force(ts, Y, br, disc)))
+            return
+        # ---- window ----
+        if contact:
+            n = N_CONTACT_SAMPLES
+        else:
+            n = max(16, int(math.ceil(N_FREE_PER_CYCLE * (tau1 - tau0) / m.T)))
+        ts = np.linspace(tau0, tau1, n)
+        Y = dense(ts)
+        acc = m.accel(ts, Y, br, disc)
+        self.peak_decel = max(self.peak_decel, _refined_max(
+            lambda t, Yv: -m.accel(t, Yv, br, disc), dense, ts, -acc))
+        if contact:
+            self.any_contact = True
+            F = m.force(ts, Y, br, disc)
+            fmax = _refined_max(lambda t, Yv: m.force(t, Yv, br, disc), dense, ts, F)
+            self.peak_force = max(self.peak_force, fmax)
+            self.cur[0] = max(self.cur[0], fmax)
+        B = m.bounded(ts, Y, br, disc)
+        self.bmin = np.minimum(self.bmin, B.min(axis=1))
+        self.bmax = np.maximum(self.bmax, B.max(axis=1))
+        if self.spc > 0:
+            dt = m.T / self.spc
+            idx = [j for j in range(self.spc) if tau0 <= j * dt < tau1]
+            if idx:
+                tt = np.array(idx, dtype=float) * dt
+                Yh = dense(tt)
+                k = kwin * self.spc + np.array(idx)
+                h = self.hist
+                h["t_s"][k] = t_cycle0 + tt
+                h["disp_m"][k] = m.disp(tt, Yh, br, disc)
+                h["force_n"][k] = m.force(tt, Yh, br, disc)
+                h["accel_m_s2"][k] = m.accel(tt, Yh, br, disc)
+                h["progression_m"][k] = m.progression(tt, Yh, br, disc)
+
+
+# =====================================================================================================
+# Event-located integration of one smooth branch
+# =====================================================================================================
+_SOLVERS = {"RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA}
+N_EVENT_SUB = 16   # event functions are checked at this many sub-intervals of every accepted step
+
+
+def _crossing(g, direction, sol, ss, vals, T):
+    """Earliest time in [ss[0], ss[-1]] where g crosses 0 in ``direction`` on the interpolant ``sol``.
+
+    g is scanned at the sub-sample times ss (values vals); a sign change in the triggering direction is
+    bracketed and solved with brentq.  Because an even number of crossings between two samples (a
+    narrow dip through the surface) would leave no sign change, every interior sample that is a local
+    extremum towards the triggering side, and close to 0 relative to the local variation, is refined
+    with a bounded Brent search; if the extremum crosses 0 the earlier half is bracketed too.
+    (scipy's solve_ivp only compares the signs at step ends, and misses such dips: seen on the drill.)
+    """
+    sgn = 1.0 if direction > 0 else -1.0
+    v = sgn * vals                       # trigger when v goes from < 0 to >= 0
+
+    def gs(tt):
+        return sgn * float(g(np.array([tt]), sol(tt)[:, None])[0])
+
+    eps4 = 4 * np.finfo(float).eps
+    neg = v < 0.0
+    cr = np.flatnonzero(neg[:-1] & ~neg[1:])
+    i_cr = int(cr[0]) if cr.size else len(ss)
+    vi, vl, vr = v[1:-1], v[:-2], v[2:]
+    ext = np.flatnonzero((vi < 0.0) & (vi >= vl) & (vi >= vr)
+                         & (-vi <= 4.0 * np.maximum(vi - vl, vi - vr))) + 1
+    for i in ext:
+        if i >= i_cr:
+            break
+        lo, hi = ss[i - 1], ss[i + 1]
+        res = minimize_scalar(lambda tt: -gs(tt), bounds=(lo, hi), method="bounded",
+                              options={"xatol": (hi - lo) * 1e-10})
+        if -res.fun >= 0.0:
+            return brentq(gs, lo, float(res.x), xtol=1e-17 * T, rtol=eps4)
+    if i_cr < len(ss):
+        return brentq(gs, ss[i_cr], ss[i_cr + 1], xtol=1e-17 * T, rtol=eps4)
+    return None
+
+
+def _integrate(fun, t0, y0, t1, events, method, rtol, atol, max_step, T, n_sub=N_EVENT_SUB):
+    """Integrate y' = fun(t, y) from t0 towards t1 and stop at the first event.
+
+    events: list of (g, direction), g vectorised: g(t (N,), Y (n, N)) -> (N,).
+    Returns (dense OdeSolution or None, t_end, y_end, index of the event that fired or None).
+    """
+    try:
+        cls = _SOLVERS[method]
+    except KeyError:
+        raise ValueError(f"unknown method {method!r}; expected one of {sorted(_SOLVERS)}") from None
+    solver = cls(fun, t0, y0, t1, rtol=rtol, atol=atol, max_step=max_step)
+    ts = [t0]
+    interps = []
+    while solver.status == "running":
+        msg = solver.step()
+        if solver.status == "failed":
+            raise RuntimeError(f"{method} step failed at t={solver.t}: {msg}")
+        t_old, t_new = solver.t_old, solver.t
+        if t_new == t_old:
+            continue
+        sol = solver.dense_output()
+        hit = None
+        if events:
+            ss = np.linspace(t_old, t_new, n_sub + 1)
+            Y = sol(ss)
+            for j, (g, d) in enumerate(events):
+                tr = _crossing(g, d, sol, ss, g(ss, Y), T)
+                if tr is not None and (hit is None or tr < hit[0]):
+                    hit = (tr, j)
+        if hit is not None:
+            tr, j = hit
+            if tr > t_old:
+                interps.append(sol)
+                ts.append(tr)
+            dense = OdeSolution(ts, interps) if interps else None
+            return dense, tr, np.array(sol(tr), dtype=float), j
+        interps.append(sol)
+        ts.append(t_new)
+    dense = OdeSolution(ts, interps) if interps else None
+    return dense, float(solver.t), np.array(solver.y, dtype=float), None
+
+
+# =====================================================================================================
+# Driver
+# =====================================================================================================
+def _run_cycle(m, y, disc, kwin, phase, rec, t_cycle0, solver_kw, max_events_per_cycle):
+    T = m.T
+    tiny = 1e-13 * T
+    tau = 0.0
+    n_ev = 0
+    n_zero = 0
+    while T - tau > tiny:
+        br, y, disc = m.classify(tau, y, disc)
+        try:
+            dense, t1, y1, idx = _integrate(lambda t, yy: m.rhs(t, yy, br, disc), tau, y, T,
+                                            m.events(br, disc), T=T, **solver_kw)
+        except RuntimeError as exc:
+            raise RuntimeError(f"{m.name}: integration failed at cycle {kwin} ({phase}), "
+                               f"tau={tau}: {exc}") from exc
+        if t1 > tau and dense is not None:
+            rec.segment(kwin, phase, tau, t1, dense, br, disc, t_cycle0)
+        disc = m.on_segment_end(br, t1, y1, disc)
+        if idx is not None:
+            y1, disc = m.on_event(br, idx, t1, y1, disc)
+            n_ev += 1
+            if n_ev > max_events_per_cycle:
+                raise RuntimeError(
+                    f"{m.name}: more than {max_events_per_cycle} switching events in forcing cycle "
+                    f"{kwin} ({phase}) -- chattering / Zeno contact; the reference cannot resolve it")
+            if t1 - tau <= tiny:
+                n_zero += 1
+                if n_zero > 100:
+                    raise RuntimeError(f"{m.name}: zero-length segment loop at cycle {kwin}, tau={tau}")
+            else:
+                n_zero = 0
+        tau = t1
+        y = y1
+        if phase == "tail" and rec.tail_closed:
+            break
+    return y, disc, n_ev
+
+
+def _period(strobe, rng, floor):
+    tol = 1e-3 * np.maximum(rng, floor)
+    n_s = strobe.shape[0]
+    for n in range(1, 9):
+        if n_s <= n:
+            break
+        d = np.abs(strobe[n:] - strobe[:-n])
+        if np.all(d <= tol[None, :]):
+            return n
+    return 0
+
+
+def reference_run(model: str, params: dict, transient_cycles: int, window_cycles: int,
+                  method: str = "DOP853", rtol: float = 1e-10, atol_scale: float = 1e-3,
+                  samples_per_cycle: int = 0, *, max_step_fraction: float = 0.05,
+                  max_events_per_cycle: int = 2000, event_subdivisions: int = N_EVENT_SUB) -> dict:
+    """High-accuracy event-located reference solution of one run of ``model`` (see module docstring).
+
+    Runs ``transient_cycles`` forcing cycles from the rest state of MODELS.md, then records
+    ``window_cycles`` cycles and returns the MODELS.md section-5 labels plus ``strobe``, ``n_events``,
+    ``wall_s`` (and ``history`` if ``samples_per_cycle > 0``).
+
+    Keyword-only extras: ``max_step_fraction`` (max step = this * T), ``max_events_per_cycle`` (more
+    switching events than this in one forcing cycle raises RuntimeError: chattering / Zeno), and
+    ``event_subdivisions`` (sub-intervals of each step scanned for events; 1 reproduces solve_ivp's
+    step-end-only sign check, i.e. "what a user would write").
+    """
+    t_wall = time.perf_counter()
+    if window_cycles < 1 or transient_cycles < 0:
+        raise ValueError("need window_cycles >= 1 and transient_cycles >= 0")
+    m = _make_model(model, params)
+    T = m.T
+    atol = m.atol(rtol, atol_scale)
+    solver_kw = dict(method=method, rtol=rtol, atol=atol, max_step=max_step_fraction * T,
+                     n_sub=max(1, int(event_subdivisions)))
+    rec = _Recorder(m, window_cycles, samples_per_cycle)
+    y, disc = m.initial()
+    nb = len(m.bounded_names)
+    strobe = np.empty((window_cycles, nb))
+    n_events = 0
+    W0 = P0 = None
+    for k in range(transient_cycles + window_cycles):
+        phase = "window" if k >= transient_cycles else "transient"
+        kwin = k - transient_cycles
+        if kwin == 0:
+            W0 = float(y[-1])
+            P0 = m.progression_scalar(y, disc)
+        if phase == "window":
+            # disc is kept current at every segment end, so br=None is enough here
+            strobe[kwin] = m.bounded(np.array([0.0]), y[:, None], None, disc)[:, 0]
+        y, disc, ne = _run_cycle(m, y, disc, kwin, phase, rec, k * T, solver_kw, max_events_per_cycle)
+        n_events += ne
+    W1 = float(y[-1])
+    P1 = m.progression_scalar(y, disc)
+    # follow a contact interval still open at the end of the window to its separation (<= 1 cycle)
+    if rec.cur is not None and rec.cur[1]:
+        _run_cycle(m, y, disc, window_cycles, "tail", rec, (transient_cycles + window_cycles) * T,
+                   solver_kw, max_events_per_cycle)
+        if not rec.tail_closed and rec.cur is not None:
+            rec.interval_max.append(rec.cur[0])
+    duration = window_cycles * T
+    prog = P1 - P0
+    work = W1 - W0
+    rng = rec.bmax - rec.bmin
+    floor = 1e-9 * atol_scale * m.bscales
+    if rec.interval_max:
+        mean_peak = float(np.mean(rec.interval_max))
+    elif rec.any_contact:          # persistent contact, no onset in the window
+        mean_peak = rec.peak_force
+    else:
+        mean_peak = 0.0
+    status = "ok"
+    if model == "drill" and m.Fs >= m.p["Pr"]:
+        status = "runaway"
+    elif not rec.any_contact:
+        status = "no_contact"
+    out = {
+        "rop_m_s": prog / duration if model in ("drill", "indenter-sandstone") else 0.0,
+        "peak_force_n": float(rec.peak_force),
+        "mean_peak_force_n": mean_peak,
+        "impacts_per_cycle": rec.n_onsets / window_cycles,
+        "period": _period(strobe, rng, floor),
+        "peak_decel_g": float(rec.peak_decel) / G_ACC + 0.0,
+        "energy_per_cycle_j": work / window_cycles,
+        "specific_energy_j_m": (work / prog) if (model in ("drill", "indenter-sandstone") and prog > 0)
+        else float("inf"),
+        "status": status,
+        "strobe": strobe,
+        "strobe_names": m.bounded_names,
+        "n_events": int(n_events),
+    }
+    if samples_per_cycle > 0:
+        out["history"] = rec.hist
+    out["wall_s"] = time.perf_counter() - t_wall
+    return out
