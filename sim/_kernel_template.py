@@ -58,7 +58,8 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
     accumulated into ``acc``:
         acc[0] max contact force, acc[1] sum of per-contact maxima, acc[2] number of
         completed contacts, acc[3] contact onsets, acc[4] max deceleration (m/s²),
-        acc[5] current contact's running max, acc[6] 1 if any time was spent in contact
+        acc[5] current contact's running max, acc[6] 1 if any time was spent in contact,
+        acc[7] -1 while the contact open at the window start lasts, then its max (-2: none)
     and, when hist_dt > 0, uniform samples are written to hist_* (index counters[2]).
     counters: [steps, events, hist_index, status, reason].
     Returns the end time.
@@ -263,12 +264,23 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                     if old == 0 and ph > 0:
                         acc[3] += 1.0
                         acc[5] = 0.0
-                        observe(t, y, z, ph, p, obs, dyd)
-                        acc[5] = max(obs[OBS_FORCE], 0.0)
                     elif old > 0 and ph == 0:
-                        acc[1] += acc[5]
-                        acc[2] += 1.0
+                        if acc[7] == -1.0:      # the contact open at the window start: keep its part
+                            acc[7] = acc[5]
+                        else:
+                            acc[1] += acc[5]
+                            acc[2] += 1.0
                         acc[5] = 0.0
+                    # the state just after the switch (force may jump, e.g. the damper at onset)
+                    observe(t, y, z, ph, p, obs, dyd)
+                    if ph > 0:
+                        f = obs[OBS_FORCE]
+                        if f > acc[0]:
+                            acc[0] = f
+                        if f > acc[5]:
+                            acc[5] = f
+                    if -obs[OBS_ACCEL] > acc[4]:
+                        acc[4] = -obs[OBS_ACCEL]
                 rhs(t, y, z, ph, p, k1)
                 guards(t, y, z, ph, p, g0)
                 # the step that ended on a switch was accurate; restart with a modest step
@@ -376,6 +388,7 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
     w0 = y[ny - 1]
     ph_start = ph_arr[0]
     acc1[6] = 1.0 if ph_start > 0 else 0.0
+    acc1[7] = -1.0 if ph_start > 0 else -2.0
     t = integrate_cycles(p, y, z, ph_arr, t, period, n1, s,
                          atol, True, ws[0:n1], wmin[0:n1], wmax[0:n1], acc1,
                          hist_t, hist_y, hist_obs, hist_ph, 1.0 if hist_t.shape[0] > 0 else 0.0, counters)
@@ -383,6 +396,7 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
     w_mid = y[ny - 1]
     if counters[3] != STATUS_FAILED:
         acc2[5] = acc1[5]
+        acc2[7] = acc1[7]
         acc2[6] = 1.0 if ph_arr[0] > 0 else 0.0
         t = integrate_cycles(p, y, z, ph_arr, t, period, n2, s,
                              atol, True, ws[n1:n_win], wmin[n1:n_win], wmax[n1:n_win], acc2,
@@ -396,13 +410,15 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
     prog1 = _progress(t, y, z, ph_arr[0], p, obs, dy)
     w1 = y[ny - 1]
     t_w = n_win * period
-    # contact that spans a half boundary: acc2 carried its running max; count it once.
-    # (acc1's open contact continues in acc2 and is closed there.)
+    # mean of per-contact maxima over the contacts whose onset lies in the window.  A contact
+    # open at the window end is closed with the part of the contact that was open at the
+    # window start (acc[7]): the same contact one window later in a steady state.  A contact
+    # open across the half boundary continues in acc2 (running max carried over).
     peak = max(acc1[0], acc2[0])
     n_closed = acc1[2] + acc2[2]
     sum_peaks = acc1[1] + acc2[1]
     if ph_arr[0] > 0:
-        sum_peaks += acc2[5]
+        sum_peaks += max(acc2[5], acc2[7])
         n_closed += 1.0
     onsets = acc1[3] + acc2[3]
     labels[L_ROP] = (prog1 - prog0) / t_w

@@ -38,6 +38,27 @@ metres" typical, 1 mm by default), Omega for a velocity (1 mm * Omega: ~0.4-2.5 
 largest, N) for the work state W.  ``max_step = max_step_fraction * T`` (default T/20) so that a low-order
 baseline (e.g. method="RK45", rtol=1e-6) cannot stride over the forcing.
 
+Labels (MODELS.md section 5, over the recorded window)
+------------------------------------------------------
+* contact interval = from a contact onset (non-contact -> contact branch; drill phases II and III are
+  both contact) to the next separation.  ``impacts_per_cycle`` = onsets in the window / window_cycles.
+  ``mean_peak_force_n`` = mean of the maxima of the intervals whose onset lies in the window; an interval
+  still open at the window end is followed past it (at most one more cycle) to its separation.  With
+  persistent contact and no onset in the window (e.g. drill with F0 = 0 resting on the rock) it equals
+  ``peak_force_n``; with no contact at all it is 0.  ``peak_force_n`` is the window maximum.
+* ``period``: smallest n <= 8 with |s[k+n] - s[k]| <= 1e-3 * range_j for every k and bounded coordinate
+  j (range_j from the dense samples of the window, floored at 1e-9 * its typical scale so that a constant
+  coordinate does not demand exact equality); 0 if none (also when window_cycles <= n for every n).
+* ``peak_decel_g`` = max over the window of -(acceleration of the impacting mass) / 9.81.
+* ``energy_per_cycle_j`` = increase of the work state W over the window / window_cycles;
+  ``specific_energy_j_m`` = window work / window progression (inf if progression <= 0 or the model
+  cannot progress).  ``rop_m_s`` = progression / window duration (drill xb, sandstone xp; else 0).
+* extras: ``status`` ('runaway' for a drill with Fs >= Pr, 'no_contact' if no contact in the window,
+  else 'ok' -- the reference does not judge settling), ``strobe`` (window_cycles x n_bounded samples at
+  the cycle starts), ``strobe_names``, ``n_events`` (switching events over the whole run, transient
+  included), ``wall_s``; with samples_per_cycle > 0, ``history`` = dict of t_s, disp_m, force_n,
+  accel_m_s2, progression_m sampled at t = t_window_start + j T / samples_per_cycle.
+
 Public entry point: :func:`reference_run`.
 """
 from __future__ import annotations
@@ -71,7 +92,7 @@ def _req(params: dict, names, model: str) -> dict:
 #   * rhs(t, y, br, disc) -> list (scalar, hot path)
 #   * vectorised post-processing: force / accel / disp / progression / bounded with t (N,), Y (n, N)
 #   * classify(t, y, disc) -> (branch, y, disc) decides the branch at the start of every segment
-#   * events(br, disc) -> list of (function, direction, ) (terminal)
+#   * events(br, disc) -> list of (g, direction), g vectorised g(t (N,), Y (n, N)); all terminal
 #   * on_segment_end / on_event update the discrete state disc
 # =====================================================================================================
 class _Model:
@@ -706,11 +727,12 @@ class _Recorder:
         self.bmax = np.maximum(self.bmax, B.max(axis=1))
         if self.spc > 0:
             dt = m.T / self.spc
-            idx = [j for j in range(self.spc) if tau0 <= j * dt < tau1]
-            if idx:
-                tt = np.array(idx, dtype=float) * dt
+            js = np.arange(self.spc)
+            idx = js[(js * dt >= tau0) & (js * dt < tau1)]
+            if idx.size:
+                tt = idx * dt
                 Yh = dense(tt)
-                k = kwin * self.spc + np.array(idx)
+                k = kwin * self.spc + idx
                 h = self.hist
                 h["t_s"][k] = t_cycle0 + tt
                 h["disp_m"][k] = m.disp(tt, Yh, br, disc)

@@ -1,0 +1,167 @@
+"""Impact pendulum in a moving cart (MODELS.md §3, seed 001, Aguiar & Weber 2012).
+
+States y = [theta, theta_dot, W]: hammer angle relative to the cart [rad], its rate [rad/s] and the
+work done by the prescribed cart motion [J].  Phases: 0 free swing, 1 contact with the load cell.
+
+Equation of motion (MODELS.md §3)::
+
+    θ̈ = (A0 Ω² / l) cos θ sin Ωt − (g / l) sin θ − 2 ζ ω0 θ̇ − Fi cos θ / (m l),   ω0 = √(g/l)
+    δ = l sin θ − gap,  δ̇ = l θ̇ cos θ,  Fi = ki (1 + α max(δ̇, 0)) δ + ci δ̇   (in contact only)
+
+Contact follows the two-indicator rule (MODELS.md §1a/§3): the hammer is in contact exactly when
+δ ≥ 0 **and** the force expression is > 0; both are switching surfaces, combined into one continuous
+guard ``min(δ, Fi/ki)`` (metres), so contact ends when Fi falls to zero (Fi is never negative) and
+may resume while the hammer is still past the load cell.
+
+Impacting mass: the hammer, absolute displacement x = l sin θ + A0 sin Ωt (observed acceleration is
+its second derivative).  Work: W' = m l A0 Ω² sin(Ωt) cos θ θ̇ (power of the cart's inertial forcing).
+The pendulum does not progress (observed progression 0).
+
+Effect (MODELS.md §6): ``rate_stiffening`` α [s/m] (0 = off).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from sim.models.base import ModelSpec, Param
+
+# parameter vector layout
+MASS, LEN, A0, KI, CI, ZETA, GAP, FREQ, GRAV, MCART, ALPHA = range(11)
+ITH, IOM, IW = range(3)
+NY = 3
+N_BOUNDED = 2
+
+
+@njit(cache=True, inline="always")
+def _delta(y, p):
+    """Penetration δ = l sin θ − gap [m] and its rate δ̇ = l θ̇ cos θ [m/s]."""
+    return p[LEN] * math.sin(y[ITH]) - p[GAP], p[LEN] * y[IOM] * math.cos(y[ITH])
+
+
+@njit(cache=True, inline="always")
+def _force_expr(y, p):
+    """Spring–dashpot force expression ki (1 + α max(δ̇,0)) δ + ci δ̇ [N] (unclamped)."""
+    d, dd = _delta(y, p)
+    return p[KI] * (1.0 + p[ALPHA] * max(dd, 0.0)) * d + p[CI] * dd
+
+
+@njit(cache=True, inline="always")
+def _thdd(t, y, p, fi):
+    om = 2.0 * math.pi * p[FREQ]
+    th = y[ITH]
+    c = math.cos(th)
+    w0 = math.sqrt(p[GRAV] / p[LEN])
+    return (p[A0] * om * om / p[LEN] * c * math.sin(om * t) - p[GRAV] / p[LEN] * math.sin(th)
+            - 2.0 * p[ZETA] * w0 * y[IOM] - fi * c / (p[MASS] * p[LEN]))
+
+
+@njit(cache=True)
+def rhs(t, y, z, ph, p, dy):
+    fi = _force_expr(y, p) if ph > 0 else 0.0
+    om = 2.0 * math.pi * p[FREQ]
+    dy[ITH] = y[IOM]
+    dy[IOM] = _thdd(t, y, p, fi)
+    dy[IW] = p[MASS] * p[LEN] * p[A0] * om * om * math.sin(om * t) * math.cos(y[ITH]) * y[IOM]
+
+
+@njit(cache=True)
+def guards(t, y, z, ph, p, g):
+    for i in range(g.shape[0]):
+        g[i] = -1.0
+    # contact iff δ >= 0 and force expression > 0: both are switching surfaces (MODELS.md §1a)
+    d, _ = _delta(y, p)
+    ind = min(d, _force_expr(y, p) / p[KI])
+    g[0] = ind if ph == 0 else -ind
+
+
+@njit(cache=True)
+def on_event(t, y, z, ph, p, k):
+    d, _ = _delta(y, p)
+    return 1 if (d >= 0.0 and _force_expr(y, p) > 0.0) else 0
+
+
+@njit(cache=True)
+def observe(t, y, z, ph, p, obs, dy):
+    rhs(t, y, z, ph, p, dy)
+    om = 2.0 * math.pi * p[FREQ]
+    th = y[ITH]
+    s, c = math.sin(th), math.cos(th)
+    obs[0] = max(_force_expr(y, p), 0.0) if ph > 0 else 0.0
+    obs[1] = p[LEN] * (dy[IOM] * c - y[IOM] * y[IOM] * s) - p[A0] * om * om * math.sin(om * t)
+    obs[2] = p[LEN] * s + p[A0] * math.sin(om * t)
+    obs[3] = 0.0
+    obs[4] = p[LEN] * y[IOM] * c + p[A0] * om * math.cos(om * t)
+
+
+@njit(cache=True)
+def bounded(t, y, z, ph, p, b):
+    b[0] = y[ITH]
+    b[1] = y[IOM]
+
+
+def _initial(p: np.ndarray):
+    """Rest, hanging vertically (θ = 0); with gap 0 the hammer just touches the load cell."""
+    return np.zeros(NY), np.zeros(1), 0
+
+
+def _atol(p: np.ndarray) -> np.ndarray:
+    """Typical magnitudes: 1 mm of hammer travel (θ ≈ 1e-3/l), its rate at Ω, and the work of the
+    inertial force m A0 Ω² over 1 mm (the same scales as tests/reference_solutions.py)."""
+    xs = 1e-3
+    om = 2.0 * math.pi * p[FREQ]
+    fsc = max(p[MASS] * p[A0] * om * om, 1e-3)
+    return np.array([xs / p[LEN], xs * om / p[LEN], fsc * xs])
+
+
+PARAMS = (
+    Param("m", 0.298, "kg", "hammer mass", positive=True),
+    Param("l", 0.075, "m", "wire length (pendulum length)", positive=True),
+    Param("amplitude_m", 0.89e-3, "m", "cart displacement amplitude A0 (x_cart = A0 sin Ωt)", nonnegative=True),
+    Param("ki", 5.5e6, "N/m", "load-cell contact stiffness", positive=True),
+    Param("ci", 1.2e3, "N s/m", "load-cell contact damping", nonnegative=True),
+    Param("zeta", 0.005, "-", "light free-swing damping ratio (0 in the seed; 0.5 % so free swings settle)",
+          nonnegative=True),
+    Param("gap_m", 0.0, "m", "gap between the hanging hammer and the load cell", nonnegative=True),
+    Param("frequency_hz", 3.75, "Hz", "cart forcing frequency f", positive=True),
+    Param("g", 9.81, "m/s^2", "gravitational acceleration", positive=True),
+    Param("M", 5.38, "kg", "cart mass (informational: the cart motion is prescribed)", positive=True),
+    Param("alpha", 0.0, "s/m", "rate_stiffening: ki -> ki (1 + α max(δ̇,0)); 0 = off", nonnegative=True),
+)
+
+STATES = ("theta", "theta_dot", "work")
+BOUNDED = ("theta", "theta_dot")
+
+PRESETS = {
+    # Seed 001 (Aguiar & Weber 2012) Table 2 gaps; every other value is the seed's (MODELS.md §3).
+    "seed-001": {},
+    "gap-0": {"gap_m": 0.0},
+    "gap-1.0mm": {"gap_m": 1.0e-3},
+    "gap-2.4mm": {"gap_m": 2.4e-3},
+}
+
+# A free swing decays with time constant 1/(ζ ω0) ≈ 17.5 s (~65 cycles at 3.75 Hz): non-impacting runs
+# need several hundred cycles to settle to settle_tol.  min_transient 60 lets impacting runs (which lose
+# energy at every impact and settle in tens of cycles) stop early; max_transient 600 caps the slow
+# free-swing ones (a non-impacting run at the cap is still labelled no_contact from its window).
+DEFAULT_SETTINGS = {"min_transient": 60, "max_transient": 600, "window": 32, "max_step_frac": 0.02}
+
+SPEC = ModelSpec(
+    name="pendulum",
+    description="impact pendulum in a moving cart, spring-dashpot load cell (MODELS.md §3, seed 001)",
+    params=PARAMS,
+    states=STATES,
+    z_names=(),
+    bounded=BOUNDED,
+    funcs=(rhs, guards, on_event, observe, bounded),
+    n_bounded=N_BOUNDED,
+    initial=_initial,
+    atol=_atol,
+    effects={"rate_stiffening": ("alpha",)},
+    impacting_mass="hammer m (absolute x = l sin θ + A0 sin Ωt)",
+    progression="none (the pendulum does not progress)",
+    presets=PRESETS,
+    default_settings=DEFAULT_SETTINGS,
+)
