@@ -367,7 +367,9 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
         for k in range(m - 9, m):
             if (prog[k + 1] - prog[k]) <= (prog[k] - prog[k - 1]):
                 growing = False
-        if growing or runaway_check:
+        # A drift at the cap is a runaway only where the model's pre-check says no steady
+        # state exists (drill: Fs >= Pr); elsewhere it is a slow transient -> not_settled.
+        if runaway_check:
             labels[L_STATUS] = STATUS_RUNAWAY
             labels[L_REASON] = REASON_DRIFT if growing else REASON_PRECHECK
             labels[L_DRIFT_ACC] = dd_last / (period * period)
