@@ -47,6 +47,19 @@ def _locate(t, h, y, z, ph, p, r1, r2, r3, r4, r5, yd, gbuf, i, a, b, fa, fb, ev
     return b
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _track(acc, obs, in_contact):
+    """Update the window maxima with one observation (force counts only in contact)."""
+    if in_contact:
+        f = obs[OBS_FORCE]
+        if f > acc[0]:
+            acc[0] = f
+        if f > acc[5]:
+            acc[5] = f
+    if -obs[OBS_ACCEL] > acc[4]:
+        acc[4] = -obs[OBS_ACCEL]
+
+
 @njit(cache=True, nogil=True)
 def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                      atol, record, strobe, bmin, bmax,
@@ -211,22 +224,9 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                         th = th_ev * q / (n_sub + 1)
                         _dense(r1, r2, r3, r4, r5, th, yd)
                         observe(t + th * h, yd, z, ph, p, obs, dyd)
-                        f = obs[OBS_FORCE]
-                        if f > acc[0]:
-                            acc[0] = f
-                        if f > acc[5]:
-                            acc[5] = f
-                        if -obs[OBS_ACCEL] > acc[4]:
-                            acc[4] = -obs[OBS_ACCEL]
+                        _track(acc, obs, True)
                 observe(t_new, y1, z, ph, p, obs, dyd)
-                f = obs[OBS_FORCE]
-                if ph > 0:
-                    if f > acc[0]:
-                        acc[0] = f
-                    if f > acc[5]:
-                        acc[5] = f
-                if -obs[OBS_ACCEL] > acc[4]:
-                    acc[4] = -obs[OBS_ACCEL]
+                _track(acc, obs, ph > 0)
                 # uniform history samples
                 if hist_dt > 0.0:
                     idx = counters[2]
@@ -273,14 +273,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                         acc[5] = 0.0
                     # the state just after the switch (force may jump, e.g. the damper at onset)
                     observe(t, y, z, ph, p, obs, dyd)
-                    if ph > 0:
-                        f = obs[OBS_FORCE]
-                        if f > acc[0]:
-                            acc[0] = f
-                        if f > acc[5]:
-                            acc[5] = f
-                    if -obs[OBS_ACCEL] > acc[4]:
-                        acc[4] = -obs[OBS_ACCEL]
+                    _track(acc, obs, ph > 0)
                 rhs(t, y, z, ph, p, k1)
                 guards(t, y, z, ph, p, g0)
                 # the step that ended on a switch was accurate; restart with a modest step
@@ -433,13 +426,7 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
     labels[L_SPEC_E] = (w1 - w0) / dprog if dprog > 0.0 else np.inf
     # period over the window
     ranges = np.empty(N_BOUNDED)
-    for j in range(N_BOUNDED):
-        lo = wmin[0, j]
-        hi = wmax[0, j]
-        for k in range(n_win):
-            lo = min(lo, wmin[k, j])
-            hi = max(hi, wmax[k, j])
-        ranges[j] = hi - lo
+    span_ranges(wmin, wmax, 0, n_win - 1, ranges)
     per = periodicity(ws, ranges, s[S_PERIOD_TOL], n_win)
     labels[L_PERIOD] = per
     in_contact = acc1[6] > 0.0 or acc2[6] > 0.0 or peak > 0.0

@@ -106,6 +106,27 @@ def _crossed(ga, gb):
     return (ga < 0.0 and gb >= 0.0) or (ga <= 0.0 and gb > 0.0)
 
 
+@njit(cache=True)
+def span_ranges(bmin, bmax, first, last, out):
+    """out[j] = range of coordinate j over rows first..last of the per-cycle extremes."""
+    for j in range(bmin.shape[1]):
+        lo = bmin[first, j]
+        hi = bmax[first, j]
+        for k in range(first, last + 1):
+            lo = min(lo, bmin[k, j])
+            hi = max(hi, bmax[k, j])
+        out[j] = hi - lo
+
+
+@njit(cache=True)
+def rows_repeat(strobe, first, last, n, ranges, tol):
+    """True if strobe[k+n] ≈ strobe[k] for k in first..last-n, within tol × range (floor 1e-12)."""
+    for k in range(first, last - n + 1):
+        for j in range(strobe.shape[1]):
+            if abs(strobe[k + n, j] - strobe[k, j]) > tol * ranges[j] + 1e-12:
+                return False
+    return True
+
 
 @njit(cache=True)
 def periodicity(strobe, ranges, tol, n_rows):
@@ -114,19 +135,9 @@ def periodicity(strobe, ranges, tol, n_rows):
     strobe: (rows, n_bounded) stroboscopic samples; ranges: per-coordinate range used
     to scale the tolerance (absolute floor 1e-12).
     """
-    nb = strobe.shape[1]
     for n in range(1, MAX_PERIOD + 1):
         if n_rows < 2 * n:
             return 0
-        ok = True
-        for k in range(n_rows - n):
-            for j in range(nb):
-                if abs(strobe[k + n, j] - strobe[k, j]) > tol * ranges[j] + 1e-12:
-                    ok = False
-                    break
-            if not ok:
-                break
-        if ok:
+        if rows_repeat(strobe, 0, n_rows - 1, n, ranges, tol):
             return n
     return 0
-

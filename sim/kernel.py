@@ -15,7 +15,7 @@ from sim.integrator import (
     L_REASON, L_ROP, L_SPEC_E, L_STATUS, L_STEPS, L_TRANSIENT, MAX_PERIOD, N_LABELS, N_OBS, OBS_PROGRESS,
     REASON_DRIFT, REASON_NOT_PERIODIC, REASON_PRECHECK, S_MAX_TRANSIENT, S_MIN_TRANSIENT, S_PERIOD_TOL,
     S_RUNAWAY_CHECK, S_SETTLE_TOL, S_STAT_TOL, S_WINDOW, STATUS_FAILED, STATUS_NO_CONTACT, STATUS_NOT_SETTLED,
-    STATUS_OK, STATUS_RUNAWAY, periodicity,
+    STATUS_OK, STATUS_RUNAWAY, periodicity, rows_repeat, span_ranges,
 )
 
 N_ACC = 8
@@ -27,44 +27,20 @@ def settled_period(strobe, bmin, bmax, last, tol):
     16-cycle span apart (a multiple of n) agree too (0: not settled yet).
 
     Tolerance is relative to each coordinate's range over the rows compared."""
-    nb = strobe.shape[1]
-    ranges = np.empty(nb)
+    ranges = np.empty(strobe.shape[1])
     for n in range(1, MAX_PERIOD + 1):
         first = last - 2 * n
         if first < 0:
             return 0
-        for j in range(nb):
-            lo = bmin[first, j]
-            hi = bmax[first, j]
-            for k in range(first, last + 1):
-                lo = min(lo, bmin[k, j])
-                hi = max(hi, bmax[k, j])
-            ranges[j] = hi - lo
-        ok = True
-        for k in range(first, last - n + 1):
-            for j in range(nb):
-                if abs(strobe[k + n, j] - strobe[k, j]) > tol * ranges[j] + 1e-12:
-                    ok = False
-                    break
-            if not ok:
-                break
-        if not ok:
+        span_ranges(bmin, bmax, first, last, ranges)
+        if not rows_repeat(strobe, first, last, n, ranges, tol):
             continue
         # slow creep passes a one-period test: also require no drift over a 16-cycle span
         span = (16 // n) * n
-        first = last - span
-        if first < 0:
+        if last - span < 0:
             return 0
-        for j in range(nb):
-            lo = bmin[first, j]
-            hi = bmax[first, j]
-            for k in range(first, last + 1):
-                lo = min(lo, bmin[k, j])
-                hi = max(hi, bmax[k, j])
-            if abs(strobe[last, j] - strobe[first, j]) > tol * (hi - lo) + 1e-12:
-                ok = False
-                break
-        if ok:
+        span_ranges(bmin, bmax, last - span, last, ranges)
+        if rows_repeat(strobe, last - span, last, span, ranges, tol):
             return n
     return 0
 
