@@ -61,6 +61,38 @@ def _track(acc, obs, in_contact):
 
 
 @njit(cache=True, nogil=True)
+def _golden_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, a, b, which):
+    """Max over θ in [a, b] of the contact force (which = OBS_FORCE) or of the deceleration
+    (which = OBS_ACCEL: −accel) on the step's interpolant; golden section to 1e-4 of [a, b]."""
+    gr = 0.6180339887498949
+    c = b - gr * (b - a)
+    d = a + gr * (b - a)
+    fc = _objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, c, which)
+    fd = _objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, d, which)
+    for _ in range(20):
+        if fc > fd:
+            b = d
+            d = c
+            fd = fc
+            c = b - gr * (b - a)
+            fc = _objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, c, which)
+        else:
+            a = c
+            c = d
+            fc = fd
+            d = a + gr * (b - a)
+            fd = _objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, d, which)
+    return max(fc, fd)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th, which):
+    _dense(r1, r2, r3, r4, r5, th, yd)
+    observe(t + th * h, yd, z, ph, p, obs, dyd)
+    return obs[OBS_FORCE] if which == OBS_FORCE else -obs[OBS_ACCEL]
+
+
+@njit(cache=True, nogil=True)
 def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                      atol, record, strobe, bmin, bmax,
                      acc, hist_t, hist_y, hist_obs, hist_ph, hist_dt, counters):
@@ -108,6 +140,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
         rhs(t, y, z, ph, p, k1)
         guards(t, y, z, ph, p, g0)
         steps_this_cycle = 0
+        fresh = True   # the current step starts at a cycle start or a switch
         while t < t_end:
             if t_end - t <= 1e-12 * period:
                 t = t_end
@@ -219,14 +252,47 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
             # monitoring: end point (and interior samples while in contact)
             if record:
                 if ph > 0:
+                    # contact: sample the step at n_sub + 2 points (both ends included); a maximum
+                    # that is not at the step's end is refined on the interpolant (golden section:
+                    # an interior best is bracketed by its neighbours; a best at the start lies
+                    # within one sample spacing either side of it).  A best at the end is left to
+                    # the next step, where it is the start.
                     acc[6] = 1.0
-                    for q in range(1, n_sub + 1):
+                    f_run = acc[5]
+                    d_run = acc[4]
+                    bf = -np.inf
+                    bd = -np.inf
+                    qf = 0
+                    qd = 0
+                    for q in range(n_sub + 2):
                         th = th_ev * q / (n_sub + 1)
                         _dense(r1, r2, r3, r4, r5, th, yd)
                         observe(t + th * h, yd, z, ph, p, obs, dyd)
-                        _track(acc, obs, True)
-                observe(t_new, y1, z, ph, p, obs, dyd)
-                _track(acc, obs, ph > 0)
+                        if obs[OBS_FORCE] > bf:
+                            bf = obs[OBS_FORCE]
+                            qf = q
+                        if -obs[OBS_ACCEL] > bd:
+                            bd = -obs[OBS_ACCEL]
+                            qd = q
+                    dth = th_ev / (n_sub + 1)
+                    # never look back across a switch: there the interpolant is another branch's
+                    lo_f = 0.0 if (qf == 0 and fresh) else (qf - 1) * dth
+                    lo_d = 0.0 if (qd == 0 and fresh) else (qd - 1) * dth
+                    if bf >= f_run and qf <= n_sub:
+                        bf = max(bf, _golden_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd,
+                                                 lo_f, (qf + 1) * dth, OBS_FORCE))
+                    if bd >= d_run and qd <= n_sub:
+                        bd = max(bd, _golden_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd,
+                                                 lo_d, (qd + 1) * dth, OBS_ACCEL))
+                    if bf > acc[0]:
+                        acc[0] = bf
+                    if bf > acc[5]:
+                        acc[5] = bf
+                    if bd > acc[4]:
+                        acc[4] = bd
+                else:
+                    observe(t_new, y1, z, ph, p, obs, dyd)
+                    _track(acc, obs, False)
                 # uniform history samples
                 if hist_dt > 0.0:
                     idx = counters[2]
@@ -278,7 +344,9 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 guards(t, y, z, ph, p, g0)
                 # the step that ended on a switch was accurate; restart with a modest step
                 h = max(h * th_ev, 1e-6 * period)
+                fresh = True
             else:
+                fresh = False
                 for i in range(ny):
                     k1[i] = k7[i]
                 for i in range(ng):
