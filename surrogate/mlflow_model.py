@@ -1,0 +1,44 @@
+"""MLflow: the bundle as a pyfunc model (with a signature) plus its directory as 'surrogate' artifacts."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import mlflow.pyfunc
+import pandas as pd
+
+from surrogate.bundle import ARTIFACT_DIR, Bundle, load_bundle
+
+
+class BundleModel(mlflow.pyfunc.PythonModel):
+    """pyfunc wrapper: ``mlflow.pyfunc.load_model(uri).predict(frame)`` = ``Bundle.predict(frame)``."""
+
+    def load_context(self, context) -> None:
+        self.bundle = load_bundle(context.artifacts["bundle"])
+
+    def predict(self, context, model_input: pd.DataFrame, params=None) -> pd.DataFrame:
+        return self.bundle.predict(model_input)
+
+
+def log(mlflow, bundle: Bundle, bundle_dir: Path, example: pd.DataFrame) -> None:
+    """Log the bundle directory (artifacts 'surrogate', what ``load_bundle(run_id)`` reads) and a pyfunc
+    model 'model' whose signature is inferred from ``example`` (input columns) and its prediction."""
+    from mlflow.models import infer_signature
+
+    mlflow.log_artifacts(str(bundle_dir), artifact_path=ARTIFACT_DIR)
+    X = example[bundle.inputs].reset_index(drop=True)
+    sig = infer_signature(X, bundle.predict(X))
+    mlflow.pyfunc.log_model(name="model", python_model=BundleModel(), artifacts={"bundle": str(bundle_dir)},
+                            signature=sig, input_example=X.head(3), pip_requirements=_requirements())
+
+
+def _requirements() -> list[str]:
+    """Pinned runtime requirements (given explicitly: MLflow's inference would re-import and run the model)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = []
+    for pkg in ("vibro", "scikit-learn", "numpy", "pandas", "scipy", "joblib"):
+        try:
+            out.append(f"{pkg}=={version(pkg)}")
+        except PackageNotFoundError:
+            continue
+    return out

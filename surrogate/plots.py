@@ -1,0 +1,115 @@
+"""Report figures: parity plots, learning curve, confusion matrix, adaptive-vs-space-filling (PNG)."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from surrogate.data import domain_mask  # noqa: E402
+
+UNITS = {"rop_m_s": "m/s", "peak_force_n": "N", "impacts_per_cycle": "-", "specific_energy_j_m": "J/m"}
+
+
+def _save(fig, path: Path) -> str:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.tmp.png")
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    os.replace(tmp, path)
+    return str(path)
+
+
+def parity(bundle, test: pd.DataFrame, path: Path) -> str:
+    """Predicted vs simulated value on the held-out split, one panel per target, with 90 % bars."""
+    pred = bundle.predict(test, conditional=True)
+    ts = list(bundle.regressors)
+    fig, axes = plt.subplots(1, len(ts), figsize=(4.2 * len(ts), 4.2), squeeze=False)
+    for ax, t in zip(axes[0], ts):
+        tm = bundle.regressors[t]
+        m = domain_mask(test, t, tm.domain)
+        y = test[t].to_numpy(float)[m]
+        p, lo, hi = (pred[c].to_numpy(float)[m] for c in (t, f"{t}_lo", f"{t}_hi"))
+        inside = (y >= lo) & (y <= hi)
+        ax.errorbar(y, p, yerr=[np.maximum(p - lo, 0), np.maximum(hi - p, 0)], fmt="none", ecolor="0.8", lw=0.6,
+                    zorder=1)
+        ax.scatter(y[inside], p[inside], s=6, c="C0", label="inside 90 % interval", zorder=2)
+        ax.scatter(y[~inside], p[~inside], s=8, c="C3", label="outside", zorder=3)
+        if y.size:
+            a, b = np.nanmin([y.min(), p.min()]), np.nanmax([y.max(), p.max()])
+            ax.plot([a, b], [a, b], "k--", lw=0.8)
+        if tm.transform.kind == "log":
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+        r2 = bundle.report.get("held_out", {}).get("targets", {}).get(t, {}).get("r2")
+        ax.set_title(f"{t} ({tm.name}, {tm.domain})\nheld-out R² = {r2:.4f}" if r2 is not None else t, fontsize=9)
+        ax.set_xlabel(f"simulated [{UNITS.get(t, '')}]")
+        ax.set_ylabel(f"surrogate [{UNITS.get(t, '')}]")
+        ax.grid(alpha=0.3)
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def learning_curve(curve: list[dict], targets: list[str], path: Path) -> str:
+    """Held-out RMSE per target and classification error against the number of training simulations."""
+    df = pd.DataFrame(curve)
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for t in targets:
+        col = f"{t}_rmse"
+        if col in df:
+            ref = df[col].iloc[-1] if df[col].iloc[-1] else 1.0
+            axes[0].plot(df["n_train"], df[col] / ref, "o-", label=f"{t} (÷ {ref:.3g} {UNITS.get(t, '')})")
+    axes[0].set_xscale("log")
+    axes[0].set_yscale("log")
+    axes[0].set_xlabel("training simulations")
+    axes[0].set_ylabel("held-out RMSE / final RMSE")
+    axes[0].legend(fontsize=7)
+    axes[1].plot(df["n_train"], 1 - df["accuracy"], "o-", c="C3")
+    axes[1].set_xscale("log")
+    axes[1].set_xlabel("training simulations")
+    axes[1].set_ylabel("held-out regime misclassification rate")
+    for a in axes:
+        a.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def confusion(cls_report: dict, path: Path) -> str:
+    """Held-out confusion matrix of the regime classifier."""
+    cm = np.array(cls_report["confusion"])
+    classes = cls_report["classes"]
+    fig, ax = plt.subplots(figsize=(1.2 * len(classes) + 2.5, 1.0 * len(classes) + 2))
+    ax.imshow(cm, cmap="Blues")
+    for i in range(cm.shape[0]):
+        for j in range(cm.shape[1]):
+            ax.text(j, i, str(cm[i, j]), ha="center", va="center", color="k" if cm[i, j] < cm.max() / 2 else "w")
+    ax.set_xticks(range(len(classes)), classes, rotation=30)
+    ax.set_yticks(range(len(classes)), classes)
+    ax.set_xlabel("predicted regime")
+    ax.set_ylabel("simulated regime")
+    ax.set_title(f"held-out accuracy {cls_report['accuracy']:.3f} (n = {cls_report['n']})")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def adaptive(result: dict, path: Path) -> str:
+    """Held-out ROP RMSE and regime error vs simulations: adaptive design against the space-filling one."""
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for key, ax, lab in (("rop_m_s_rmse", axes[0], "held-out ROP RMSE [m/s] (progressing)"),
+                         ("error", axes[1], "held-out regime misclassification rate")):
+        for name, style in (("space_filling", "o-"), ("adaptive", "s-")):
+            c = pd.DataFrame(result[name])
+            ax.plot(c["n_sims"], c[key], style, label=name.replace("_", "-"))
+        ax.set_xlabel("simulations")
+        ax.set_ylabel(lab)
+        ax.set_yscale("log")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend()
+    fig.tight_layout()
+    return _save(fig, path)

@@ -1,0 +1,189 @@
+"""``train_bundle``: held-out split, CV model selection, conformal intervals, held-out report, learning curve."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from sklearn.model_selection import train_test_split
+from threadpoolctl import threadpool_limits
+from tqdm.auto import tqdm
+
+from pipeline.errors import UserError
+from surrogate import metrics, selection
+from surrogate.bundle import Bundle, TargetModel
+from surrogate.config import TrainConfig
+from surrogate.data import domain_mask, fingerprint_frame, regime_of
+from surrogate.features import InputScaler, TargetTransform
+from surrogate.intervals import ConformalInterval
+
+MIN_POINTS = 12   # fewer points in a target's domain: the target is not learned
+
+
+def split(df: pd.DataFrame, regimes: np.ndarray, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (train, held-out), stratified by regime where every regime has >= 2 points."""
+    idx = np.arange(len(df))
+    counts = pd.Series(regimes).value_counts()
+    strat = regimes if counts.min() >= 2 else None
+    tr, te = train_test_split(idx, test_size=fraction, random_state=seed, stratify=strat)
+    return np.sort(tr), np.sort(te)
+
+
+def split_frame(df: pd.DataFrame, cfg: TrainConfig) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(train, held-out) frames of a sweep frame, in point order — the split ``train_bundle`` uses."""
+    df = df.reset_index(drop=True)
+    if "point_id" in df.columns:
+        df = df.sort_values("point_id", kind="stable").reset_index(drop=True)
+    tr, te = split(df, regime_of(df).to_numpy(), cfg.test_fraction, cfg.seed)
+    return df.iloc[tr].reset_index(drop=True), df.iloc[te].reset_index(drop=True)
+
+
+def _fit_target(t: str, Xs: np.ndarray, y: np.ndarray, cfg: TrainConfig, progress) -> tuple[TargetModel, dict]:
+    tf = TargetTransform.choose(y, cfg.transforms.get(t, "auto"))
+    z = tf.forward(y)
+    sel = selection.select_regressor(cfg.regressors, Xs, z, tf, cfg.cv_folds, cfg.seed, cfg.max_gp_points)
+    est = selection.fit_regressor(sel.name, Xs, z, cfg.seed, cfg.max_gp_points)
+    iv = ConformalInterval.calibrate(z, sel.oof, sel.oof_std, cfg.interval)
+    info = {"model": sel.name, "transform": tf.kind, "cv_rmse_transformed": sel.scores,
+            "cv_rmse": sel.scores_original, "cv_skipped": sel.errors,
+            "n_train": int(y.size), "interval_q": iv.q, "interval_normalised": iv.normalised}
+    if progress:
+        progress.set_postfix_str(f"{t}: {sel.name}")
+    return TargetModel(t, sel.name, est, tf, iv, cfg.domains[t]), info
+
+
+def evaluate(bundle: Bundle, df: pd.DataFrame) -> dict:
+    """Held-out metrics of ``bundle`` on the rows of ``df`` (true regimes / domains)."""
+    pred = bundle.predict(df, conditional=True)
+    reg = regime_of(df).to_numpy()
+    out = {"classification": metrics.classification(reg, pred["regime"].to_numpy(), list(bundle.classes)),
+           "targets": {}}
+    for t, tm in bundle.regressors.items():
+        m = domain_mask(df, t, tm.domain)
+        y = df[t].to_numpy(dtype=float)[m]
+        out["targets"][t] = metrics.regression(y, pred[t].to_numpy()[m], pred[f"{t}_lo"].to_numpy()[m],
+                                               pred[f"{t}_hi"].to_numpy()[m])
+        if tm.transform.kind == "log":   # R² of log10 values: meaningful where a few huge values rule the variance
+            out["targets"][t]["r2_log10"] = metrics.regression(np.log10(y), np.log10(pred[t].to_numpy()[m])).get("r2")
+        out["targets"][t]["domain"] = tm.domain
+    return out
+
+
+def fit(df: pd.DataFrame, inputs: list[str], ranges: dict, scale: dict, model: str, preset: str | None,
+        cfg: TrainConfig, fingerprint: str, progress: bool = False) -> tuple[Bundle, dict]:
+    """Select and fit every model on all rows of ``df`` (no held-out evaluation)."""
+    scaler = InputScaler(list(inputs), {k: tuple(map(float, v)) for k, v in ranges.items()}, dict(scale))
+    Xs = scaler.transform(df)
+    regimes = regime_of(df).to_numpy()
+    steps = [None] + [t for t in cfg.targets]
+    bar = tqdm(steps, desc="train", disable=not progress, leave=False)
+    info: dict = {"targets": {}, "skipped_targets": {}}
+    regs: dict[str, TargetModel] = {}
+    for step in bar:
+        if step is None:
+            cs = selection.select_classifier(cfg.classifiers, Xs, regimes, cfg.cv_folds, cfg.seed)
+            clf = selection.fit_classifier(cs.name, Xs, regimes, cfg.seed)
+            info["classifier"] = {"model": cs.name, "cv_accuracy": cs.scores, "cv_skipped": cs.errors,
+                                  "classes": cs.classes}
+            continue
+        if step not in df.columns:
+            raise UserError(f"dataset has no label column '{step}' (train.targets)")
+        m = domain_mask(df, step, cfg.domains[step])
+        if m.sum() < MIN_POINTS:
+            info["skipped_targets"][step] = f"only {int(m.sum())} training points in domain '{cfg.domains[step]}'"
+            continue
+        y = df[step].to_numpy(dtype=float)[m]
+        regs[step], info["targets"][step] = _fit_target(step, Xs[m], y, cfg, bar)
+    b = Bundle(inputs=list(inputs), ranges=scaler.ranges, model=model, preset=preset, fingerprint=fingerprint,
+               scaler=scaler, classifier=clf, classifier_name=info["classifier"]["model"],
+               classes=[str(c) for c in clf.classes_], regressors=regs, config=cfg.to_dict())
+    return b, info
+
+
+def refit_same(bundle: Bundle, df: pd.DataFrame, cfg: TrainConfig) -> Bundle:
+    """The bundle's selected model types refitted on ``df`` (no CV; intervals kept) — for learning curves."""
+    Xs = bundle.scaler.transform(df)
+    regimes = regime_of(df).to_numpy()
+    clf = selection.fit_classifier(bundle.classifier_name, Xs, regimes, cfg.seed)
+    regs = {}
+    for t, tm in bundle.regressors.items():
+        m = domain_mask(df, t, tm.domain)
+        if m.sum() < 3:
+            continue
+        z = tm.transform.forward(df[t].to_numpy(dtype=float)[m])
+        est = selection.fit_regressor(tm.name, Xs[m], z, cfg.seed, cfg.max_gp_points)
+        regs[t] = TargetModel(t, tm.name, est, tm.transform, tm.interval, tm.domain)
+    return Bundle(bundle.inputs, bundle.ranges, bundle.model, bundle.preset, bundle.fingerprint, bundle.scaler, clf,
+                  bundle.classifier_name, [str(c) for c in clf.classes_], regs, {}, bundle.config)
+
+
+def learning_curve(bundle: Bundle, train: pd.DataFrame, test: pd.DataFrame, cfg: TrainConfig,
+                   progress: bool = False) -> list[dict]:
+    """Held-out error of the selected model types against the number of training simulations.
+
+    Subsets are prefixes of the training split in point order (a Sobol design's prefix stays space-filling)."""
+    rows = []
+    sizes = sorted({max(MIN_POINTS * 2, int(round(f * len(train)))) for f in cfg.learning_curve})
+    for n in tqdm(sizes, desc="learning curve", disable=not progress, leave=False):
+        n = min(n, len(train))
+        b = refit_same(bundle, train.iloc[:n], cfg)
+        ev = evaluate(b, test)
+        row = {"n_train": n, "accuracy": ev["classification"]["accuracy"]}
+        for t, m in ev["targets"].items():
+            row[f"{t}_r2"] = m.get("r2")
+            row[f"{t}_rmse"] = m.get("rmse")
+        rows.append(row)
+    return rows
+
+
+def needed(curve: list[dict], key: str, goal: float) -> int | None:
+    """Smallest training size on the curve from which ``key`` stays >= goal (None if never)."""
+    ok = [r["n_train"] for r in curve if r.get(key) is not None and r[key] >= goal]
+    if not ok:
+        return None
+    last_bad = max([r["n_train"] for r in curve if r.get(key) is None or r[key] < goal], default=0)
+    later = [n for n in ok if n > last_bad]
+    return min(later) if later else None
+
+
+def train_bundle(df: pd.DataFrame, inputs: list[str], ranges: dict, model: str, preset: str | None,
+                 config: TrainConfig | dict | None = None, scale: dict | None = None, fingerprint: str | None = None,
+                 progress: bool = False) -> Bundle:
+    """Train the surrogate on a sweep frame: hold out ``test_fraction`` (never trained on), select
+    every model by CV on the rest, calibrate 90 % intervals, and put the held-out report in ``bundle.report``."""
+    cfg = config if isinstance(config, TrainConfig) else TrainConfig.from_dict(config)
+    with threadpool_limits(cfg.threads):
+        return _train_bundle(df, inputs, ranges, model, preset, cfg, scale, fingerprint, progress)
+
+
+def _train_bundle(df, inputs, ranges, model, preset, cfg: TrainConfig, scale, fingerprint, progress) -> Bundle:
+    df = df.reset_index(drop=True)
+    if "point_id" in df.columns:
+        df = df.sort_values("point_id", kind="stable").reset_index(drop=True)
+    scale = scale or {n: "linear" for n in inputs}
+    fingerprint = fingerprint or fingerprint_frame(df)
+    regimes = regime_of(df).to_numpy()
+    if len(df) < 4 * MIN_POINTS:
+        raise UserError(f"dataset has {len(df)} points; the surrogate needs at least {4 * MIN_POINTS}")
+    train, test = split_frame(df, cfg)
+    bundle, info = fit(train, inputs, ranges, scale, model, preset, cfg, fingerprint, progress)
+    held = evaluate(bundle, test)
+    curve = learning_curve(bundle, train, test, cfg, progress) if cfg.learning_curve else []
+    g = cfg.goals
+    goals = {"rop_m_s_r2": g.get("rop_m_s_r2"), "peak_force_n_r2": g.get("peak_force_n_r2"),
+             "accuracy": g.get("accuracy")}
+    need = {k: needed(curve, k, v) for k, v in goals.items() if v is not None}
+    tg = held["targets"]
+    cov = [m.get("coverage") for m in tg.values() if m.get("coverage") is not None]
+    met = {
+        "rop_m_s_r2": (tg.get("rop_m_s", {}).get("r2") or -np.inf) >= goals["rop_m_s_r2"],
+        "peak_force_n_r2": (tg.get("peak_force_n", {}).get("r2") or -np.inf) >= goals["peak_force_n_r2"],
+        "accuracy": (held["classification"]["accuracy"] or 0) >= goals["accuracy"],
+        "coverage": bool(cov) and all(g["coverage_low"] <= c <= g["coverage_high"] for c in cov),
+    }
+    bundle.report = {"model": model, "preset": preset, "fingerprint": fingerprint, "inputs": list(inputs),
+                     "ranges": {k: list(v) for k, v in bundle.ranges.items()},
+                     "n_points": int(len(df)), "n_train": int(len(train)), "n_test": int(len(test)),
+                     "regime_counts": {k: int(v) for k, v in pd.Series(regimes).value_counts().items()},
+                     "selection": info, "held_out": held, "learning_curve": curve,
+                     "simulations_needed": need, "goals": g, "goals_met": {k: bool(v) for k, v in met.items()},
+                     "interval_level": cfg.interval}
+    return bundle
