@@ -16,7 +16,10 @@ def regression(y: np.ndarray, pred: np.ndarray, lo: np.ndarray | None = None, hi
     ss_tot = float(np.sum((y - y.mean()) ** 2))
     out["mae"] = float(np.mean(np.abs(err)))
     out["rmse"] = float(np.sqrt(np.mean(err ** 2)))
-    out["r2"] = float(1.0 - np.sum(err ** 2) / ss_tot) if ss_tot > 0 else None
+    # R² is undefined for a (numerically) constant target, e.g. peak force pinned at Pr in the
+    # progressing regime: report None rather than a meaningless huge negative number.
+    constant = float(np.std(y)) <= 1e-6 * max(abs(float(np.mean(y))), 1e-300)
+    out["r2"] = None if constant or ss_tot <= 0 else float(1.0 - np.sum(err ** 2) / ss_tot)
     if lo is not None and hi is not None:
         out["coverage"] = float(np.mean((y >= lo) & (y <= hi)))
         out["mean_width"] = float(np.mean(hi - lo))

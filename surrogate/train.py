@@ -173,9 +173,16 @@ def _train_bundle(df, inputs, ranges, model, preset, cfg: TrainConfig, scale, fi
     need = {k: needed(curve, k, v) for k, v in goals.items() if v is not None}
     tg = held["targets"]
     cov = [m.get("coverage") for m in tg.values() if m.get("coverage") is not None]
+    def r2_goal(target: str):
+        """True/False against the goal; None where R² is undefined (constant target)."""
+        m = tg.get(target, {})
+        if m.get("n") and m.get("r2") is None:
+            return None
+        return (m.get("r2") if m.get("r2") is not None else -np.inf) >= goals[f"{target}_r2"]
+
     met = {
-        "rop_m_s_r2": (tg.get("rop_m_s", {}).get("r2") or -np.inf) >= goals["rop_m_s_r2"],
-        "peak_force_n_r2": (tg.get("peak_force_n", {}).get("r2") or -np.inf) >= goals["peak_force_n_r2"],
+        "rop_m_s_r2": r2_goal("rop_m_s"),
+        "peak_force_n_r2": r2_goal("peak_force_n"),
         "accuracy": (held["classification"]["accuracy"] or 0) >= goals["accuracy"],
         "coverage": bool(cov) and all(g["coverage_low"] <= c <= g["coverage_high"] for c in cov),
     }
@@ -184,6 +191,6 @@ def _train_bundle(df, inputs, ranges, model, preset, cfg: TrainConfig, scale, fi
                      "n_points": int(len(df)), "n_train": int(len(train)), "n_test": int(len(test)),
                      "regime_counts": {k: int(v) for k, v in pd.Series(regimes).value_counts().items()},
                      "selection": info, "held_out": held, "learning_curve": curve,
-                     "simulations_needed": need, "goals": g, "goals_met": {k: bool(v) for k, v in met.items()},
+                     "simulations_needed": need, "goals": g, "goals_met": {k: (None if v is None else bool(v)) for k, v in met.items()},
                      "interval_level": cfg.interval}
     return bundle

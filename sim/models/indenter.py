@@ -321,7 +321,7 @@ def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effe
         progression=progression,
         presets=presets,
         derive=_derive,
-        default_settings={"min_transient": 40, "max_transient": 600, "window": 16, "max_step_frac": 0.01},
+        default_settings={"min_transient": 40, "max_transient": 600, "window": 16},
         postprocess=_sensor_lowpass,
         needs_history=lambda values: values.get("fc", 0.0) > 0.0,
     )
