@@ -1,0 +1,81 @@
+"""Whole-dataset diagnosis: every system, figures, report.json and report.md written atomically."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+from pipeline.cliutil import to_jsonable
+from pipeline.diagnosis.features import simulated_features
+from pipeline.diagnosis.report import figures, markdown, residual_structure
+from pipeline.diagnosis.run import DiagnoseConfig, build_targets, diagnose_system
+
+SUMMARY_NOTE = ("summary data: the measurement sd is assumed (summary.csv '<feature>_sd' columns or the defaults of "
+                "pipeline/diagnosis/features.py), not estimated from the data, so 'explained' is only as good as that "
+                "assumption")
+
+
+def diagnose(ds, out: str | os.PathLike, cfg: DiagnoseConfig, log=print, progress=None) -> dict:
+    """Diagnose ``ds`` into directory ``out`` (report.json, report.md, PNG figures); returns the report."""
+    t0 = time.time()
+    out = Path(out)
+    targets = build_targets(ds, cfg)
+    per = []
+    for system, tgs in targets.items():
+        rep = diagnose_system(system, tgs, cfg, log, progress)
+        ev = rep["_ev"]
+        idx = list(range(len(tgs)))
+        sets = [{}, rep["_fits"]["base"].values, rep["_fits"][rep["_final"]].values]
+        sims = ev.simulate(sets, idx)
+        runs = [[{"run": i, "residual": ev.residual_of(i, r), "result": r,
+                  "model": simulated_features(ev.targets[i], r),
+                  "peak_velocity_m_s": (float(r.history["vel_m_s"].max()) if r.history is not None else None)}
+                 for i, r in zip(idx, row)] for row in sims]
+        rep["residual_structure"] = residual_structure(rep, runs[1], runs[2])
+        rep["notes"] = [SUMMARY_NOTE] if "summary" in rep["data"] else []
+        rep["_runs"] = runs
+        per.append(rep)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    try:
+        for rep in per:
+            rep["figures"] = figures(rep, ds, rep["_runs"][1], rep["_runs"][2], rep["_runs"][0], tmp)
+        public = [{k: v for k, v in r.items() if not k.startswith("_")} for r in per]
+        report = _combine(public, str(ds.path) if ds.path else "dataset", cfg)
+        report["wall_time_s"] = round(time.time() - t0, 1)
+        (tmp / "report.json").write_text(json.dumps(to_jsonable(report), indent=2))
+        (tmp / "report.md").write_text(markdown(report, public, report["wall_time_s"]))
+        if out.exists():
+            old = out.parent / f".{out.name}.old-{os.getpid()}"
+            os.replace(out, old)
+            os.replace(tmp, out)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return report
+
+
+KEYS = ("calibrated", "noise_floor", "default_error", "base_error", "candidates", "selected", "final_error",
+        "default_nrms", "base_nrms", "final_nrms")
+
+
+def _combine(per: list[dict], dataset: str, cfg: DiagnoseConfig) -> dict:
+    """One system: its keys at the top level.  Several: `system` is the list and every key maps system ->
+    value (`explained` is true only if every system is explained)."""
+    from dataclasses import asdict
+
+    base = {"dataset": dataset, "config": asdict(cfg)}
+    if len(per) == 1:
+        return {**base, **per[0], "systems": {per[0]["system"]: per[0]}}
+    out = {**base, "system": [p["system"] for p in per]}
+    for k in KEYS:
+        out[k] = {p["system"]: p[k] for p in per}
+    out["explained"] = all(p["explained"] for p in per)
+    out["systems"] = {p["system"]: p for p in per}
+    return out

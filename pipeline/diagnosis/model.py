@@ -1,0 +1,140 @@
+"""Which parameters are fitted, and the parallel evaluation of the simulator against targets.
+
+Calibratable base parameters (MODELS.md §1) and the §6 effects of the indenter are fitted in
+log10 units within the bounds below (an effect's "off" value 0 is approached by its lower bound,
+where it no longer changes the response measurably).
+"""
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.diagnosis.features import Target, peak_velocity, simulated_features
+from pipeline.errors import UserError
+
+
+@dataclass(frozen=True)
+class FreeParam:
+    """A fitted parameter: name, bounds [lo, hi] in its unit (fitted as log10)."""
+
+    name: str
+    lo: float
+    hi: float
+    unit: str
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        return math.log10(self.lo), math.log10(self.hi)
+
+
+BASE = {
+    "indenter-metal": (FreeParam("k1", 1e6, 1e8, "N/m"), FreeParam("c1", 3.0, 3e3, "N s/m"),
+                       FreeParam("pm", 0.5, 300.0, "N")),
+    "indenter-sandstone": (FreeParam("kl", 5e5, 5e7, "N/m"), FreeParam("ku", 1e6, 2e8, "N/m"),
+                           FreeParam("pm", 0.5, 300.0, "N")),
+}
+"""MODELS.md §1 'Calibratable': metal k1, c1, pm; sandstone kl, ku, pm (bounds: 1-2 decades around the defaults)."""
+
+EFFECT_PARAMS = {
+    "tau": FreeParam("tau", 1e-5, 1e-2, "s"), "beta": FreeParam("beta", 1.0, 3e3, "N s/m"),
+    "alpha": FreeParam("alpha", 1e-3, 30.0, "s/m"), "mu": FreeParam("mu", 0.1, 300.0, "N"),
+    "gamma": FreeParam("gamma", 1e-4, 0.5, "-"), "kappa": FreeParam("kappa", 1e2, 1e8, "1/m^2"),
+    "fc": FreeParam("fc", 50.0, 5000.0, "Hz"),
+}
+
+
+def warm(system: str) -> None:
+    """Load/compile the model's kernel in the calling thread before threads use it
+    (sim.compiled.kernels is not thread-safe on its first call; see the diagnose report)."""
+    import sim
+    from sim.compiled import kernels
+
+    spec = sim.get_model(system)
+    kernels(spec.funcs, spec.n_bounded)
+
+
+def candidates(system: str) -> dict[str, tuple[FreeParam, ...]]:
+    """§6 effects that apply to ``system`` (from the model's own effect table) with their fit bounds."""
+    import sim
+
+    spec = sim.get_model(system)
+    return {eff: tuple(EFFECT_PARAMS[p] for p in ps) for eff, ps in spec.effects.items()}
+
+
+class Evaluator:
+    """Simulates parameter sets on the runs of ``targets`` (threads; the kernel releases the GIL)
+    and returns noise-normalised residuals (model - measured) / sd."""
+
+    def __init__(self, system: str, targets: list[Target], sim_settings: dict, fs_sim_hz: float,
+                 n_threads: int | None = None, max_window: int = 0):
+        if system not in BASE:
+            raise UserError(f"system '{system}': the diagnosis supports {', '.join(BASE)} (MODELS.md §1)")
+        self.system = system
+        self.targets = targets
+        self.n_threads = n_threads or os.cpu_count() or 1
+        self.settings = []
+        for tg in targets:
+            f = tg.controls["frequency_hz"]
+            spc = tg.spc or max(int(math.ceil(fs_sim_hz / f)), 4 * tg.k_max + 8)
+            st = {**sim_settings, "samples_per_cycle": spc}
+            if max_window and tg.cycles:   # simulate as many cycles as were recorded (drifting effects)
+                st["window"] = max(int(st.get("window", 2)), min(tg.cycles, max_window))
+            self.settings.append(st)
+        self.n_sims = 0
+        warm(system)
+
+    def simulate(self, param_sets: list[dict], idx: list[int]) -> list[list]:
+        """SimulationResults (with history) for every parameter set x run index."""
+        import sim
+
+        jobs = [(j, i) for j in range(len(param_sets)) for i in idx]
+
+        def one(job):
+            j, i = job
+            tg = self.targets[i]
+            try:
+                return sim.simulate(self.system, settings=self.settings[i], history=True,
+                                    **tg.controls, **param_sets[j])
+            except sim.ParameterError as e:
+                raise UserError(f"run {tg.run_id}: {e}") from None
+
+        if self.n_threads == 1 or len(jobs) == 1:
+            res = [one(j) for j in jobs]
+        else:
+            with ThreadPoolExecutor(max_workers=self.n_threads) as pool:
+                res = list(pool.map(one, jobs))
+        self.n_sims += len(jobs)
+        out = [[None] * len(idx) for _ in param_sets]
+        for (j, i), r in zip(jobs, res):
+            out[j][idx.index(i)] = r
+        return out
+
+    def residual_of(self, i: int, res) -> np.ndarray:
+        tg = self.targets[i]
+        m = simulated_features(tg, res)
+        if m is None:        # runaway / failed: compare with zero response (large, finite residual)
+            m = np.zeros_like(tg.y)
+        r = (m - tg.y) / tg.sd
+        if tg.lower_bound.any():
+            r[tg.lower_bound] = np.minimum(r[tg.lower_bound], 0.0)
+        return r
+
+    def residuals(self, param_sets: list[dict], idx: list[int]) -> list[np.ndarray]:
+        """Concatenated normalised residual over runs ``idx`` for each parameter set."""
+        sims = self.simulate(param_sets, idx)
+        return [np.concatenate([self.residual_of(i, r) for i, r in zip(idx, row)]) for row in sims]
+
+    def run_details(self, params: dict, idx: list[int]) -> list[dict]:
+        """Per run: normalised residual, simulated features and peak velocity (for reports)."""
+        sims = self.simulate([params], idx)[0]
+        out = []
+        for i, r in zip(idx, sims):
+            tg = self.targets[i]
+            m = simulated_features(tg, r)
+            out.append({"run": i, "residual": self.residual_of(i, r), "model": m, "result": r,
+                        "peak_velocity_m_s": peak_velocity(r)})
+        return out

@@ -1,0 +1,230 @@
+"""Residual structure, figures (PNG) and report.md of a diagnosis."""
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from scipy.stats import spearmanr  # noqa: E402
+
+from pipeline.diagnosis.features import cycle_matrix  # noqa: E402
+
+
+def _nrms(r: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(r ** 2))) if r.size else float("nan")
+
+
+def residual_structure(rep: dict, base_runs: list[dict], final_runs: list[dict]) -> dict:
+    """How the calibrated base model's residual depends on frequency, amplitude, static force, peak
+    indenter velocity, harmonic frequency and time within the run (all runs; Spearman correlations)."""
+    ev = rep["_ev"]
+    rows = []
+    for b, f in zip(base_runs, final_runs):
+        tg = ev.targets[b["run"]]
+        rows.append({"run_id": tg.run_id, **tg.controls, "peak_velocity_m_s": b["peak_velocity_m_s"],
+                     "base_nrms": _nrms(b["residual"]), "final_nrms": _nrms(f["residual"]),
+                     "held_out": b["run"] in rep["_test_idx"]})
+    corr = {}
+    y = [r["base_nrms"] for r in rows]
+    for key in ("frequency_hz", "amplitude_n", "static_force_n", "peak_velocity_m_s"):
+        x = [r[key] if r[key] is not None else np.nan for r in rows]
+        if len(set(x)) > 2:
+            rho = spearmanr(x, y, nan_policy="omit").statistic
+            corr[key] = None if rho is None or not np.isfinite(rho) else float(rho)
+    by_h: dict[float, list[float]] = {}
+    for b in base_runs:
+        tg = ev.targets[b["run"]]
+        if tg.kind != "series":
+            continue
+        for j, name in enumerate(tg.names):
+            if name.startswith("accel_m_s2:h") and name.endswith(":re"):
+                k = int(name.split(":h")[1].split(":")[0])
+                hz = round(k * tg.controls["frequency_hz"] / 50.0) * 50.0
+                by_h.setdefault(hz, []).append(math.hypot(b["residual"][j], b["residual"][j + 1]))
+    seg = []
+    for b in base_runs:
+        tg = ev.targets[b["run"]]
+        if tg.kind != "series" or not tg.segments or b["model"] is None:
+            continue
+        for sig, segs in tg.segments.items():
+            names = [n for n in tg.names if n.startswith(sig + ":")]
+            j0 = tg.names.index(names[0])
+            m = b["model"][j0:j0 + len(names)]
+            mc = m[0::2] + 1j * m[1::2]
+            sd = tg.sd[j0] * math.sqrt(segs.shape[0])
+            seg.append([_nrms(np.abs(s - mc) / sd) for s in segs])
+    return {"by_run": rows, "spearman_base_nrms": corr,
+            "by_harmonic_hz": {f"{k:g}": float(np.sqrt(np.mean(np.square(v)))) for k, v in sorted(by_h.items())},
+            "by_time_segment": [float(x) for x in np.sqrt(np.mean(np.square(seg), axis=0))] if seg else []}
+
+
+def _save(fig, path: Path) -> str:
+    fig.tight_layout()
+    tmp = path.with_suffix(".tmp.png")
+    fig.savefig(tmp, dpi=100)
+    plt.close(fig)
+    os.replace(tmp, path)
+    return path.name
+
+
+def figures(rep: dict, ds, base_runs: list[dict], final_runs: list[dict], default_runs: list[dict],
+            out: Path) -> list[str]:
+    """Residual before/after, residual structure, measured vs simulated time histories and spectra."""
+    ev, sysname = rep["_ev"], rep["system"]
+    tag = sysname.split("-")[1]
+    files = []
+    st = rep["residual_structure"]
+    rows = st["by_run"]
+    fig, ax = plt.subplots(2, 3, figsize=(13, 7))
+    for key, a in zip(("frequency_hz", "amplitude_n", "static_force_n", "peak_velocity_m_s"), ax.ravel()):
+        for col, lab, mk in (("base_nrms", "calibrated base (before)", "o"), ("final_nrms", f"with {rep['_final']} (after)", "s")):
+            x = [r[key] for r in rows]
+            a.scatter(x, [r[col] for r in rows], marker=mk, label=lab, alpha=0.7)
+        ho = [r for r in rows if r["held_out"]]
+        a.scatter([r[key] for r in ho], [r["base_nrms"] for r in ho], facecolors="none", edgecolors="k", s=90,
+                  label="held-out run")
+        a.axhline(1.0, color="grey", ls="--", lw=1)
+        a.set_yscale("log")
+        a.set_xlabel(key)
+        a.set_ylabel("residual / noise (nrms)")
+    ax[0, 0].legend(fontsize=7)
+    hz = st["by_harmonic_hz"]
+    if hz:
+        ax[1, 1].bar([float(k) for k in hz], list(hz.values()), width=40)
+        ax[1, 1].set_xlabel("harmonic frequency [Hz] (accel, 50 Hz bins)")
+        ax[1, 1].set_ylabel("base |residual| / noise")
+        ax[1, 1].set_yscale("log")
+    if st["by_time_segment"]:
+        ax[1, 2].plot(range(1, len(st["by_time_segment"]) + 1), st["by_time_segment"], "o-")
+        ax[1, 2].set_xlabel("time segment of the record")
+        ax[1, 2].set_ylabel("base residual / noise")
+        ax[1, 2].ticklabel_format(axis="y", useOffset=False)
+    else:
+        ax[1, 2].axis("off")
+    fig.suptitle(f"{sysname}: residual structure before/after")
+    files.append(_save(fig, out / f"residual_{tag}.png"))
+    # measured vs simulated for up to two held-out runs
+    shown = [i for i in rep["_test_idx"]][:2]
+    for i in shown:
+        tg = ev.targets[i]
+        k = [d["run"] for d in base_runs].index(i)
+        runs = {"default": default_runs[k]["result"], "base": base_runs[k]["result"], rep["_final"]: final_runs[k]["result"]}
+        f = tg.controls["frequency_hz"]
+        if tg.kind == "series":
+            df = ds.series[tg.run_id]
+            sigs = [s for s in ("accel_m_s2", "force_n") if s in df.columns]
+            fig, ax = plt.subplots(len(sigs), 2, figsize=(12, 3.4 * len(sigs)), squeeze=False)
+            for r_, sig in enumerate(sigs):
+                cyc = cycle_matrix(df["t_s"].to_numpy(), df[sig].to_numpy(), f)
+                mean = cyc.mean(axis=0)
+                ph = np.arange(mean.size) / mean.size
+                ax[r_, 0].plot(ph, mean - mean.mean(), "k", lw=2, label="measured (cycle average)")
+                spec_m = np.abs(np.fft.rfft(mean))[1:tg.k_max + 1] * 2 / mean.size
+                kk = np.arange(1, tg.k_max + 1) * f
+                ax[r_, 1].plot(kk, spec_m, "ko-", lw=2, label="measured")
+                for name, res in runs.items():
+                    if res is None or res.history is None:
+                        continue
+                    h = res.history
+                    t = h["t_s"].to_numpy() - h["t_s"].iloc[0]
+                    c = cycle_matrix(t, h[sig].to_numpy(), f).mean(axis=0)
+                    ax[r_, 0].plot(np.arange(c.size) / c.size, c - c.mean(), lw=1, label=name)
+                    ax[r_, 1].plot(kk, np.abs(np.fft.rfft(c))[1:tg.k_max + 1] * 2 / c.size, ".-", lw=1, label=name)
+                ax[r_, 0].set_xlabel("forcing phase [cycles]")
+                ax[r_, 0].set_ylabel(f"{sig} (mean removed)")
+                ax[r_, 1].set_xlabel("harmonic frequency [Hz]")
+                ax[r_, 1].set_ylabel(f"|{sig}| harmonic amplitude")
+                ax[r_, 1].set_yscale("log")
+            ax[0, 0].legend(fontsize=7)
+            fig.suptitle(f"{tg.run_id} (held out): measured vs simulated")
+            files.append(_save(fig, out / f"timehist_{tg.run_id}.png"))
+    summ = [i for i in range(len(ev.targets)) if ev.targets[i].kind == "summary"]
+    if summ:
+        feats = sorted({n for i in summ for n in ev.targets[i].names})
+        fig, ax = plt.subplots(1, len(feats), figsize=(4 * len(feats), 3.6), squeeze=False)
+        for a, feat in zip(ax[0], feats):
+            for lab, runs_, mk in (("measured", None, "ko"), ("default", default_runs, "x"), ("base", base_runs, "o"),
+                                   (rep["_final"], final_runs, "s")):
+                xs, ys = [], []
+                for k_, i in enumerate(range(len(ev.targets))):
+                    tg = ev.targets[i]
+                    if feat not in tg.names:
+                        continue
+                    j = tg.names.index(feat)
+                    xs.append(tg.controls["frequency_hz"])
+                    if runs_ is None:
+                        ys.append(tg.y[j])
+                    else:
+                        m = runs_[k_]["model"]
+                        ys.append(np.nan if m is None else m[j])
+                if runs_ is None:
+                    sd = [ev.targets[i].sd[ev.targets[i].names.index(feat)] for i in range(len(ev.targets))
+                          if feat in ev.targets[i].names]
+                    a.errorbar(xs, ys, yerr=sd, fmt="ko", label=lab)
+                else:
+                    a.plot(xs, ys, mk, label=lab, alpha=0.8)
+            a.set_xlabel("frequency [Hz]")
+            a.set_title(feat)
+        ax[0, 0].legend(fontsize=7)
+        fig.suptitle(f"{sysname}: summary features, measured vs model")
+        files.append(_save(fig, out / f"summary_{tag}.png"))
+    return files
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def _param_line(n: str, v: dict) -> str:
+    lo, hi = v["ci95"]
+    if not (lo > 0 and hi / lo < 1e4):
+        return f"- {n} = {v['value']:.4g}: not identifiable from these data (95 % interval spans > 4 decades)"
+    return f"- {n} = {v['value']:.4g} ± {v['sd']:.2g} ({lo:.4g} … {hi:.4g})"
+
+
+def markdown(report: dict, per_system: list[dict], seconds: float) -> str:
+    """report.md text."""
+    lines = [f"# Model diagnosis of `{report['dataset']}`", "",
+             f"Wall time {seconds:.0f} s. Errors are on held-out runs only (see 'split'). `error` = relative error "
+             "(RMS over feature groups of ||model - measured|| / ||measured||); `noise_floor` = the same for the "
+             "measurement noise alone; `nrms` = residual / noise (1 = at the noise level).", ""]
+    for rep in per_system:
+        lines += [f"## {rep['system']} ({rep['n_runs']} runs, {', '.join(rep['data'])} data, {rep['split']['scheme']})", ""]
+        verdict = ("**explained**" if rep["explained"] else "**unexplained**")
+        sel = rep["selected"] or ("none (the calibrated base model fits to the noise level)" if rep["explained"]
+                                  else f"none — no candidate brings the held-out residual to the noise level "
+                                       f"(best partial: {rep['best_partial_candidate']})")
+        lines += [f"Selected effect: **{sel}**; residual {verdict}.", "",
+                  "| model | held-out error | held-out nrms |", "|---|---|---|",
+                  f"| default parameters | {_fmt(rep['default_error'])} | {_fmt(rep['default_nrms'])} |",
+                  f"| calibrated base (before) | {_fmt(rep['base_error'])} | {_fmt(rep['base_nrms'])} |",
+                  f"| final (after) | {_fmt(rep['final_error'])} | {_fmt(rep['final_nrms'])} |",
+                  f"| noise floor | {_fmt(rep['noise_floor'])} | 1 |", "",
+                  "Calibrated base parameters (value, sd, 95 % interval):", ""]
+        lines += [_param_line(n, v) for n, v in rep["calibrated_uncertainty"].items()]
+        if rep["selected_params"]:
+            lines += ["", f"Parameters with `{rep['selected']}` (value, sd, 95 % interval):", ""]
+            lines += [_param_line(n, v) for n, v in rep["selected_params"].items()]
+        lines += ["", "Candidates (score = BIC on calibration runs; lower is better):", "",
+                  "| effect | fitted effect parameters | held-out error | held-out nrms | score − base score |",
+                  "|---|---|---|---|---|"]
+        for c in rep["candidates"]:
+            ps = ", ".join(f"{k}={v:.3g}" for k, v in c["params"].items())
+            lines.append(f"| {c['effect']} | {ps} | {_fmt(c['error'])} | {_fmt(c['nrms'])} | {_fmt(c['delta_score'])} |")
+        st = rep["residual_structure"]
+        lines += ["", "Residual structure of the calibrated base model (Spearman correlation of per-run nrms with): "
+                  + ", ".join(f"{k} {v:+.2f}" for k, v in st["spearman_base_nrms"].items() if v is not None) + "."]
+        if st["by_time_segment"]:
+            lines.append("Residual / noise by quarter of the record: "
+                         + ", ".join(f"{x:.3g}" for x in st["by_time_segment"]) + ".")
+        lines += [""] + [f"![{f}]({f})" for f in rep["figures"]] + [""]
+        if rep.get("notes"):
+            lines += [f"Note: {n}" for n in rep["notes"]] + [""]
+    return "\n".join(lines)

@@ -1,0 +1,230 @@
+"""The diagnosis: split runs, calibrate the base model, fit and rank every applicable §6 effect,
+select one only if it brings the held-out residual to the noise level (the report dictionary).
+
+Errors (all on held-out runs, never on the runs a model was fitted to):
+- ``nrms``  = sqrt(mean of squared noise-normalised residuals) — 1 means "at the noise level";
+- ``error`` = relative error: per feature group (signal or summary label) ||model - measured|| /
+  ||measured||, then the RMS over groups; ``noise_floor`` is the same quantity for the noise alone
+  (sqrt(Σ sd²) / ||measured||), so ``error`` and ``noise_floor`` compare directly.
+Ranking: ``score`` = BIC on the calibration runs, χ² + k ln n (noise sd known from the data), summed
+over folds.  Selection: the best-scoring candidate whose BIC beats the base model's by ``bic_margin``
+and whose held-out nrms is <= ``explained_nrms``; if the calibrated base model is already within
+``explained_nrms`` nothing is selected; otherwise the residual is reported as unexplained.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from pipeline.diagnosis.features import Target, series_target, summary_target
+from pipeline.diagnosis.fit import FitResult, fit
+from pipeline.diagnosis.model import BASE, Evaluator, FreeParam, candidates
+from pipeline.errors import UserError
+
+
+@dataclass
+class DiagnoseConfig:
+    """Settings of ``vibro diagnose`` (params.yaml section ``diagnose``; docs/readme/diagnose.md)."""
+
+    max_harmonic_hz: float = 1000.0     # harmonics of f up to this frequency are features
+    holdout_every: int = 4              # single split: every n-th run (sorted by static force, f) is held out
+    min_runs_holdout: int = 8           # fewer runs of a system -> leave-one-run-out cross-validation
+    n_starts: int = 2                   # base-model starts: defaults + (n_starts - 1) seeded random points
+    grid: int = 4                       # candidate start search: grid points per effect parameter
+    candidate_starts: int = 2           # candidate starts: effect grid at the calibrated base (1), also at the defaults (2)
+    max_nfev: int = 15                  # least_squares iterations per start
+    diff_step: float = 0.01             # forward-difference step in log10 of a parameter
+    bic_margin: float = 10.0            # a candidate must beat the base BIC by this much
+    explained_nrms: float = 1.5         # held-out nrms at or below this = "at the noise level"
+    effects: list[str] | None = None    # restrict the candidates (default: every §6 effect of the system)
+    fs_sim_hz: float = 20000.0          # model sample rate for summary runs (series runs use the data's rate)
+    sim_settings: dict = field(default_factory=lambda: {"rtol": 1e-6, "window": 2, "max_step_frac": 0.05})
+    record_window: int = 64             # model window = recorded cycles of a series, up to this (0: sim_settings window)
+    summary_sd: dict = field(default_factory=dict)   # e.g. {"peak_decel_g": ["rel", 0.05]}
+    seed: int = 0
+    n_threads: int | None = None
+
+
+def build_targets(ds, cfg: DiagnoseConfig) -> dict[str, list[Target]]:
+    """Targets per system, in runs.csv order (series preferred over summary when both exist)."""
+    out: dict[str, list[Target]] = {}
+    sd = {k: tuple(v) for k, v in cfg.summary_sd.items()}
+    for row in ds.runs.to_dict("records"):
+        if row["system"] not in BASE:
+            raise UserError(f"runs.csv, run '{row['run_id']}': system '{row['system']}' cannot be diagnosed "
+                            f"(supported: {', '.join(BASE)})")
+        if row["run_id"] in ds.series:
+            tg = series_target(row, ds.series[row["run_id"]], cfg.max_harmonic_hz)
+        else:
+            tg = summary_target(row, ds.summary.loc[row["run_id"]], cfg.max_harmonic_hz, sd)
+        out.setdefault(row["system"], []).append(tg)
+    return out
+
+
+def make_folds(targets: list[Target], cfg: DiagnoseConfig) -> tuple[str, list[tuple[list[int], list[int]]]]:
+    """Deterministic split.  >= min_runs_holdout runs: one split, every holdout_every-th run of the
+    (static force, frequency)-sorted list held out (offset 1, so both ends stay in calibration);
+    fewer: leave-one-run-out."""
+    n = len(targets)
+    order = sorted(range(n), key=lambda i: (targets[i].controls["static_force_n"],
+                                            targets[i].controls["frequency_hz"], targets[i].run_id))
+    if n >= max(cfg.min_runs_holdout, 3):
+        test = sorted(order[j] for j in range(n) if j % cfg.holdout_every == 1)
+        cal = sorted(set(range(n)) - set(test))
+        return "holdout", [(cal, test)]
+    if n < 2:
+        raise UserError(f"system '{targets[0].system}': only {n} run; need at least 2 to hold one out")
+    return "leave-one-run-out", [([j for j in range(n) if j != i], [i]) for i in range(n)]
+
+
+def _errors(ev: Evaluator, idx: list[int], res: list[np.ndarray]) -> dict:
+    """nrms, relative error and noise floor over runs ``idx`` given their residual vectors."""
+    num, den, noise = {}, {}, {}
+    for i, r in zip(idx, res):
+        tg = ev.targets[i]
+        d = r * tg.sd
+        for g in set(tg.group):
+            m = np.array([x == g for x in tg.group])
+            num[g] = num.get(g, 0.0) + float((d[m] ** 2).sum())
+            den[g] = den.get(g, 0.0) + float((tg.y[m] ** 2).sum())
+            noise[g] = noise.get(g, 0.0) + float((tg.sd[m] ** 2).sum())
+    rel = {g: math.sqrt(num[g] / max(den[g], 1e-300)) for g in num}
+    nf = {g: math.sqrt(noise[g] / max(den[g], 1e-300)) for g in num}
+    allr = np.concatenate(res) if res else np.zeros(1)
+    return {"nrms": float(np.sqrt(np.mean(allr ** 2))), "error": float(np.sqrt(np.mean([v ** 2 for v in rel.values()]))),
+            "noise_floor": float(np.sqrt(np.mean([v ** 2 for v in nf.values()]))),
+            "error_by_group": rel, "noise_by_group": nf}
+
+
+def _random_starts(free: list[FreeParam], defaults: dict, n: int, rng) -> list[dict]:
+    starts = [{p.name: defaults[p.name] for p in free}]
+    for _ in range(n - 1):
+        starts.append({p.name: 10 ** rng.uniform(*p.bounds) for p in free})
+    return starts
+
+
+def _candidate_start(ev: Evaluator, idx: list[int], base: dict, eff: tuple[FreeParam, ...], g: int) -> dict:
+    """Best point of a log grid of the effect's parameters (in the interior of the bounds) at the
+    calibrated base parameters — one parallel batch of simulations."""
+    axes = [np.linspace(*p.bounds, g + 2)[1:-1] for p in eff]
+    mesh = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(eff), -1).T
+    sets = [{**base, **{p.name: 10 ** v for p, v in zip(eff, row)}} for row in mesh]
+    res = ev.residuals(sets, idx)
+    best = int(np.argmin([float(r @ r) for r in res]))
+    return sets[best]
+
+
+def _fit_models(ev: Evaluator, idx: list[int], cfg: DiagnoseConfig, cands: dict, rng, log,
+               warm: dict[str, FitResult] | None = None) -> dict[str, FitResult]:
+    """Base model and every candidate on runs ``idx``.  ``warm``: start each model from these fits
+    (leave-one-run-out folds start from the all-runs fit; each fold is still refitted on its own runs)."""
+    import sim
+
+    system = ev.system
+    free = list(BASE[system])
+    d = sim.get_model(system).defaults()
+    starts = [warm["base"].values] if warm else _random_starts(free, d, cfg.n_starts, rng)
+    out = {"base": fit(ev, idx, free, {}, starts, cfg.max_nfev, cfg.diff_step)}
+    log(f"  base: chi2/n = {out['base'].chi2 / out['base'].n:.4g}")
+    for eff, ps in cands.items():
+        if warm:
+            starts = [warm[eff].values]
+        else:   # grid of the effect at the calibrated base, and at the default base parameters (the base
+            #     fit may have compensated the missing effect with a base parameter, e.g. pm for mu)
+            bases = [out["base"].values, {p.name: d[p.name] for p in free}][:cfg.candidate_starts]
+            starts = [_candidate_start(ev, idx, b, ps, cfg.grid) for b in bases]
+        out[eff] = fit(ev, idx, free + list(ps), {}, starts, cfg.max_nfev, cfg.diff_step)
+        log(f"  {eff}: chi2/n = {out[eff].chi2 / out[eff].n:.4g}")
+    return out
+
+
+def _param_report(fr: FitResult) -> dict:
+    return {n: {"value": fr.values[n], "sd": fr.sd[n], "ci95": list(fr.ci95[n])} for n in fr.free}
+
+
+def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log=print, progress=None) -> dict:
+    """Diagnose one system's runs; returns the per-system report dictionary (plus private '_' keys
+    holding the evaluator and fitted parameter sets for the figures)."""
+    ev = Evaluator(system, targets, dict(cfg.sim_settings), cfg.fs_sim_hz, cfg.n_threads, cfg.record_window)
+    cands = candidates(system)
+    if cfg.effects is not None:
+        unknown = [e for e in cfg.effects if e not in cands]
+        if unknown:
+            raise UserError(f"diagnose.effects: {', '.join(unknown)} not an effect of {system} "
+                            f"(known: {', '.join(cands)})")
+        cands = {e: cands[e] for e in cfg.effects}
+    scheme, folds = make_folds(targets, cfg)
+    rng = np.random.default_rng(cfg.seed)
+    names = ["base", *cands]
+    test_res = {m: [] for m in ["default", *names]}
+    test_idx: list[int] = []
+    bic = {m: 0.0 for m in names}
+    cal_chi2 = {m: 0.0 for m in names}
+    fits_per_fold = []
+    warm = None
+    if scheme != "holdout":   # reported parameters: a fit on all runs (also the folds' starting point)
+        log(f"{system}: fit on all {len(targets)} runs (reported parameters)")
+        warm = _fit_models(ev, list(range(len(targets))), cfg, cands, rng, log)
+    for fi, (cal, test) in enumerate(folds):
+        log(f"{system}: fold {fi + 1}/{len(folds)} ({len(cal)} calibration, {len(test)} held-out runs)")
+        fits = _fit_models(ev, cal, cfg, cands, rng, log, warm)
+        fits_per_fold.append(fits)
+        sets = [{}] + [fits[m].values for m in names]
+        res = ev.residuals(sets, test)
+        nt = len(test)
+        for m, r in zip(["default", *names], res):
+            bounds = np.cumsum([0] + [targets[i].n for i in test])
+            test_res[m] += [r[bounds[j]:bounds[j + 1]] for j in range(nt)]
+        test_idx += test
+        for m in names:
+            bic[m] += fits[m].bic()
+            cal_chi2[m] += fits[m].chi2
+        if progress:
+            progress()
+    err = {m: _errors(ev, test_idx, test_res[m]) for m in test_res}
+    # reported parameters: the single split's calibration fit, or a fit on all runs (leave-one-out)
+    final_fits = fits_per_fold[0] if scheme == "holdout" else warm
+    base_ok = err["base"]["nrms"] <= cfg.explained_nrms
+    ranked = sorted(cands, key=lambda m: bic[m])
+    selected = None
+    if not base_ok:
+        for m in ranked:
+            if bic[m] < bic["base"] - cfg.bic_margin and err[m]["nrms"] <= cfg.explained_nrms:
+                selected = m
+                break
+    explained = bool(base_ok or selected is not None)
+    final = selected or "base"
+    cand_list = [{"effect": m, "params": {p: final_fits[m].values[p] for p in final_fits[m].free
+                                          if p not in [q.name for q in BASE[system]]},
+                  "param_sd": {p: final_fits[m].sd[p] for p in final_fits[m].free},
+                  "calibrated": final_fits[m].values,
+                  "error": err[m]["error"], "nrms": err[m]["nrms"], "score": bic[m],
+                  "delta_score": bic[m] - bic["base"], "calibration_chi2": cal_chi2[m]} for m in ranked]
+    best_partial = ranked[0] if ranked and selected is None and not base_ok else None
+    return {
+        "system": system,
+        "n_runs": len(targets),
+        "data": sorted({t.kind for t in targets}),
+        "split": {"scheme": scheme, "held_out": [targets[i].run_id for i in sorted(set(test_idx))],
+                  "folds": [{"calibration": [targets[i].run_id for i in c], "held_out": [targets[i].run_id for i in t]}
+                            for c, t in folds]},
+        "calibrated": final_fits["base"].values,
+        "calibrated_uncertainty": _param_report(final_fits["base"]),
+        "noise_floor": err["base"]["noise_floor"],
+        "noise_sd": {t.run_id: t.noise for t in targets if t.noise},
+        "default_error": err["default"]["error"], "base_error": err["base"]["error"],
+        "final_error": err[final]["error"],
+        "default_nrms": err["default"]["nrms"], "base_nrms": err["base"]["nrms"], "final_nrms": err[final]["nrms"],
+        "error_by_group": {"default": err["default"]["error_by_group"], "base": err["base"]["error_by_group"],
+                           "final": err[final]["error_by_group"], "noise": err["base"]["noise_by_group"]},
+        "base_score": bic["base"],
+        "candidates": cand_list,
+        "selected": selected,
+        "selected_params": _param_report(final_fits[selected]) if selected else None,
+        "explained": explained,
+        "best_partial_candidate": best_partial,
+        "n_simulations": ev.n_sims,
+        "_ev": ev, "_fits": final_fits, "_test_idx": test_idx, "_final": final,
+    }
