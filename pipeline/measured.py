@@ -31,7 +31,7 @@ RUN_NUMERIC = {"frequency_hz": "positive", "amplitude_n": "nonnegative", "static
 SERIES_SIGNALS = ("accel_m_s2", "force_n", "disp_m", "progression_m")
 SUMMARY_FEATURES = ("rop_m_s", "peak_force_n", "peak_decel_g", "impacts_per_cycle")
 SUMMARY_EXTRAS = ("spectral_ratio", "spectral_ratio_ref_hz", "spectral_peak_hz", "impacts_per_cycle_lower_bound")
-"""Extra summary columns the diagnosis understands (docs/readme/diagnose.md); ``<feature>_sd`` columns
+"""Extra summary columns the diagnosis understands (README.md); ``<feature>_sd`` columns
 give a feature's measurement standard deviation.  Other extra columns are allowed and ignored."""
 _RUN_ID = re.compile(r"^[A-Za-z0-9_.\-]+$")
 

@@ -368,6 +368,18 @@ def _progress(t, y, z, ph, p, obs, dy):
 
 
 @njit(cache=True, nogil=True)
+def _record_counters(labels, counters):
+    """Copy step/event counts into the labels; True (and status failed) if integration failed."""
+    labels[L_STEPS] = counters[0]
+    labels[L_EVENTS] = counters[1]
+    if counters[3] == STATUS_FAILED:
+        labels[L_STATUS] = STATUS_FAILED
+        labels[L_REASON] = counters[4]
+        return True
+    return False
+
+
+@njit(cache=True, nogil=True)
 def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph):
     """Simulate one point from the initial state (y, z, ph_io[0]) and return the label vector.
 
@@ -412,11 +424,7 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
             settled = True
             break
     labels[L_TRANSIENT] = n_tr
-    labels[L_STEPS] = counters[0]
-    labels[L_EVENTS] = counters[1]
-    if counters[3] == STATUS_FAILED:
-        labels[L_STATUS] = STATUS_FAILED
-        labels[L_REASON] = counters[4]
+    if _record_counters(labels, counters):
         return labels
     # ---- runaway: progression increments that grow linearly (constant drift acceleration)
     if n_tr >= 12 and not settled:
@@ -464,11 +472,7 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
         t = integrate_cycles(p, y, z, ph_arr, t, period, n2, s,
                              atol, True, ws[n1:n_win], wmin[n1:n_win], wmax[n1:n_win], acc2,
                              hist_t, hist_y, hist_obs, hist_ph, 1.0 if hist_t.shape[0] > 0 else 0.0, counters)
-    labels[L_STEPS] = counters[0]
-    labels[L_EVENTS] = counters[1]
-    if counters[3] == STATUS_FAILED:
-        labels[L_STATUS] = STATUS_FAILED
-        labels[L_REASON] = counters[4]
+    if _record_counters(labels, counters):
         return labels
     prog1 = _progress(t, y, z, ph_arr[0], p, obs, dy)
     w1 = y[ny - 1]

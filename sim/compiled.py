@@ -17,6 +17,7 @@ import importlib.util
 import os
 import sys
 import tempfile
+import threading
 from functools import lru_cache
 from pathlib import Path
 
@@ -52,8 +53,18 @@ def _digest(model_module: str) -> str:
     return h.hexdigest()[:16]
 
 
-@lru_cache(maxsize=None)
+_LOCK = threading.Lock()
+
+
 def kernels(funcs: tuple, n_bounded: int):
+    """The compiled ``run_point`` of a model (thread-safe: the first call may come from many
+    threads of ``simulate_batch`` at once)."""
+    with _LOCK:
+        return _kernels(funcs, n_bounded)
+
+
+@lru_cache(maxsize=None)
+def _kernels(funcs: tuple, n_bounded: int):
     """run_one (GIL-free, cached) for the model functions ``funcs`` = (rhs, guards, on_event, observe, bounded)."""
     names = [f.py_func.__name__ for f in funcs]
     mod_name = funcs[0].py_func.__module__
@@ -77,6 +88,6 @@ def kernels(funcs: tuple, n_bounded: int):
     else:
         spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
         spec.loader.exec_module(module)
+        sys.modules[name] = module      # only once fully loaded
     return module.run_point

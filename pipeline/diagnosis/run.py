@@ -26,7 +26,7 @@ from pipeline.errors import UserError
 
 @dataclass
 class DiagnoseConfig:
-    """Settings of ``vibro diagnose`` (params.yaml section ``diagnose``; docs/readme/diagnose.md)."""
+    """Settings of ``vibro diagnose`` (params.yaml section ``diagnose``; README.md)."""
 
     max_harmonic_hz: float = 1000.0     # harmonics of f up to this frequency are features
     holdout_every: int = 4              # single split: every n-th run (sorted by static force, f) is held out

@@ -179,7 +179,7 @@ PRESETS = {
                  "static_force_n": 1260e3, "amplitude_n": 995e3, "frequency_hz": 0.1 / (2.0 * math.pi)},
     # MODELS.md §2 starting point, kept for comparison with its independent solution (ROP ~ m/s: too fast).
     "models-start": {},
-    # Lab-scale resonance-enhanced drilling rig in hard rock (docs/readme/lab_preset.md).  Why the starting point
+    # Lab-scale resonance-enhanced drilling rig in hard rock (README.md, "The drill model's lab preset").  Why the starting point
     # drills at m/s: with G = 0, ROP scales exactly as (force scale)/(mass scale x time-scale^-1): scaling F0, Fs,
     # Pr by phi multiplies ROP by phi; scaling every M, K, C by lam divides it by lam -- a 2 kg bit driven by up
     # to 2 Pr = 3 kN at 200 Hz swings at ~1 m/s.  Here the bit is 30x heavier, F0 <= 0.9 Pr instead of 2 Pr, and
@@ -224,7 +224,7 @@ PRESETS = {
 }
 
 # Search space of the `lab` preset's controls (MODELS.md §2 requirements (i)-(iii), measured in
-# docs/readme/lab_preset.md): on a 12 x 6 x 6 grid 99 % of points progress, the best frequency is interior for
+# README.md, "The drill model's lab preset"): on a 12 x 6 x 6 grid 99 % of points progress, the best frequency is interior for
 # 36/36 (F0, Fs) pairs (198-342 Hz) and the ROP optima span 0.3-8 mm/s.  F0 >= 0.6 Pr closes the non-progressing
 # hole F0 < min(Fs, Pr - Fs) (neither lift-off impacts nor Fs + F0 reaching Pr); Fs <= 0.6 Pr stays well
 # clear of the runaway Fs >= Pr and of the near-threshold region where ROP shoots up.
