@@ -106,6 +106,24 @@ def _crossed(ga, gb):
     return (ga < 0.0 and gb >= 0.0) or (ga <= 0.0 and gb > 0.0)
 
 
+@njit(cache=True, inline="always")
+def two_indicator_guard(g, penetration, force_indicator, ph):
+    """Guards of a contact that exists iff penetration ≥ 0 AND the force expression > 0 (MODELS.md
+    §1a: both are switching surfaces, contact may resume while still penetrated).  One guard,
+    min of the two indicators (same sign convention, any positive scaling): it rises through 0
+    on entry (phase 0) and falls through 0 on release (phase 1)."""
+    for i in range(g.shape[0]):
+        g[i] = -1.0
+    ind = min(penetration, force_indicator)
+    g[0] = ind if ph == 0 else -ind
+
+
+@njit(cache=True, inline="always")
+def two_indicator_phase(penetration, force):
+    """Phase after a switch of a two-indicator contact: 1 in contact, 0 free."""
+    return 1 if (penetration >= 0.0 and force > 0.0) else 0
+
+
 @njit(cache=True)
 def span_ranges(bmin, bmax, first, last, out):
     """out[j] = range of coordinate j over rows first..last of the per-cycle extremes."""

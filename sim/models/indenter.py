@@ -18,6 +18,7 @@ from dataclasses import replace
 import numpy as np
 from numba import njit
 
+from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import ModelSpec, Param
 
 (M1, M2, M3, K2, C2, K3, C3, PM, GAP, FP, FA, FREQ, VEPS, K1, C1, KL, KU, NL, NU,
@@ -98,16 +99,12 @@ def metal_rhs(t, y, z, ph, p, dy):
 
 @njit(cache=True)
 def metal_guards(t, y, z, ph, p, g):
-    for i in range(g.shape[0]):
-        g[i] = -1.0
-    # contact iff x1 >= G and force expression > 0: both are switching surfaces
-    ind = min(y[IX1] - p[GAP], _metal_expr(y, p) * 1e-7)
-    g[0] = ind if ph == 0 else -ind
+    two_indicator_guard(g, y[IX1] - p[GAP], _metal_expr(y, p) * 1e-7, ph)
 
 
 @njit(cache=True)
 def metal_on_event(t, y, z, ph, p, k):
-    return 1 if (y[IX1] >= p[GAP] and _metal_expr(y, p) > 0.0) else 0
+    return two_indicator_phase(y[IX1] - p[GAP], _metal_expr(y, p))
 
 
 @njit(cache=True)

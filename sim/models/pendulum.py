@@ -26,6 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
+from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import ModelSpec, Param
 
 # parameter vector layout
@@ -69,18 +70,14 @@ def rhs(t, y, z, ph, p, dy):
 
 @njit(cache=True)
 def guards(t, y, z, ph, p, g):
-    for i in range(g.shape[0]):
-        g[i] = -1.0
-    # contact iff δ >= 0 and force expression > 0: both are switching surfaces (MODELS.md §1a)
     d, _ = _delta(y, p)
-    ind = min(d, _force_expr(y, p) / p[KI])
-    g[0] = ind if ph == 0 else -ind
+    two_indicator_guard(g, d, _force_expr(y, p) / p[KI], ph)
 
 
 @njit(cache=True)
 def on_event(t, y, z, ph, p, k):
     d, _ = _delta(y, p)
-    return 1 if (d >= 0.0 and _force_expr(y, p) > 0.0) else 0
+    return two_indicator_phase(d, _force_expr(y, p))
 
 
 @njit(cache=True)

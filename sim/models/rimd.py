@@ -23,6 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
+from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import ModelSpec, Param
 
 M1, K1, C1, M2, K2, C2, KI, LAM, NI, F0, GAP, FREQ, ALPHA, KAPPA = range(14)
@@ -62,15 +63,12 @@ def rhs(t, y, z, ph, p, dy):
 
 @njit(cache=True)
 def guards(t, y, z, ph, p, g):
-    for i in range(g.shape[0]):
-        g[i] = -1.0
-    ind = min(y[IX2] - p[GAP], LS * _hc_factor(y, p))
-    g[0] = ind if ph == 0 else -ind
+    two_indicator_guard(g, y[IX2] - p[GAP], LS * _hc_factor(y, p), ph)
 
 
 @njit(cache=True)
 def on_event(t, y, z, ph, p, k):
-    return 1 if (y[IX2] >= p[GAP] and _hc_factor(y, p) > 0.0) else 0
+    return two_indicator_phase(y[IX2] - p[GAP], _hc_factor(y, p))
 
 
 @njit(cache=True)
