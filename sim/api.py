@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -230,7 +230,7 @@ def simulate_batch(model: str, table, preset: str | None = None, settings: Setti
     spec = get_model(model)
     df = pd.DataFrame(table).reset_index(drop=True)
     st = make_settings(spec, settings)
-    rows, msgs = [], []
+    rows = []
     for i, rec in enumerate(df.to_dict("records")):
         rec = {k: v for k, v in rec.items() if not (isinstance(v, float) and math.isnan(v) and k not in spec.param_names)}
         try:

@@ -1,22 +1,16 @@
-"""Run one parameter point to a labelled steady state (numba; model functions passed in).
+"""Steady-state helpers of the driver in ``sim/_kernel_template.py`` (``run_point``).
 
-Sequence: transient cycles until the stroboscopic samples of the bounded coordinates
-repeat with some period n ≤ 8 (checked every cycle after ``min_transient``; capped at
-``max_transient``), then a recorded window of whole cycles, split in two halves so a
-non-periodic response can be judged steady (half-window statistics agree) or not.
+The driver runs transient cycles until the stroboscopic samples of the bounded coordinates
+repeat with some period n ≤ 8 (``settled_period``, checked every cycle after ``min_transient``;
+capped at ``max_transient``), then a recorded window of whole cycles, split in two halves so a
+non-periodic response can be judged steady (half-window statistics agree, ``_rel_close``) or not.
 """
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from sim.integrator import (
-    G_ACCEL, L_DECEL, L_DRIFT_ACC, L_ENERGY, L_EVENTS, L_IMPACTS, L_MEAN_PEAK_F, L_PEAK_F, L_PERIOD,
-    L_REASON, L_ROP, L_SPEC_E, L_STATUS, L_STEPS, L_TRANSIENT, MAX_PERIOD, N_LABELS, N_OBS, OBS_PROGRESS,
-    REASON_DRIFT, REASON_NOT_PERIODIC, REASON_PRECHECK, S_MAX_TRANSIENT, S_MIN_TRANSIENT, S_PERIOD_TOL,
-    S_RUNAWAY_CHECK, S_SETTLE_TOL, S_STAT_TOL, S_WINDOW, STATUS_FAILED, STATUS_NO_CONTACT, STATUS_NOT_SETTLED,
-    STATUS_OK, STATUS_RUNAWAY, periodicity, rows_repeat, span_ranges,
-)
+from sim.integrator import MAX_PERIOD, rows_repeat, span_ranges
 
 N_ACC = 8
 
