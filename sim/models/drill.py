@@ -212,6 +212,43 @@ PARAMS = (
     Param("v_eps", 1e-4, "m/s", "tanh regularisation speed of the Coulomb term (guide_friction)", positive=True),
 )
 
+# Fit bounds of the §6 effect parameters for identification from rig data at the `lab` preset's scale:
+# (lo, hi, unit).  lo = where the effect just becomes measurable, hi = large but still simulable.  Measured with
+# sim.simulate_batch("drill", preset="lab", default settings) at the default operating point (280 Hz, F0 2250 N,
+# Fs 1200 N; base ROP 3.576 mm/s, peak decel 3.457 g, 1 impact/cycle, period 1), one effect on at a time:
+#   tau    3e-5 s:      ROP -0.6 %, decel -0.35 %  | 5e-4 s: ROP -97 %, decel -32 % (Fh lags Ω by ~40°, still
+#                       impacting; τ < 3e-5 s only makes the fh equation stiff: 5x the steps of the base run at 3e-5)
+#   beta   200 N s/m:   ROP -0.55 %, decel -0.33 % | 3e4 N s/m: ROP -54 %, decel -36 % (β ~ C2 = 4.8e4 would
+#                       double the bit-exciter damping)
+#   alpha  3 s/m:       ROP +0.6 %, decel -0.37 %  | 1000 s/m: ROP +25 %, decel -9 % (K1 x15 at the bit's
+#                       ~0.014 m/s; the effect saturates: phase III caps the force at Pr)
+#   mu     2 N:         ROP -0.5 %, decel -0.37 %  | 500 N: ROP -81 %, decel -43 % (0.22 F0)
+#   gamma  3e-4:        ROP -0.5 %, force +0.16 %  | 1.0: ROP -93 %, peak force +99 % (tip blunting never
+#                       settles: numbers after the 400-cycle default transient cap, ~1.4 s from rest)
+#   kappa  2e7 1/m^2:   ROP -0.65 %, decel -0.46 % | 3e9 1/m^2: ROP -67 %, decel -35 % (link deflection ~3e-5 m,
+#                       κ φ² ~ 3 at hi)
+EFFECT_FIT_BOUNDS = {
+    "tau": (3e-5, 5e-4, "s"),
+    "beta": (200.0, 3e4, "N s/m"),
+    "alpha": (3.0, 1000.0, "s/m"),
+    "mu": (2.0, 500.0, "N"),
+    "gamma": (3e-4, 1.0, "-"),
+    "kappa": (2e7, 3e9, "1/m^2"),
+}
+
+# A clearly visible strength of each effect on the `lab` preset at its default operating point (same
+# measurement as above; for synthetic rig data and the validation against tests/reference_solutions.py):
+#   shaker_coil tau 1e-4 s + beta 3e3 N s/m: ROP -14.1 %, decel -8.6 %    rate_stiffening alpha 50 s/m: ROP +7.7 %, decel -4.3 %
+#   guide_friction mu 50 N: ROP -12.1 %, decel -9.3 %                      tip_blunting gamma 0.01: ROP -14.3 %, force +5.1 %
+#   suspension_hardening kappa 3e8 1/m^2: ROP -9.5 %, decel -6.7 %
+EFFECT_VISIBLE = {
+    "shaker_coil": {"tau": 1e-4, "beta": 3e3},
+    "rate_stiffening": {"alpha": 50.0},
+    "guide_friction": {"mu": 50.0},
+    "tip_blunting": {"gamma": 0.01},
+    "suspension_hardening": {"kappa": 3e8},
+}
+
 STATES = ("x1", "v1", "x2", "v2", "x3", "v3", "xt", "xb", "fh", "work")
 BOUNDED = ("x1-xb", "x2-xb", "x3-xb", "xt-xb", "v1", "v2", "v3", "fh")
 
