@@ -22,8 +22,7 @@ from tests.reference_solutions import reference_run
 TRANSIENT, WINDOW = 240, 16
 REL = 1e-2                      # tests/test_validation.py
 VISIBLE = 3 * REL               # an effect "clearly visible": ROP or peak deceleration moves > 3x the tolerance
-ALL_OFF = dict.fromkeys(p for names in drill.SPEC.effects.values() for p in names)
-ALL_OFF = {k: 0.0 for k in ALL_OFF}
+ALL_OFF = {name: 0.0 for names in drill.SPEC.effects.values() for name in names}   # every effect parameter off
 
 
 def _compare(overrides: dict, transient: int = TRANSIENT, window: int = WINDOW, preset: str | None = "lab"):
