@@ -2,6 +2,7 @@
 from sim.api import LABELS, Settings, SimulationResult, simulate, simulate_batch
 from sim.models.base import ParameterError
 from sim.registry import get_model, model_names
+from sim.rig import Rig
 
 __all__ = ["simulate", "simulate_batch", "Settings", "SimulationResult", "LABELS", "ParameterError",
-           "get_model", "model_names"]
+           "get_model", "model_names", "Rig"]

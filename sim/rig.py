@@ -1,0 +1,143 @@
+"""A rig: one model with its known parameters, calibrated parameters and switched-on effects.
+
+A rig is what a user means by "my machine": the model (MODELS.md §1-4), an optional preset, parameter
+values that override the preset, the §6 effects that are on with their parameters, and where it came
+from.  It is the in-memory form of a rig file (``--rig FILE``, README.md "Rig files"); the diagnosis
+writes the corrected rig in the same form.  Controls (``frequency_hz``, ``amplitude_n``, ...) are
+given per simulation, on top of the rig.
+
+Only mappings here: reading and writing YAML is the command layer's job.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+from sim.models.base import ParameterError
+from sim.registry import get_model, model_names
+
+RIG_KEYS = ("model", "preset", "parameters", "effects", "uncertainty", "source")
+"""Keys of a rig mapping; ``model`` is required, the others optional."""
+
+
+@dataclass(frozen=True)
+class Rig:
+    """A model plus its known and calibrated parameters and active effects (all values SI).
+
+    ``parameters``: parameter name -> value, overriding the preset.  ``effects``: §6 effect name ->
+    {effect parameter -> value}.  ``uncertainty``: parameter (or effect parameter) name -> standard
+    deviation of its fitted value [same unit].  The constructor validates every name and value
+    against the model's ``ModelSpec`` and raises ``ParameterError`` naming the culprit.
+    """
+
+    model: str
+    preset: str | None = None
+    parameters: Mapping[str, float] = field(default_factory=dict)
+    effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    uncertainty: Mapping[str, float] = field(default_factory=dict)
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        if self.model not in model_names():
+            raise ParameterError(f"rig: unknown model '{self.model}'; known models: {', '.join(model_names())}")
+        spec = get_model(self.model)
+        spec.defaults(self.preset)                      # unknown preset -> ParameterError naming the known ones
+        known = set(spec.param_names)
+        for name in self.parameters:
+            if name not in known:
+                raise ParameterError(f"rig: unknown parameter '{name}' for model '{self.model}'; "
+                                     f"known: {', '.join(spec.param_names)}")
+        effect_params = {p for ps in spec.effects.values() for p in ps}
+        for name in self.parameters:
+            if name in effect_params:
+                raise ParameterError(f"rig: '{name}' is an effect parameter; give it under 'effects' "
+                                     f"({self._effect_of(spec, name)}: {{{name}: value}})")
+        for eff, vals in self.effects.items():
+            if eff not in spec.effects:
+                raise ParameterError(f"rig: unknown effect '{eff}' for model '{self.model}'; "
+                                     f"known: {', '.join(spec.effects) or 'none'}")
+            if not isinstance(vals, Mapping):
+                raise ParameterError(f"rig: effect '{eff}' must map its parameters to values, e.g. "
+                                     f"{{{spec.effects[eff][0]}: value}}; got {vals!r}")
+            for name in vals:
+                if name not in spec.effects[eff]:
+                    raise ParameterError(f"rig: effect '{eff}' has no parameter '{name}'; "
+                                         f"its parameters: {', '.join(spec.effects[eff])}")
+        for name, sd in self.uncertainty.items():
+            if name not in known:
+                raise ParameterError(f"rig: uncertainty of unknown parameter '{name}' for model '{self.model}'")
+            try:
+                ok = math.isfinite(float(sd)) and float(sd) >= 0.0
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise ParameterError(f"rig: uncertainty of '{name}' must be a finite number >= 0, got {sd!r}")
+        spec.resolve(self.preset, **self.overrides())   # every value validated by its Param
+
+    @staticmethod
+    def _effect_of(spec, name: str) -> str:
+        return next(eff for eff, ps in spec.effects.items() if name in ps)
+
+    def overrides(self) -> dict[str, float]:
+        """Parameter overrides of this rig (parameters and effect parameters), for ``sim.simulate``."""
+        out = dict(self.parameters)
+        for vals in self.effects.values():
+            out.update(vals)
+        return out
+
+    def resolve(self, **controls: float) -> dict[str, float]:
+        """Full validated parameter dict of this rig with ``controls`` (and any other overrides) on top."""
+        return get_model(self.model).resolve(self.preset, **{**self.overrides(), **controls})
+
+    def simulate(self, **kwargs: Any):
+        """``sim.simulate`` of this rig; keyword arguments are controls, parameters, ``settings``, ``history``."""
+        from sim.api import simulate
+
+        return simulate(self.model, preset=self.preset, **{**self.overrides(), **kwargs})
+
+    def with_values(self, values: Mapping[str, float]) -> "Rig":
+        """A copy with some parameters or effect parameters replaced (e.g. a sample of fitted values)."""
+        spec = get_model(self.model)
+        params = dict(self.parameters)
+        effects = {e: dict(v) for e, v in self.effects.items()}
+        for name, v in values.items():
+            eff = next((e for e, ps in spec.effects.items() if name in ps), None)
+            if eff is None:
+                params[name] = float(v)
+            else:
+                effects.setdefault(eff, {})[name] = float(v)
+        return Rig(self.model, self.preset, params, effects, dict(self.uncertainty), self.source)
+
+    def to_mapping(self) -> dict[str, Any]:
+        """Plain mapping in the rig-file layout (inverse of :meth:`from_mapping`)."""
+        out: dict[str, Any] = {"model": self.model}
+        if self.preset is not None:
+            out["preset"] = self.preset
+        out["parameters"] = {k: float(v) for k, v in self.parameters.items()}
+        if self.effects:
+            out["effects"] = {e: {k: float(v) for k, v in vals.items()} for e, vals in self.effects.items()}
+        if self.uncertainty:
+            out["uncertainty"] = {k: float(v) for k, v in self.uncertainty.items()}
+        if self.source:
+            out["source"] = self.source
+        return out
+
+    @classmethod
+    def from_mapping(cls, data: Any) -> "Rig":
+        """Validated rig from a rig-file mapping (keys :data:`RIG_KEYS`)."""
+        if not isinstance(data, Mapping):
+            raise ParameterError(f"rig: expected a mapping with keys {', '.join(RIG_KEYS)}, got {type(data).__name__}")
+        for key in data:
+            if key not in RIG_KEYS:
+                raise ParameterError(f"rig: unknown key '{key}'; known keys: {', '.join(RIG_KEYS)}")
+        if "model" not in data:
+            raise ParameterError("rig: missing key 'model'")
+        for key in ("parameters", "effects", "uncertainty"):
+            if data.get(key) is not None and not isinstance(data[key], Mapping):
+                raise ParameterError(f"rig: '{key}' must be a mapping (name: value), got {data[key]!r}")
+        preset = data.get("preset")
+        source = data.get("source") or ""
+        return cls(model=str(data["model"]), preset=None if preset is None else str(preset),
+                   parameters=dict(data.get("parameters") or {}), effects=dict(data.get("effects") or {}),
+                   uncertainty=dict(data.get("uncertainty") or {}), source=str(source))
