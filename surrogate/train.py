@@ -7,7 +7,7 @@ from sklearn.model_selection import train_test_split
 from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
-from pipeline.errors import UserError
+from pipeline.core.errors import UserError
 from surrogate import metrics, selection
 from surrogate.bundle import Bundle, TargetModel
 from surrogate.config import TrainConfig

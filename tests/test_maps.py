@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 import sim
-from pipeline import maps as M
+from pipeline.maps import compute as M
 from pipeline.cli import main
 from tests.reference_solutions import reference_run
 

@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.errors import UserError
-from pipeline.measured import Dataset, load_dataset, write_dataset
+from pipeline.core.errors import UserError
+from pipeline.datasets.measured import Dataset, load_dataset, write_dataset
 
 ROOT = Path(__file__).resolve().parent.parent
 PUBLISHED = ROOT / "measured" / "seed000-published"

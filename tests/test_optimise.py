@@ -14,11 +14,11 @@ import pytest
 
 import sim
 from pipeline.cli import main as cli_main
-from pipeline.errors import UserError
-from pipeline.optim.constraints import Constraints, progress_force_floor
-from pipeline.optim.space import Space, parse_range
-from pipeline.optim.study import pareto_mask, pick_candidates
-from pipeline.optimise import OptimiseConfig, run_optimise
+from pipeline.core.errors import UserError
+from pipeline.optimise.constraints import Constraints, progress_force_floor
+from pipeline.optimise.space import Space, parse_range
+from pipeline.optimise.study import pareto_mask, pick_candidates
+from pipeline.optimise.workflow import OptimiseConfig, run_optimise
 
 LAB = {"frequency_hz": (100.0, 450.0), "amplitude_n": (1800.0, 2700.0), "static_force_n": (600.0, 1800.0)}
 SMALL = {"frequency_hz": [250.0, 300.0], "amplitude_n": [2400.0, 2700.0], "static_force_n": [1400.0, 1800.0]}

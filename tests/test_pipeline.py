@@ -34,7 +34,7 @@ def _env(root: Path, experiment: str = "vibro-test") -> dict[str, str]:
 
 
 def _run_main(root: Path, env: dict, *extra: str, timeout: float = 600) -> subprocess.CompletedProcess:
-    proc = subprocess.run([sys.executable, "-m", "pipeline.run_main", "--root", str(root), *extra], cwd=root,
+    proc = subprocess.run([sys.executable, "-m", "pipeline.tracking.repro", "--root", str(root), *extra], cwd=root,
                           env=env, capture_output=True, text=True, timeout=timeout)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return proc
@@ -140,7 +140,7 @@ def test_run_main_parent_child_noop_and_partial_rerun(toy: Path):
 def test_run_main_failed_stage_marks_parent_failed(toy: Path):
     (toy / "params.yaml").write_text("a: {x: 1.0}\nb: {}\n")             # b's key x missing → stage b fails
     env = _env(toy)
-    proc = subprocess.run([sys.executable, "-m", "pipeline.run_main", "--root", str(toy)], cwd=toy, env=env,
+    proc = subprocess.run([sys.executable, "-m", "pipeline.tracking.repro", "--root", str(toy)], cwd=toy, env=env,
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode != 0
     parent = next(r for r in _runs(toy) if r.data.tags.get("vibro.stage") == "pipeline")
@@ -149,7 +149,7 @@ def test_run_main_failed_stage_marks_parent_failed(toy: Path):
 
 
 def test_run_main_without_dvc_yaml_is_a_one_line_error(tmp_path: Path):
-    proc = subprocess.run([sys.executable, "-m", "pipeline.run_main", "--root", str(tmp_path)], env=_env(tmp_path),
+    proc = subprocess.run([sys.executable, "-m", "pipeline.tracking.repro", "--root", str(tmp_path)], env=_env(tmp_path),
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
     assert "no dvc.yaml" in proc.stderr and "Traceback" not in proc.stderr
@@ -314,7 +314,7 @@ def _copy_project(dst: Path) -> None:
 
 @pytest.mark.slow
 def test_real_pipeline_end_to_end(tmp_path: Path):
-    from pipeline.run_main import stale_stages
+    from pipeline.tracking.repro import stale_stages
 
     root = tmp_path / "proj"
     root.mkdir()

@@ -11,8 +11,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.errors import UserError
-from surrogate import Bundle, ExtrapolationWarning, load_bundle, train_bundle
+from pipeline.core.errors import UserError
+from pipeline.tracking import load_bundle
+from surrogate import Bundle, ExtrapolationWarning, train_bundle
 from surrogate.data import infer_inputs, regime_of
 from surrogate.intervals import ConformalInterval
 

@@ -1,4 +1,4 @@
-"""`vibro sweep` / pipeline.sweep: spec validation, designs, resumable chunked datasets, Dask scale-out.
+"""`vibro sweep` / pipeline.datasets.sweep: spec validation, designs, resumable chunked datasets, Dask scale-out.
 
 Tiny sweeps (12 points of the drill model defaults, short settings window 8 / max_transient 100)
 keep these tests fast; the preset is None until the drill 'lab' preset lands.
@@ -18,8 +18,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.errors import UserError
-from pipeline.sweep import (Range, design_points, load_dataset, make_spec, run_sweep, unit_design)
+from pipeline.core.errors import UserError
+from pipeline.datasets.dask_backend import DaskBackend
+from pipeline.datasets.runner import LocalBackend, run_sweep
+from pipeline.datasets.spec import Range, design_points, make_spec, unit_design
+from pipeline.datasets.store import load_dataset
 from sim import ParameterError
 
 REPO = Path(__file__).resolve().parent.parent
@@ -133,10 +136,10 @@ def test_listing_order_of_vary_does_not_matter():
 
 def test_default_sweep_is_the_drill_lab_preset_over_lab_space():
     """The shipped params.yaml 'sweep' section and the built-in default are the same spec (MODELS.md §2 lab space)."""
-    from pipeline.sweep import read_params
+    from pipeline.core.params import read_section
     from sim.models.drill import LAB_SPACE
 
-    spec = make_spec(read_params(REPO / "params.yaml"))
+    spec = make_spec(read_section(REPO / "params.yaml", "sweep", section_required=True))
     assert spec.fingerprint == make_spec(None).fingerprint
     assert (spec.model, spec.preset, spec.design) == ("drill", "lab", "sobol")
     assert {k: (r.low, r.high) for k, r in spec.vary.items()} == {k: tuple(v) for k, v in LAB_SPACE.items()}
@@ -202,7 +205,7 @@ def test_runaway_rows_kept_with_null_labels_not_nan(tmp_path):
 
 # ---------------------------------------------------------------------- determinism / resume
 def test_same_seed_same_dataset_any_chunking(tmp_path, clean):
-    run_sweep(make_spec(raw_spec(chunk_size=12)), tmp_path / "a", progress=False, n_threads=1)
+    run_sweep(make_spec(raw_spec(chunk_size=12)), tmp_path / "a", progress=False, backend=LocalBackend(1))
     pd.testing.assert_frame_equal(load_dataset(tmp_path / "a"), clean, check_exact=True)
     other = tmp_path / "b"
     run_sweep(make_spec(raw_spec(seed=3, chunk_size=12)), other, progress=False)
@@ -294,7 +297,7 @@ def test_dask_localcluster_gives_identical_results_and_resumes(tmp_path, clean):
     spec = make_spec(raw_spec())
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         addr = cluster.scheduler_address
-        s = run_sweep(spec, tmp_path / "dask", scheduler=addr, progress=False)
+        s = run_sweep(spec, tmp_path / "dask", backend=DaskBackend(addr), progress=False)
         assert s.computed == 12 and s.backend.startswith("dask")
         pd.testing.assert_frame_equal(load_dataset(tmp_path / "dask"), clean, check_exact=True)
 
@@ -305,14 +308,14 @@ def test_dask_localcluster_gives_identical_results_and_resumes(tmp_path, clean):
 
         with pytest.raises(_Stop):
             run_sweep(spec, out, progress=False, _after_chunk=stop)
-        s = run_sweep(spec, out, scheduler=addr, progress=False)
+        s = run_sweep(spec, out, backend=DaskBackend(addr), progress=False)
         assert (s.reused, s.computed) == (5, 7)
         pd.testing.assert_frame_equal(load_dataset(out), clean, check_exact=True)
 
 
 def test_unreachable_scheduler_is_a_user_error(tmp_path):
     with pytest.raises(UserError, match="cannot reach"):
-        run_sweep(make_spec(raw_spec(n_points=2)), tmp_path / "ds", scheduler="tcp://127.0.0.1:9", progress=False)
+        run_sweep(make_spec(raw_spec(n_points=2)), tmp_path / "ds", backend=DaskBackend("tcp://127.0.0.1:9"), progress=False)
 
 
 # ----------------------------------------------------------------------------------- CLI

@@ -14,14 +14,14 @@ and whose held-out nrms is <= ``explained_nrms``; if the calibrated base model i
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from pipeline.diagnosis.features import Target, series_target, summary_target
 from pipeline.diagnosis.fit import FitResult, fit
 from pipeline.diagnosis.model import BASE, Evaluator, FreeParam, candidates
-from pipeline.errors import UserError
+from pipeline.core.errors import UserError
 
 
 @dataclass
