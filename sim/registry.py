@@ -14,6 +14,11 @@ _MODULES = {
 }
 
 
+DEFAULT_MODEL = "drill"
+"""The model a workflow uses when none is named (with its DEFAULT_PRESET)."""
+DEFAULT_PRESET = "lab"
+
+
 def model_names() -> tuple[str, ...]:
     return tuple(_MODULES)
 

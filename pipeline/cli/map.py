@@ -47,7 +47,7 @@ def add_parser(sub) -> None:
     p.add_argument("model", help="drill | indenter-metal | indenter-sandstone | pendulum | rimd")
     p.add_argument("--x", required=True, metavar="PARAM", help="parameter on the horizontal axis (e.g. frequency_hz)")
     p.add_argument("--x-range", nargs=2, type=float, metavar=("LO", "HI"),
-                   help="range of --x in SI units (default: per model, see pipeline/maps.py DEFAULT_RANGES; drill forces are multiples of Pr)")
+                   help="range of --x in SI units (default: per model, ModelSpec.map_ranges; drill forces are multiples of Pr)")
     p.add_argument("--nx", type=int, default=40, help="number of --x values (default 40)")
     p.add_argument("--y", metavar="PARAM", help="parameter on the vertical axis (omit for a bifurcation diagram)")
     p.add_argument("--y-range", nargs=2, type=float, metavar=("LO", "HI"), help="range of --y in SI units")
@@ -87,7 +87,7 @@ def resolve_kind(model: str, kind: str, has_y: bool) -> str:
     if kind == "auto":
         if not has_y:
             return "bifurcation"
-        return "peterka" if model in M.PATTERN_MODELS else ("rop" if model in M.ROP_MODELS else "peterka")
+        return M.default_kind(model)
     if kind == "bifurcation" and has_y:
         raise UserError("--kind bifurcation sweeps one parameter: drop --y")
     if kind != "bifurcation" and not has_y:

@@ -28,13 +28,7 @@ SPEC_KEYS = ("model", "preset", "fixed", "vary", "design", "n_points", "seed", "
 EXEC_KEYS = ("chunk_size", "scheduler", "workers")
 
 
-# MODELS.md §2 search space of the drill's lab-scale starting point (f, F0, Fs = 0.05..0.95 Pr, Pr = 1.5 kN);
-# replaced by sim.models.drill.LAB_SPACE when that exists.
-_MODELS_MD_SPACE = {
-    "frequency_hz": {"low": 10.0, "high": 400.0, "scale": "linear"},
-    "amplitude_n": {"low": 0.0, "high": 3000.0, "scale": "linear"},
-    "static_force_n": {"low": 75.0, "high": 1425.0, "scale": "linear"},
-}
+
 
 
 @dataclass(frozen=True)
@@ -109,30 +103,23 @@ class SweepSpec:
                 "settings": c["settings"], "chunk_size": self.chunk_size}
 
 
-def default_vary(model: str = "drill", preset: str | None = "lab") -> dict[str, dict]:
-    """Default varied parameters: ``sim.models.drill.LAB_SPACE`` when it exists, else the MODELS.md §2 ranges."""
-    if model == "drill":
-        try:
-            from sim.models import drill
+def default_vary(model: str, preset: str | None) -> dict[str, dict]:
+    """Default varied parameters: the model's search space for ``preset`` (``ModelSpec.search_spaces``; the
+    model-defaults space "" when the preset has none)."""
+    from sim import get_model
 
-            space = getattr(drill, "LAB_SPACE", None)
-        except ImportError:
-            space = None
-        if space:
-            out = {}
-            for name, r in dict(space).items():
-                if isinstance(r, dict):
-                    out[name] = {"low": float(r["low"]), "high": float(r["high"]), "scale": r.get("scale", "linear")}
-                else:
-                    lo, hi = r[0], r[1]
-                    out[name] = {"low": float(lo), "high": float(hi), "scale": (r[2] if len(r) > 2 else "linear")}
-            return out
-    return {k: dict(v) for k, v in _MODELS_MD_SPACE.items()}
+    spaces = get_model(model).search_spaces
+    space = spaces.get(preset or "") or spaces.get("")
+    if not space:
+        raise UserError(f"sweep: model '{model}' (preset {preset}) has no default search space; give 'vary'")
+    return {name: {"low": float(lo), "high": float(hi), "scale": "linear"} for name, (lo, hi) in space.items()}
 
 
 def default_spec_dict() -> dict:
     """The built-in default sweep (same as the ``sweep`` section shipped in params.yaml)."""
-    return {"model": "drill", "preset": "lab", "fixed": {}, "vary": default_vary("drill", "lab"),
+    from sim.registry import DEFAULT_MODEL, DEFAULT_PRESET
+
+    return {"model": DEFAULT_MODEL, "preset": DEFAULT_PRESET, "fixed": {}, "vary": default_vary(DEFAULT_MODEL, DEFAULT_PRESET),
             "design": "sobol", "n_points": 1024, "seed": 0, "settings": {}, "chunk_size": 64}
 
 

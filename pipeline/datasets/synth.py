@@ -20,9 +20,6 @@ import pandas as pd
 from pipeline.core.errors import UserError
 from pipeline.datasets.measured import Dataset
 
-CALIBRATABLE = {"indenter-metal": ("k1", "c1", "pm"), "indenter-sandstone": ("kl", "ku", "pm")}
-"""MODELS.md §1: the uncertain parameters expected to be fitted to measured data."""
-
 EFFECT_DEFAULTS = {
     "shaker_coil": {"tau": 1.0e-3, "beta": 600.0},
     "rate_stiffening": {"alpha": 3.0},
@@ -50,7 +47,7 @@ class SynthConfig:
     """What to generate.  Units: Hz, bar, seconds; noise_* are fractions of the signal's standard
     deviation; offsets are standard deviations of a constant sensor offset per run (SI units)."""
 
-    system: str = "indenter-metal"
+    system: str                                                     # a model of the indenter rig (rig_systems())
     effects: dict[str, float] = field(default_factory=dict)        # parameter name -> value
     outside: str | None = None
     outside_params: dict[str, float] = field(default_factory=dict)
@@ -94,17 +91,24 @@ def resolve_effects(system: str, names_or_values: dict[str, float | None]) -> di
     return out
 
 
+def rig_systems() -> tuple[str, ...]:
+    """Models of the rig whose operating points the run table uses (Table 1 amplitudes, pneumatic static force)."""
+    from sim.models.indenter import SPECS
+
+    return tuple(SPECS)
+
+
 def true_parameters(cfg: SynthConfig) -> dict[str, float]:
     """Calibratable parameters perturbed log-normally (seeded) plus the effect parameters."""
     import sim
 
-    if cfg.system not in CALIBRATABLE:
-        raise UserError(f"--system {cfg.system}: synthetic data are available for "
-                        f"{', '.join(CALIBRATABLE)} (MODELS.md §1)")
     spec = sim.get_model(cfg.system)
+    if cfg.system not in rig_systems() or not spec.calibratable:
+        raise UserError(f"--system {cfg.system}: synthetic data are available for {', '.join(rig_systems())} "
+                        "(the indenter rig's models, MODELS.md §1)")
     d = spec.defaults()
     rng = np.random.default_rng(cfg.seed)
-    truth = {p: float(d[p] * math.exp(cfg.perturb * rng.standard_normal())) for p in CALIBRATABLE[cfg.system]}
+    truth = {p: float(d[p] * math.exp(cfg.perturb * rng.standard_normal())) for p in (b.name for b in spec.calibratable)}
     truth.update(cfg.effects)
     return truth
 
@@ -120,6 +124,13 @@ def _mount_resonance(a: np.ndarray, fs: float, fr: float, zeta: float) -> np.nda
     return y[2 * a.size:]
 
 
+def _hertz_model() -> str:
+    """The rig model with power-law contact exponents (nl, nu): simulates a Hertz contact (nl = nu = 1.5)."""
+    import sim
+
+    return next(n for n in rig_systems() if {"nl", "nu"} <= set(sim.get_model(n).param_names))
+
+
 def _simulate_run(cfg: SynthConfig, truth: dict, row: dict):
     import sim
 
@@ -129,7 +140,7 @@ def _simulate_run(cfg: SynthConfig, truth: dict, row: dict):
     if cfg.outside == "contact_hertz":
         kh = cfg.outside_params.get("kh", 3.0e8)     # N/m^1.5: same order of contact force as k1 = 1e7 N/m
         params = {k: v for k, v in truth.items() if k not in ("k1", "c1")}
-        r = sim.simulate("indenter-sandstone", settings=st, history=True, kl=kh, ku=kh, nl=1.5, nu=1.5,
+        r = sim.simulate(_hertz_model(), settings=st, history=True, kl=kh, ku=kh, nl=1.5, nu=1.5,
                          **ctrl, **params)
     else:
         r = sim.simulate(cfg.system, settings=st, history=True, **ctrl, **truth)
@@ -185,12 +196,14 @@ def synthesize(cfg: SynthConfig, progress: bool = False) -> tuple[Dataset, dict]
     """Build the dataset in memory: (Dataset, truth) — nothing is written here."""
     import os
 
+    import sim
+
     from tqdm import tqdm
 
     if cfg.outside is not None and cfg.outside not in OUTSIDE:
         raise UserError(f"--outside {cfg.outside}: unknown (known: {', '.join(OUTSIDE)})")
-    if cfg.outside == "contact_hertz" and cfg.system != "indenter-metal":
-        raise UserError("--outside contact_hertz applies to --system indenter-metal only")
+    if cfg.outside == "contact_hertz" and "k1" not in sim.get_model(cfg.system).param_names:
+        raise UserError(f"--outside contact_hertz replaces a linear contact stiffness k1, which {cfg.system} does not have")
     for s in cfg.signals:
         if s not in ("accel_m_s2", "force_n", "disp_m", "progression_m"):
             raise UserError(f"--signals: unknown signal '{s}' (accel_m_s2, force_n, disp_m, progression_m)")
@@ -202,7 +215,7 @@ def synthesize(cfg: SynthConfig, progress: bool = False) -> tuple[Dataset, dict]
     workers = cfg.n_threads or os.cpu_count() or 1
     from pipeline.diagnosis.model import warm
 
-    warm("indenter-sandstone" if cfg.outside == "contact_hertz" else cfg.system)
+    warm(_hertz_model() if cfg.outside == "contact_hertz" else cfg.system)
     with ThreadPoolExecutor(max_workers=workers) as pool:
         it = pool.map(lambda row: _simulate_run(cfg, truth, row), rows)
         results = list(tqdm(it, total=len(rows), desc="synth", disable=not progress, unit="run"))

@@ -30,22 +30,15 @@ NO_IMPACT, Z11, Z12, OTHER_PERIODIC, NON_PERIODIC, RUNAWAY, FAILED = range(7)
 PATTERN_NAMES = {NO_IMPACT: "no impact", Z11: "z=1/1", Z12: "z=1/2", OTHER_PERIODIC: "other periodic",
                  NON_PERIODIC: "non-periodic", RUNAWAY: "runaway", FAILED: "failed"}
 
-PATTERN_MODELS = ("pendulum", "rimd")
-ROP_MODELS = ("drill", "indenter-sandstone")
+KINDS = {"pattern": "peterka", "rop": "rop"}
+"""ModelSpec.map_kind -> the 2-D map a model gets by default (``vibro map --kind auto``)."""
 
-# Default ranges (lo, hi) of the map axes [SI units], per model and parameter.  Pendulum and RIMD follow
-# the seeds' figures (seed 001 Figs. 13-14: 1-10 Hz, gaps up to 3 mm; seed 002 Table 3: gaps 0-3 mm).
-DEFAULT_RANGES: dict[str, dict[str, tuple[float, float]]] = {
-    "pendulum": {"frequency_hz": (1.0, 10.0), "gap_m": (0.0, 3.0e-3), "amplitude_m": (0.2e-3, 1.5e-3)},
-    "rimd": {"frequency_hz": (3.0, 12.0), "gap_m": (0.0, 3.0e-3), "amplitude_n": (0.25, 2.0)},
-    # drill forces are scaled to the resolved rock threshold Pr (see _relative_range): F0 in [0, 1] Pr and
-    # Fs in [0.05, 1.1] Pr, so the non-progressing (small F0) and runaway (Fs >= Pr) regions are on the map.
-    "drill": {"frequency_hz": (10.0, 450.0), "amplitude_n": (0.0, 1.0), "static_force_n": (0.05, 1.1)},
-    "indenter-sandstone": {"frequency_hz": (30.0, 100.0), "amplitude_n": (100.0, 900.0),
-                           "static_force_n": (50.0, 400.0)},
-    "indenter-metal": {"frequency_hz": (30.0, 100.0), "amplitude_n": (100.0, 900.0),
-                       "static_force_n": (50.0, 400.0)},
-}
+
+def default_kind(model: str) -> str:
+    """The default 2-D map of ``model``: its ``ModelSpec.map_kind`` (impact patterns when it names none)."""
+    from sim import get_model
+
+    return KINDS.get(get_model(model).map_kind, "peterka")
 
 
 def classify_pattern(status: str, impacts_per_cycle, period) -> tuple[int, str]:
@@ -121,25 +114,21 @@ def add_rop_region(df: pd.DataFrame, floor_m_s: float = 1e-9) -> pd.DataFrame:
 
 
 # ----------------------------------------------------------------------------- axes
-RELATIVE_TO = {("drill", "amplitude_n"): "Pr", ("drill", "static_force_n"): "Pr"}
-"""Default ranges given as multiples of another resolved parameter."""
-
-
 def axis_values(model: str, name: str, lo: float | None, hi: float | None, n: int, log: bool = False,
                 base: dict | None = None) -> np.ndarray:
-    """Grid values of one axis: ``n`` points from ``lo`` to ``hi`` (defaults from DEFAULT_RANGES; drill
-    force ranges are multiples of Pr taken from ``base``, the resolved parameters of the map's preset)."""
+    """Grid values of one axis: ``n`` points from ``lo`` to ``hi`` (defaults: ``ModelSpec.map_ranges``; a range in
+    ``map_relative_to`` is a multiple of that parameter taken from ``base``, the resolved parameters of the map's preset)."""
     from sim import get_model
 
     spec = get_model(model)
     if name not in spec.param_names:
         raise UserError(f"'{name}' is not a parameter of model '{model}'; known: {', '.join(spec.param_names)}")
     if lo is None or hi is None:
-        rng = DEFAULT_RANGES.get(model, {}).get(name)
+        rng = spec.map_ranges.get(name)
         if rng is None:
             raise UserError(f"no default range for '{name}' of model '{model}': give its range, e.g. "
                             f"--x-range LO HI")
-        ref = RELATIVE_TO.get((model, name))
+        ref = spec.map_relative_to.get(name)
         if ref is not None:
             scale = float((base or spec.defaults())[ref])
             rng = (rng[0] * scale, rng[1] * scale)

@@ -124,7 +124,7 @@ class Constraints:
 
 
 def progress_force_floor(model: str, values: Mapping[str, float]) -> float | None:
-    """Contact force a model's tool must reach to progress [N]: drill → Pr (MODELS.md §2); else None."""
-    if model == "drill" and "Pr" in values:
-        return float(values["Pr"])
-    return None
+    """Contact force a model's tool must reach to progress [N] (``ModelSpec.progress_force_floor``), or None."""
+    from sim import get_model
+
+    return get_model(model).progress_force_floor(values)

@@ -101,13 +101,9 @@ def space_from_mapping(d: dict) -> Space:
 
 
 def default_space(model: str, preset: str | None) -> Space | None:
-    """The model's published search space for a preset (drill ``lab``: ``sim.models.drill.LAB_SPACE``), if any."""
-    if model == "drill" and preset == "lab":
-        try:
-            from sim.models import drill
-        except ImportError:  # pragma: no cover
-            return None
-        lab = getattr(drill, "LAB_SPACE", None)
-        if lab:
-            return space_from_mapping(lab)
-    return None
+    """The model's published search space for ``preset`` (``ModelSpec.search_spaces``; "" = the model's
+    defaults when no preset is named), if it has one."""
+    from sim import get_model
+
+    space = get_model(model).search_spaces.get(preset or "")
+    return space_from_mapping(space) if space else None

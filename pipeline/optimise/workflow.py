@@ -21,6 +21,7 @@ import pandas as pd
 
 from pipeline.core.jsonable import dump_json
 from pipeline.core.errors import UserError
+from sim.registry import DEFAULT_MODEL
 from pipeline.optimise import plots
 from pipeline.optimise.constraints import Constraints, progress_force_floor
 from pipeline.optimise.evaluators import SimulatorEvaluator, SurrogateEvaluator
@@ -41,7 +42,7 @@ class OptimiseConfig:
     mode: 'surrogate' (study on the bundle at ``surrogate``, then verification) or 'simulator'
     (study directly on the simulator).  objective: 'rop' (maximise ROP) or 'pareto' (maximise ROP,
     minimise specific energy).  ranges: {name: [low, high]} — default: the surrogate's training
-    ranges / the model's published space (drill lab: LAB_SPACE).  n_trials: total complete trials
+    ranges / the model's published space (ModelSpec.search_spaces).  n_trials: total complete trials
     of the study (a resumed study runs only the rest; default 600 on the surrogate, 200 on the
     simulator = simulator calls).  n_verify: points re-simulated (distinct best / spread along the
     front).  rel_tol: relative ROP error above which the surrogate is called wrong.
@@ -49,7 +50,7 @@ class OptimiseConfig:
 
     mode: str = "surrogate"
     surrogate: str | None = "models/surrogate"
-    model: str = "drill"
+    model: str = DEFAULT_MODEL
     preset: str | None = "lab"
     objective: str = "rop"
     ranges: dict = field(default_factory=dict)
