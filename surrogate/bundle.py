@@ -69,6 +69,12 @@ class Bundle:
     regressors: dict[str, TargetModel]
     report: dict = field(default_factory=dict)
     config: dict = field(default_factory=dict)
+    fixed: dict = field(default_factory=dict)      # the sweep's fixed parameters [SI]: the conditions it was trained under
+    settings: dict = field(default_factory=dict)   # the sweep's simulator settings (verification re-simulates with them)
+
+    def __setstate__(self, state: dict) -> None:
+        """Bundles pickled before ``fixed``/``settings`` existed load with both empty."""
+        self.__dict__.update({"fixed": {}, "settings": {}, **state})
 
     # ---- checks ---------------------------------------------------------------------------
     def check_model(self, model: str | None) -> None:
@@ -143,6 +149,7 @@ class Bundle:
     def schema(self) -> dict:
         return {"format": FORMAT, "inputs": self.inputs, "ranges": {k: list(v) for k, v in self.ranges.items()},
                 "scale": self.scaler.scale, "model": self.model, "preset": self.preset,
+                "fixed": self.fixed, "settings": self.settings,
                 "fingerprint": self.fingerprint, "classifier": self.classifier_name, "classes": self.classes,
                 "targets": {t: {"model": m.name, "transform": m.transform.kind, "domain": m.domain,
                                 "interval_q": m.interval.q, "interval_level": m.interval.level,

@@ -130,7 +130,8 @@ def run(args) -> int:
               **{f"train.{k}": v for k, v in cfg.to_dict().items()}}
     with tracking.run("train", params, enabled=not args.no_mlflow) as mlflow:
         bundle = train_bundle(df, inputs, ranges, model, preset, cfg, scale=data.scales(meta, inputs),
-                              fingerprint=fp, progress=not args.quiet)
+                              fingerprint=fp, progress=not args.quiet, fixed=meta.get("fixed"),
+                              settings=meta.get("settings"))
         train, test = split_frame(df, cfg)
         ad = None
         if cfg.adaptive.enabled:

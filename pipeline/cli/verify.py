@@ -68,10 +68,12 @@ def run(args) -> int:
     bundle = load_bundle(args.surrogate) if args.surrogate else None
     if bundle is not None:
         model, preset = bundle.model, bundle.preset
-        fixed = {**dict(getattr(bundle, "fixed", None) or {}), **fixed}
+        fixed = {**bundle.fixed, **fixed}     # the sweep's conditions, overridden by --fixed
+        settings = bundle.settings or None
         inputs = args.inputs or list(bundle.inputs)
     else:
         model, preset = args.model, (None if str(args.preset).lower() == "none" else args.preset)
+        settings = None
         names = sim.get_model(model).param_names
         inputs = args.inputs or [c for c in points.columns if c in names]
         if not inputs:
@@ -86,6 +88,7 @@ def run(args) -> int:
               "inputs": ",".join(inputs), "rel_tol": args.rel_tol, **cons.to_dict()}
     with tracking.run("verify", params, enabled=not args.no_mlflow) as mlflow:
         table, simres = verify_points(points, model, preset, inputs, cons, args.rel_tol, bundle=bundle, fixed=fixed,
+                                      settings=settings,
                                       n_threads=args.n_threads, source=args.points)
         summary = summarise(table)
         atomic_write_with(out / "verified.csv", lambda tmp: table.to_csv(tmp, index=False))

@@ -213,7 +213,7 @@ def synthesize(cfg: SynthConfig, progress: bool = False) -> tuple[Dataset, dict]
     runs = run_table(cfg)
     rows = runs.to_dict("records")
     workers = cfg.n_threads or os.cpu_count() or 1
-    from pipeline.diagnosis.model import warm
+    from sim.registry import warm
 
     warm(_hertz_model() if cfg.outside == "contact_hertz" else cfg.system)
     with ThreadPoolExecutor(max_workers=workers) as pool:

@@ -15,6 +15,7 @@ import numpy as np
 from pipeline.diagnosis.features import Target, peak_velocity, simulated_features
 from pipeline.core.errors import UserError
 from sim.models.base import FitBound
+from sim.registry import warm as sim_warm
 
 
 FreeParam = FitBound
@@ -35,14 +36,8 @@ def calibratable(system: str) -> tuple[FitBound, ...]:
     return sim.get_model(system).calibratable
 
 
-def warm(system: str) -> None:
-    """Load/compile the model's kernel in the calling thread before threads use it
-    (sim.compiled.kernels is not thread-safe on its first call; see the diagnose report)."""
-    import sim
-    from sim.compiled import kernels
-
-    spec = sim.get_model(system)
-    kernels(spec.funcs, spec.n_bounded)
+warm = sim_warm
+"""Load/compile the model's kernel before threads use it (sim.registry.warm)."""
 
 
 def candidates(system: str) -> dict[str, tuple[FreeParam, ...]]:

@@ -109,7 +109,7 @@ def _setup(cfg: OptimiseConfig, bundle):
 
     if cfg.mode == "surrogate":
         model, preset = bundle.model, bundle.preset
-        fixed = {**dict(getattr(bundle, "fixed", None) or {}), **cfg.fixed}
+        fixed = {**bundle.fixed, **cfg.fixed}     # the sweep's conditions, overridden by the user's
         full = Space({n: (float(bundle.ranges[n][0]), float(bundle.ranges[n][1])) for n in bundle.inputs})
         space = space_from_mapping(cfg.ranges) if cfg.ranges else full
         if cfg.ranges:
@@ -132,7 +132,8 @@ def _setup(cfg: OptimiseConfig, bundle):
     clash = sorted(set(fixed) & set(space.ranges))
     if clash:
         raise UserError(f"parameter(s) {clash} are both fixed and searched; drop one")
-    simulator = SimulatorEvaluator(model, preset, fixed, settings=cfg.settings, n_threads=cfg.n_threads)
+    settings = cfg.settings if cfg.settings is not None or bundle is None else (bundle.settings or None)
+    simulator = SimulatorEvaluator(model, preset, fixed, settings=settings, n_threads=cfg.n_threads)
     study_eval = SurrogateEvaluator(bundle, fixed) if cfg.mode == "surrogate" else simulator
     return model, preset, fixed, space, simulator, study_eval
 

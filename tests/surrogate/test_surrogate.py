@@ -259,3 +259,18 @@ def test_adaptive_sampling_runs_and_reports_savings(tmp_path):
     assert [c["n_sims"] for c in res["adaptive"]] == [128, 256, 384, 512]
     assert len(res["design"]) == 512
     assert "rop_m_s_rmse" in res["savings"]
+
+
+def test_bundle_carries_the_sweeps_fixed_parameters_and_settings(tmp_path):
+    """The sweep's fixed parameters and simulator settings travel with the bundle (saved, loaded, in
+    bundle.json) and optimisation re-simulates under them (issue 11: before, they were always empty)."""
+    from pipeline.optimise.workflow import OptimiseConfig, _setup
+
+    fixed, settings = {"Pr": 3000.0}, {"window": 8}
+    b = train_bundle(synthetic(), list(RANGES), RANGES, "drill", None, FAST, fixed=fixed, settings=settings)
+    b.save(tmp_path / "b")
+    assert json.loads((tmp_path / "b" / "bundle.json").read_text())["fixed"] == fixed
+    b2 = load_bundle(tmp_path / "b")
+    assert b2.fixed == fixed and b2.settings == settings
+    _, _, used_fixed, _, simulator, _ = _setup(OptimiseConfig(mode="surrogate", surrogate=str(tmp_path / "b")), b2)
+    assert used_fixed == fixed and simulator.fixed == fixed and simulator.settings == settings

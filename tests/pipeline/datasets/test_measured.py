@@ -11,7 +11,7 @@ import pytest
 from pipeline.core.errors import UserError
 from pipeline.datasets.measured import Dataset, load_dataset, write_dataset
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[3]
 PUBLISHED = ROOT / "measured" / "seed000-published"
 
 RUNS = ("run_id,system,frequency_hz,amplitude_n,static_force_n,gap_m,duration_s\n"

@@ -25,7 +25,7 @@ from pipeline.datasets.spec import Range, design_points, make_spec, unit_design
 from pipeline.datasets.store import load_dataset
 from sim import ParameterError
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[3]
 SHORT = {"window": 8, "max_transient": 100}
 VARY = {"frequency_hz": {"low": 10.0, "high": 400.0, "scale": "linear"},
         "amplitude_n": {"low": 0.0, "high": 3000.0, "scale": "linear"},
