@@ -419,12 +419,9 @@ def build_report(inp: ReportInputs, out: Path) -> ReportResult:
         shutil.rmtree(figdir)
     figs = _Figs(out, inp.dpi)
     doc = Document(inp.title)
-    params = {}
-    pfile = inp.p(inp.params)
-    if pfile.exists():
-        import yaml
+    from pipeline.core.params import read_params
 
-        params = yaml.safe_load(pfile.read_text()) or {}
+    params = read_params(inp.p(inp.params), missing_ok=True)
     sw = params.get("sweep") or {}
     doc.add(Para(f"Model `{sw.get('model', '?')}`, preset `{sw.get('preset')}`; parameters from "
                  f"`{inp.params}` (every value is also logged to MLflow).  Produced by `vibro report`."))
