@@ -5,6 +5,7 @@ files.py     the one atomic-write module (text, bytes, JSON, Parquet, whole dire
 params.py    the one params.yaml section reader
 names.py     label names, surrogate targets, regimes and the regime <-> sweep-status map
 jsonable.py  JSON-safe conversion and the one nested-dict flattener
+unitcube.py  the one range <-> unit-interval mapping (linear or log)
 
 It imports nothing of the project but ``sim`` (for ParameterError and LABELS).
 """

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
+from pipeline.core.unitcube import from_unit
 
 FORMAT_VERSION = 1
 """Version of the dataset format (part of every spec fingerprint)."""
@@ -43,10 +44,7 @@ class Range:
 
     def to_physical(self, u: np.ndarray) -> np.ndarray:
         """Map unit-interval coordinates ``u`` ∈ [0, 1] to parameter values."""
-        if self.scale == "log":
-            lo, hi = math.log(self.low), math.log(self.high)
-            return np.exp(lo + u * (hi - lo))
-        return self.low + u * (self.high - self.low)
+        return from_unit(u, self.low, self.high, self.scale == "log")
 
 
 @dataclass(frozen=True)

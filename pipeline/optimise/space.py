@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
+from pipeline.core.unitcube import to_unit
 
 
 @dataclass(frozen=True)
@@ -46,11 +47,7 @@ class Space:
         """Inputs mapped to the unit cube (log names on a log scale), shape (n, d)."""
         cols = []
         for n, (lo, hi) in self.ranges.items():
-            x = X[n].to_numpy(dtype=float)
-            if n in self.log:
-                cols.append((np.log(x) - math.log(lo)) / (math.log(hi) - math.log(lo)))
-            else:
-                cols.append((x - lo) / (hi - lo))
+            cols.append(to_unit(X[n].to_numpy(dtype=float), lo, hi, n in self.log))
         return np.column_stack(cols) if cols else np.zeros((len(X), 0))
 
     def contains(self, other: "Space", rtol: float = 1e-9) -> list[str]:
