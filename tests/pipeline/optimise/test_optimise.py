@@ -25,7 +25,8 @@ SMALL = {"frequency_hz": [250.0, 300.0], "amplitude_n": [2400.0, 2700.0], "stati
 
 
 class ToyBundle:
-    """TEST DOUBLE of surrogate.Bundle (contract: inputs, ranges, model, preset, fingerprint, report, predict).
+    """TEST DOUBLE of surrogate.Bundle (contract: inputs, ranges, model, preset, fingerprint, fixed, settings, report,
+    predict).
 
     Predicts a smooth analytic ROP peaking at f = 280 Hz and growing with F0 and Fs (the shape MODELS.md §2 asks
     of the lab preset), a constant peak force of Pr = 3 kN, specific energy = energy / ROP with energy ∝ F0²/f.
@@ -36,6 +37,7 @@ class ToyBundle:
         self.inputs = ["frequency_hz", "amplitude_n", "static_force_n"]
         self.ranges = dict(ranges or LAB)
         self.model, self.preset, self.fingerprint, self.report = "drill", "lab", "toy", {}
+        self.fixed, self.settings = {}, {}      # the sweep's conditions (none: the lab preset as it is)
         self.rop_scale = rop_scale
 
     def predict(self, X: pd.DataFrame, strict: bool = False) -> pd.DataFrame:
