@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml requirements.lock
 install: $(STAMP)
 
 run: install
-	$(BIN)/python -m pipeline.run_main
+	$(BIN)/python -m pipeline.tracking.repro
 
 test: install
 	$(BIN)/python -m pytest -q -n 2 --dist loadgroup

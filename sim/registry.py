@@ -14,6 +14,11 @@ _MODULES = {
 }
 
 
+DEFAULT_MODEL = "drill"
+"""The model a workflow uses when none is named (with its DEFAULT_PRESET)."""
+DEFAULT_PRESET = "lab"
+
+
 def model_names() -> tuple[str, ...]:
     return tuple(_MODULES)
 
@@ -27,3 +32,12 @@ def get_model(name: str) -> ModelSpec:
     if specs is not None:
         return specs[name]
     return mod.SPEC
+
+
+def warm(name: str) -> None:
+    """Load/compile ``name``'s kernel in the calling thread before worker threads use it
+    (sim.compiled.kernels is not thread-safe on its first call)."""
+    from sim.compiled import kernels
+
+    spec = get_model(name)
+    kernels(spec.funcs, spec.n_bounded)

@@ -16,6 +16,7 @@ import pandas as pd
 from scipy.stats import qmc
 from tqdm.auto import tqdm
 
+from pipeline.core.unitcube import from_unit
 from surrogate import selection
 from surrogate.config import AdaptiveConfig, TrainConfig
 from surrogate.data import domain_mask, regime_of
@@ -31,10 +32,7 @@ def _to_table(U: np.ndarray, scaler: InputScaler) -> pd.DataFrame:
     cols = {}
     for j, n in enumerate(scaler.inputs):
         lo, hi = scaler.ranges[n]
-        if scaler.scale.get(n) == "log" and lo > 0:
-            cols[n] = np.exp(np.log(lo) + U[:, j] * (np.log(hi) - np.log(lo)))
-        else:
-            cols[n] = lo + U[:, j] * (hi - lo)
+        cols[n] = from_unit(U[:, j], lo, hi, scaler.scale.get(n) == "log" and lo > 0)
     return pd.DataFrame(cols)
 
 

@@ -10,10 +10,7 @@ target would have if the point were in the target's training domain).
 """
 from __future__ import annotations
 
-import json
 import os
-import re
-import tempfile
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,13 +19,13 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
-from pipeline.errors import UserError
+from pipeline.core.errors import UserError
+from pipeline.core.files import atomic_write_text, atomic_write_with
 from surrogate.candidates import SubsampledGP
 from surrogate.features import InputScaler, TargetTransform
 from surrogate.intervals import ConformalInterval
 
 FORMAT = 1
-RUN_ID = re.compile(r"^[0-9a-f]{32}$")
 ARTIFACT_DIR = "surrogate"
 
 
@@ -72,6 +69,12 @@ class Bundle:
     regressors: dict[str, TargetModel]
     report: dict = field(default_factory=dict)
     config: dict = field(default_factory=dict)
+    fixed: dict = field(default_factory=dict)      # the sweep's fixed parameters [SI]: the conditions it was trained under
+    settings: dict = field(default_factory=dict)   # the sweep's simulator settings (verification re-simulates with them)
+
+    def __setstate__(self, state: dict) -> None:
+        """Bundles pickled before ``fixed``/``settings`` existed load with both empty."""
+        self.__dict__.update({"fixed": {}, "settings": {}, **state})
 
     # ---- checks ---------------------------------------------------------------------------
     def check_model(self, model: str | None) -> None:
@@ -146,6 +149,7 @@ class Bundle:
     def schema(self) -> dict:
         return {"format": FORMAT, "inputs": self.inputs, "ranges": {k: list(v) for k, v in self.ranges.items()},
                 "scale": self.scaler.scale, "model": self.model, "preset": self.preset,
+                "fixed": self.fixed, "settings": self.settings,
                 "fingerprint": self.fingerprint, "classifier": self.classifier_name, "classes": self.classes,
                 "targets": {t: {"model": m.name, "transform": m.transform.kind, "domain": m.domain,
                                 "interval_q": m.interval.q, "interval_level": m.interval.level,
@@ -158,24 +162,14 @@ class Bundle:
         """Write bundle.json (schema, human-readable), report.json and bundle.joblib (estimators), atomically."""
         import joblib
 
-        from pipeline.cliutil import dump_json
+        from pipeline.core.jsonable import dump_json
 
         d = Path(path)
         d.mkdir(parents=True, exist_ok=True)
-        _atomic_write(d / "bundle.json", dump_json(self.schema()))
-        _atomic_write(d / "report.json", dump_json(self.report))
-        fd, tmp = tempfile.mkstemp(dir=d, suffix=".tmp")
-        os.close(fd)
-        joblib.dump({"format": FORMAT, "bundle": self}, tmp, compress=3)
-        os.replace(tmp, d / "bundle.joblib")
+        atomic_write_text(d / "bundle.json", dump_json(self.schema()) + "\n")
+        atomic_write_text(d / "report.json", dump_json(self.report) + "\n")
+        atomic_write_with(d / "bundle.joblib", lambda tmp: joblib.dump({"format": FORMAT, "bundle": self}, tmp, compress=3))
         return d
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        f.write(text + "\n")
-    os.replace(tmp, path)
 
 
 def _versions() -> dict:
@@ -185,17 +179,14 @@ def _versions() -> dict:
 
 
 def load_bundle(ref: str | os.PathLike, model: str | None = None) -> Bundle:
-    """Load a bundle from its directory, or from an MLflow run id (its 'surrogate' artifacts).
+    """Load a bundle from its directory (pipeline.tracking.load_bundle also resolves MLflow run ids).
 
     ``model``: raise UserError unless the bundle was trained on that model's data."""
     import joblib
 
     path = Path(ref)
-    if not path.exists() and RUN_ID.match(str(ref)):
-        path = _download_run(str(ref))
     if not (path / "bundle.joblib").is_file():
-        raise UserError(f"'{ref}' is not a surrogate bundle directory (no bundle.joblib) nor an MLflow run id "
-                        "with a surrogate")
+        raise UserError(f"'{ref}' is not a surrogate bundle directory (no bundle.joblib)")
     try:
         obj = joblib.load(path / "bundle.joblib")
     except Exception as e:  # noqa: BLE001 - corrupt / foreign pickle
@@ -205,15 +196,3 @@ def load_bundle(ref: str | os.PathLike, model: str | None = None) -> Bundle:
     b = obj["bundle"]
     b.check_model(model)
     return b
-
-
-def _download_run(run_id: str) -> Path:
-    from pipeline import tracking
-
-    mlflow = tracking.setup()
-    try:
-        local = mlflow.artifacts.download_artifacts(run_id=run_id, artifact_path=ARTIFACT_DIR)
-    except Exception as e:  # noqa: BLE001 - unknown run, or a run without a surrogate
-        raise UserError(f"MLflow run '{run_id}' has no '{ARTIFACT_DIR}' artifacts at {tracking.tracking_uri()} "
-                        f"({type(e).__name__})") from None
-    return Path(local)

@@ -15,7 +15,7 @@ from sklearn.kernel_ridge import KernelRidge
 from sklearn.neural_network import MLPClassifier, MLPRegressor
 from sklearn.preprocessing import StandardScaler
 
-from pipeline.errors import UserError
+from pipeline.core.errors import UserError
 
 REGRESSORS = ("gp", "gbt", "mlp", "krr")
 CLASSIFIERS = ("gbt", "mlp", "trees")

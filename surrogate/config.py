@@ -3,8 +3,9 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields
 
-from pipeline.errors import UserError
-from surrogate.data import DEFAULT_DOMAINS, TARGETS
+from pipeline.core.errors import UserError
+from pipeline.core.names import TARGETS
+from surrogate.data import DEFAULT_DOMAINS
 
 
 @dataclass

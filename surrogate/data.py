@@ -1,4 +1,4 @@
-"""Training data: load a sweep dataset, name its inputs and ranges, derive the regime label.
+"""Training data (in memory): check a sweep frame, name its inputs and ranges, derive the regime label.
 
 Regimes (one per point): ``progressing`` (status ok and rop_m_s > 0), ``no_progress``
 (status ok / no_contact with rop_m_s = 0: the bit does not advance the rock), and the
@@ -7,17 +7,13 @@ simulator's own ``runaway``, ``not_settled`` and ``failed``.
 from __future__ import annotations
 
 import hashlib
-import json
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from pipeline.errors import UserError
+from pipeline.core.errors import UserError
 
-REGIMES = ("progressing", "no_progress", "runaway", "not_settled", "failed")
-TARGETS = ("rop_m_s", "peak_force_n", "impacts_per_cycle", "specific_energy_j_m")
-CONTROLS = ("frequency_hz", "amplitude_n", "amplitude_m", "static_force_n", "gap_m")
+from pipeline.core.names import BOUNDED_STATUSES, CONTROLS, REGIMES, SETTLED_STATUSES
 
 # Points a regressor of each target is trained and scored on.  ROP and specific energy
 # only exist as numbers inside the progressing regime (elsewhere ROP is 0 and specific
@@ -31,7 +27,7 @@ def regime_of(df: pd.DataFrame) -> pd.Series:
     status = df["status"].astype(str)
     rop = pd.to_numeric(df["rop_m_s"], errors="coerce")
     out = status.copy()
-    out[status.isin(["ok", "no_contact"])] = "no_progress"
+    out[status.isin(list(SETTLED_STATUSES))] = "no_progress"
     out[(status == "ok") & (rop > 0)] = "progressing"
     unknown = sorted(set(out) - set(REGIMES))
     if unknown:
@@ -47,7 +43,7 @@ def domain_mask(df: pd.DataFrame, target: str, domain: str) -> np.ndarray:
     if domain == "progressing":
         return (regime_of(df) == "progressing").to_numpy() & finite
     if domain == "settled":
-        return df["status"].isin(["ok", "no_contact", "not_settled"]).to_numpy() & finite
+        return df["status"].isin(list(BOUNDED_STATUSES)).to_numpy() & finite
     if domain == "all":
         return finite
     raise UserError(f"train.domains.{target}: unknown domain '{domain}' (progressing, settled or all)")
@@ -60,46 +56,15 @@ def fingerprint_frame(df: pd.DataFrame) -> str:
     return h.hexdigest()
 
 
-def _read_metadata(path: Path) -> dict:
-    meta = path / "metadata.json" if path.is_dir() else path.with_name("metadata.json")
-    if meta.is_file():
-        try:
-            return json.loads(meta.read_text())
-        except json.JSONDecodeError as e:
-            raise UserError(f"{meta}: not valid JSON ({e})") from None
-    return {}
-
-
-def load(path: str | Path) -> tuple[pd.DataFrame, dict]:
-    """Read a sweep dataset (directory of part-*.parquet + metadata.json, or one .parquet file).
-
-    Uses ``pipeline.sweep.load_dataset`` when that module exists.  Returns the frame and
-    the metadata (``{}`` when there is none)."""
-    path = Path(path)
-    if not path.exists():
-        raise UserError(f"dataset '{path}' does not exist")
-    try:
-        from pipeline.sweep import load_dataset  # the sweep helper's reader, when present
-    except ImportError:
-        load_dataset = None
-    if load_dataset is not None:
-        df = load_dataset(path)
-    elif path.is_dir():
-        parts = sorted(path.glob("*.parquet"))
-        if not parts:
-            raise UserError(f"dataset directory '{path}' holds no .parquet files")
-        df = pd.concat([pd.read_parquet(p) for p in parts], ignore_index=True)
-    elif path.suffix == ".parquet":
-        df = pd.read_parquet(path)
-    else:
-        raise UserError(f"dataset '{path}' is neither a directory nor a .parquet file")
-    meta = _read_metadata(path)
+def check_frame(df: pd.DataFrame, name: str = "dataset") -> pd.DataFrame:
+    """A sweep frame ready for training: the ``status`` and ``rop_m_s`` columns present (UserError naming
+    ``name`` otherwise), rows ordered by ``point_id`` when there is one."""
     for col in ("status", "rop_m_s"):
         if col not in df.columns:
-            raise UserError(f"dataset '{path}' has no column '{col}' (is it a vibro sweep dataset?)")
+            raise UserError(f"{name} has no column '{col}' (is it a vibro sweep dataset?)")
     if "point_id" in df.columns:
         df = df.sort_values("point_id", kind="stable").reset_index(drop=True)
-    return df, meta
+    return df
 
 
 def infer_inputs(df: pd.DataFrame, meta: dict, inputs: list[str] | None = None) -> tuple[list[str], dict]:

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from pipeline.core.unitcube import to_unit
+
 
 @dataclass
 class InputScaler:
@@ -20,10 +22,7 @@ class InputScaler:
         out = np.empty_like(A)
         for j, n in enumerate(self.inputs):
             lo, hi = self.ranges[n]
-            if self.scale.get(n) == "log" and lo > 0:
-                out[:, j] = (np.log(np.maximum(A[:, j], 1e-300)) - np.log(lo)) / (np.log(hi) - np.log(lo))
-            else:
-                out[:, j] = (A[:, j] - lo) / (hi - lo)
+            out[:, j] = to_unit(A[:, j], lo, hi, self.scale.get(n) == "log" and lo > 0)
         return out
 
 

@@ -1,7 +1,6 @@
 """Report figures: parity plots, learning curve, confusion matrix, adaptive-vs-space-filling (PNG)."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import matplotlib
@@ -11,18 +10,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from pipeline.core.files import atomic_write_figure  # noqa: E402
 from surrogate.data import domain_mask  # noqa: E402
 
 UNITS = {"rop_m_s": "m/s", "peak_force_n": "N", "impacts_per_cycle": "-", "specific_energy_j_m": "J/m"}
 
 
 def _save(fig, path: Path) -> str:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp.png")
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, path)
-    return str(path)
+    return str(atomic_write_figure(path, fig, dpi=110))
 
 
 def parity(bundle, test: pd.DataFrame, path: Path) -> str:

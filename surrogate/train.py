@@ -7,7 +7,7 @@ from sklearn.model_selection import train_test_split
 from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
-from pipeline.errors import UserError
+from pipeline.core.errors import UserError
 from surrogate import metrics, selection
 from surrogate.bundle import Bundle, TargetModel
 from surrogate.config import TrainConfig
@@ -112,7 +112,8 @@ def refit_same(bundle: Bundle, df: pd.DataFrame, cfg: TrainConfig) -> Bundle:
         est = selection.fit_regressor(tm.name, Xs[m], z, cfg.seed, cfg.max_gp_points)
         regs[t] = TargetModel(t, tm.name, est, tm.transform, tm.interval, tm.domain)
     return Bundle(bundle.inputs, bundle.ranges, bundle.model, bundle.preset, bundle.fingerprint, bundle.scaler, clf,
-                  bundle.classifier_name, [str(c) for c in clf.classes_], regs, {}, bundle.config)
+                  bundle.classifier_name, [str(c) for c in clf.classes_], regs, {}, bundle.config, bundle.fixed,
+                  bundle.settings)
 
 
 def learning_curve(bundle: Bundle, train: pd.DataFrame, test: pd.DataFrame, cfg: TrainConfig,
@@ -146,12 +147,17 @@ def needed(curve: list[dict], key: str, goal: float) -> int | None:
 
 def train_bundle(df: pd.DataFrame, inputs: list[str], ranges: dict, model: str, preset: str | None,
                  config: TrainConfig | dict | None = None, scale: dict | None = None, fingerprint: str | None = None,
-                 progress: bool = False) -> Bundle:
+                 progress: bool = False, fixed: dict | None = None, settings: dict | None = None) -> Bundle:
     """Train the surrogate on a sweep frame: hold out ``test_fraction`` (never trained on), select
-    every model by CV on the rest, calibrate 90 % intervals, and put the held-out report in ``bundle.report``."""
+    every model by CV on the rest, calibrate 90 % intervals, and put the held-out report in ``bundle.report``.
+    ``fixed`` / ``settings``: the sweep's fixed parameters and simulator settings, carried by the bundle so
+    optimisation and verification simulate under the conditions the surrogate learned."""
     cfg = config if isinstance(config, TrainConfig) else TrainConfig.from_dict(config)
     with threadpool_limits(cfg.threads):
-        return _train_bundle(df, inputs, ranges, model, preset, cfg, scale, fingerprint, progress)
+        bundle = _train_bundle(df, inputs, ranges, model, preset, cfg, scale, fingerprint, progress)
+    bundle.fixed, bundle.settings = dict(fixed or {}), dict(settings or {})
+    bundle.report.update({"fixed": bundle.fixed, "settings": bundle.settings})
+    return bundle
 
 
 def _train_bundle(df, inputs, ranges, model, preset, cfg: TrainConfig, scale, fingerprint, progress) -> Bundle:

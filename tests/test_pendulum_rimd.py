@@ -20,7 +20,7 @@ import pandas as pd
 import pytest
 
 import sim
-from pipeline.maps import Z11, Z12, add_pattern, band_resonance
+from pipeline.maps.compute import Z11, Z12, add_pattern, band_resonance
 from tests.reference_solutions import reference_run
 
 LABELS_CMP = ("peak_force_n", "mean_peak_force_n", "peak_decel_g", "energy_per_cycle_j")

@@ -3,12 +3,11 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
-import tempfile
 import time
 from pathlib import Path
 
-from pipeline.cliutil import to_jsonable
+from pipeline.core.files import atomic_directory
+from pipeline.core.jsonable import to_jsonable
 from pipeline.diagnosis.features import simulated_features
 from pipeline.diagnosis.report import figures, markdown, residual_structure
 from pipeline.diagnosis.run import DiagnoseConfig, build_targets, diagnose_system
@@ -38,9 +37,7 @@ def diagnose(ds, out: str | os.PathLike, cfg: DiagnoseConfig, log=print, progres
         rep["notes"] = [SUMMARY_NOTE] if "summary" in rep["data"] else []
         rep["_runs"] = runs
         per.append(rep)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
-    try:
+    with atomic_directory(out) as tmp:
         for rep in per:
             rep["figures"] = figures(rep, ds, rep["_runs"][1], rep["_runs"][2], rep["_runs"][0], tmp)
         public = [{k: v for k, v in r.items() if not k.startswith("_")} for r in per]
@@ -48,16 +45,6 @@ def diagnose(ds, out: str | os.PathLike, cfg: DiagnoseConfig, log=print, progres
         report["wall_time_s"] = round(time.time() - t0, 1)
         (tmp / "report.json").write_text(json.dumps(to_jsonable(report), indent=2))
         (tmp / "report.md").write_text(markdown(report, public, report["wall_time_s"]))
-        if out.exists():
-            old = out.parent / f".{out.name}.old-{os.getpid()}"
-            os.replace(out, old)
-            os.replace(tmp, out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return report
 
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from pipeline.errors import UserError
+from pipeline.core.errors import UserError
 
 HARMONIC_SIGNALS = ("accel_m_s2", "force_n", "disp_m")
 CONTROLS = ("frequency_hz", "amplitude_n", "static_force_n", "gap_m")

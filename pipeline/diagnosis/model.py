@@ -1,60 +1,43 @@
 """Which parameters are fitted, and the parallel evaluation of the simulator against targets.
 
-Calibratable base parameters (MODELS.md §1) and the §6 effects of the indenter are fitted in
-log10 units within the bounds below (an effect's "off" value 0 is approached by its lower bound,
-where it no longer changes the response measurably).
+Calibratable base parameters and the §6 effects of a model are fitted in log10 units within the bounds
+its ModelSpec gives (``calibratable``, ``effect_bounds``; an effect's "off" value 0 is approached by its
+lower bound, where it no longer changes the response measurably).
 """
 from __future__ import annotations
 
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
 
 import numpy as np
 
 from pipeline.diagnosis.features import Target, peak_velocity, simulated_features
-from pipeline.errors import UserError
+from pipeline.core.errors import UserError
+from sim.models.base import FitBound
+from sim.registry import warm as sim_warm
 
 
-@dataclass(frozen=True)
-class FreeParam:
-    """A fitted parameter: name, bounds [lo, hi] in its unit (fitted as log10)."""
-
-    name: str
-    lo: float
-    hi: float
-    unit: str
-
-    @property
-    def bounds(self) -> tuple[float, float]:
-        return math.log10(self.lo), math.log10(self.hi)
+FreeParam = FitBound
+"""A fitted parameter: name, bounds [lo, hi] in its unit, fitted as log10 (``sim.models.base.FitBound``)."""
 
 
-BASE = {
-    "indenter-metal": (FreeParam("k1", 1e6, 1e8, "N/m"), FreeParam("c1", 3.0, 3e3, "N s/m"),
-                       FreeParam("pm", 0.5, 300.0, "N")),
-    "indenter-sandstone": (FreeParam("kl", 5e5, 5e7, "N/m"), FreeParam("ku", 1e6, 2e8, "N/m"),
-                           FreeParam("pm", 0.5, 300.0, "N")),
-}
-"""MODELS.md §1 'Calibratable': metal k1, c1, pm; sandstone kl, ku, pm (bounds: 1-2 decades around the defaults)."""
-
-EFFECT_PARAMS = {
-    "tau": FreeParam("tau", 1e-5, 1e-2, "s"), "beta": FreeParam("beta", 1.0, 3e3, "N s/m"),
-    "alpha": FreeParam("alpha", 1e-3, 30.0, "s/m"), "mu": FreeParam("mu", 0.1, 300.0, "N"),
-    "gamma": FreeParam("gamma", 1e-4, 0.5, "-"), "kappa": FreeParam("kappa", 1e2, 1e8, "1/m^2"),
-    "fc": FreeParam("fc", 50.0, 5000.0, "Hz"),
-}
-
-
-def warm(system: str) -> None:
-    """Load/compile the model's kernel in the calling thread before threads use it
-    (sim.compiled.kernels is not thread-safe on its first call; see the diagnose report)."""
+def supported_systems() -> tuple[str, ...]:
+    """Models the diagnosis can calibrate: those whose ModelSpec lists calibratable parameters."""
     import sim
-    from sim.compiled import kernels
 
-    spec = sim.get_model(system)
-    kernels(spec.funcs, spec.n_bounded)
+    return tuple(n for n in sim.model_names() if sim.get_model(n).calibratable)
+
+
+def calibratable(system: str) -> tuple[FitBound, ...]:
+    """The calibratable parameters of ``system`` with their fit bounds (``ModelSpec.calibratable``)."""
+    import sim
+
+    return sim.get_model(system).calibratable
+
+
+warm = sim_warm
+"""Load/compile the model's kernel before threads use it (sim.registry.warm)."""
 
 
 def candidates(system: str) -> dict[str, tuple[FreeParam, ...]]:
@@ -62,7 +45,7 @@ def candidates(system: str) -> dict[str, tuple[FreeParam, ...]]:
     import sim
 
     spec = sim.get_model(system)
-    return {eff: tuple(EFFECT_PARAMS[p] for p in ps) for eff, ps in spec.effects.items()}
+    return {eff: tuple(spec.effect_bounds[p] for p in ps) for eff, ps in spec.effects.items()}
 
 
 class Evaluator:
@@ -71,8 +54,9 @@ class Evaluator:
 
     def __init__(self, system: str, targets: list[Target], sim_settings: dict, fs_sim_hz: float,
                  n_threads: int | None = None, max_window: int = 0):
-        if system not in BASE:
-            raise UserError(f"system '{system}': the diagnosis supports {', '.join(BASE)} (MODELS.md §1)")
+        if system not in supported_systems():
+            raise UserError(f"system '{system}': the diagnosis supports {', '.join(supported_systems())} "
+                            "(models with calibratable parameters, MODELS.md §6)")
         self.system = system
         self.targets = targets
         self.n_threads = n_threads or os.cpu_count() or 1

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 
 import matplotlib
@@ -12,6 +11,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.stats import spearmanr  # noqa: E402
 
+from pipeline.core.files import atomic_write_figure  # noqa: E402
 from pipeline.diagnosis.features import cycle_matrix  # noqa: E402
 
 
@@ -65,10 +65,7 @@ def residual_structure(rep: dict, base_runs: list[dict], final_runs: list[dict])
 
 def _save(fig, path: Path) -> str:
     fig.tight_layout()
-    tmp = path.with_suffix(".tmp.png")
-    fig.savefig(tmp, dpi=100)
-    plt.close(fig)
-    os.replace(tmp, path)
+    atomic_write_figure(path, fig, dpi=100)
     return path.name
 
 

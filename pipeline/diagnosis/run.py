@@ -14,14 +14,14 @@ and whose held-out nrms is <= ``explained_nrms``; if the calibrated base model i
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from pipeline.diagnosis.features import Target, series_target, summary_target
 from pipeline.diagnosis.fit import FitResult, fit
-from pipeline.diagnosis.model import BASE, Evaluator, FreeParam, candidates
-from pipeline.errors import UserError
+from pipeline.diagnosis.model import Evaluator, FreeParam, calibratable, candidates, supported_systems
+from pipeline.core.errors import UserError
 
 
 @dataclass
@@ -52,9 +52,9 @@ def build_targets(ds, cfg: DiagnoseConfig) -> dict[str, list[Target]]:
     out: dict[str, list[Target]] = {}
     sd = {k: tuple(v) for k, v in cfg.summary_sd.items()}
     for row in ds.runs.to_dict("records"):
-        if row["system"] not in BASE:
+        if row["system"] not in supported_systems():
             raise UserError(f"runs.csv, run '{row['run_id']}': system '{row['system']}' cannot be diagnosed "
-                            f"(supported: {', '.join(BASE)})")
+                            f"(supported: {', '.join(supported_systems())})")
         if row["run_id"] in ds.series:
             tg = series_target(row, ds.series[row["run_id"]], cfg.max_harmonic_hz)
         else:
@@ -123,7 +123,7 @@ def _fit_models(ev: Evaluator, idx: list[int], cfg: DiagnoseConfig, cands: dict,
     import sim
 
     system = ev.system
-    free = list(BASE[system])
+    free = list(calibratable(system))
     d = sim.get_model(system).defaults()
     starts = [warm["base"].values] if warm else _random_starts(free, d, cfg.n_starts, rng)
     out = {"base": fit(ev, idx, free, {}, starts, cfg.max_nfev, cfg.diff_step)}
@@ -197,7 +197,7 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
     explained = bool(base_ok or selected is not None)
     final = selected or "base"
     cand_list = [{"effect": m, "params": {p: final_fits[m].values[p] for p in final_fits[m].free
-                                          if p not in [q.name for q in BASE[system]]},
+                                          if p not in [q.name for q in calibratable(system)]},
                   "param_sd": {p: final_fits[m].sd[p] for p in final_fits[m].free},
                   "calibrated": final_fits[m].values,
                   "error": err[m]["error"], "nrms": err[m]["nrms"], "score": bic[m],

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Mapping
 
 import numpy as np
 
@@ -39,6 +39,32 @@ class Param:
 
 
 @dataclass(frozen=True)
+class FitBound:
+    """Fit bounds of a calibratable or effect parameter [SI]; fitted in log10 when log=True."""
+
+    name: str
+    lo: float
+    hi: float
+    unit: str
+    log: bool = True
+
+    def __post_init__(self):
+        if not self.lo < self.hi:
+            raise ValueError(f"fit bound '{self.name}': lo {self.lo!r} must be < hi {self.hi!r}")
+        if self.log and not self.lo > 0.0:
+            raise ValueError(f"fit bound '{self.name}': a log10 fit needs lo > 0, got {self.lo!r}")
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        """(lo, hi) in the fitted coordinate (log10 when ``log``)."""
+        return (math.log10(self.lo), math.log10(self.hi)) if self.log else (self.lo, self.hi)
+
+
+MAP_KINDS = ("pattern", "rop")
+"""Kinds of parameter maps: Peterka-style impact-pattern maps, or ROP maps."""
+
+
+@dataclass(frozen=True)
 class ModelSpec:
     """Everything the generic driver needs to know about one model.
 
@@ -67,6 +93,50 @@ class ModelSpec:
     forcing_phase: str = "sin"
     postprocess: Callable | None = None
     needs_history: Callable[[dict], bool] = lambda values: False
+    # --- what the workflows need to know about the model (checked by __post_init__) ---
+    calibratable: tuple[FitBound, ...] = ()                   # MODELS.md §6 "Calibratable parameters", with fit bounds
+    effect_bounds: dict[str, FitBound] = field(default_factory=dict)   # effect parameter -> fit bounds; off = 0
+    search_spaces: dict[str, dict[str, tuple[float, float]]] = field(default_factory=dict)  # preset ("" = defaults) -> control ranges
+    map_kind: str = ""                                        # "pattern" or "rop" (MAP_KINDS)
+    map_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)   # default map axis ranges [SI]
+    map_relative_to: dict[str, str] = field(default_factory=dict)  # axis -> parameter its map range is a multiple of
+    progress_force_floor: Callable[[Mapping[str, float]], float | None] = lambda v: None  # force needed to progress [N]
+
+    def __post_init__(self):
+        """A table checks itself: fills effect bounds from the shared §6 table (sim.models.effects) where the
+        model gives none, then checks every bound, space, range and preset against the parameters."""
+        names = set(self.param_names)
+        where = f"model '{self.name}'"
+        effect_params = [p for ps in self.effects.values() for p in ps]
+        if effect_params:
+            from sim.models.effects import EFFECT_FIT_BOUNDS
+
+            filled = {p: EFFECT_FIT_BOUNDS[p] for p in effect_params if p not in self.effect_bounds and p in EFFECT_FIT_BOUNDS}
+            if filled:
+                object.__setattr__(self, "effect_bounds", {**filled, **self.effect_bounds})
+        for p in effect_params:
+            if p not in names:
+                raise ValueError(f"{where}: effect parameter '{p}' is not a parameter")
+            if p not in self.effect_bounds:
+                raise ValueError(f"{where}: effect parameter '{p}' has no fit bounds (add it to effect_bounds "
+                                 "or to sim.models.effects.EFFECT_FIT_BOUNDS)")
+        for key, b in [(b.name, b) for b in self.calibratable] + list(self.effect_bounds.items()):
+            if key != b.name or b.name not in names:
+                raise ValueError(f"{where}: fit bound '{key}' is not a parameter")
+        for preset, space in self.search_spaces.items():
+            if preset != "" and preset not in self.presets:
+                raise ValueError(f"{where}: search space for unknown preset '{preset}'")
+            for n, (lo, hi) in space.items():
+                if n not in names or not lo < hi:
+                    raise ValueError(f"{where}: search space '{preset}': bad range {n} = ({lo}, {hi})")
+        if self.map_kind not in ("",) + MAP_KINDS:
+            raise ValueError(f"{where}: map_kind '{self.map_kind}' is not one of {MAP_KINDS}")
+        for n, (lo, hi) in self.map_ranges.items():
+            if n not in names or not lo < hi:
+                raise ValueError(f"{where}: bad map range {n} = ({lo}, {hi})")
+        for n, ref in self.map_relative_to.items():
+            if n not in self.map_ranges or ref not in names:
+                raise ValueError(f"{where}: map_relative_to {n} -> {ref}: needs a map range and a parameter")
 
     @property
     def param_names(self) -> tuple[str, ...]:

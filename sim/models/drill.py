@@ -28,7 +28,7 @@ import math
 import numpy as np
 from numba import njit
 
-from sim.models.base import ModelSpec, Param
+from sim.models.base import FitBound, ModelSpec, Param
 
 # parameter vector layout
 (M1, M2, M3, K1, K2, K3, C1, C2, C3, PR, GAP, FS, F0, FREQ, GAMMA,
@@ -328,4 +328,18 @@ SPEC = ModelSpec(
     impacting_mass="M1 (drill bit)",
     progression="xb (rock slider base)",
     default_settings={"min_transient": 20, "max_transient": 400, "window": 32},
+    # MODELS.md §6: the rock is calibrated (K1, C1, Pr); bounds one decade either side of the defaults
+    # (Pr: of the defaults' 1.5 kN and the lab preset's 3 kN).
+    calibratable=(FitBound("K1", 2e6, 2e8, "N/m"), FitBound("C1", 5e2, 5e4, "N s/m"),
+                  FitBound("Pr", 150.0, 3e4, "N")),
+    # "lab": LAB_SPACE above; "": the MODELS.md §2 ranges at the default Pr = 1.5 kN (f 10-400 Hz,
+    # F0 0-2 Pr, Fs 0.05-0.95 Pr).
+    search_spaces={"lab": LAB_SPACE,
+                   "": {"frequency_hz": (10.0, 400.0), "amplitude_n": (0.0, 3000.0), "static_force_n": (75.0, 1425.0)}},
+    # ROP maps; forces as multiples of the resolved Pr: F0 in [0, 1] Pr and Fs in [0.05, 1.1] Pr, so the
+    # non-progressing (small F0) and runaway (Fs >= Pr) regions are on the map.
+    map_kind="rop",
+    map_ranges={"frequency_hz": (10.0, 450.0), "amplitude_n": (0.0, 1.0), "static_force_n": (0.05, 1.1)},
+    map_relative_to={"amplitude_n": "Pr", "static_force_n": "Pr"},
+    progress_force_floor=lambda v: float(v["Pr"]) if "Pr" in v else None,   # MODELS.md §2: Pc must reach Pr
 )

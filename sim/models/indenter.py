@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
-from sim.models.base import ModelSpec, Param
+from sim.models.base import FitBound, ModelSpec, Param
 
 (M1, M2, M3, K2, C2, K3, C3, PM, GAP, FP, FA, FREQ, VEPS, K1, C1, KL, KU, NL, NU,
  TAU, BETA, ALPHA, MU, GAMMA, KAPPA, FC) = range(26)
@@ -301,7 +301,8 @@ def _sensor_lowpass(res):
     return res
 
 
-def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effects: dict, progression: str) -> ModelSpec:
+def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effects: dict, progression: str,
+          calibratable: tuple[FitBound, ...], map_kind: str) -> ModelSpec:
     return ModelSpec(
         name=name,
         description=f"indenter rig, {name.split('-')[1]} sample (MODELS.md §1)",
@@ -321,6 +322,9 @@ def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effe
         default_settings={"min_transient": 40, "max_transient": 600, "window": 16},
         postprocess=_sensor_lowpass,
         needs_history=lambda values: values.get("fc", 0.0) > 0.0,
+        calibratable=calibratable,
+        map_kind=map_kind,
+        map_ranges=MAP_RANGES,
     )
 
 
@@ -331,11 +335,19 @@ _PRESETS = {f"table1-{f}hz": {"frequency_hz": float(f), "amplitude_n": fa} for f
 _COMMON_EFFECTS = {"shaker_coil": ("tau", "beta"), "rate_stiffening": ("alpha",), "guide_friction": ("mu",),
                    "suspension_hardening": ("kappa",), "sensor_lowpass": ("fc",)}
 
+# MODELS.md §1 "Calibratable": metal k1, c1, pm; sandstone kl, ku, pm (bounds: 1-2 decades around the defaults).
+_METAL_FIT = (FitBound("k1", 1e6, 1e8, "N/m"), FitBound("c1", 3.0, 3e3, "N s/m"), FitBound("pm", 0.5, 300.0, "N"))
+_SAND_FIT = (FitBound("kl", 5e5, 5e7, "N/m"), FitBound("ku", 1e6, 2e8, "N/m"), FitBound("pm", 0.5, 300.0, "N"))
+MAP_RANGES = {"frequency_hz": (30.0, 100.0), "amplitude_n": (100.0, 900.0), "static_force_n": (50.0, 400.0)}
+"""Default map axes: seed 000 Table 1 frequencies and amplitudes, static forces of the pneumatic cylinder."""
+
 SPECS = {
     "indenter-metal": _spec("indenter-metal", (metal_rhs, metal_guards, metal_on_event, metal_observe, metal_bounded),
-                            (), ("x1", "v1", "x2", "v2"), _PRESETS, _COMMON_EFFECTS, "none (metal does not progress)"),
+                            (), ("x1", "v1", "x2", "v2"), _PRESETS, _COMMON_EFFECTS, "none (metal does not progress)",
+                            _METAL_FIT, "pattern"),
     "indenter-sandstone": _spec("indenter-sandstone",
                                 (sand_rhs, sand_guards, sand_on_event, sand_observe, sand_bounded),
                                 ("xp", "xf"), ("x1-xp", "v1", "x2-xp", "v2"), _PRESETS,
-                                {**_COMMON_EFFECTS, "tip_blunting": ("gamma",)}, "xp (crater floor)"),
+                                {**_COMMON_EFFECTS, "tip_blunting": ("gamma",)}, "xp (crater floor)",
+                                _SAND_FIT, "rop"),
 }

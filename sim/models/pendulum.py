@@ -27,7 +27,7 @@ import numpy as np
 from numba import njit
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
-from sim.models.base import ModelSpec, Param
+from sim.models.base import FitBound, ModelSpec, Param
 
 # parameter vector layout
 MASS, LEN, A0, KI, CI, ZETA, GAP, FREQ, GRAV, MCART, ALPHA = range(11)
@@ -161,4 +161,10 @@ SPEC = ModelSpec(
     progression="none (the pendulum does not progress)",
     presets=PRESETS,
     default_settings=DEFAULT_SETTINGS,
+    # MODELS.md §6: the load cell (ki, ci) and the free-swing damping zeta; one decade either side of the defaults.
+    calibratable=(FitBound("ki", 5.5e5, 5.5e7, "N/m"), FitBound("ci", 1.2e2, 1.2e4, "N s/m"),
+                  FitBound("zeta", 5e-4, 5e-2, "-")),
+    # impact-pattern maps over the seed's ranges (seed 001 Figs. 13-14: 1-10 Hz, gaps up to 3 mm)
+    map_kind="pattern",
+    map_ranges={"frequency_hz": (1.0, 10.0), "gap_m": (0.0, 3.0e-3), "amplitude_m": (0.2e-3, 1.5e-3)},
 )

@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
-from sim.models.base import ModelSpec, Param
+from sim.models.base import FitBound, ModelSpec, Param
 
 M1, K1, C1, M2, K2, C2, KI, LAM, NI, F0, GAP, FREQ, ALPHA, KAPPA = range(14)
 IX1, IV1, IX2, IV2, IW = range(5)
@@ -151,4 +151,10 @@ SPEC = ModelSpec(
     progression="none (the RIMD does not progress)",
     presets=PRESETS,
     default_settings=DEFAULT_SETTINGS,
+    # MODELS.md §6: the stop (ki, lambda_i) and the beam damping c1; one decade either side of the defaults.
+    calibratable=(FitBound("ki", 9.25e3, 9.25e5, "N/m^ni"), FitBound("lambda_i", 0.8, 80.0, "s/m"),
+                  FitBound("c1", 0.1269, 12.69, "N s/m")),
+    # impact-pattern maps over the seed's ranges (seed 002 Table 3: gaps 0-3 mm)
+    map_kind="pattern",
+    map_ranges={"frequency_hz": (3.0, 12.0), "gap_m": (0.0, 3.0e-3), "amplitude_n": (0.25, 2.0)},
 )

@@ -1,0 +1,155 @@
+"""``vibro diagnose``: calibrate the model against a measured dataset, find the missing effect."""
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import fields
+from pathlib import Path
+
+from pipeline.core.errors import UserError
+
+DESCRIPTION = """\
+Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<run_id>.csv, summary.csv).
+1. validate the dataset strictly (errors name file, line and column; nothing is written on error);
+2. split the runs deterministically into calibration and held-out runs (>= min_runs_holdout runs per system:
+   every holdout_every-th run held out; fewer: leave-one-run-out cross-validation);
+3. calibrate the base model's uncertain parameters (MODELS.md §1: metal k1, c1, pm; sandstone kl, ku, pm)
+   by multi-start least squares on noise-normalised features: amplitude and phase of every harmonic of the
+   forcing frequency up to max_harmonic_hz of acceleration, force and displacement, the progression rate, or
+   the summary features (peak_decel_g, impacts_per_cycle, rop_m_s, peak_force_n, spectral_ratio);
+4. fit every §6 effect that applies (shaker_coil, rate_stiffening, guide_friction, tip_blunting (sandstone),
+   suspension_hardening, sensor_lowpass) on top of the calibrated base model, rank by BIC, and select one
+   only if its held-out residual is at the measurement-noise level estimated from the data;
+5. write DIR/report.json, DIR/report.md and PNG figures (residual structure before/after, measured vs
+   simulated cycle histories and spectra), and log the run to MLflow."""
+
+EPILOG = """\
+params.yaml section 'diagnose' (all optional; defaults in brackets):
+  max_harmonic_hz [1000]   harmonics of f up to this frequency are features
+  holdout_every [4]        single split: every n-th run (sorted by static force, frequency) is held out
+  min_runs_holdout [8]     a system with fewer runs is cross-validated leave-one-run-out
+  n_starts [2]             base-model starts (defaults + seeded random points)
+  grid [4]                 grid points per effect parameter for a candidate's starting point
+  candidate_starts [2]     candidate fits start from the grid's best point at the calibrated base (1) and also
+                           at the default base parameters (2)
+  max_nfev [15]            least-squares iterations per start
+  diff_step [0.01]         finite-difference step in log10 of a parameter
+  bic_margin [10]          a candidate must beat the base model's BIC by this much
+  explained_nrms [1.5]     held-out residual/noise at or below this counts as explained
+  effects [all]            list of candidate effects to try
+  fs_sim_hz [20000]        model sample rate for summary-only runs
+  sim_settings [{rtol: 1e-6, window: 2, max_step_frac: 0.05}]   simulator settings while fitting
+  record_window [64]       the model records as many cycles as the measured series (up to this; 0 = use
+                           sim_settings.window): features of drifting runs (tip blunting) depend on it
+  summary_sd [{}]          e.g. {peak_decel_g: [rel, 0.05], impacts_per_cycle: [abs, 0.5]}
+  seed [0]                 seed of the random starts
+examples:
+  vibro synth --out data/synth-coil --system indenter-metal --effect shaker_coil
+  vibro diagnose data/synth-coil --out results/diagnose-coil
+  vibro diagnose measured/seed000-published --out results/diagnose-seed000 --metrics results/diagnose.json
+  vibro diagnose DATA --out DIR --params params.yaml --set max_nfev=10 --effects shaker_coil sensor_lowpass"""
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("diagnose", help="calibrate against measured data, find the missing effect, report errors",
+                       description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("dataset", help="measured dataset directory (MODELS.md §7)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory (report.json, report.md, figures)")
+    p.add_argument("--params", metavar="FILE.yaml", help="read settings from this file's 'diagnose' section")
+    p.add_argument("--set", dest="sets", action="append", metavar="KEY=VALUE",
+                   help="override one numeric 'diagnose' setting (repeatable), e.g. --set max_nfev=10")
+    p.add_argument("--effects", nargs="+", metavar="EFFECT", help="only try these candidate effects")
+    p.add_argument("--metrics", metavar="FILE.json",
+                   help="also write the headline numbers (errors, noise floor, selected effect) to this JSON file")
+    p.add_argument("--threads", type=int, help="simulation threads (default: all cores)")
+    p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
+    p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.set_defaults(func=run)
+
+
+def load_config(path: str | None, sets: dict, effects: list[str] | None, threads: int | None):
+    """DiagnoseConfig from params.yaml's 'diagnose' section + overrides (UserError naming bad keys)."""
+    from pipeline.diagnosis.run import DiagnoseConfig
+
+    from pipeline.core.params import read_section
+
+    values: dict = read_section(path, "diagnose")
+    values.update(sets)
+    if effects:
+        values["effects"] = effects
+    if threads:
+        values["n_threads"] = threads
+    known = {f.name: f for f in fields(DiagnoseConfig)}
+    for k in values:
+        if k not in known:
+            raise UserError(f"diagnose setting '{k}' is unknown (known: {', '.join(known)})")
+    ints = ("holdout_every", "min_runs_holdout", "n_starts", "grid", "candidate_starts", "max_nfev", "seed", "n_threads")
+    if "record_window" in values and (float(values["record_window"]) != int(float(values["record_window"]))
+                                      or int(float(values["record_window"])) < 0):
+        raise UserError(f"diagnose setting 'record_window' must be an integer >= 0, got {values['record_window']!r}")
+    for k in ints:
+        if k in values and values[k] is not None:
+            v = values[k]
+            if float(v) != int(float(v)) or int(float(v)) < (0 if k == "seed" else 1):
+                raise UserError(f"diagnose setting '{k}' must be a positive integer, got {v!r}")
+            values[k] = int(float(v))
+    for k in ("max_harmonic_hz", "diff_step", "bic_margin", "explained_nrms", "fs_sim_hz"):
+        if k in values and not float(values[k]) > 0:
+            raise UserError(f"diagnose setting '{k}' must be > 0, got {values[k]!r}")
+    return DiagnoseConfig(**values)
+
+
+def run(args) -> int:
+    from tqdm import tqdm
+
+    from pipeline import tracking
+    from pipeline.cli.args import parse_assignments
+    from pipeline.core.files import atomic_write_text
+    from pipeline.core.jsonable import dump_json
+    from pipeline.diagnosis.driver import diagnose
+    from pipeline.datasets.measured import load_dataset
+
+    cfg = load_config(args.params, parse_assignments(args.sets), args.effects, args.threads)
+    ds = load_dataset(args.dataset)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out '{out}' exists and is not a directory")
+    log = (lambda s: None) if args.quiet else (lambda s: tqdm.write(s))
+    n_steps = 0
+    for system in ds.systems:
+        n = int((ds.runs["system"] == system).sum())
+        n_steps += 1 if n >= max(cfg.min_runs_holdout, 3) else n
+    bar = tqdm(total=n_steps, desc="diagnose (folds)", disable=args.quiet, unit="fold")
+    from dataclasses import asdict
+
+    with tracking.run("diagnose", {"dataset": args.dataset, **asdict(cfg)}, enabled=not args.no_mlflow) as mlflow:
+        report = diagnose(ds, out, cfg, log=log, progress=lambda: bar.update(1))
+        bar.close()
+        headline = _headline(report)
+        if mlflow is not None:
+            mlflow.log_metrics({k: float(v) for k, v in _flat_metrics(report).items()})
+            mlflow.set_tag("vibro.selected", json.dumps(report["selected"]))
+            mlflow.log_artifacts(str(out), artifact_path="diagnose")
+    if args.metrics:
+        atomic_write_text(args.metrics, dump_json(headline))
+    if not args.quiet:
+        print(dump_json(headline))
+        print(f"report: {out / 'report.md'}")
+    return 0
+
+
+def _headline(report: dict) -> dict:
+    keys = ("system", "selected", "explained", "noise_floor", "default_error", "base_error", "final_error",
+            "default_nrms", "base_nrms", "final_nrms", "wall_time_s")
+    return {k: report[k] for k in keys}
+
+
+def _flat_metrics(report: dict) -> dict:
+    out = {"wall_time_s": report["wall_time_s"]}
+    for name, rep in report["systems"].items():
+        tag = name.split("-")[1]
+        for k in ("noise_floor", "default_error", "base_error", "final_error", "default_nrms", "base_nrms",
+                  "final_nrms"):
+            out[f"{tag}.{k}"] = rep[k]
+        out[f"{tag}.explained"] = 1.0 if rep["explained"] else 0.0
+    return out

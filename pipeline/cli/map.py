@@ -1,0 +1,175 @@
+"""``vibro map``: Peterka maps, ROP maps and bifurcation diagrams (PNG + Parquet of the labels)."""
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from pipeline.cli.args import parse_assignments
+from pipeline.core.errors import UserError
+
+KINDS = ("auto", "peterka", "rop", "label", "bifurcation")
+INT_SETTINGS = ("min_transient", "max_transient", "window", "samples_per_cycle", "max_steps_per_cycle")
+
+EPILOG = """\
+kinds (--kind auto picks: no --y -> bifurcation; pendulum/rimd -> peterka; drill/indenter-* -> rop):
+  peterka      each cell classified: no impact, z=1/1, z=1/2, other periodic (k/n: k impacts per n
+               cycles), non-periodic; second panel coloured by --color (default peak_force_n)
+  rop          --color (default rop_m_s) over progressing cells; non-progressing, runaway, not-settled
+               and failed regions drawn as flat colours
+  label        like rop but colours any label over every cell that has a value
+  bifurcation  continuation sweep of --x (each point starts from the previous final state), --direction
+               up, down or both; stroboscopic samples of the impacting mass and peak force per point
+
+outputs: OUT.png and OUT.parquet (one row per cell, or per sweep point; bifurcation also writes
+OUT.strobe.parquet with one row per recorded cycle).  Default OUT: maps/<model>_<kind>_<x>[_<y>].
+
+examples:
+  vibro map pendulum --x frequency_hz --y gap_m                         # Peterka map, 40 x 40, 1-10 Hz x 0-3 mm
+  vibro map pendulum --x frequency_hz --nx 100 --y gap_m --ny 100 --out maps/pendulum_peterka_100
+  vibro map rimd --x frequency_hz --x-range 3 12 --y gap_m --y-range 0 0.003
+  vibro map rimd --x frequency_hz --x-range 4 10 --nx 49 --set gap_m=0.001 --direction both   # bifurcation
+  vibro map drill --preset lab --x frequency_hz --y amplitude_n --set static_force_n=1200
+  vibro map drill --preset lab --x frequency_hz --y static_force_n --set amplitude_n=2250
+  vibro map indenter-sandstone --x frequency_hz --y amplitude_n --set static_force_n=199
+"""
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "map", help="response maps: Peterka map, ROP map, bifurcation diagram (PNG + Parquet)",
+        description="Map the response of MODEL over one or two parameters with sim.simulate_batch (threads) "
+                    "and save a PNG figure plus a Parquet table of every cell's labels (MODELS.md §5) and its "
+                    "impact-pattern class.  With --y: a 2-D grid of cells, each simulated from rest.  Without "
+                    "--y: a bifurcation diagram along --x, each point continued from the previous point's "
+                    "final state, swept up and/or down to show coexisting attractors and jumps.",
+        formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG)
+    p.add_argument("model", help="drill | indenter-metal | indenter-sandstone | pendulum | rimd")
+    p.add_argument("--x", required=True, metavar="PARAM", help="parameter on the horizontal axis (e.g. frequency_hz)")
+    p.add_argument("--x-range", nargs=2, type=float, metavar=("LO", "HI"),
+                   help="range of --x in SI units (default: per model, ModelSpec.map_ranges; drill forces are multiples of Pr)")
+    p.add_argument("--nx", type=int, default=40, help="number of --x values (default 40)")
+    p.add_argument("--y", metavar="PARAM", help="parameter on the vertical axis (omit for a bifurcation diagram)")
+    p.add_argument("--y-range", nargs=2, type=float, metavar=("LO", "HI"), help="range of --y in SI units")
+    p.add_argument("--ny", type=int, default=40, help="number of --y values (default 40)")
+    p.add_argument("--log-x", action="store_true", help="geometric spacing of --x values")
+    p.add_argument("--log-y", action="store_true", help="geometric spacing of --y values")
+    p.add_argument("--color", metavar="LABEL",
+                   help="label that colours the map: peak_force_n (Peterka default), rop_m_s (ROP default), "
+                        "mean_peak_force_n, impacts_per_cycle, period, peak_decel_g, energy_per_cycle_j, "
+                        "specific_energy_j_m")
+    p.add_argument("--kind", choices=KINDS, default="auto", help="kind of map (default auto, see below)")
+    p.add_argument("--direction", choices=("up", "down", "both"), default="both",
+                   help="bifurcation sweep direction (default both)")
+    p.add_argument("--preset", help="named parameter set of the model (see 'vibro models MODEL')")
+    p.add_argument("--set", dest="sets", action="append", metavar="NAME=VALUE",
+                   help="fix another parameter (repeatable), e.g. --set static_force_n=700")
+    p.add_argument("--setting", dest="settings", action="append", metavar="NAME=VALUE",
+                   help="numerical setting (repeatable): rtol, min_transient, max_transient, window, period_tol, "
+                        "settle_tol, event_tol, max_step_frac, stat_tol")
+    p.add_argument("--threads", type=int, help="worker threads (default: all cores)")
+    p.add_argument("--out", metavar="PREFIX", help="output prefix: writes PREFIX.png and PREFIX.parquet")
+    p.add_argument("--no-mlflow", action="store_true", help="do not log the run to MLflow")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    p.set_defaults(func=run)
+
+
+def _settings(items):
+    s = parse_assignments(items, "--setting") or None
+    if s:
+        s = {k: (int(v) if k in INT_SETTINGS else v) for k, v in s.items()}
+    return s
+
+
+def resolve_kind(model: str, kind: str, has_y: bool) -> str:
+    from pipeline.maps import compute as M
+
+    if kind == "auto":
+        if not has_y:
+            return "bifurcation"
+        return M.default_kind(model)
+    if kind == "bifurcation" and has_y:
+        raise UserError("--kind bifurcation sweeps one parameter: drop --y")
+    if kind != "bifurcation" and not has_y:
+        raise UserError(f"--kind {kind} needs --y PARAM (a 2-D grid)")
+    return kind
+
+
+def run(args) -> int:
+    import sim
+    from tqdm import tqdm
+
+    from pipeline.maps import compute as M
+    from pipeline.maps import plot as P
+    from pipeline import tracking
+
+    spec = sim.get_model(args.model)
+    kind = resolve_kind(args.model, args.kind, bool(args.y))
+    if args.y and args.x == args.y:
+        raise UserError(f"--x and --y must be different parameters (both are '{args.x}')")
+    fixed = parse_assignments(args.sets)
+    settings = _settings(args.settings)
+    if args.threads is not None and args.threads < 1:
+        raise UserError(f"--threads must be >= 1, got {args.threads}")
+    color = args.color or ("rop_m_s" if kind in ("rop", "label") else "peak_force_n")
+    if color not in sim.LABELS:
+        raise UserError(f"--color '{color}' is not a label; known: {', '.join(sim.LABELS)}")
+    base = spec.resolve(args.preset, **{k: v for k, v in fixed.items() if k not in (args.x, args.y)})
+    xr = args.x_range or (None, None)
+    xs = M.axis_values(args.model, args.x, xr[0], xr[1], args.nx, args.log_x, base)
+    ys = None
+    if args.y:
+        yr = args.y_range or (None, None)
+        ys = M.axis_values(args.model, args.y, yr[0], yr[1], args.ny, args.log_y, base)
+    out = Path(args.out or f"maps/{args.model}_{kind}_{args.x}" + (f"_{args.y}" if args.y else ""))
+    png, pq = out.with_name(out.name + ".png"), out.with_name(out.name + ".parquet")
+    # validate the fixed parameters and settings before anything runs
+    spec.resolve(args.preset, **{**fixed, args.x: float(xs[0]), **({args.y: float(ys[0])} if args.y else {})})
+    sim.api.make_settings(spec, settings)
+    params = {"model": args.model, "kind": kind, "x": args.x, "x_lo": xs[0], "x_hi": xs[-1], "nx": xs.size,
+              "y": args.y or "", "ny": 0 if ys is None else ys.size, "color": color, "preset": args.preset or "",
+              **{f"set.{k}": v for k, v in fixed.items()}, **{f"setting.{k}": v for k, v in (settings or {}).items()}}
+    title_fixed = ", ".join(f"{k}={v:g}" for k, v in fixed.items())
+    t0 = time.perf_counter()
+    with tracking.run("map", params, enabled=not args.no_mlflow) as mlflow:
+        if kind == "bifurcation":
+            n = xs.size * (2 if args.direction == "both" else 1)
+            with tqdm(total=n, desc=f"{args.model} {args.x} sweep", unit="pt", disable=args.no_progress) as bar:
+                pts, strobe = M.bifurcation(args.model, args.x, xs, args.direction, args.preset, fixed, settings,
+                                            progress=bar.update)
+            strobe_pq = out.with_name(out.name + ".strobe.parquet")
+            M.write_parquet(pts, pq)
+            M.write_parquet(strobe, strobe_pq)
+            P.plot_bifurcation(pts, strobe, args.x, png,
+                               title=f"{args.model} bifurcation diagram ({args.direction}) {title_fixed}")
+            table, files = pts, [png, pq, strobe_pq]
+        else:
+            with tqdm(total=xs.size * ys.size, desc=f"{args.model} {kind} map", unit="cell",
+                      disable=args.no_progress) as bar:
+                table = M.grid_map(args.model, args.x, xs, args.y, ys, args.preset, fixed, settings,
+                                   n_threads=args.threads, progress=bar.update)
+            M.write_parquet(table, pq)
+            title = f"{args.model} {kind} map {title_fixed}"
+            if kind == "peterka":
+                P.plot_peterka(table, args.x, args.y, png, color=color, title=title)
+            else:
+                if kind == "label" or "rop_region" not in table:
+                    table = table.assign(rop_region=[M.ROP_OK if s in ("ok", "no_contact", "not_settled") else
+                                                     (M.ROP_RUNAWAY if s == "runaway" else M.ROP_FAILED)
+                                                     for s in table["status"]])
+                P.plot_rop(table, args.x, args.y, png, color=color, title=title)
+            files = [png, pq]
+        wall = time.perf_counter() - t0
+        counts = table["pattern_name"].value_counts().to_dict()
+        if mlflow is not None:
+            mlflow.log_metric("wall_s", wall)
+            mlflow.log_metric("n_points", len(table))
+            for name, c in counts.items():
+                mlflow.log_metric(f"n_{name.replace(' ', '_').replace('=', '').replace('/', '_')}", c)
+            for f in files:
+                mlflow.log_artifact(str(f))
+    print(f"{len(table)} points in {wall:.1f} s; impact patterns: "
+          + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
+    for f in files:
+        print(f"wrote {f}")
+    return 0

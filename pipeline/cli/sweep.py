@@ -1,0 +1,209 @@
+"""``vibro sweep``: build (or resume) a labelled Parquet dataset over a design of parameter points."""
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from pipeline.cli.args import parse_assignments
+from pipeline.core.errors import UserError
+
+EPILOG = """\
+spec (params.yaml section 'sweep'; command-line options override it):
+  model: drill                 preset: lab (null = model defaults)
+  fixed: {gap_m: 0.0}          parameters held constant
+  vary:                        varied parameters; scale linear|log; levels = grid points (grid only)
+    frequency_hz: {low: 10.0, high: 400.0, scale: linear}
+  design: sobol|lhs|grid       n_points: 1024      seed: 0
+  settings: {window: 32}       sim.Settings fields (part of the spec)
+  chunk_size: 64               points per chunk file (execution detail)
+  scheduler: null              Dask scheduler address, or local:N
+  workers: null                local threads (default: all cores)
+
+output: OUT/part-XXXXX.parquet (one row per point: point_id, every resolved parameter, every
+MODELS.md section-5 label, status, reason, transient_cycles, n_steps, n_events) and
+OUT/metadata.json (spec, fingerprint, git commit, package versions, seed, wall time, status counts).
+Rerunning the same command after an interruption resumes; a different spec into the same OUT is refused.
+
+examples:
+  vibro sweep --params params.yaml --out data/sweep --metrics metrics/sweep.json
+  vibro sweep --preset none --vary frequency_hz=10:400 --vary amplitude_n=100:3000:log \\
+              --design lhs --n-points 200 --seed 1 --out data/lhs200
+  vibro sweep --design grid --vary frequency_hz=50:350 --vary static_force_n=100:1400 --n-points 400 --out data/grid
+  vibro sweep --params params.yaml --out data/sweep --scheduler tcp://10.0.0.5:8786
+  vibro sweep --params params.yaml --out data/sweep --scheduler local:2     # throw-away 2-worker LocalCluster
+  vibro sweep --params params.yaml --out /tmp/x --dry-run                   # validate and print the plan
+"""
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "sweep", help="simulate a design of parameter points into a labelled, resumable Parquet dataset",
+        description="Simulate every point of a sweep (Sobol', Latin hypercube or full grid over the varied "
+                    "parameters of a model) and write a labelled Parquet dataset in atomically written chunks. "
+                    "Failed and non-steady runs stay in the dataset with their status and reason. An interrupted "
+                    "sweep resumes where it stopped and ends with exactly the rows of an uninterrupted run. "
+                    "Chunks run on local cores (threads) or on a Dask distributed cluster (--scheduler).",
+        formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG)
+    p.add_argument("--params", metavar="FILE.yaml", help="read the 'sweep' section of this params file "
+                   "(default: the built-in default sweep: drill, preset lab, MODELS.md section-2 ranges, sobol, 1024 points)")
+    p.add_argument("--out", default="data/sweep", metavar="DIR", help="dataset directory (default: data/sweep)")
+    p.add_argument("--model", help="model name (drill, indenter-metal, indenter-sandstone, ...)")
+    p.add_argument("--preset", help="named parameter set of the model; 'none' for the model defaults")
+    p.add_argument("--fix", action="append", metavar="NAME=VALUE",
+                   help="hold a parameter at a value (repeatable; added to the spec's 'fixed')")
+    p.add_argument("--vary", action="append", metavar="NAME=LOW:HIGH[:SCALE[:LEVELS]]",
+                   help="vary a parameter (repeatable); SCALE linear (default) or log; LEVELS = grid points on "
+                        "this axis. Given on the command line, --vary replaces the spec's whole 'vary' section")
+    p.add_argument("--design", choices=("sobol", "lhs", "grid"),
+                   help="sobol: scrambled Sobol' (first n points of 2^ceil(log2 n) when n is not a power of 2); "
+                        "lhs: Latin hypercube; grid: full factorial (n_points must be a product of levels)")
+    p.add_argument("--n-points", type=int, help="number of points (> 0)")
+    p.add_argument("--seed", type=int, help="seed of the design (same seed -> same dataset)")
+    p.add_argument("--setting", dest="settings", action="append", metavar="NAME=VALUE",
+                   help="simulation setting (repeatable), e.g. --setting window=16; part of the spec")
+    p.add_argument("--chunk-size", type=int, help="points per chunk file (default 64); keep it when resuming")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the chunks on an existing Dask distributed cluster (tcp://host:port), or on a "
+                        "throw-away LocalCluster with local:N (N single-threaded worker processes)")
+    p.add_argument("--workers", type=int, metavar="N", help="local threads (default: all cores)")
+    p.add_argument("--metrics", metavar="FILE.json",
+                   help="write counts per status, n_points, wall time and sims/s to this JSON file")
+    p.add_argument("--plot", metavar="FILE.png",
+                   help="overview figure (ROP over the first two varied parameters, statuses marked); "
+                        "by default written to a temporary file and only logged to MLflow")
+    p.add_argument("--overwrite", action="store_true", help="discard an existing dataset in --out and start afresh")
+    p.add_argument("--dry-run", action="store_true", help="validate the spec and print the plan; write nothing")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-mlflow", action="store_true", help="do not log the run to MLflow")
+    p.set_defaults(func=run)
+
+
+def _parse_vary(items: list[str]) -> dict[str, dict]:
+    out: dict[str, dict] = {}
+    for item in items:
+        name, eq, rest = item.partition("=")
+        parts = rest.split(":")
+        if not eq or not name.strip() or len(parts) < 2 or len(parts) > 4:
+            raise UserError(f"--vary expects NAME=LOW:HIGH[:SCALE[:LEVELS]], got '{item}'")
+        entry: dict = {}
+        for key, raw in zip(("low", "high"), parts[:2]):
+            try:
+                entry[key] = float(raw)
+            except ValueError:
+                raise UserError(f"--vary {name}: {key} '{raw}' is not a number") from None
+        if len(parts) >= 3 and parts[2]:
+            entry["scale"] = parts[2]
+        if len(parts) == 4:
+            try:
+                entry["levels"] = int(parts[3])
+            except ValueError:
+                raise UserError(f"--vary {name}: levels '{parts[3]}' is not an integer") from None
+        out[name.strip()] = entry
+    return out
+
+
+def spec_from_args(args):
+    """The validated SweepSpec and execution options (scheduler, workers) from params file + flags."""
+    from pipeline.core.params import read_section
+    from pipeline.datasets.spec import default_spec_dict, make_spec
+
+    raw = read_section(args.params, "sweep", section_required=True) if args.params else default_spec_dict()
+    raw = dict(raw)
+    scheduler = args.scheduler or raw.pop("scheduler", None)
+    raw.pop("scheduler", None)
+    workers = args.workers if args.workers is not None else raw.pop("workers", None)
+    raw.pop("workers", None)
+    if workers is not None and (not isinstance(workers, int) or workers < 1):
+        raise UserError(f"--workers must be an integer >= 1, got {workers!r}")
+    if args.fix:
+        raw["fixed"] = {**(raw.get("fixed") or {}), **parse_assignments(args.fix, "--fix")}
+    if args.vary:
+        raw["vary"] = _parse_vary(args.vary)
+    if args.settings:
+        raw["settings"] = {**(raw.get("settings") or {}), **parse_assignments(args.settings, "--setting")}
+    spec = make_spec(raw, model=args.model, preset=args.preset, design=args.design, n_points=args.n_points,
+                     seed=args.seed, chunk_size=args.chunk_size)
+    return spec, scheduler, workers
+
+
+def _local(scheduler: str | None, workers: int | None):
+    from pipeline.datasets.runner import LocalBackend
+
+    return LocalBackend(workers)
+
+
+def _dask(scheduler: str, workers: int | None):
+    from pipeline.datasets.dask_backend import DaskBackend
+
+    return DaskBackend(scheduler)
+
+
+BACKENDS = {"local": _local, "dask": _dask}
+"""Backend kind -> factory(scheduler, workers); a --scheduler address selects 'dask'."""
+
+
+def make_backend(scheduler: str | None, workers: int | None):
+    """The sweep backend for the command line's --scheduler / --workers."""
+    return BACKENDS["dask" if scheduler else "local"](scheduler, workers)
+
+
+def run(args) -> int:
+    from pipeline import tracking
+    from pipeline.core.files import atomic_write_json
+    from pipeline.datasets.runner import run_sweep
+    from pipeline.datasets.spec import design_points, validate_points
+    from pipeline.datasets.store import load_dataset
+
+    spec, scheduler, workers = spec_from_args(args)
+    if args.dry_run:
+        pts = design_points(spec)
+        validate_points(spec, pts)
+        print(f"sweep plan: model {spec.model}, preset {spec.preset}, design {spec.design}, {spec.n_points} points "
+              f"in {spec.n_chunks} chunks of {spec.chunk_size}, seed {spec.seed}, fingerprint {spec.fingerprint[:12]}")
+        for name, r in spec.vary.items():
+            print(f"  vary {name}: {r.low:g} .. {r.high:g} ({r.scale})")
+        for name, v in spec.fixed.items():
+            print(f"  fixed {name} = {v:g}")
+        print(f"  -> {args.out} (nothing written: --dry-run)")
+        return 0
+    params = {"model": spec.model, "preset": spec.preset, "design": spec.design, "n_points": spec.n_points,
+              "seed": spec.seed, "chunk_size": spec.chunk_size, "fingerprint": spec.fingerprint,
+              "scheduler": scheduler or "local", "out": args.out,
+              **{f"vary.{k}": f"{r.low:g}:{r.high:g}:{r.scale}" for k, r in spec.vary.items()},
+              **{f"fixed.{k}": v for k, v in spec.fixed.items()},
+              **{f"settings.{k}": v for k, v in spec.settings.items()}}
+    with tracking.run("sweep", params, enabled=not args.no_mlflow) as mlflow:
+        summary = run_sweep(spec, args.out, backend=make_backend(scheduler, workers),
+                            progress=not args.no_progress,
+                            overwrite=args.overwrite)
+        print("\n".join(summary.lines()))
+        if args.metrics:
+            Path(args.metrics).parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_json(Path(args.metrics), summary.metrics())
+        plot_path = args.plot
+        if plot_path or mlflow is not None:
+            from pipeline.datasets.plot import plot_sweep
+
+            names = list(spec.vary)
+            if len(names) >= 2:
+                df = load_dataset(args.out)
+                tmpdir = None
+                if not plot_path:
+                    tmpdir = tempfile.mkdtemp(prefix="vibro-sweep-")
+                    plot_path = os.path.join(tmpdir, "sweep_overview.png")
+                plot_sweep(df, names[0], names[1], plot_path,
+                           title=f"{spec.model} ({spec.preset or 'defaults'}): {spec.n_points} {spec.design} points")
+                if mlflow is not None:
+                    mlflow.log_artifact(plot_path)
+                if tmpdir:
+                    shutil.rmtree(tmpdir, ignore_errors=True)
+        if mlflow is not None:
+            m = summary.metrics()
+            mlflow.log_metrics({"n_points": m["n_points"], "computed": m["computed"], "reused": m["reused"],
+                                "wall_time_s": m["wall_time_s"], "sims_per_s": m["sims_per_s"] or 0.0,
+                                **{f"count_{k}": v for k, v in m["status_counts"].items()}})
+            mlflow.log_artifact(str(Path(args.out) / "metadata.json"))
+    return 0

@@ -1,0 +1,110 @@
+"""``vibro verify``: re-simulate a list of points and compare with their predictions."""
+from __future__ import annotations
+
+import argparse
+
+from pipeline.core.errors import UserError
+
+EPILOG = """\
+input: a CSV or Parquet file with one row per point and the input columns (frequency_hz, amplitude_n,
+static_force_n, ...).  Predictions come from --surrogate, or else from the file's own columns rop_m_s,
+peak_force_n, impacts_per_cycle, specific_energy_j_m (or *_pred), with optional *_lo/*_hi intervals and status.
+
+output under --out: verified.csv (inputs, T_pred, T_lo, T_hi, T_sim, status_pred, status_sim, feasible_pred,
+feasible_sim, rop_rel_error, in_interval, surrogate_wrong, why), verification.png, summary.json.
+
+examples:
+  vibro verify results/optimise/verified.csv --surrogate models/surrogate --out results/verify
+  vibro verify candidates.parquet --model drill --preset lab --out results/verify --metrics metrics/verify.json
+  vibro verify points.csv --surrogate models/surrogate --feedback models/surrogate/feedback.parquet
+"""
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "verify", help="re-simulate points (CSV/Parquet) and compare with predictions",
+        description="Re-simulate every point of a CSV/Parquet file with the simulator and put the prediction (from a "
+                    "surrogate bundle or the file's own columns) next to the simulated labels; a point is marked "
+                    "surrogate_wrong when its feasibility differs or its ROP is off by more than --rel-tol.",
+        formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG)
+    p.add_argument("points", help="CSV or Parquet file of points")
+    p.add_argument("--surrogate", metavar="DIR|RUN_ID", help="predict with this surrogate bundle (model, preset and "
+                                                              "inputs come from it)")
+    p.add_argument("--model", default="drill", help="model to simulate without --surrogate (default drill)")
+    p.add_argument("--preset", default="lab", help="preset without --surrogate (default lab; 'none' for the defaults)")
+    p.add_argument("--inputs", nargs="+", metavar="NAME",
+                   help="input columns (default: the surrogate's inputs, else every model parameter in the file)")
+    p.add_argument("--fixed", action="append", metavar="NAME=VALUE", help="hold a parameter at a value (repeatable)")
+    p.add_argument("--max-peak-force-n", type=float, metavar="N", help="feasibility: peak_force_n <= N")
+    p.add_argument("--peak-force-static-ratio", type=float, metavar="K", help="feasibility: peak_force_n <= K × static_force_n")
+    p.add_argument("--max-specific-energy-j-m", type=float, metavar="E", help="feasibility: specific_energy_j_m <= E")
+    p.add_argument("--allow-not-settled", action="store_true", help="count not_settled points as feasible")
+    p.add_argument("--rel-tol", type=float, default=0.1, help="ROP relative error marking a wrong prediction (default 0.1)")
+    p.add_argument("--feedback", metavar="FILE.parquet", help="append the simulated points to this feedback file")
+    p.add_argument("--threads", type=int, dest="n_threads", help="simulator threads (default: all cores)")
+    p.add_argument("--out", default="results/verify", help="output directory (default results/verify)")
+    p.add_argument("--metrics", metavar="FILE.json", help="write the summary metrics JSON here too")
+    p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    import sim
+    from pipeline import tracking
+    from pipeline.cli.args import parse_assignments
+    from pipeline.core.jsonable import dump_json
+    from pipeline.optimise import plots
+    from pipeline.optimise.constraints import Constraints
+    from pipeline.optimise.verify import append_feedback, read_points, summarise, verify_points
+    from pipeline.core.files import atomic_write_text, atomic_write_with
+    from pipeline.tracking import load_bundle
+
+    if args.rel_tol <= 0:
+        raise UserError(f"--rel-tol must be > 0, got {args.rel_tol}")
+    points = read_points(args.points)
+    fixed = parse_assignments(args.fixed, "--fixed")
+    bundle = load_bundle(args.surrogate) if args.surrogate else None
+    if bundle is not None:
+        model, preset = bundle.model, bundle.preset
+        fixed = {**bundle.fixed, **fixed}     # the sweep's conditions, overridden by --fixed
+        settings = bundle.settings or None
+        inputs = args.inputs or list(bundle.inputs)
+    else:
+        model, preset = args.model, (None if str(args.preset).lower() == "none" else args.preset)
+        settings = None
+        names = sim.get_model(model).param_names
+        inputs = args.inputs or [c for c in points.columns if c in names]
+        if not inputs:
+            raise UserError(f"{args.points}: no column is a parameter of model '{model}' "
+                            f"({', '.join(names)}); give --inputs")
+    cons = Constraints(max_peak_force_n=args.max_peak_force_n, peak_force_static_ratio=args.peak_force_static_ratio,
+                       max_specific_energy_j_m=args.max_specific_energy_j_m, require_settled=not args.allow_not_settled)
+    cons.check(None, None)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    params = {"points": args.points, "surrogate": args.surrogate, "model": model, "preset": preset,
+              "inputs": ",".join(inputs), "rel_tol": args.rel_tol, **cons.to_dict()}
+    with tracking.run("verify", params, enabled=not args.no_mlflow) as mlflow:
+        table, simres = verify_points(points, model, preset, inputs, cons, args.rel_tol, bundle=bundle, fixed=fixed,
+                                      settings=settings,
+                                      n_threads=args.n_threads, source=args.points)
+        summary = summarise(table)
+        atomic_write_with(out / "verified.csv", lambda tmp: table.to_csv(tmp, index=False))
+        fig = plots.plot_verification(table, out / "verification.png", f"verify: {Path(args.points).name}")
+        if args.feedback:
+            summary["feedback_rows"] = append_feedback(simres, args.feedback, source="verify",
+                                                       study=Path(args.points).name,
+                                                       wrong=table["surrogate_wrong"].tolist(), inputs=inputs)
+        atomic_write_text(out / "summary.json", dump_json(summary))
+        if args.metrics:
+            atomic_write_text(Path(args.metrics), dump_json(summary))
+        if mlflow is not None:
+            mlflow.log_metrics({k: float(v) for k, v in summary.items() if isinstance(v, (int, float))})
+            for f in (fig, str(out / "verified.csv"), str(out / "summary.json")):
+                mlflow.log_artifact(f)
+    print(f"verified {summary['n_points']} point(s): surrogate wrong at {summary['n_surrogate_wrong']}, "
+          f"median ROP error {summary['rop_rel_error_median']}, statuses {summary['status_sim_counts']}")
+    print(f"table: {out / 'verified.csv'}")
+    return 0

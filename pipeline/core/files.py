@@ -1,0 +1,96 @@
+"""The one atomic-write module: a file is written to a temporary sibling, flushed to disk (fsync) and
+moved over its target with ``os.replace``, so a reader sees the old or the new content, never half."""
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Callable, Iterator
+
+
+def _atomic(path: Path, write: Callable[[str], None], mode: int = 0o644) -> Path:
+    """Run ``write(tmp)`` on a temporary sibling of ``path``, fsync it and move it over ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        write(tmp)
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.chmod(tmp, mode)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically."""
+    return _atomic(Path(path), lambda tmp: Path(tmp).write_bytes(data))
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    return atomic_write_bytes(path, text.encode())
+
+
+def atomic_write_json(path: str | os.PathLike, obj) -> Path:
+    """Write ``obj`` as indented JSON (numpy scalars, inf handled; trailing newline) atomically."""
+    from pipeline.core.jsonable import dump_json
+
+    return atomic_write_text(path, dump_json(obj) + "\n")
+
+
+def atomic_write_parquet(path: str | os.PathLike, data, compression: str | None = None) -> Path:
+    """Write a pandas DataFrame (index dropped, NaN → null) or a pyarrow Table to Parquet atomically."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = data if isinstance(data, pa.Table) else pa.Table.from_pandas(data.reset_index(drop=True), preserve_index=False)
+    kw = {} if compression is None else {"compression": compression}
+    return _atomic(Path(path), lambda tmp: pq.write_table(table, tmp, **kw))
+
+
+@contextlib.contextmanager
+def atomic_directory(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary sibling directory to fill; on success it replaces ``path`` (the old folder is
+    moved aside first and removed after), on error it is removed and ``path`` is left untouched."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp"))
+    try:
+        yield tmp
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    os.chmod(tmp, 0o755)
+    old = None
+    if path.exists():
+        old = path.with_name(f".{path.name}.old-{os.getpid()}")
+        shutil.rmtree(old, ignore_errors=True)
+        os.replace(path, old)
+    os.replace(tmp, path)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def atomic_write_with(path: str | os.PathLike, write: Callable[[str], None]) -> Path:
+    """``write(tmp_path)`` fills a temporary sibling of ``path`` (e.g. ``df.to_csv``), which then replaces it atomically."""
+    return _atomic(Path(path), write)
+
+
+def atomic_write_figure(path: str | os.PathLike, fig, dpi: int = 110, close: bool = True) -> Path:
+    """Save a matplotlib figure atomically (format from the suffix, default png); close it unless told not to."""
+    path = Path(path)
+    try:
+        return _atomic(path, lambda tmp: fig.savefig(tmp, format=path.suffix[1:] or "png", dpi=dpi))
+    finally:
+        if close:
+            import matplotlib.pyplot as plt
+
+            plt.close(fig)

@@ -1,0 +1,11 @@
+"""Labelled datasets: sweeps of the simulator and measured rig data.
+
+spec.py          sweep specification (model, preset, fixed, varied ranges, design, settings) and design points
+store.py         the on-disk sweep dataset: schema, chunk files, metadata, lock, provenance, ``load_dataset``
+compute.py       one chunk simulated (what a backend runs)
+runner.py        ``run_sweep`` on a backend (``LocalBackend``; any object with ``run(spec, chunks, write)``)
+dask_backend.py  ``DaskBackend``: chunks as tasks on a Dask cluster
+measured.py      measured rig data (MODELS.md §7): reader and writer
+synth.py         synthetic measured data from the simulator (``vibro synth``)
+plot.py          the sweep's overview figure
+"""

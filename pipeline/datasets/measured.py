@@ -1,0 +1,241 @@
+"""Measured-data datasets (MODELS.md §7): strict ingest and atomic writing.
+
+A dataset is a directory::
+
+    runs.csv            run_id, system, frequency_hz, amplitude_n, static_force_n, gap_m, duration_s (+ extras)
+    series/<run_id>.csv t_s plus any of accel_m_s2, force_n, disp_m, progression_m (SI units)
+    summary.csv         run_id plus any of rop_m_s, peak_force_n, peak_decel_g, impacts_per_cycle (+ extras)
+
+Time series start at t = 0 at forcing phase 0 (the indenter's forcing is Fa sin(2π f t)) and are
+uniformly sampled.  Every problem raises ``UserError`` naming the file, the line (1 = header) and
+the column.  Nothing here writes unless the whole dataset is valid (``write_dataset`` builds the
+directory next to the target and renames it into place).
+"""
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from pipeline.core.errors import UserError
+from pipeline.core.files import atomic_directory
+
+RUN_COLUMNS = ("run_id", "system", "frequency_hz", "amplitude_n", "static_force_n", "gap_m", "duration_s")
+RUN_NUMERIC = {"frequency_hz": "positive", "amplitude_n": "nonnegative", "static_force_n": "nonnegative",
+               "gap_m": "nonnegative", "duration_s": "positive"}
+SERIES_SIGNALS = ("accel_m_s2", "force_n", "disp_m", "progression_m")
+SUMMARY_FEATURES = ("rop_m_s", "peak_force_n", "peak_decel_g", "impacts_per_cycle")
+SUMMARY_EXTRAS = ("spectral_ratio", "spectral_ratio_ref_hz", "spectral_peak_hz", "impacts_per_cycle_lower_bound")
+"""Extra summary columns the diagnosis understands (README.md); ``<feature>_sd`` columns
+give a feature's measurement standard deviation.  Other extra columns are allowed and ignored."""
+_RUN_ID = re.compile(r"^[A-Za-z0-9_.\-]+$")
+
+
+@dataclass
+class Dataset:
+    """A validated measured dataset.  ``runs`` keeps the file order; ``series`` maps run_id to a
+    DataFrame (t_s + signals); ``summary`` is indexed by run_id (or None)."""
+
+    runs: pd.DataFrame
+    series: dict[str, pd.DataFrame] = field(default_factory=dict)
+    summary: pd.DataFrame | None = None
+    path: Path | None = None
+    extra_files: dict[str, str] = field(default_factory=dict)   # relative path -> text (README.md, truth.json)
+
+    @property
+    def systems(self) -> list[str]:
+        return sorted(self.runs["system"].unique())
+
+
+def _where(file: str, line: int, column: str) -> str:
+    return f"{file} line {line}, column '{column}'"
+
+
+def _read_csv(path: Path, label: str) -> pd.DataFrame:
+    if not path.is_file():
+        raise UserError(f"{label}: file not found ({path})")
+    try:
+        df = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
+    except pd.errors.EmptyDataError:
+        raise UserError(f"{label}: file is empty") from None
+    except (pd.errors.ParserError, UnicodeDecodeError) as e:
+        raise UserError(f"{label}: not a readable CSV file ({str(e).splitlines()[0]})") from None
+    df.columns = [str(c).strip() for c in df.columns]
+    dup = [c for c in df.columns if list(df.columns).count(c) > 1]
+    if dup:
+        raise UserError(f"{label}: column '{dup[0]}' appears more than once")
+    return df
+
+
+def _numeric(df: pd.DataFrame, col: str, label: str, rule: str | None = None,
+             allow_empty: bool = False) -> np.ndarray:
+    """Column as float; the first bad cell raises an error naming file, line and column.
+    ``allow_empty``: an empty cell means "not measured" (NaN in memory; summary.csv only)."""
+    raw = df[col].astype(str).str.strip()
+    vals = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+    empty = (raw == "").to_numpy()
+    bad = ~np.isfinite(vals) & ~(empty & allow_empty)
+    if bad.any():
+        i = int(np.argmax(bad))
+        what = "empty" if raw.iloc[i] == "" else f"'{raw.iloc[i]}' is not a finite number"
+        raise UserError(f"{_where(label, i + 2, col)}: {what}")
+    if rule == "positive" and (vals <= 0).any():
+        i = int(np.argmax(vals <= 0))
+        raise UserError(f"{_where(label, i + 2, col)}: must be > 0, got {vals[i]:g}")
+    if rule == "nonnegative" and (vals < 0).any():
+        i = int(np.argmax(vals < 0))
+        raise UserError(f"{_where(label, i + 2, col)}: must be >= 0, got {vals[i]:g}")
+    return vals
+
+
+def _load_runs(root: Path) -> pd.DataFrame:
+    import sim
+
+    label = "runs.csv"
+    df = _read_csv(root / "runs.csv", label)
+    missing = [c for c in RUN_COLUMNS if c not in df.columns]
+    if missing:
+        raise UserError(f"{label}: missing required column(s) {', '.join(missing)} "
+                        f"(required: {', '.join(RUN_COLUMNS)})")
+    if df.empty:
+        raise UserError(f"{label}: no runs (the file has a header but no rows)")
+    out = pd.DataFrame({"run_id": df["run_id"].str.strip(), "system": df["system"].str.strip()})
+    for i, rid in enumerate(out["run_id"]):
+        if not _RUN_ID.match(rid):
+            raise UserError(f"{_where(label, i + 2, 'run_id')}: '{rid}' is not a valid run id "
+                            "(letters, digits, '_', '-', '.')")
+    dup = out["run_id"].duplicated()
+    if dup.any():
+        i = int(np.argmax(dup.to_numpy()))
+        raise UserError(f"{_where(label, i + 2, 'run_id')}: run id '{out['run_id'].iloc[i]}' appears twice")
+    known = sim.model_names()
+    for i, s in enumerate(out["system"]):
+        if s not in known:
+            raise UserError(f"{_where(label, i + 2, 'system')}: unknown system '{s}' (known: {', '.join(known)})")
+    for col, rule in RUN_NUMERIC.items():
+        out[col] = _numeric(df, col, label, rule)
+    for col in df.columns:
+        if col not in RUN_COLUMNS:
+            out[col] = df[col].to_numpy()
+    return out
+
+
+def _load_series(path: Path, rid: str) -> pd.DataFrame:
+    label = f"series/{rid}.csv"
+    df = _read_csv(path, label)
+    if "t_s" not in df.columns:
+        raise UserError(f"{label}: missing required column 't_s'")
+    signals = [c for c in SERIES_SIGNALS if c in df.columns]
+    if not signals:
+        raise UserError(f"{label}: no signal column (need at least one of {', '.join(SERIES_SIGNALS)})")
+    if len(df) < 16:
+        raise UserError(f"{label}: only {len(df)} samples (need at least 16)")
+    out = pd.DataFrame({c: _numeric(df, c, label) for c in ["t_s", *signals]})
+    t = out["t_s"].to_numpy()
+    dt = np.diff(t)
+    if (dt <= 0).any():
+        i = int(np.argmax(dt <= 0)) + 1
+        raise UserError(f"{_where(label, i + 2, 't_s')}: time is not increasing ({t[i - 1]:.9g} then {t[i]:.9g})")
+    med = float(np.median(dt))
+    off = np.abs(dt - med) > 1e-3 * med
+    if off.any():
+        i = int(np.argmax(off)) + 1
+        raise UserError(f"{_where(label, i + 2, 't_s')}: not uniformly sampled (step {dt[i - 1]:.6g} s, "
+                        f"median step {med:.6g} s)")
+    if abs(t[0]) > 0.5 * med:
+        raise UserError(f"{_where(label, 2, 't_s')}: series must start at t = 0 (forcing phase 0), got {t[0]:.6g} s")
+    return out
+
+
+def _load_summary(root: Path, run_ids: set[str]) -> pd.DataFrame | None:
+    path = root / "summary.csv"
+    if not path.exists():
+        return None
+    label = "summary.csv"
+    df = _read_csv(path, label)
+    if "run_id" not in df.columns:
+        raise UserError(f"{label}: missing required column 'run_id'")
+    ids = df["run_id"].str.strip()
+    for i, rid in enumerate(ids):
+        if rid not in run_ids:
+            raise UserError(f"{_where(label, i + 2, 'run_id')}: run '{rid}' is not in runs.csv")
+    if ids.duplicated().any():
+        i = int(np.argmax(ids.duplicated().to_numpy()))
+        raise UserError(f"{_where(label, i + 2, 'run_id')}: run '{ids.iloc[i]}' appears twice")
+    feats = [c for c in SUMMARY_FEATURES if c in df.columns]
+    if not feats:
+        raise UserError(f"{label}: no feature column (need at least one of {', '.join(SUMMARY_FEATURES)})")
+    out = pd.DataFrame({"run_id": ids})
+    numeric = feats + [c for c in SUMMARY_EXTRAS if c in df.columns]
+    numeric += [c for c in df.columns if c.endswith("_sd") and c[:-3] in SUMMARY_FEATURES + ("spectral_ratio",)]
+    for c in numeric:
+        rule = "positive" if c.endswith("_sd") or c == "spectral_ratio_ref_hz" else (
+            "nonnegative" if c in ("peak_decel_g", "peak_force_n", "impacts_per_cycle", "spectral_ratio") else None)
+        out[c] = _numeric(df, c, label, rule, allow_empty=True)
+    have = out[feats].notna().any(axis=1).to_numpy()
+    if not have.all():
+        i = int(np.argmax(~have))
+        raise UserError(f"{_where(label, i + 2, feats[0])}: run '{ids.iloc[i]}' has no feature value "
+                        f"(all of {', '.join(feats)} are empty)")
+    return out.set_index("run_id")
+
+
+def load_dataset(path: str | os.PathLike) -> Dataset:
+    """Read and validate a dataset directory (MODELS.md §7); raises UserError on any problem."""
+    root = Path(path)
+    if not root.exists():
+        raise UserError(f"dataset '{root}' does not exist")
+    if not root.is_dir():
+        raise UserError(f"dataset '{root}' is not a directory (expected runs.csv, series/, summary.csv)")
+    runs = _load_runs(root)
+    ids = set(runs["run_id"])
+    series: dict[str, pd.DataFrame] = {}
+    sdir = root / "series"
+    if sdir.exists():
+        for f in sorted(sdir.iterdir()):
+            if f.suffix != ".csv":
+                continue
+            if f.stem not in ids:
+                raise UserError(f"series/{f.name}: run '{f.stem}' is not in runs.csv")
+            series[f.stem] = _load_series(f, f.stem)
+    summary = _load_summary(root, ids)
+    for i, rid in enumerate(runs["run_id"]):
+        if rid not in series and (summary is None or rid not in summary.index):
+            raise UserError(f"{_where('runs.csv', i + 2, 'run_id')}: run '{rid}' has neither a series "
+                            f"(series/{rid}.csv) nor a row in summary.csv")
+    return Dataset(runs=runs, series=series, summary=summary, path=root)
+
+
+def _fmt(df: pd.DataFrame) -> str:
+    return df.to_csv(index=False, float_format="%.10g", lineterminator="\n")
+
+
+def write_dataset(ds: Dataset, path: str | os.PathLike) -> Path:
+    """Write ``ds`` to directory ``path`` atomically: the dataset is built in a sibling temporary
+    directory and renamed into place (an existing dataset there is replaced only at the end)."""
+    root = Path(path)
+    if root.exists() and not root.is_dir():
+        raise UserError(f"--out '{root}' exists and is not a directory")
+    if root.exists() and any(root.iterdir()) and not (root / "runs.csv").exists():
+        raise UserError(f"--out '{root}' is a non-empty directory that is not a dataset; choose another path")
+    for col in ds.runs.columns:
+        if ds.runs[col].dtype.kind == "f" and ds.runs[col].isna().any():
+            raise UserError(f"refusing to write NaN in runs.csv column '{col}'")
+    with atomic_directory(root) as tmp:
+        (tmp / "runs.csv").write_text(_fmt(ds.runs))
+        if ds.series:
+            (tmp / "series").mkdir()
+            for rid, df in ds.series.items():
+                if not np.isfinite(df.to_numpy(dtype=float)).all():
+                    raise UserError(f"refusing to write non-finite values in series/{rid}.csv")
+                (tmp / "series" / f"{rid}.csv").write_text(_fmt(df))
+        if ds.summary is not None:
+            (tmp / "summary.csv").write_text(_fmt(ds.summary.reset_index()))
+        for rel, text in ds.extra_files.items():
+            (tmp / rel).write_text(text)
+    return root
+

@@ -1,0 +1,336 @@
+"""Sweep specification: model + preset + fixed parameters + varied parameters (ranges, linear or log) + a
+design (``sobol``, ``lhs``, ``grid``) + number of points + seed + numerical settings; the design points.
+
+Units: every parameter in SI as in MODELS.md (``frequency_hz`` Hz, ``amplitude_n`` N, ...).
+"""
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from pipeline.core.errors import UserError
+from pipeline.core.unitcube import from_unit
+
+FORMAT_VERSION = 1
+"""Version of the dataset format (part of every spec fingerprint)."""
+DESIGNS = ("sobol", "lhs", "grid")
+
+SCALES = ("linear", "log")
+
+SPEC_KEYS = ("model", "preset", "fixed", "vary", "design", "n_points", "seed", "settings")
+
+EXEC_KEYS = ("chunk_size", "scheduler", "workers")
+
+
+
+
+
+@dataclass(frozen=True)
+class Range:
+    """One varied parameter: ``low``..``high`` (SI units of the parameter), ``linear`` or ``log``
+    spacing; ``levels`` = grid points along this axis (grid design only)."""
+
+    low: float
+    high: float
+    scale: str = "linear"
+    levels: int | None = None
+
+    def to_physical(self, u: np.ndarray) -> np.ndarray:
+        """Map unit-interval coordinates ``u`` ∈ [0, 1] to parameter values."""
+        return from_unit(u, self.low, self.high, self.scale == "log")
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A validated sweep (construct with :func:`make_spec`).  ``chunk_size`` is an execution detail
+    (results do not depend on it) and is not part of the fingerprint."""
+
+    model: str
+    preset: str | None
+    fixed: dict[str, float]
+    vary: dict[str, Range]           # sorted by name = design dimension order
+    design: str
+    n_points: int
+    seed: int
+    settings: dict[str, Any]         # every sim.Settings field, resolved (model defaults <- given)
+    chunk_size: int = 64
+
+    def canonical(self) -> dict:
+        """The fingerprinted part of the spec, as plain JSON-able data."""
+        return {
+            "format": FORMAT_VERSION,
+            "model": self.model,
+            "preset": self.preset,
+            "fixed": {k: self.fixed[k] for k in sorted(self.fixed)},
+            "vary": [[k, {"low": r.low, "high": r.high, "scale": r.scale, "levels": r.levels}]
+                     for k, r in self.vary.items()],
+            "design": self.design,
+            "n_points": self.n_points,
+            "seed": self.seed,
+            "settings": {k: self.settings[k] for k in sorted(self.settings)},
+        }
+
+    @property
+    def fingerprint(self) -> str:
+        """sha256 of the canonical spec (JSON, sorted keys, repr-exact floats)."""
+        text = json.dumps(self.canonical(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    @property
+    def n_chunks(self) -> int:
+        return -(-self.n_points // self.chunk_size)
+
+    def chunk_bounds(self, k: int) -> tuple[int, int]:
+        """Point ids [start, stop) of chunk ``k``."""
+        start = k * self.chunk_size
+        return start, min(start + self.chunk_size, self.n_points)
+
+    def describe(self) -> dict:
+        """Human-facing spec (metadata.json, MLflow params)."""
+        c = self.canonical()
+        return {"model": c["model"], "preset": c["preset"], "fixed": c["fixed"],
+                "vary": {k: {kk: vv for kk, vv in v.items() if vv is not None} for k, v in c["vary"]},
+                "design": c["design"], "n_points": c["n_points"], "seed": c["seed"],
+                "settings": c["settings"], "chunk_size": self.chunk_size}
+
+
+def default_vary(model: str, preset: str | None) -> dict[str, dict]:
+    """Default varied parameters: the model's search space for ``preset`` (``ModelSpec.search_spaces``; the
+    model-defaults space "" when the preset has none)."""
+    from sim import get_model
+
+    spaces = get_model(model).search_spaces
+    space = spaces.get(preset or "") or spaces.get("")
+    if not space:
+        raise UserError(f"sweep: model '{model}' (preset {preset}) has no default search space; give 'vary'")
+    return {name: {"low": float(lo), "high": float(hi), "scale": "linear"} for name, (lo, hi) in space.items()}
+
+
+def default_spec_dict() -> dict:
+    """The built-in default sweep (same as the ``sweep`` section shipped in params.yaml)."""
+    from sim.registry import DEFAULT_MODEL, DEFAULT_PRESET
+
+    return {"model": DEFAULT_MODEL, "preset": DEFAULT_PRESET, "fixed": {}, "vary": default_vary(DEFAULT_MODEL, DEFAULT_PRESET),
+            "design": "sobol", "n_points": 1024, "seed": 0, "settings": {}, "chunk_size": 64}
+
+
+def _as_int(value, name: str, minimum: int | None = None) -> int:
+    if isinstance(value, bool) or value is None:
+        raise UserError(f"sweep.{name} must be an integer, got {value!r}")
+    try:
+        f = float(value)
+    except (TypeError, ValueError):
+        raise UserError(f"sweep.{name} must be an integer, got {value!r}") from None
+    if not math.isfinite(f) or f != int(f):
+        raise UserError(f"sweep.{name} must be an integer, got {value!r}")
+    v = int(f)
+    if minimum is not None and v < minimum:
+        raise UserError(f"sweep.{name} must be >= {minimum}, got {v}")
+    return v
+
+
+def _as_float(value, name: str) -> float:
+    if isinstance(value, bool):
+        raise UserError(f"{name} must be a number, got {value!r}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise UserError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise UserError(f"{name} must be finite, got {value!r}")
+    return v
+
+
+def _parse_range(name: str, raw) -> Range:
+    where = f"sweep.vary.{name}"
+    if isinstance(raw, (list, tuple)) and len(raw) in (2, 3):
+        raw = {"low": raw[0], "high": raw[1], **({"scale": raw[2]} if len(raw) == 3 else {})}
+    if not isinstance(raw, dict):
+        raise UserError(f"{where} must be a mapping {{low, high, scale}}, got {raw!r}")
+    unknown = set(raw) - {"low", "high", "scale", "levels"}
+    if unknown:
+        raise UserError(f"{where}: unknown key(s) {sorted(unknown)}; known: low, high, scale, levels")
+    for key in ("low", "high"):
+        if key not in raw:
+            raise UserError(f"{where} has no '{key}'")
+    low, high = _as_float(raw["low"], f"{where}.low"), _as_float(raw["high"], f"{where}.high")
+    scale = raw.get("scale", "linear") or "linear"
+    if scale not in SCALES:
+        raise UserError(f"{where}.scale must be one of {', '.join(SCALES)}, got {scale!r}")
+    if low == high:
+        raise UserError(f"{where}: empty range (low = high = {low:g}); put a constant parameter under 'fixed'")
+    if low > high:
+        raise UserError(f"{where}: inverted range (low = {low:g} > high = {high:g})")
+    if scale == "log" and low <= 0:
+        raise UserError(f"{where}: a log scale needs low > 0, got low = {low:g}")
+    levels = raw.get("levels")
+    if levels is not None:
+        levels = _as_int(levels, f"vary.{name}.levels", minimum=2)
+    return Range(low, high, scale, levels)
+
+
+def _coerce_settings(raw: dict, model_spec) -> dict[str, Any]:
+    from sim.api import Settings, make_settings
+
+    if not isinstance(raw, dict):
+        raise UserError(f"sweep.settings must be a mapping of sim.Settings fields, got {raw!r}")
+    base = Settings()
+    out = {}
+    for k, v in raw.items():
+        if k in Settings.__dataclass_fields__ and isinstance(getattr(base, k), int):
+            v = _as_int(v, f"settings.{k}")
+        out[k] = v
+    return asdict(make_settings(model_spec, out))
+
+
+def make_spec(raw: dict | None = None, **overrides) -> SweepSpec:
+    """Validate a sweep description (params.yaml ``sweep`` section, CLI overrides on top).
+
+    Raises UserError / sim.ParameterError naming the offending key, parameter or value; touches
+    no file.  ``overrides`` with value None are ignored.
+    """
+    from sim import get_model
+    from sim.models.base import ParameterError
+
+    d = dict(default_spec_dict() if raw is None else raw)
+    d.update({k: v for k, v in overrides.items() if v is not None})
+    unknown = set(d) - set(SPEC_KEYS) - set(EXEC_KEYS)
+    if unknown:
+        raise UserError(f"sweep: unknown key(s) {sorted(unknown)}; known: {', '.join(SPEC_KEYS + EXEC_KEYS)}")
+    for key in ("model", "vary", "n_points"):
+        if key not in d:
+            raise UserError(f"sweep: missing key '{key}'")
+    model = d["model"]
+    if not isinstance(model, str):
+        raise UserError(f"sweep.model must be a model name, got {model!r}")
+    mspec = get_model(model)
+    preset = d.get("preset")
+    if preset in ("", "none", "None"):
+        preset = None
+    if preset is not None:
+        mspec.defaults(str(preset))          # ParameterError naming the known presets
+        preset = str(preset)
+    fixed_raw = d.get("fixed") or {}
+    if not isinstance(fixed_raw, dict):
+        raise UserError(f"sweep.fixed must be a mapping name -> value, got {fixed_raw!r}")
+    vary_raw = d.get("vary") or {}
+    if not isinstance(vary_raw, dict):
+        raise UserError(f"sweep.vary must be a mapping name -> {{low, high, scale}}, got {vary_raw!r}")
+    if not vary_raw:
+        raise UserError("sweep.vary is empty: give at least one parameter to vary")
+    known = set(mspec.param_names)
+    for where, names in (("fixed", fixed_raw), ("vary", vary_raw)):
+        for name in names:
+            if name not in known:
+                raise UserError(f"sweep.{where}: unknown parameter '{name}' for model '{model}'; "
+                                f"known: {', '.join(mspec.param_names)}")
+    both = set(fixed_raw) & set(vary_raw)
+    if both:
+        raise UserError(f"sweep: parameter(s) {sorted(both)} are both fixed and varied")
+    fixed = {k: _as_float(v, f"sweep.fixed.{k}") for k, v in fixed_raw.items()}
+    # design dimensions in sorted name order: the listing order in a YAML file (which tools may
+    # re-sort) does not change the dataset
+    vary = {str(k): _parse_range(str(k), vary_raw[k]) for k in sorted(vary_raw, key=str)}
+    design = d.get("design", "sobol")
+    if design not in DESIGNS:
+        raise UserError(f"sweep.design must be one of {', '.join(DESIGNS)}, got {design!r}")
+    n_points = _as_int(d["n_points"], "n_points")
+    if n_points < 1:
+        raise UserError(f"sweep.n_points must be >= 1, got {n_points}")
+    seed = _as_int(d.get("seed", 0), "seed", minimum=0)
+    chunk_size = _as_int(d.get("chunk_size", 64), "chunk_size", minimum=1)
+    if design != "grid":
+        with_levels = [k for k, r in vary.items() if r.levels is not None]
+        if with_levels:
+            raise UserError(f"sweep.vary.{with_levels[0]}.levels is only used by the grid design (design is {design})")
+    else:
+        _grid_levels(vary, n_points)         # validates
+    settings = _coerce_settings(d.get("settings") or {}, mspec)
+    # every range end must be a valid value of its parameter (e.g. frequency_hz > 0)
+    by_name = {p.name: p for p in mspec.params}
+    for name, r in vary.items():
+        for end in ("low", "high"):
+            try:
+                by_name[name].validate(getattr(r, end))
+            except ParameterError as e:
+                raise UserError(f"sweep.vary.{name}.{end}: {e}") from None
+    try:
+        mspec.resolve(preset, **fixed)
+    except ParameterError as e:
+        raise UserError(f"sweep.fixed: {e}") from None
+    return SweepSpec(model=model, preset=preset, fixed=fixed, vary=vary, design=design, n_points=n_points,
+                     seed=seed, settings=settings, chunk_size=chunk_size)
+
+
+def _grid_levels(vary: dict[str, Range], n_points: int) -> list[int]:
+    """Levels per axis of a full grid: each axis's ``levels``, the rest share the remaining factor equally."""
+    given = {k: r.levels for k, r in vary.items() if r.levels is not None}
+    rest = [k for k in vary if k not in given]
+    prod_given = math.prod(given.values()) if given else 1
+    if not rest:
+        if prod_given != n_points:
+            raise UserError(f"sweep: grid levels {given} make {prod_given} points but n_points is {n_points}")
+        return [given[k] for k in vary]
+    if n_points % prod_given:
+        raise UserError(f"sweep: n_points = {n_points} is not a multiple of the given grid levels' product {prod_given}")
+    m = n_points // prod_given
+    per = round(m ** (1.0 / len(rest)))
+    if per < 2 or per ** len(rest) != m:
+        raise UserError(f"sweep: a full grid over {len(rest)} axis/axes without 'levels' needs n_points "
+                        f"(/{prod_given}) to be an exact {len(rest)}-th power >= {2 ** len(rest)}, got {m}; "
+                        f"e.g. {max(2, per) ** len(rest) * prod_given}, or give 'levels' per parameter")
+    return [given.get(k, per) for k in vary]
+
+
+def unit_design(spec: SweepSpec) -> np.ndarray:
+    """Design in the unit cube, shape (n_points, d), deterministic in ``spec.seed``.
+
+    sobol: scrambled Sobol' (``qmc.Sobol(d, scramble=True, seed=seed)``); for n not a power of 2 the
+    first n points of the 2^ceil(log2 n) sequence are taken (a prefix of the sequence: low discrepancy
+    is kept, the exact balance of a power of 2 is not).  lhs: ``qmc.LatinHypercube(d, seed=seed)``.
+    grid: full factorial, end points included.  Dimensions are the varied parameters sorted by
+    name (the last one varies fastest in a grid).
+    """
+    from scipy.stats import qmc
+
+    d = len(spec.vary)
+    n = spec.n_points
+    if spec.design == "sobol":
+        m = max(0, math.ceil(math.log2(n)))
+        return qmc.Sobol(d, scramble=True, seed=spec.seed).random_base2(m)[:n]
+    if spec.design == "lhs":
+        return qmc.LatinHypercube(d, seed=spec.seed).random(n)
+    levels = _grid_levels(spec.vary, n)
+    axes = [np.linspace(0.0, 1.0, L) for L in levels]
+    return np.array(list(itertools.product(*axes)), dtype=np.float64).reshape(n, d)
+
+
+def design_points(spec: SweepSpec) -> pd.DataFrame:
+    """``point_id`` and the varied parameters in physical units (fixed parameters not included)."""
+    u = unit_design(spec)
+    cols: dict[str, np.ndarray] = {"point_id": np.arange(spec.n_points, dtype=np.int64)}
+    for j, (name, r) in enumerate(spec.vary.items()):
+        x = r.to_physical(u[:, j])
+        cols[name] = np.clip(x, r.low, r.high)   # exp/log round-off must not leave the range
+    return pd.DataFrame(cols)
+
+
+def validate_points(spec: SweepSpec, points: pd.DataFrame) -> None:
+    """Resolve every point (catches cross-parameter constraints) before anything is written."""
+    from sim import get_model
+    from sim.models.base import ParameterError
+
+    mspec = get_model(spec.model)
+    names = list(spec.vary)
+    for rec in points[["point_id"] + names].itertuples(index=False):
+        try:
+            mspec.resolve(spec.preset, **spec.fixed, **{k: float(v) for k, v in zip(names, rec[1:])})
+        except ParameterError as e:
+            raise UserError(f"sweep: point {rec[0]} ({', '.join(f'{k}={v:g}' for k, v in zip(names, rec[1:]))}): {e}") from None

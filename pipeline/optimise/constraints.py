@@ -1,0 +1,130 @@
+"""Constraints of the operating point, in optuna's convention (a value <= 0 is feasible).
+
+Each constraint is normalised by its limit so violations are comparable (0.1 = 10 % over).
+Inputs are label rows: ``status`` (MODELS.md §5 status; surrogate regimes are mapped onto it),
+``rop_m_s`` [m/s], ``peak_force_n`` [N], ``specific_energy_j_m`` [J/m], ``static_force_n`` [N].
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Mapping
+
+from pipeline.core.errors import UserError
+from pipeline.core.names import BOUNDED_STATUSES, SETTLED_STATUSES
+
+SETTLED = SETTLED_STATUSES
+BOUNDED = BOUNDED_STATUSES
+
+
+def _num(x) -> float | None:
+    if x is None:
+        return None
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return None
+    return None if math.isnan(v) else v
+
+
+@dataclass(frozen=True)
+class Constraints:
+    """What a recommended operating point must satisfy.
+
+    max_peak_force_n: peak_force_n <= this [N] (tool life).  peak_force_static_ratio: k with
+    peak_force_n <= k × static_force_n (seed 002: the impulsive force should stay below the
+    static preload to avoid bit bounce).  max_specific_energy_j_m: specific_energy_j_m <= this [J/m].
+    require_settled: status must be ok/no_contact (else not_settled is allowed; runaway/failed never are).
+    require_progress: rop_m_s > 0 (set by the Pareto mode, where specific energy is otherwise infinite).
+    """
+
+    max_peak_force_n: float | None = None
+    peak_force_static_ratio: float | None = None
+    max_specific_energy_j_m: float | None = None
+    require_settled: bool = True
+    require_progress: bool = False
+
+    def names(self) -> list[str]:
+        out = ["steady_state"]
+        if self.require_progress:
+            out.append("progress")
+        if self.max_peak_force_n is not None:
+            out.append("peak_force")
+        if self.peak_force_static_ratio is not None:
+            out.append("peak_vs_static")
+        if self.max_specific_energy_j_m is not None:
+            out.append("specific_energy")
+        return out
+
+    def values(self, row: Mapping) -> dict[str, float]:
+        """Constraint values of one label row (<= 0 feasible; a missing label counts as violated by 1)."""
+        status = str(row.get("status"))
+        ok = status in (SETTLED if self.require_settled else BOUNDED)
+        out = {"steady_state": -1.0 if ok else 1.0}
+        rop = _num(row.get("rop_m_s"))
+        if self.require_progress:
+            out["progress"] = -1.0 if (rop is not None and rop > 0) else 1.0
+        pk = _num(row.get("peak_force_n"))
+        if self.max_peak_force_n is not None:
+            out["peak_force"] = 1.0 if pk is None else (pk - self.max_peak_force_n) / self.max_peak_force_n
+        if self.peak_force_static_ratio is not None:
+            fs = _num(row.get("static_force_n"))
+            lim = None if fs is None else self.peak_force_static_ratio * fs
+            if pk is None or lim is None:
+                out["peak_vs_static"] = 1.0
+            elif lim <= 0:
+                out["peak_vs_static"] = 1.0 if pk > 0 else -1.0
+            else:
+                out["peak_vs_static"] = (pk - lim) / lim
+        if self.max_specific_energy_j_m is not None:
+            se = _num(row.get("specific_energy_j_m"))
+            lim = self.max_specific_energy_j_m
+            # inf (nothing progresses) -> a large finite violation: optuna stores finite constraints only
+            out["specific_energy"] = 1.0 if se is None else (1e3 if math.isinf(se) else min((se - lim) / lim, 1e3))
+        return out
+
+    def feasible(self, row: Mapping) -> bool:
+        return all(v <= 0 for v in self.values(row).values())
+
+    def violation(self, row: Mapping) -> float:
+        """Total violation (0 when feasible): how far a point is from meeting every constraint."""
+        return sum(max(v, 0.0) for v in self.values(row).values())
+
+    def check(self, static_range: tuple[float, float] | None, progress_force_floor: float | None) -> None:
+        """Raise UserError for limits that are invalid or contradict each other / the physics.
+
+        static_range: (low, high) of static_force_n over the search (or its fixed value twice).
+        progress_force_floor: contact force the tool must reach to progress at all [N]
+        (drill: the rock threshold Pr), or None when the model has no such floor.
+        """
+        for name in ("max_peak_force_n", "peak_force_static_ratio", "max_specific_energy_j_m"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise UserError(f"constraint {name} must be a positive number, got {v!r}")
+        if progress_force_floor is None:
+            return
+        floor = progress_force_floor
+        if self.max_peak_force_n is not None and self.max_peak_force_n < floor:
+            raise UserError(
+                f"contradictory constraints: max_peak_force_n = {self.max_peak_force_n:g} N is below the force "
+                f"{floor:g} N the tool must reach to progress (rock threshold Pr), so no point with ROP > 0 "
+                f"can satisfy it")
+        if self.peak_force_static_ratio is not None and static_range is not None:
+            best = self.peak_force_static_ratio * static_range[1]
+            if best < floor:
+                extra = (" — and static_force_n >= Pr is a runaway, so on this model k must exceed 1"
+                         if self.peak_force_static_ratio <= 1 else "")
+                raise UserError(
+                    f"contradictory constraints: peak_force_n <= {self.peak_force_static_ratio:g} × static_force_n "
+                    f"allows at most {best:g} N at static_force_n = {static_range[1]:g} N, below the force "
+                    f"{floor:g} N the tool must reach to progress{extra}")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def progress_force_floor(model: str, values: Mapping[str, float]) -> float | None:
+    """Contact force a model's tool must reach to progress [N] (``ModelSpec.progress_force_floor``), or None."""
+    from sim import get_model
+
+    return get_model(model).progress_force_floor(values)

@@ -1,0 +1,80 @@
+"""Things a study asks for labels: the simulator itself, or a trained surrogate bundle.
+
+Both map a DataFrame of inputs to a DataFrame of label rows (same order) with at least
+``status``, ``rop_m_s`` [m/s], ``peak_force_n`` [N], ``specific_energy_j_m`` [J/m] and the inputs.
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pandas as pd
+
+from pipeline.core.errors import UserError
+
+from pipeline.core.names import REGIME_TO_STATUS
+
+
+class SimulatorEvaluator:
+    """Labels by ``sim.simulate_batch``; counts every simulator call in ``calls``."""
+
+    kind = "simulator"
+
+    def __init__(self, model: str, preset: str | None, fixed: dict | None = None, settings=None,
+                 n_threads: int | None = None):
+        import sim
+
+        self.model, self.preset, self.fixed = model, preset, dict(fixed or {})
+        self.settings, self.n_threads = settings, n_threads
+        self.calls = 0
+        self.resolved = sim.get_model(model).resolve(preset, **self.fixed)   # validates model/preset/fixed now
+
+    def __call__(self, X: pd.DataFrame) -> pd.DataFrame:
+        import sim
+
+        table = X.reset_index(drop=True).copy()
+        for k, v in self.fixed.items():
+            if k not in table.columns:
+                table[k] = v
+        out = sim.simulate_batch(self.model, table, preset=self.preset, settings=self.settings,
+                                 n_threads=self.n_threads)
+        self.calls += len(table)
+        return out
+
+
+class SurrogateEvaluator:
+    """Labels predicted by a surrogate bundle (contract: ``Bundle.predict`` → p_progress, regime, T, T_lo, T_hi).
+
+    ``status`` is derived from the predicted regime; inputs the bundle does not take (e.g. a fixed
+    static force) are copied from ``fixed``.
+    """
+
+    kind = "surrogate"
+
+    def __init__(self, bundle, fixed: dict | None = None):
+        self.bundle = bundle
+        self.fixed = dict(fixed or {})
+        self.calls = 0
+
+    def __call__(self, X: pd.DataFrame) -> pd.DataFrame:
+        X = X.reset_index(drop=True)
+        missing = [n for n in self.bundle.inputs if n not in X.columns]
+        if missing:
+            raise UserError(f"the surrogate needs input(s) {missing} that the search space does not provide")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")   # ranges are checked against bundle.ranges before the study
+            pred = self.bundle.predict(X[list(self.bundle.inputs)]).reset_index(drop=True)
+        self.calls += len(X)
+        out = X.copy()
+        for k, v in self.fixed.items():
+            if k not in out.columns:
+                out[k] = v
+        for c in pred.columns:
+            out[c] = pred[c].to_numpy()
+        out["status"] = [REGIME_TO_STATUS.get(str(r), "failed") for r in pred["regime"]]
+        if "rop_m_s" in out:
+            rop = out["rop_m_s"].to_numpy(dtype=float)
+            # a predicted regime without progression has no ROP, whatever the regressor extrapolates
+            stuck = np.isin(pred["regime"].to_numpy().astype(str), ["no_progress", "runaway", "failed"])
+            out["rop_m_s"] = np.where(stuck, 0.0, rop)
+        return out

@@ -1,0 +1,106 @@
+"""Search space of an optimisation: named ranges of the controls (SI units, e.g. Hz, N)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from pipeline.core.errors import UserError
+from pipeline.core.unitcube import to_unit
+
+
+@dataclass(frozen=True)
+class Space:
+    """Box of named inputs ``{name: (low, high)}``; names in ``log`` are sampled on a log scale."""
+
+    ranges: dict[str, tuple[float, float]]
+    log: frozenset[str] = field(default_factory=frozenset)
+
+    @property
+    def names(self) -> list[str]:
+        return list(self.ranges)
+
+    def validate(self, known: list[str] | tuple[str, ...] | None = None) -> "Space":
+        """Raise UserError naming the range that is empty, inverted, non-finite or unknown."""
+        if not self.ranges:
+            raise UserError("the search space is empty: give at least one range (e.g. --range frequency_hz=10:400)")
+        for name, (lo, hi) in self.ranges.items():
+            if known is not None and name not in known:
+                raise UserError(f"range '{name}': not a parameter of the model (known: {', '.join(known)})")
+            if not (math.isfinite(lo) and math.isfinite(hi)):
+                raise UserError(f"range '{name}': bounds must be finite numbers, got [{lo}, {hi}]")
+            if not hi > lo:
+                raise UserError(f"range '{name}': empty range [{lo:g}, {hi:g}] (low must be below high)")
+            if name in self.log and lo <= 0:
+                raise UserError(f"range '{name}': a log-scale range needs low > 0, got {lo:g}")
+        return self
+
+    def distributions(self) -> dict:
+        import optuna
+
+        return {n: optuna.distributions.FloatDistribution(lo, hi, log=n in self.log)
+                for n, (lo, hi) in self.ranges.items()}
+
+    def unit(self, X: pd.DataFrame) -> np.ndarray:
+        """Inputs mapped to the unit cube (log names on a log scale), shape (n, d)."""
+        cols = []
+        for n, (lo, hi) in self.ranges.items():
+            cols.append(to_unit(X[n].to_numpy(dtype=float), lo, hi, n in self.log))
+        return np.column_stack(cols) if cols else np.zeros((len(X), 0))
+
+    def contains(self, other: "Space", rtol: float = 1e-9) -> list[str]:
+        """Names of ``other``'s ranges that leave this space (or are not in it)."""
+        bad = []
+        for n, (lo, hi) in other.ranges.items():
+            if n not in self.ranges:
+                bad.append(n)
+                continue
+            a, b = self.ranges[n]
+            tol = rtol * max(abs(a), abs(b), 1.0)
+            if lo < a - tol or hi > b + tol:
+                bad.append(n)
+        return bad
+
+    def to_dict(self) -> dict:
+        return {n: {"low": lo, "high": hi, "scale": "log" if n in self.log else "linear"}
+                for n, (lo, hi) in self.ranges.items()}
+
+
+def parse_range(item: str) -> tuple[str, tuple[float, float]]:
+    """``"frequency_hz=10:400"`` → ``("frequency_hz", (10.0, 400.0))``; UserError naming the item otherwise."""
+    name, sep, rest = item.partition("=")
+    lo_s, sep2, hi_s = rest.partition(":")
+    if not sep or not sep2 or not name.strip():
+        raise UserError(f"--range expects NAME=LOW:HIGH, got '{item}'")
+    try:
+        return name.strip(), (float(lo_s), float(hi_s))
+    except ValueError:
+        raise UserError(f"--range {name.strip()}: '{rest}' is not LOW:HIGH numbers") from None
+
+
+def space_from_mapping(d: dict) -> Space:
+    """Space from ``{name: [low, high]}`` or ``{name: {low, high, scale}}`` (params.yaml / sweep metadata)."""
+    ranges, log = {}, set()
+    for name, v in (d or {}).items():
+        try:
+            if isinstance(v, dict):
+                lo, hi = float(v["low"]), float(v["high"])
+                if str(v.get("scale", "linear")) == "log":
+                    log.add(name)
+            else:
+                lo, hi = (float(x) for x in v)
+        except (KeyError, TypeError, ValueError):
+            raise UserError(f"range '{name}': expected [low, high] or {{low, high, scale}}, got {v!r}") from None
+        ranges[name] = (lo, hi)
+    return Space(ranges, frozenset(log))
+
+
+def default_space(model: str, preset: str | None) -> Space | None:
+    """The model's published search space for ``preset`` (``ModelSpec.search_spaces``; "" = the model's
+    defaults when no preset is named), if it has one."""
+    from sim import get_model
+
+    space = get_model(model).search_spaces.get(preset or "")
+    return space_from_mapping(space) if space else None

@@ -1,0 +1,440 @@
+"""The pipeline's final report: reads the stage outputs and writes ``report.md`` + a self-contained
+``report.html`` (figures embedded as base64 PNG) + ``figures/*.png`` + ``summary.json``.
+
+Sections: dataset summary (sweep), surrogate accuracy (train), recommended operating point with its
+verified ROP and the Pareto front (optimise / verify), and the before/after errors of the
+measured-data diagnosis (diagnose).  A stage whose outputs are missing gets a section that says so
+(the report of a partial pipeline is still written); figures a stage wrote itself are included.
+"""
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from pipeline.core.errors import UserError  # noqa: E402
+from pipeline.report.doc import Document, Figure, Heading, Para, Table, fmt, to_html, to_markdown  # noqa: E402
+from pipeline.core.files import atomic_write_bytes, atomic_write_text  # noqa: E402
+from pipeline.core.jsonable import dump_json, flatten  # noqa: E402
+
+
+@dataclass
+class ReportInputs:
+    """Where the stage outputs are (defaults = the paths dvc.yaml uses)."""
+    root: Path = Path(".")
+    sweep: Path = Path("data/sweep")
+    surrogate: Path = Path("models/surrogate")
+    optimise: Path = Path("results/optimise")
+    verify: Path = Path("results/verify")
+    diagnose: Path = Path("results/diagnose")
+    metrics: Path = Path("metrics")
+    params: Path = Path("params.yaml")
+    title: str = "vibro pipeline report"
+    max_rows: int = 15
+    dpi: int = 100
+
+    def p(self, rel: Path) -> Path:
+        return rel if rel.is_absolute() else self.root / rel
+
+
+@dataclass
+class ReportResult:
+    markdown: Path
+    html: Path
+    summary: dict = field(default_factory=dict)
+    figures: list[Path] = field(default_factory=list)
+
+
+# ----------------------------------------------------------------------------------------- helpers
+def _read_json(path: Path) -> dict | None:
+    try:
+        return json.loads(path.read_text())
+    except FileNotFoundError:
+        return None
+    except (OSError, json.JSONDecodeError) as e:
+        raise UserError(f"{path}: not readable JSON ({e})") from None
+
+
+def _leaf(obj):
+    """One table cell for a non-dict value: short lists joined, long ones counted."""
+    if isinstance(obj, list) and len(obj) <= 8 and all(not isinstance(v, (dict, list)) for v in obj):
+        return ", ".join(fmt(v) for v in obj)
+    if isinstance(obj, list):
+        return f"[{len(obj)} items]"
+    return obj
+
+
+def _num(v) -> float | None:
+    if isinstance(v, bool):
+        return None
+    if isinstance(v, (int, float)):
+        return float(v)
+    if isinstance(v, str) and v in ("inf", "-inf"):
+        return float(v)
+    return None
+
+
+def dict_table(d: dict, caption: str = "", max_rows: int = 60) -> Table:
+    """A dict as a table: {row: {col: scalar}} → rows × columns; anything else → flattened key / value."""
+    if d and all(isinstance(v, dict) for v in d.values()):
+        inner = [v for v in d.values()]
+        if all(all(not isinstance(x, (dict, list)) for x in v.values()) for v in inner):
+            cols: list[str] = []
+            for v in inner:
+                cols += [c for c in v if c not in cols]
+            if len(cols) <= 10:
+                rows = [[k] + [v.get(c) for c in cols] for k, v in d.items()][:max_rows]
+                return Table(["", *cols], rows, caption)
+    flat = flatten(d, leaf=_leaf)
+    rows = [[k, v] for k, v in flat.items()][:max_rows]
+    return Table(["quantity", "value"], rows, caption)
+
+
+def _find_key(d, names: tuple[str, ...]):
+    """First value whose key is one of ``names``, searching a nested dict depth-first."""
+    if isinstance(d, dict):
+        for n in names:
+            if n in d:
+                return d[n]
+        for v in d.values():
+            found = _find_key(v, names)
+            if found is not None:
+                return found
+    return None
+
+
+def _pngs(folder: Path) -> list[Path]:
+    return sorted(folder.rglob("*.png")) if folder.is_dir() else []
+
+
+class _Figs:
+    """Saves report figures into ``out/figures`` and remembers them."""
+
+    def __init__(self, out: Path, dpi: int):
+        self.dir = out / "figures"
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.dpi = dpi
+        self.paths: list[Path] = []
+
+    def save(self, fig, name: str) -> Path:
+        path = self.dir / f"{name}.png"
+        tmp = self.dir / f".{name}.tmp.png"
+        fig.tight_layout()
+        fig.savefig(tmp, dpi=self.dpi)
+        plt.close(fig)
+        tmp.replace(path)
+        self.paths.append(path)
+        return path
+
+    def copy(self, src: Path, name: str) -> Path:
+        path = self.dir / f"{name}.png"
+        atomic_write_bytes(path, src.read_bytes())
+        self.paths.append(path)
+        return path
+
+
+def _stage_figures(doc: Document, figs: _Figs, folder: Path, stage: str, limit: int = 6) -> None:
+    """Copy (and show) the PNG figures a stage wrote itself."""
+    for i, png in enumerate(_pngs(folder)[:limit]):
+        rel = png.relative_to(folder).with_suffix("")
+        name = f"{stage}-" + "-".join(rel.parts)
+        doc.add(Figure(figs.copy(png, name), f"{stage}: {rel.as_posix()}"))
+
+
+def _metrics_files(inp: ReportInputs, stage: str) -> list[Path]:
+    mdir = inp.p(inp.metrics)
+    if not mdir.is_dir():
+        return []
+    return sorted(p for p in mdir.glob("*.json") if p.stem == stage or p.stem.startswith(stage + "-")
+                  or p.stem.startswith(stage + "@") or p.stem.startswith(stage + "_"))
+
+
+# ----------------------------------------------------------------------------------------- sections
+def load_sweep(path: Path) -> tuple[pd.DataFrame, dict]:
+    """The sweep dataset (partial ones too) and its metadata."""
+    from pipeline.datasets.store import load_dataset
+
+    df = load_dataset(path, allow_partial=True)
+    meta = _read_json(path / "metadata.json") or {}
+    return df, meta
+
+
+def section_sweep(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) -> None:
+    doc.add(Heading("1. Dataset (sweep)"))
+    path = inp.p(inp.sweep)
+    if not path.is_dir():
+        doc.add(Para(f"No sweep dataset at `{inp.sweep}`: the sweep stage has not run."))
+        return
+    df, meta = load_sweep(path)
+    n = len(df)
+    status = df["status"].value_counts().to_dict() if "status" in df else {}
+    ok = df[df["status"] == "ok"] if "status" in df else df
+    model = meta.get("model") or _find_key(meta, ("model",))
+    preset = meta.get("preset") if "preset" in meta else _find_key(meta, ("preset",))
+    expected = meta.get("n_points")
+    partial = "" if meta.get("complete", True) and (expected in (None, n)) else \
+        f" **Incomplete sweep: {n} of {expected} points.**"
+    doc.add(Para(f"`{inp.sweep}`: **{n}** simulated points of model `{model}` (preset `{preset}`); "
+                 + ", ".join(f"{k}: {v}" for k, v in sorted(status.items())) + "." + partial))
+    summary["sweep"] = {"n_points": n, "status_counts": {str(k): int(v) for k, v in status.items()},
+                        "model": model, "preset": preset}
+    inputs = [c for c in ("frequency_hz", "amplitude_n", "amplitude_m", "static_force_n", "gap_m") if c in df]
+    inputs += [c for c in (meta.get("vary") or {}) if c in df and c not in inputs] if isinstance(meta.get("vary"), dict) else []
+    labels = [c for c in ("rop_m_s", "peak_force_n", "impacts_per_cycle", "period", "peak_decel_g",
+                          "energy_per_cycle_j", "specific_energy_j_m") if c in df]
+    rows = []
+    for c in inputs + labels:
+        col = pd.to_numeric(ok[c], errors="coerce").replace([np.inf, -np.inf], np.nan).dropna()
+        rows.append([c, "input" if c in inputs else "label (ok points)", col.min() if len(col) else None,
+                     col.median() if len(col) else None, col.max() if len(col) else None])
+    if rows:
+        doc.add(Table(["column", "kind", "min", "median", "max"], rows, "Ranges over the dataset"))
+    if "rop_m_s" in ok and len(ok):
+        rop = pd.to_numeric(ok["rop_m_s"], errors="coerce")
+        summary["sweep"]["rop_max_m_s"] = float(rop.max())
+    if {"frequency_hz", "rop_m_s"} <= set(df.columns) and len(ok):
+        fig, ax = plt.subplots(1, 2, figsize=(11, 4))
+        xcol = "amplitude_n" if "amplitude_n" in df else (inputs[1] if len(inputs) > 1 else "frequency_hz")
+        sc = ax[0].scatter(ok["frequency_hz"], ok[xcol], c=pd.to_numeric(ok["rop_m_s"]) * 1e3, s=12, cmap="viridis")
+        fig.colorbar(sc, ax=ax[0], label="ROP [mm/s]")
+        ax[0].set_xlabel("frequency_hz")
+        ax[0].set_ylabel(xcol)
+        ax[0].set_title("ROP over the sweep (status ok)")
+        for st, grp in df.groupby("status"):
+            ax[1].scatter(grp["frequency_hz"], grp[xcol], s=8, label=f"{st} ({len(grp)})")
+        ax[1].set_xlabel("frequency_hz")
+        ax[1].set_ylabel(xcol)
+        ax[1].set_title("status of every point")
+        ax[1].legend(fontsize=8)
+        doc.add(Figure(figs.save(fig, "sweep-rop-map"), "Sweep: ROP of the progressing points (left) and the "
+                                                        "status of every point (right)."))
+
+
+def section_train(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) -> None:
+    doc.add(Heading("2. Surrogate accuracy (train)"))
+    path = inp.p(inp.surrogate)
+    if not path.is_dir():
+        doc.add(Para(f"No surrogate bundle at `{inp.surrogate}`: the train stage has not run."))
+        return
+    report = _read_json(path / "report.json")          # bundle.report as `vibro train` writes it
+    if report is None:
+        try:
+            from surrogate import load_bundle  # the shared contract's reader (unpickles the models)
+
+            report = getattr(load_bundle(path), "report", None)
+        except (ImportError, UserError):
+            report = None
+    if not report:
+        for m in _metrics_files(inp, "train"):
+            report = _read_json(m)
+    held = report.get("held_out") if isinstance(report, dict) else None
+    if isinstance(held, dict) and isinstance(held.get("targets"), dict):
+        cls = held.get("classification") or {}
+        doc.add(Para(f"Trained on {report.get('n_train', '?')} points, scored on {report.get('n_test', '?')} held-out "
+                     f"points never trained on. Regime classifier held-out accuracy: {fmt(cls.get('accuracy'))}."))
+        cols = ("n", "r2", "mae", "rmse", "coverage", "domain")
+        targets = {t: {c: v.get(c) for c in cols if c in v} for t, v in held["targets"].items() if isinstance(v, dict)}
+        chosen = ((report.get("selection") or {}).get("targets") or {})
+        for t in targets:
+            targets[t]["model"] = (chosen.get(t) or {}).get("model")
+        doc.add(dict_table(targets, "Held-out accuracy per target (R², MAE, RMSE; coverage of the prediction interval)"))
+        summary["train"] = {"held_out": held, "n_train": report.get("n_train"), "n_test": report.get("n_test")}
+    elif report:
+        doc.add(dict_table(report, "Held-out accuracy of the surrogate (bundle.report)"))
+        summary["train"] = report
+    else:
+        doc.add(Para("The surrogate bundle carries no accuracy report."))
+    _stage_figures(doc, figs, path, "train")
+
+
+def _pareto_frame(folder: Path) -> pd.DataFrame | None:
+    """The verified Pareto front (``pareto_verified`` of an optimise report.json), else a pareto*.csv."""
+    for p in sorted(folder.rglob("*.json")):
+        data = _read_json(p)
+        front = _find_key(data, ("pareto_verified", "pareto", "pareto_front", "front"))
+        if isinstance(front, list) and front and isinstance(front[0], dict):
+            df = pd.json_normalize(front)
+            return df.rename(columns=lambda c: c.replace("params.", ""))
+    for pattern in ("pareto*.csv", "pareto*.parquet"):
+        for p in sorted(folder.rglob(pattern)):
+            return pd.read_csv(p) if p.suffix == ".csv" else pd.read_parquet(p)
+    return None
+
+
+def _recommendation(folder: Path) -> tuple[Path, dict] | None:
+    """(file, recommendation) from the ROP study's report.json (``rop/`` first), else any report."""
+    files = [folder / "rop" / "report.json", folder / "report.json"] + sorted(folder.rglob("*.json"))
+    for p in files:
+        if not p.exists():
+            continue
+        rec = _find_key(_read_json(p) or {}, ("recommendation", "recommended", "best"))
+        if isinstance(rec, dict):
+            return p, rec
+    return None
+
+
+VERIFIED_KEYS = ("rop_m_s_sim", "verified_rop_m_s", "rop_m_s_verified")
+
+
+def section_optimise(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) -> None:
+    doc.add(Heading("3. Recommended operating point (optimise, verified by the simulator)"))
+    path = inp.p(inp.optimise)
+    if not path.is_dir():
+        doc.add(Para(f"No optimisation results at `{inp.optimise}`: the optimise stage has not run."))
+        return
+    found = _recommendation(path)
+    if found:
+        p, rec = found
+        verified = _find_key(rec, VERIFIED_KEYS)
+        summary["optimise"] = {"recommended": rec, "verified_rop_m_s": verified}
+        v = _num(verified)
+        where = p.relative_to(inp.root) if p.is_relative_to(inp.root) else p
+        doc.add(Para("Recommended point" + (f": verified ROP **{v * 1e3:.4g} mm/s**" if v is not None else "")
+                     + f" (from `{where}`)."))
+        doc.add(dict_table(rec, "Recommended operating point (`_sim` = simulated, `_pred` = surrogate)"))
+    else:
+        doc.add(Para("No recommended point among the optimisation outputs (no feasible point was verified)."))
+    mfiles = _metrics_files(inp, "optimise")
+    if mfiles:
+        data = {m.stem: (_read_json(m) or {}) for m in mfiles}
+        doc.add(dict_table(data, "Optimisation metrics per study"))
+    doc.add(Heading("Pareto front", 3))
+    front = _pareto_frame(path)
+    if front is None or front.empty:
+        doc.add(Para("No Pareto front among the optimisation outputs."))
+    else:
+        summary.setdefault("optimise", {})["pareto_size"] = int(len(front))
+        doc.add(Table(list(front.columns), front.head(inp.max_rows).values.tolist(),
+                      f"Verified Pareto front ({len(front)} points; first {min(len(front), inp.max_rows)} shown)"))
+        num = [c for c in front.columns if pd.api.types.is_numeric_dtype(front[c])]
+        ycol = next((c for c in num if "rop" in c), None)
+        xcol = next((c for c in num if c != ycol and any(s in c for s in ("energy", "force", "decel"))), None)
+        if ycol and xcol:
+            fig, ax = plt.subplots(figsize=(6, 4))
+            f2 = front.sort_values(xcol)
+            ax.plot(f2[xcol], f2[ycol] * (1e3 if ycol.endswith("_m_s") else 1), "o-")
+            ax.set_xlabel(xcol)
+            ax.set_ylabel(ycol.replace("_m_s", " [mm/s]") if ycol.endswith("_m_s") else ycol)
+            ax.set_title("Pareto front (verified by the simulator)")
+            ax.grid(alpha=0.3)
+            doc.add(Figure(figs.save(fig, "pareto-front"), f"Pareto front: {ycol} against {xcol}."))
+    _stage_figures(doc, figs, path, "optimise", limit=8)
+
+
+def section_verify(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) -> None:
+    path = inp.p(inp.verify)
+    mfiles = _metrics_files(inp, "verify")
+    if not path.is_dir() and not mfiles:
+        return
+    doc.add(Heading("Verification by the simulator", 3))
+    for m in mfiles:
+        data = _read_json(m) or {}
+        summary["verify"] = data
+        doc.add(dict_table(data, f"Surrogate prediction against the simulator ({m.name})"))
+    _stage_figures(doc, figs, path, "verify")
+
+
+DIAG_COLUMNS = (("default_error", "default params"), ("base_error", "before (calibrated base)"),
+                ("final_error", "after (with selected effect)"), ("noise_floor", "noise floor"),
+                ("selected", "selected effect"), ("explained", "explained"))
+
+
+def _diag_rows(name: str, rep: dict) -> list[dict]:
+    """One row per system of a diagnose report.json (``systems`` = {system: {...}}), else the headline."""
+    systems = rep.get("systems") if isinstance(rep.get("systems"), dict) else None
+    if not systems:
+        systems = {str(rep.get("system", name)): rep}
+    rows = []
+    for system, r in systems.items():
+        if isinstance(r, dict):
+            row = {"dataset": name, "system": system}
+            for key, _ in DIAG_COLUMNS:
+                v = r.get(key)
+                if key == "selected" and not v:
+                    v = "none"
+                row[key] = ", ".join(map(str, v)) if isinstance(v, list) else v
+            rows.append(row)
+    return rows
+
+
+def section_diagnose(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) -> None:
+    doc.add(Heading("4. Measured-data diagnosis (before / after)"))
+    path = inp.p(inp.diagnose)
+    reports: dict[str, dict] = {}
+    if path.is_dir():
+        for p in sorted(path.glob("*/report.json")) + ([path / "report.json"] if (path / "report.json").exists() else []):
+            reports[p.parent.name] = _read_json(p) or {}
+    if not reports:
+        for m in _metrics_files(inp, "diagnose"):
+            name = m.stem.split("-", 1)[1] if "-" in m.stem else m.stem
+            reports[name] = _read_json(m) or {}
+    if not reports:
+        doc.add(Para(f"No diagnosis results at `{inp.diagnose}`: the diagnose stage has not run."))
+        return
+    rows = [r for name, rep in reports.items() for r in _diag_rows(name, rep)]
+    summary["diagnose"] = rows
+    doc.add(Para("Relative feature error of the model against each measured dataset (RMS over feature groups of "
+                 "||model − measured|| / ||measured||): with the default parameters, after calibrating the uncertain "
+                 "parameters (**before** adding an effect), and **after** the selected §6 effect; the noise floor is "
+                 "the same quantity for the measurement noise alone."))
+    doc.add(Table(["dataset", "system", *[label for _, label in DIAG_COLUMNS]],
+                  [[r["dataset"], r["system"], *[r.get(k) for k, _ in DIAG_COLUMNS]] for r in rows],
+                  "Diagnosis: errors before / after"))
+    numeric = [r for r in rows if all(_num(r.get(k)) is not None for k in ("base_error", "final_error"))]
+    if numeric:
+        fig, ax = plt.subplots(figsize=(max(5, 1.6 * len(numeric) + 2), 4))
+        x = np.arange(len(numeric))
+        for i, (key, label) in enumerate(DIAG_COLUMNS[:3]):
+            ax.bar(x + (i - 1) * 0.27, [_num(r.get(key)) or 0.0 for r in numeric], 0.27, label=label)
+        ax.plot(x, [_num(r.get("noise_floor")) or np.nan for r in numeric], "k_", ms=30, mew=2, label="noise floor")
+        ax.set_xticks(x, [f"{r['dataset']}\n{r['system']}" for r in numeric], fontsize=8)
+        ax.set_ylabel("relative feature error")
+        ax.set_title("Measured-data diagnosis: errors before / after")
+        ax.legend(fontsize=8)
+        ax.grid(axis="y", alpha=0.3)
+        doc.add(Figure(figs.save(fig, "diagnosis-errors"), "Diagnosis: error with default parameters, after "
+                                                          "calibration (before) and with the selected effect (after)."))
+    _stage_figures(doc, figs, path, "diagnose", limit=8)
+
+
+SECTIONS = (section_sweep, section_train, section_optimise, section_verify, section_diagnose)
+
+
+def build_report(inp: ReportInputs, out: Path) -> ReportResult:
+    """Write ``report.md``, ``report.html``, ``figures/`` and ``summary.json`` into ``out``."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out}: exists and is not a directory")
+    figdir = out / "figures"
+    if figdir.is_dir():
+        shutil.rmtree(figdir)
+    figs = _Figs(out, inp.dpi)
+    doc = Document(inp.title)
+    from pipeline.core.params import read_params
+
+    params = read_params(inp.p(inp.params), missing_ok=True)
+    sw = params.get("sweep") or {}
+    doc.add(Para(f"Model `{sw.get('model', '?')}`, preset `{sw.get('preset')}`; parameters from "
+                 f"`{inp.params}` (every value is also logged to MLflow).  Produced by `vibro report`."))
+    summary: dict = {}
+    for section in SECTIONS:
+        section(doc, figs, inp, summary)
+    md = to_markdown(doc, out)
+    page = to_html(doc)
+    atomic_write_text(out / "report.md", md)
+    atomic_write_text(out / "report.html", page)
+    atomic_write_text(out / "summary.json", dump_json(summary))
+    return ReportResult(out / "report.md", out / "report.html", summary, figs.paths)
+
+
+def finite(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)

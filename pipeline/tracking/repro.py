@@ -1,0 +1,232 @@
+"""``python -m pipeline.tracking.repro``: the main job (what ``make run`` calls after installing).
+
+1. Asks dvc which stages of ``dvc.yaml`` are out of date (``dvc status``).  If none is, it does
+   no work and says so — **no MLflow run is created for a no-op**, so every parent run in the
+   tracking store stands for a pipeline that actually computed something.
+2. Otherwise opens an MLflow *parent run* (stage tag ``pipeline``) in the pipeline's experiment,
+   logs every ``params.yaml`` value as ``<section>.<key>``, exports its id as
+   ``VIBRO_PARENT_RUN_ID`` and runs ``dvc repro`` with the dvc next to this Python; each stage
+   command logs itself as a child run of it.
+3. Closes the parent run with a summary: tags ``vibro.status`` and ``vibro.stages_ran``, the
+   metrics of every stage (``metrics/<stage>.json``, numeric leaves as ``<stage>.<key>``), the wall
+   time, and the report, ``params.yaml`` and ``dvc.lock`` as artifacts; status FAILED if dvc failed.
+4. Prints where the report is and the exact ``mlflow ui`` command to browse the runs.
+
+Extra arguments are passed to ``dvc repro`` (e.g. ``-f`` to force every stage, or stage names).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from pipeline import tracking
+from pipeline.core import params as core_params
+from pipeline.core.errors import UserError
+from pipeline.core.jsonable import flatten
+
+REPORT_REL = Path("results/report/report.html")
+METRICS_DIR = Path("metrics")
+_RUNNING = re.compile(r"Running stage '([^']+)'")
+
+
+def dvc_executable() -> str:
+    """The dvc installed next to this interpreter (the project's .venv), else the one on PATH."""
+    here = Path(sys.executable).with_name("dvc")
+    if here.exists():
+        return str(here)
+    found = shutil.which("dvc")
+    if not found:
+        raise UserError("dvc not found: run 'make install' (it installs dvc into .venv)")
+    return found
+
+
+def dvc_env(extra: dict[str, str] | None = None) -> dict[str, str]:
+    """Environment for dvc and the stage commands: the .venv's bin first on PATH (so the stage
+    commands' ``vibro`` is the project's), dvc analytics off, plus ``extra``."""
+    env = dict(os.environ)
+    bindir = str(Path(sys.executable).parent)
+    env["PATH"] = bindir + os.pathsep + env.get("PATH", "")
+    env["DVC_NO_ANALYTICS"] = "1"
+    env.update(extra or {})
+    return env
+
+
+def stale_stages(root: Path, dvc: str, targets: list[str] | None = None) -> dict:
+    """``dvc status --json``: {stage: [changes]} for every stage ``dvc repro`` would run ({} = none)."""
+    proc = subprocess.run([dvc, "status", "--json", *(targets or [])], cwd=root, env=dvc_env(),
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise UserError(f"dvc status failed in {root}: {(proc.stderr or proc.stdout).strip()[-500:]}")
+    text = proc.stdout.strip()
+    start = text.find("{")
+    try:
+        return json.loads(text[start:]) if start >= 0 else {}
+    except json.JSONDecodeError as e:
+        raise UserError(f"could not read 'dvc status --json' output: {e}: {text[:200]!r}") from None
+
+
+def read_params(root: Path) -> dict:
+    """params.yaml of ``root`` as a dict ({} when absent)."""
+    return core_params.read_params(root / "params.yaml", missing_ok=True)
+
+
+def collect_metrics(root: Path) -> dict[str, float]:
+    """Finite numeric leaves of ``metrics/*.json`` as ``<file stem>.<key path>``."""
+    out: dict[str, float] = {}
+    mdir = root / METRICS_DIR
+    if not mdir.is_dir():
+        return out
+    for path in sorted(mdir.glob("*.json")):
+        try:
+            data = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError):
+            continue
+        for key, val in flatten(data, f"{path.stem}.").items():
+            if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
+                continue
+            out[re.sub(r"[^0-9A-Za-z_\-. /]", "_", key)[:250]] = float(val)
+    return out
+
+
+def mlflow_ui_command() -> str:
+    """The command that browses the runs of this store."""
+    mlflow_bin = Path(sys.executable).with_name("mlflow")
+    exe = str(mlflow_bin) if mlflow_bin.exists() else "mlflow"
+    uri = tracking.tracking_uri()
+    if uri.startswith(("http://", "https://")):
+        return f"open {uri} (runs are on the tracking server MLFLOW_TRACKING_URI)"
+    return f"{exe} ui --backend-store-uri {uri} --port 5000   # then open http://127.0.0.1:5000"
+
+
+def print_where(root: Path) -> None:
+    report = root / REPORT_REL
+    if report.exists():
+        print(f"Report:  {report}  (Markdown: {report.with_suffix('.md')})")
+    else:
+        print(f"Report:  not built yet ({report})")
+    if not os.environ.get("VIBRO_NO_MLFLOW"):
+        print(f"Runs:    {mlflow_ui_command()}")
+
+
+def run_repro(root: Path, dvc: str, command: list[str], repro_args: list[str],
+               env: dict[str, str]) -> tuple[int, list[str]]:
+    """Run ``dvc <command>`` (repro or exp run), echoing its output; returns (exit code, stages that ran)."""
+    ran: list[str] = []
+    proc = subprocess.Popen([dvc, *command, *repro_args], cwd=root, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, bufsize=1)
+    assert proc.stdout is not None
+    for line in proc.stdout:
+        sys.stdout.write(line)
+        sys.stdout.flush()
+        m = _RUNNING.search(line)
+        if m and m.group(1) not in ran:
+            ran.append(m.group(1))
+    return proc.wait(), ran
+
+
+def _log_pipeline_files(mlflow, root: Path) -> None:
+    """params.yaml, dvc.lock and dvc.yaml as artifacts of the parent run.  dvc.yaml is logged as
+    ``pipeline.dvc.yaml``: a file named dvc.yaml under a local artifact store inside the project
+    would be picked up by dvc as a second pipeline."""
+    import tempfile
+
+    for rel in ("params.yaml", "dvc.lock"):
+        if (root / rel).exists():
+            mlflow.log_artifact(str(root / rel))
+    if (root / "dvc.yaml").exists():
+        with tempfile.TemporaryDirectory() as tmp:
+            copy = Path(tmp) / "pipeline.dvc.yaml"
+            shutil.copyfile(root / "dvc.yaml", copy)
+            mlflow.log_artifact(str(copy))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m pipeline.tracking.repro",
+        description="Run the vibro dvc pipeline (dvc.yaml) under one MLflow parent run and say where the "
+                    "report and the runs are.  Does nothing (and logs nothing) when dvc is up to date.",
+        epilog="Examples:\n  python -m pipeline.tracking.repro            # what 'make run' does\n"
+               "  python -m pipeline.tracking.repro -- -f      # force every stage\n"
+               "  python -m pipeline.tracking.repro -- train   # reproduce up to 'train'\n"
+               "  python -m pipeline.tracking.repro --exp -- -S train.seed=1   # a dvc experiment, tracked the same way",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--root", default=".", help="project directory holding dvc.yaml (default: .)")
+    parser.add_argument("--exp", action="store_true",
+                        help="run 'dvc exp run' (a dvc experiment; needs a git repository) instead of 'dvc repro'; "
+                             "pass -S section.key=value after --")
+    parser.add_argument("repro_args", nargs="*", help="extra arguments for 'dvc repro' / 'dvc exp run' (after --)")
+    args = parser.parse_args(argv)
+    try:
+        return _run(Path(args.root).resolve(), list(args.repro_args), exp=args.exp)
+    except UserError as e:
+        print(f"run_main: error: {e}", file=sys.stderr)
+        return 2
+
+
+def _run(root: Path, repro_args: list[str], exp: bool = False) -> int:
+    if not (root / "dvc.yaml").exists():
+        raise UserError(f"no dvc.yaml in {root}: run from the project directory or pass --root")
+    os.environ.setdefault("VIBRO_HOME", str(root))
+    dvc = dvc_executable()
+    forced = any(a in ("-f", "--force", "-F", "--force-downstream") for a in repro_args)
+    targets = [a for a in repro_args if not a.startswith("-")]
+    stale = {} if exp else stale_stages(root, dvc, targets)
+    if not stale and not forced and not exp:
+        print("Pipeline is up to date: dvc has nothing to reproduce, so no stage ran and no MLflow run was created.")
+        print_where(root)
+        return 0
+    print(f"Out-of-date stages: {', '.join(stale) or ('(experiment)' if exp else '(forced)')}")
+    t0 = time.time()
+    use_mlflow = not os.environ.get("VIBRO_NO_MLFLOW")
+    env_extra: dict[str, str] = {}
+    mlflow = None
+    run_id = None
+    if use_mlflow:
+        os.environ.pop("VIBRO_PARENT_RUN_ID", None)
+        mlflow = tracking.setup()
+        tags = {"vibro.stage": "pipeline", "vibro.stages_planned": ",".join(stale),
+                "vibro.dvc_command": " ".join(["exp run" if exp else "repro", *repro_args])}
+        run = mlflow.start_run(run_name="pipeline-exp" if exp else "pipeline", tags=tags)
+        run_id = run.info.run_id
+        tracking.log_params(mlflow, flatten(read_params(root)))
+        env_extra["VIBRO_PARENT_RUN_ID"] = run_id
+        env_extra["VIBRO_EXPERIMENT"] = tracking.experiment_name()
+        print(f"MLflow parent run {run_id} (experiment '{tracking.experiment_name()}', {tracking.tracking_uri()})")
+    rc, ran = 1, []
+    try:
+        command = ["exp", "run"] if exp else ["repro"]
+        rc, ran = run_repro(root, dvc, command, repro_args, dvc_env(env_extra))
+    finally:
+        wall = time.time() - t0
+        status = "ok" if rc == 0 else "failed"
+        if mlflow is not None:
+            try:
+                mlflow.set_tags({"vibro.status": status, "vibro.stages_ran": ",".join(ran) or "none"})
+                metrics = collect_metrics(root)
+                metrics["pipeline.wall_time_s"] = wall
+                metrics["pipeline.n_stages_ran"] = float(len(ran))
+                mlflow.log_metrics(metrics)
+                _log_pipeline_files(mlflow, root)
+                for rel in ("report.html", "report.md"):
+                    path = root / REPORT_REL.parent / rel
+                    if path.exists():
+                        mlflow.log_artifact(str(path), artifact_path="report")
+            finally:
+                mlflow.end_run(status="FINISHED" if rc == 0 else "FAILED")
+    print()
+    print(f"Pipeline {status} in {wall:.0f} s; stages run: {', '.join(ran) or 'none'}"
+          + (f"; MLflow parent run {run_id}" if run_id else ""))
+    print_where(root)
+    return rc
+
+
+if __name__ == "__main__":
+    sys.exit(main())

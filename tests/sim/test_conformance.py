@@ -1,0 +1,96 @@
+"""Conformance suite: every registered model (``sim.model_names()``) passes the same checks.
+
+Adding a model = one file in sim/models/ + its reference in tests/reference_solutions.py; this suite then
+runs on it with no edit.  Select it with ``pytest -k conformance``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import sim
+from pipeline.core.names import STATUSES
+from sim.models.base import MAP_KINDS
+from tests.reference_solutions import MODELS as REFERENCE_MODELS
+from tests.reference_solutions import reference_run
+
+MODELS = sim.model_names()
+# Short, fixed transient/window: the same trajectory for simulator and reference, cheap for every model.
+SHORT = {"min_transient": 10, "max_transient": 10, "window": 4}
+
+
+@pytest.fixture(scope="module", params=MODELS)
+def spec(request):
+    return sim.get_model(request.param)
+
+
+def test_conformance_registry_matches_reference():
+    """Every model has an independent reference (the second half of 'a new model is one file plus its reference')."""
+    assert set(MODELS) == set(REFERENCE_MODELS)
+
+
+def test_conformance_spec_consistency(spec):
+    names = spec.param_names
+    assert len(set(names)) == len(names) and spec.name in MODELS
+    assert len(spec.states) > 0 and len(spec.bounded) == spec.n_bounded
+    base = spec.resolve()
+    for preset in [None, *spec.presets]:
+        values = spec.resolve(preset)
+        assert set(values) == set(names) and all(math.isfinite(v) for v in values.values())
+    for b in spec.calibratable:                    # the default lies inside its fit bounds
+        assert b.lo <= base[b.name] <= b.hi, b
+    for eff, params in spec.effects.items():       # every effect is off (0) by default and has fit bounds
+        for p in params:
+            assert base[p] == 0.0 and p in spec.effect_bounds, (eff, p)
+    for preset, space in spec.search_spaces.items():   # a search space holds resolvable points
+        corner = {n: hi for n, (lo, hi) in space.items()}
+        spec.resolve(preset or None, **corner)
+    assert spec.map_kind in ("",) + MAP_KINDS
+    assert set(spec.map_relative_to) <= set(spec.map_ranges)
+    floor = spec.progress_force_floor(base)
+    assert floor is None or floor > 0
+
+
+def test_conformance_defaults_simulate(spec):
+    r = sim.simulate(spec.name, settings=SHORT)
+    assert r.status in STATUSES and r.status != "failed", r.labels.get("reason")
+    assert math.isfinite(r.labels["peak_force_n"]) and r.labels["peak_force_n"] >= 0.0
+
+
+def test_conformance_deterministic(spec):
+    a = sim.simulate(spec.name, settings=SHORT).labels
+    b = sim.simulate(spec.name, settings=SHORT).labels
+    assert a == b
+
+
+def test_conformance_batch_equals_single(spec):
+    f0 = spec.resolve()["frequency_hz"]
+    rows = [{"frequency_hz": f0}, {"frequency_hz": 1.1 * f0}]
+    df = sim.simulate_batch(spec.name, rows, settings=SHORT, n_threads=2)
+    for i, row in enumerate(rows):
+        single = sim.simulate(spec.name, settings=SHORT, **row).labels
+        assert df.loc[i, "status"] == single["status"]
+        for lab in ("rop_m_s", "peak_force_n", "impacts_per_cycle"):
+            a, b = df.loc[i, lab], single[lab]
+            assert (a == b) or (np.isnan(a) and np.isnan(b)) or (a is None and b is None), (lab, a, b)
+
+
+def test_conformance_effects_off_change_nothing(spec):
+    """Every effect parameter explicitly at 0 gives exactly the base model's result."""
+    if not spec.effects:
+        pytest.skip(f"{spec.name} has no effects")
+    off = {p: 0.0 for ps in spec.effects.values() for p in ps}
+    assert sim.simulate(spec.name, settings=SHORT, **off).labels == sim.simulate(spec.name, settings=SHORT).labels
+
+
+def test_conformance_agrees_with_reference(spec):
+    """One case per model against the independent scipy reference (DOP853, rtol 1e-10); tolerances as in
+    tests/test_validation.py (issue 2: ROP and peak force within 1 %, impacts per cycle equal)."""
+    params = {k: v for k, v in spec.resolve().items() if k not in ("P", "D")}
+    ref = reference_run(spec.name, params, SHORT["min_transient"], SHORT["window"], method="DOP853", rtol=1e-10)
+    got = sim.simulate(spec.name, settings=SHORT).labels
+    assert got["impacts_per_cycle"] == ref["impacts_per_cycle"]
+    assert got["peak_force_n"] == pytest.approx(ref["peak_force_n"], rel=1e-2, abs=1e-9)
+    assert got["rop_m_s"] == pytest.approx(ref["rop_m_s"], rel=1e-2, abs=1e-9)

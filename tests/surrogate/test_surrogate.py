@@ -1,0 +1,276 @@
+"""Surrogate (issue 4): regime labels, conformal intervals, bundle contract, persistence, CLI, targets.
+
+Fast tests use a synthetic response with a known regime boundary and a small real drill sweep;
+the 'targets met on the default sweep' check is @pytest.mark.slow."""
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipeline.core.errors import UserError
+from pipeline.tracking import load_bundle
+from surrogate import Bundle, ExtrapolationWarning, train_bundle
+from surrogate.data import infer_inputs, regime_of
+from surrogate.intervals import ConformalInterval
+
+FAST = {"regressors": ["krr"], "classifiers": ["trees"], "cv_folds": 3, "learning_curve": [0.5, 1.0]}
+RANGES = {"frequency_hz": (10.0, 400.0), "amplitude_n": (0.0, 3000.0)}
+
+
+def synthetic(n: int = 400, seed: int = 0) -> pd.DataFrame:
+    """A drill-like frame: progressing where amplitude_n > 1000 + 2 (f - 200) (a straight boundary);
+    rop = 1e-3 * exp(amplitude_n / 1000) * (1 + sin(f / 60)) / 2 + 1e-4 [m/s] there, 0 elsewhere;
+    peak force = min(1500, 0.5 amplitude_n + 200) everywhere [N]."""
+    rng = np.random.default_rng(seed)
+    f = rng.uniform(*RANGES["frequency_hz"], n)
+    a = rng.uniform(*RANGES["amplitude_n"], n)
+    prog = a > 1000 + 2 * (f - 200)
+    rop = np.where(prog, 1e-3 * np.exp(a / 1000) * (1 + np.sin(f / 60)) / 2 + 1e-4, 0.0)
+    peak = np.minimum(1500.0, 0.5 * a + 200)
+    return pd.DataFrame({"point_id": np.arange(n), "frequency_hz": f, "amplitude_n": a, "rop_m_s": rop,
+                         "peak_force_n": peak, "impacts_per_cycle": np.where(prog, 1.0, 0.0),
+                         "specific_energy_j_m": np.where(prog, 3.0 / np.maximum(rop, 1e-12), np.inf),
+                         "status": "ok", "reason": ""})
+
+
+@pytest.fixture(scope="module")
+def syn_bundle() -> Bundle:
+    df = synthetic()
+    return train_bundle(df, list(RANGES), RANGES, "drill", None, FAST)
+
+
+def test_regime_labels_follow_status_and_rop():
+    df = pd.DataFrame({"status": ["ok", "ok", "no_contact", "runaway", "not_settled", "failed"],
+                       "rop_m_s": [1e-3, 0.0, 0.0, None, 2e-3, None]})
+    assert list(regime_of(df)) == ["progressing", "no_progress", "no_progress", "runaway", "not_settled", "failed"]
+    with pytest.raises(UserError, match="status"):
+        regime_of(pd.DataFrame({"status": ["exploded"], "rop_m_s": [0.0]}))
+
+
+def test_conformal_interval_covers_nominal_fraction_of_new_points():
+    # Gaussian residuals of sd 0.3: calibrated on 2000, tested on 20000 fresh ones; a 90 % split-conformal
+    # interval covers 90 % ± ~1 % (binomial sd sqrt(0.09/2000) ≈ 0.7 % on the calibration quantile).
+    rng = np.random.default_rng(1)
+    iv = ConformalInterval.calibrate(rng.normal(0, 0.3, 2000), np.zeros(2000), None, 0.9)
+    z = rng.normal(0, 0.3, 20000)
+    lo, hi = iv.bounds(np.zeros_like(z), None)
+    cov = np.mean((z >= lo) & (z <= hi))
+    assert 0.88 <= cov <= 0.92
+    assert iv.q == pytest.approx(1.645 * 0.3, rel=0.05)      # normal 95th percentile
+
+
+def test_bundle_contract_columns_and_held_out_quality(syn_bundle):
+    b = syn_bundle
+    X = synthetic(50, seed=7)[list(RANGES)]
+    p = b.predict(X)
+    expected = ["p_progress", "regime"] + [f"{t}{s}" for t in ("rop_m_s", "peak_force_n", "impacts_per_cycle",
+                                                                "specific_energy_j_m") for s in ("", "_lo", "_hi")]
+    assert list(p.columns) == expected
+    assert set(p["regime"]) <= {"progressing", "no_progress"}
+    assert p["p_progress"].between(0, 1).all()
+    assert b.inputs == list(RANGES) and b.model == "drill" and len(b.fingerprint) == 64
+    ho = b.report["held_out"]
+    # the synthetic boundary is a straight line and the surfaces are smooth: 320 training points learn
+    # them well; these floors sit well below the measured values (accuracy ~0.97, R² > 0.97)
+    assert ho["classification"]["accuracy"] >= 0.92
+    assert ho["targets"]["rop_m_s"]["r2"] >= 0.9
+    assert ho["targets"]["peak_force_n"]["r2"] >= 0.95
+    assert b.report["n_test"] == 80 and b.report["n_train"] == 320
+    for t, m in ho["targets"].items():
+        assert 0 <= m["coverage"] <= 1
+    assert b.report["learning_curve"][-1]["n_train"] == 320
+
+
+def test_predictions_are_gated_by_the_predicted_regime(syn_bundle):
+    X = pd.DataFrame({"frequency_hz": [390.0, 20.0], "amplitude_n": [50.0, 2900.0]})   # far from the boundary
+    p = syn_bundle.predict(X)
+    assert list(p["regime"]) == ["no_progress", "progressing"]
+    assert p.loc[0, "rop_m_s"] == 0.0 and p.loc[0, "rop_m_s_hi"] == 0.0
+    assert np.isinf(p.loc[0, "specific_energy_j_m"])
+    assert p.loc[1, "rop_m_s_lo"] <= p.loc[1, "rop_m_s"] <= p.loc[1, "rop_m_s_hi"]
+    cond = syn_bundle.predict(X, conditional=True)
+    assert cond.loc[0, "rop_m_s"] > 0       # the raw regressor value (log-trained, so positive)
+
+
+def test_extrapolation_warns_or_raises(syn_bundle):
+    X = pd.DataFrame({"frequency_hz": [450.0], "amplitude_n": [100.0]})
+    with pytest.warns(ExtrapolationWarning, match="frequency_hz = 450"):
+        syn_bundle.predict(X)
+    with pytest.raises(UserError, match=r"frequency_hz = 450 .*\[10, 400\]"):
+        syn_bundle.predict(X, strict=True)
+    with pytest.raises(UserError, match="amplitude_n"):
+        syn_bundle.predict(pd.DataFrame({"frequency_hz": [100.0]}))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        syn_bundle.predict(pd.DataFrame({"frequency_hz": [10.0, 400.0], "amplitude_n": [0.0, 3000.0]}))
+
+
+def test_save_load_roundtrip_and_model_check(syn_bundle, tmp_path):
+    syn_bundle.save(tmp_path / "b")
+    schema = json.loads((tmp_path / "b" / "bundle.json").read_text())
+    assert schema["inputs"] == list(RANGES) and schema["model"] == "drill"
+    b2 = load_bundle(tmp_path / "b", model="drill")
+    X = synthetic(30, seed=3)[list(RANGES)]
+    pd.testing.assert_frame_equal(syn_bundle.predict(X), b2.predict(X))
+    with pytest.raises(UserError, match="trained on model 'drill'.*'indenter-metal'"):
+        load_bundle(tmp_path / "b", model="indenter-metal")
+    with pytest.raises(UserError, match="not a surrogate bundle"):
+        load_bundle(tmp_path)
+
+
+def test_selection_keeps_every_candidate_score_and_picks_the_lowest():
+    from surrogate.features import TargetTransform
+    from surrogate.selection import select_regressor
+
+    df = synthetic(150, seed=4)
+    X = df[list(RANGES)].to_numpy() / np.array([400.0, 3000.0])
+    z = df["peak_force_n"].to_numpy()
+    sel = select_regressor(["krr", "gbt"], X, z, TargetTransform("identity"), 3, 0, 100)
+    assert set(sel.scores) == {"krr", "gbt"}
+    assert sel.scores[sel.name] == min(sel.scores.values())
+    assert np.sqrt(np.mean((sel.oof - z) ** 2)) == pytest.approx(sel.scores[sel.name])
+
+
+def test_same_seed_same_bundle():
+    df = synthetic(200, seed=2)
+    a = train_bundle(df, list(RANGES), RANGES, "drill", None, {**FAST, "learning_curve": []})
+    b = train_bundle(df, list(RANGES), RANGES, "drill", None, {**FAST, "learning_curve": []})
+    X = synthetic(20, seed=9)[list(RANGES)]
+    pd.testing.assert_frame_equal(a.predict(X), b.predict(X))
+
+
+def test_config_errors_name_the_key():
+    with pytest.raises(UserError, match="unknown key.*'bogus'"):
+        train_bundle(synthetic(100), list(RANGES), RANGES, "drill", None, {"bogus": 1})
+    with pytest.raises(UserError, match="train.regressors: unknown candidate 'svm'"):
+        train_bundle(synthetic(100), list(RANGES), RANGES, "drill", None, {**FAST, "regressors": ["svm"]})
+
+
+# ---- real simulator data, CLI, MLflow ------------------------------------------------------------------------
+
+def drill_sweep(n: int, seed: int) -> pd.DataFrame:
+    """Sobol design over the MODELS.md §2 drill space (drill defaults): f 10-400 Hz, F0 0-3 kN, Fs 75-1425 N."""
+    import sim
+    from scipy.stats import qmc
+
+    lo, hi = np.array([10.0, 0.0, 75.0]), np.array([400.0, 3000.0, 1425.0])
+    U = qmc.Sobol(3, scramble=True, seed=seed).random(n)
+    tab = pd.DataFrame(lo + U * (hi - lo), columns=["frequency_hz", "amplitude_n", "static_force_n"])
+    df = sim.simulate_batch("drill", tab, n_threads=2)
+    df.insert(0, "point_id", np.arange(n))
+    return df
+
+
+def _dataset_dir(tmp_path, n, seed=0):
+    d = tmp_path / "sweep"
+    d.mkdir()
+    drill_sweep(n, seed).to_parquet(d / "part-00000.parquet")
+    meta = {"model": "drill", "preset": None, "design": "sobol", "n_points": n, "seed": seed, "complete": True,
+            "fixed": {}, "fingerprint": "f" * 64,
+            "vary": {"frequency_hz": {"low": 10.0, "high": 400.0, "scale": "linear"},
+                     "amplitude_n": {"low": 0.0, "high": 3000.0, "scale": "linear"},
+                     "static_force_n": {"low": 75.0, "high": 1425.0, "scale": "linear"}}}
+    (d / "metadata.json").write_text(json.dumps(meta))
+    return d
+
+
+def test_cli_train_writes_bundle_report_figures_and_mlflow_run(tmp_path, monkeypatch, capsys):
+    from pipeline.cli import main
+
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", f"sqlite:///{tmp_path / 'mlflow.db'}")
+    monkeypatch.setenv("VIBRO_HOME", str(tmp_path))
+    d = _dataset_dir(tmp_path, 256)
+    params = tmp_path / "params.yaml"
+    params.write_text("train:\n  regressors: [krr]\n  classifiers: [trees]\n  cv_folds: 3\n"
+                      "  learning_curve: [0.5, 1.0]\n")
+    out = tmp_path / "model"
+    rc = main(["train", str(d), "--out", str(out), "--params", str(params), "--metrics", str(tmp_path / "m.json"),
+               "--quiet"])
+    text = capsys.readouterr().out
+    assert rc == 0, text
+    for f in ("bundle.joblib", "bundle.json", "report.json", "parity.png", "confusion.png", "learning_curve.png"):
+        assert (out / f).is_file(), f
+    m = json.loads((tmp_path / "m.json").read_text())
+    assert m["n_train"] + m["n_test"] == 256
+    assert 0.5 < m["held_out"]["classification"]["accuracy"] <= 1
+    run_id = text.strip().splitlines()[-1].split()[2]
+    b = load_bundle(run_id, model="drill")
+    assert b.fingerprint == "f" * 64 and b.inputs == ["frequency_hz", "amplitude_n", "static_force_n"]
+    X = pd.DataFrame({"frequency_hz": [200.0], "amplitude_n": [1500.0], "static_force_n": [700.0]})
+    pd.testing.assert_frame_equal(b.predict(X), load_bundle(out).predict(X))
+    import mlflow
+
+    info = mlflow.models.get_model_info(f"runs:/{run_id}/model")
+    assert [c.name for c in info.signature.inputs.inputs] == b.inputs
+    assert "rop_m_s_hi" in [c.name for c in info.signature.outputs.inputs]
+
+
+def test_cli_errors_are_one_line(tmp_path, capsys):
+    from pipeline.cli import main
+
+    assert main(["train", str(tmp_path / "nope"), "--no-mlflow"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "nope" in err
+    p = tmp_path / "p.yaml"
+    p.write_text("train:\n  bogus: 1\n")
+    assert main(["train", str(tmp_path), "--params", str(p), "--no-mlflow"]) == 2
+    assert "bogus" in capsys.readouterr().err
+
+
+def test_load_bundle_rejects_unknown_run_id(tmp_path, monkeypatch):
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", f"sqlite:///{tmp_path / 'mlflow.db'}")
+    monkeypatch.setenv("VIBRO_HOME", str(tmp_path))
+    with pytest.raises(UserError, match="0123456789abcdef0123456789abcdef"):
+        load_bundle("0123456789abcdef0123456789abcdef")
+
+
+# ---- slow: the issue's targets on the default drill sweep; adaptive sampling ----------------------------------
+
+@pytest.mark.slow
+def test_targets_met_on_default_drill_sweep():
+    # Issue 4 targets: ROP R² >= 0.95 (progressing), peak force R² >= 0.97, accuracy >= 0.97, 90 % interval
+    # coverage within 0.85-0.95 — on a 4096-point Sobol sweep of the drill defaults, 20 % held out.
+    df = drill_sweep(4096, 1)
+    inputs, ranges = infer_inputs(df, {}, ["frequency_hz", "amplitude_n", "static_force_n"])
+    b = train_bundle(df, inputs, ranges, "drill", None, {"learning_curve": [0.25, 0.5, 1.0]})
+    met = b.report["goals_met"]
+    assert all(met.values()), (met, b.report["held_out"])
+
+
+@pytest.mark.slow
+def test_adaptive_sampling_runs_and_reports_savings(tmp_path):
+    from surrogate import adaptive
+    from surrogate.config import TrainConfig
+    from surrogate.train import split_frame
+
+    import sim
+
+    df = drill_sweep(1024, 1)
+    cfg = TrainConfig.from_dict({**FAST, "regressors": ["gbt"], "classifiers": ["gbt"],
+                                 "adaptive": {"initial": 128, "batch": 128, "budget": 512, "pool": 2048}})
+    inputs, ranges = infer_inputs(df, {}, ["frequency_hz", "amplitude_n", "static_force_n"])
+    b = train_bundle(df, inputs, ranges, "drill", None, cfg)
+    train, test = split_frame(df, cfg)
+    res = adaptive.run(b, train, test, cfg, lambda t: sim.simulate_batch("drill", t, n_threads=2))
+    assert [c["n_sims"] for c in res["adaptive"]] == [128, 256, 384, 512]
+    assert len(res["design"]) == 512
+    assert "rop_m_s_rmse" in res["savings"]
+
+
+def test_bundle_carries_the_sweeps_fixed_parameters_and_settings(tmp_path):
+    """The sweep's fixed parameters and simulator settings travel with the bundle (saved, loaded, in
+    bundle.json) and optimisation re-simulates under them (issue 11: before, they were always empty)."""
+    from pipeline.optimise.workflow import OptimiseConfig, _setup
+
+    fixed, settings = {"Pr": 3000.0}, {"window": 8}
+    b = train_bundle(synthetic(), list(RANGES), RANGES, "drill", None, FAST, fixed=fixed, settings=settings)
+    b.save(tmp_path / "b")
+    assert json.loads((tmp_path / "b" / "bundle.json").read_text())["fixed"] == fixed
+    b2 = load_bundle(tmp_path / "b")
+    assert b2.fixed == fixed and b2.settings == settings
+    _, _, used_fixed, _, simulator, _ = _setup(OptimiseConfig(mode="surrogate", surrogate=str(tmp_path / "b")), b2)
+    assert used_fixed == fixed and simulator.fixed == fixed and simulator.settings == settings

@@ -1,0 +1,122 @@
+"""Import direction of the project (docs/architecture.md, "Package map"): parsed from the source (ast), so a
+lazy import inside a function counts as well.
+
+sim            imports nothing of the project
+pipeline.core  imports sim at most
+surrogate      imports sim and pipeline.core at most (the library never imports the application)
+workflows      pipeline.datasets / optimise / diagnosis / maps / report / tracking never import pipeline.cli
+pipeline.cli   imported by nobody but itself (the console entry ``vibro = pipeline.cli:main``)
+and the graph between packages has no cycle.
+"""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PROJECT = ("sim", "surrogate", "pipeline")
+
+
+def unit(module: str) -> str:
+    """The architectural unit of a dotted module: sim, surrogate, or pipeline.<package>."""
+    parts = module.split(".")
+    if parts[0] != "pipeline":
+        return parts[0]
+    return ".".join(parts[:2]) if len(parts) > 1 else "pipeline"
+
+
+def module_name(path: Path) -> str:
+    rel = path.relative_to(ROOT).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def imports_of(path: Path) -> set[str]:
+    """Project modules imported anywhere in ``path`` (absolute and relative imports)."""
+    mod = module_name(path)
+    is_pkg = path.name == "__init__.py"
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                pkg = mod.split(".") if is_pkg else mod.split(".")[:-1]
+                pkg = pkg[:len(pkg) - (node.level - 1)]
+                base = ".".join(pkg + ([base] if base else []))
+            out.add(base)
+            out |= {f"{base}.{a.name}" for a in node.names}   # 'from pipeline import tracking'
+    return {m for m in out if m.split(".")[0] in PROJECT}
+
+
+def graph() -> dict[str, set[str]]:
+    """unit -> units it imports (self-edges dropped)."""
+    g: dict[str, set[str]] = {}
+    for top in PROJECT:
+        for f in sorted((ROOT / top).rglob("*.py")):
+            src = unit(module_name(f))
+            g.setdefault(src, set())
+            g[src] |= {unit(m) for m in imports_of(f)} - {src, "pipeline"}
+    return g
+
+
+G = graph()
+WORKFLOWS = ("pipeline.datasets", "pipeline.optimise", "pipeline.diagnosis", "pipeline.maps", "pipeline.report",
+             "pipeline.tracking")
+ALLOWED = {
+    "sim": set(),
+    "pipeline.core": {"sim"},
+    "surrogate": {"sim", "pipeline.core"},
+}
+
+
+def test_every_package_is_known():
+    known = set(ALLOWED) | set(WORKFLOWS) | {"pipeline", "pipeline.cli"}
+    assert set(G) <= known, f"new package(s) {sorted(set(G) - known)}: place them in the layering here and in docs"
+
+
+@pytest.mark.parametrize("low", sorted(ALLOWED))
+def test_lower_layers_import_only_below(low):
+    assert G.get(low, set()) <= ALLOWED[low], f"{low} imports {sorted(G[low] - ALLOWED[low])}"
+
+
+def test_nothing_imports_the_cli():
+    users = sorted(u for u, deps in G.items() if "pipeline.cli" in deps)
+    assert users == [], f"{users} import pipeline.cli"
+
+
+def test_no_cycle_between_packages():
+    state: dict[str, int] = {}
+
+    def visit(u, path):
+        state[u] = 1
+        for v in sorted(G.get(u, ())):
+            if state.get(v) == 1:
+                raise AssertionError("import cycle: " + " -> ".join(path + [u, v]))
+            if not state.get(v):
+                visit(v, path + [u])
+        state[u] = 2
+
+    for u in sorted(G):
+        if not state.get(u):
+            visit(u, [])
+
+
+def test_the_check_sees_a_violation(tmp_path):
+    """The parser finds lazy and relative imports (so the assertions above can fail)."""
+    p = ROOT / "pipeline" / "core" / "names.py"
+    assert unit("pipeline.cli.sweep") == "pipeline.cli" and unit("sim.models.drill") == "sim"
+    src = tmp_path / "x.py"
+    src.write_text("def f():\n    from pipeline.cli import main\n    import surrogate.bundle\n")
+    ast_mods = set()
+    for node in ast.walk(ast.parse(src.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            ast_mods.add(node.module)
+        elif isinstance(node, ast.Import):
+            ast_mods |= {a.name for a in node.names}
+    assert {"pipeline.cli", "surrogate.bundle"} <= ast_mods and p.exists()
