@@ -1,0 +1,55 @@
+"""Rig files: a rig (``sim.Rig``) as a small YAML document, read and written by the commands.
+
+Format (README.md "Rig files")::
+
+    model: drill                  # required: a model name (vibro models)
+    preset: lab                   # optional: a preset of that model
+    parameters: {K1: 5.2e8}       # optional: parameter -> value [SI], overriding the preset
+    effects:                      # optional: MODELS.md §6 effect -> {parameter -> value}
+      shaker_coil: {tau: 1.0e-4, beta: 3000.0}
+    uncertainty: {K1: 2.0e7}      # optional: standard deviation of fitted values [same unit]
+    source: "vibro diagnose measured/drill-rig"   # optional free text
+
+Unknown keys, models, presets, parameters and effects are refused with one line naming them.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from pipeline.core.errors import UserError
+from pipeline.core.files import atomic_write_text
+
+HEADER = """\
+# vibro rig file (README.md "Rig files"): the model, its preset, parameter values overriding the preset [SI],
+# the MODELS.md §6 effects that are on with their parameters, standard deviations of fitted values, and the source.
+# Use it with --rig FILE in every command that simulates (simulate, sweep, map, optimise, verify, train --adaptive).
+"""
+
+
+def read_rig(path: str | os.PathLike):
+    """The validated ``sim.Rig`` of a rig file (UserError naming the file and the culprit)."""
+    import yaml
+
+    from sim import ParameterError, Rig
+
+    p = Path(path)
+    if not p.is_file():
+        raise UserError(f"rig file {p}: not found")
+    try:
+        data = yaml.safe_load(p.read_text())
+    except (yaml.YAMLError, UnicodeDecodeError) as e:
+        raise UserError(f"rig file {p}: not valid YAML ({str(e).splitlines()[0]})") from None
+    try:
+        return Rig.from_mapping(data)
+    except ParameterError as e:
+        raise UserError(f"rig file {p}: {str(e).removeprefix('rig: ')}") from None
+
+
+def write_rig(path: str | os.PathLike, rig, comment: str = "") -> Path:
+    """Write ``rig`` (a ``sim.Rig``) atomically as a rig file, with the format header and an optional comment."""
+    import yaml
+
+    extra = "".join(f"# {line}\n" for line in comment.splitlines())
+    body = yaml.safe_dump(rig.to_mapping(), sort_keys=False, default_flow_style=False)
+    return atomic_write_text(path, HEADER + extra + body)
