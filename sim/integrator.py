@@ -89,7 +89,7 @@ def _dense(r1, r2, r3, r4, r5, th, out):
         out[i] = r1[i] + th * (r2[i] + th1 * (r3[i] + th * (r4[i] + th1 * r5[i])))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _error_norm(y0, y1, err, atol, rtol):
     s = 0.0
     n = y0.shape[0]

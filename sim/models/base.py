@@ -67,6 +67,7 @@ class ModelSpec:
     forcing_phase: str = "sin"
     postprocess: Callable | None = None
     needs_history: Callable[[dict], bool] = lambda values: False
+    exact: str | None = None   # module of an exact propagator of the model's phases (sim/exact/), if any
 
     @property
     def param_names(self) -> tuple[str, ...]:

@@ -247,4 +247,5 @@ SPEC = ModelSpec(
     impacting_mass="M1 (drill bit)",
     progression="xb (rock slider base)",
     default_settings={"min_transient": 20, "max_transient": 400, "window": 32},
+    exact="sim.exact.drill",
 )
