@@ -24,7 +24,13 @@ from numba import njit
 
 from sim.integrator import REASON_TOO_MANY_STEPS, S_MAX_STEPS_PER_CYCLE, S_RTOL, STATUS_FAILED
 from sim.models.drill import (C1, C2, C3, F0, FREQ, FS, GAMMA, GAP, IV1, IV2, IV3, IW, IX1, IX2, IX3, IXB,
-                              IXT, K1, K2, K3, M1, M2, M3, NY, PR, bounded, on_event)
+                              IXT, K1, K2, K3, M1, M2, M3, NY, PR)
+from sim.models.drill import bounded as _bounded_d
+from sim.models.drill import on_event as _on_event_d
+
+# the model's own switch rule and bounded coordinates, inlined (no call boundary in the loop)
+bounded = njit(inline="always")(getattr(_bounded_d, "py_func", _bounded_d))
+on_event = njit(inline="always")(getattr(_on_event_d, "py_func", _on_event_d))
 
 if IW != NY - 1:
     raise ImportError("sim.exact.drill needs the work W as the drill's last state")
@@ -198,6 +204,15 @@ def make_workspace(p, period, s, ny):
 
 
 @njit(cache=True, inline="always")
+def _rdot(wk, ph, row, z):
+    """Row ``row`` of phase ph's tables (an index into wk: no array view, no reference counting) · z."""
+    acc = 0.0
+    for i in range(NZ):
+        acc += wk[ph, row, i] * z[i]
+    return acc
+
+
+@njit(cache=True, inline="always")
 def _dot(r, z):
     acc = 0.0
     for i in range(NZ):
@@ -329,7 +344,7 @@ def _max_on(C, r, a, lo, hi):
     return best
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _to_y(zz, w, y):
     for i in range(NY - 1):
         y[i] = zz[i]
@@ -342,7 +357,6 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                      acc, hist_t, hist_y, hist_obs, hist_ph, hist_dt, counters, wk, gk):
     """Exact counterpart of the template's ``integrate_cycles`` (same arguments and effects; no history)."""
     h = wk[0, 3 * NZ + R_INFO, 1]
-    n_grid = int(wk[0, 3 * NZ + R_INFO, 2])
     om = 2.0 * math.pi * p[FREQ]
     f0 = p[F0]
     max_ev = int(s[S_MAX_STEPS_PER_CYCLE])
@@ -382,63 +396,63 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
             bmin[cyc, j] = bvec[j]
             bmax[cyc, j] = bvec[j]
         n_ev = 0
-        for kstep in range(n_grid):
-            t_start = tc + kstep * h
-            rem = 1.0            # fraction of the grid step still to go
-            while rem > 0.0:
-                L = rem * h
-                blk = wk[ph]
-                A = blk[0:NZ]
-                R = blk[3 * NZ:3 * NZ + 9]
-                ng = int(R[R_INFO, 0])
-                full = rem == 1.0
+        t_end = tc + period
+        t_cur = tc
+        # steps of h (one matrix-vector product each), restarted at every switch; the cycle's last
+        # step is shorter (expanded as a series)
+        while t_end - t_cur > 1e-13 * period:
+            if True:  # noqa: SIM108 (keeps the step body's indentation)
+                L = t_end - t_cur
+                full = L >= h * (1.0 - 1e-12)
+                if L > h:
+                    L = h
+                t_start = t_cur
+                rr = 3 * NZ              # first row of the phase's guard/monitor rows in wk[ph]
+                ng = int(wk[ph, rr + R_INFO, 0])
                 if full:
-                    Phi = blk[NZ:2 * NZ]
                     for i in range(NZ):
                         a_ = 0.0
                         for m in range(NZ):
-                            a_ += Phi[i, m] * zz[m]
+                            a_ += wk[ph, NZ + i, m] * zz[m]
                         z1[i] = a_
                 # decide whether the series is needed: a guard crossing (sign change or a turning
                 # point above zero possible), or an interior maximum of force/deceleration while recording
                 need = not full
                 if full:
                     for gi in range(ng):
-                        ga = _dot(R[R_G0 + gi], zz)
-                        gb = _dot(R[R_G0 + gi], z1)
-                        if abs(ga) <= eta[ph, gi]:
-                            need = True     # starts on the surface (just after a switch): see below
-                        elif (ga < 0.0 and gb >= 0.0) or (ga <= 0.0 and gb > 0.0):
+                        ga = _rdot(wk, ph, rr + R_G0 + gi, zz) - eta[ph, gi]
+                        gb = _rdot(wk, ph, rr + R_G0 + gi, z1) - eta[ph, gi]
+                        if (ga < 0.0 and gb >= 0.0) or (ga <= 0.0 and gb > 0.0):
                             need = True
-                        elif _dot(R[R_G0A + gi], zz) > 0.0 and _dot(R[R_G0A + gi], z1) < 0.0:
+                        elif _rdot(wk, ph, rr + R_G0A + gi, zz) > 0.0 and _rdot(wk, ph, rr + R_G0A + gi, z1) < 0.0:
                             need = True
                     if record and not need:
-                        if _dot(R[R_DA], zz) > 0.0 and _dot(R[R_DA], z1) <= 0.0:
+                        if _rdot(wk, ph, rr + R_DA, zz) > 0.0 and _rdot(wk, ph, rr + R_DA, z1) <= 0.0:
                             need = True
-                        if ph > 0 and _dot(R[R_FA], zz) > 0.0 and _dot(R[R_FA], z1) <= 0.0:
+                        if ph > 0 and _rdot(wk, ph, rr + R_FA, zz) > 0.0 and _rdot(wk, ph, rr + R_FA, z1) <= 0.0:
                             need = True
                 if not need:
-                    M = blk[2 * NZ:3 * NZ]
                     dw = 0.0
                     for i in range(NZ):
                         a_ = 0.0
                         for m in range(NZ):
-                            a_ += M[i, m] * zz[m]
+                            a_ += wk[ph, 2 * NZ + i, m] * zz[m]
                         dw += zz[i] * a_
                     w += dw
                     th_end = 1.0
                     k_ev = -1
                 else:
-                    _series(A, zz, L, C, typ)
+                    R = wk[ph, rr:rr + 9]
+                    _series(wk[ph, 0:NZ], zz, L, C, typ)
                     th_end = 1.0
                     k_ev = -1
                     for gi in range(ng):
                         _poly(R[R_G0 + gi], C, poly)
-                        if abs(poly[0]) <= eta[ph, gi]:
-                            # a guard that starts on its surface (within rounding, e.g. x1 - xt = 0
-                            # right after a release) counts as crossed only once it exceeds +eta: the
-                            # non-triggering side is taken, as in the reference (MODELS.md §1a)
-                            poly[0] -= eta[ph, gi]
+                        # a switch is located where the guard exceeds +eta (a rounding band): a guard
+                        # that starts on its surface (e.g. x1 - xt = 0 right after a release) is on the
+                        # non-triggering side, as in the reference, and the new phase is chosen from a
+                        # state clear of the surface (location error eta / |dg/dt| ~ 1e-15 s)
+                        poly[0] -= eta[ph, gi]
                         ga = poly[0]
                         gb = _peval(poly, 1.0)
                         th_c = -1.0
@@ -464,16 +478,16 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                             if bf > acc[5]:
                                 acc[5] = bf
                 # end of the (sub-)step: monitoring at the end point, bounded extremes
-                t_new = t_start + (1.0 - rem + rem * th_end) * h
+                t_new = t_start + th_end * L if th_end < 1.0 else t_start + L
                 if record:
                     if ph > 0:
                         acc[6] = 1.0
-                        fe = _dot(R[R_F], z1)
+                        fe = _rdot(wk, ph, rr + R_F, z1)
                         if fe > acc[0]:
                             acc[0] = fe
                         if fe > acc[5]:
                             acc[5] = fe
-                    de = _dot(R[R_D], z1)
+                    de = _rdot(wk, ph, rr + R_D, z1)
                     if de > acc[4]:
                         acc[4] = de
                 for i in range(NZ):
@@ -509,21 +523,16 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                                 acc[1] += acc[5]
                                 acc[2] += 1.0
                             acc[5] = 0.0
-                        Rn = wk[ph, 3 * NZ:3 * NZ + 9]
                         if ph > 0:
-                            fe = _dot(Rn[R_F], zz)
+                            fe = _rdot(wk, ph, rr + R_F, zz)
                             if fe > acc[0]:
                                 acc[0] = fe
                             if fe > acc[5]:
                                 acc[5] = fe
-                        de = _dot(Rn[R_D], zz)
+                        de = _rdot(wk, ph, rr + R_D, zz)
                         if de > acc[4]:
                             acc[4] = de
-                    rem = rem * (1.0 - th_end)
-                    if rem < 1e-14:
-                        rem = 0.0
-                else:
-                    rem = 0.0
+                t_cur = t_new
         t = tc + period
     ph_arr[0] = ph
     return t
