@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sim import integrator as I
+from sim import layout as I
 from sim.compiled import kernels
 from sim.models.base import ModelSpec, ParameterError
 from sim.registry import get_model

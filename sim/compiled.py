@@ -53,7 +53,8 @@ def _kernel_dir() -> Path:
 
 def _digest(model_module: str, exact: str | None = None) -> str:
     h = hashlib.sha256()
-    files = [_SIM_DIR / "integrator.py", _SIM_DIR / "kernel.py", _SIM_DIR / "compiled.py", _SIM_DIR / "_kernel_template.py"]
+    files = [_SIM_DIR / "layout.py", _SIM_DIR / "integrator.py", _SIM_DIR / "kernel.py", _SIM_DIR / "compiled.py",
+             _SIM_DIR / "_kernel_template.py"]
     for name in (model_module, exact):
         if name is not None:
             files.append(Path(sys.modules[name].__file__))
