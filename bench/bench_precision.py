@@ -153,14 +153,15 @@ def write_readmes(md: str) -> list[str]:
     return done
 
 
-def main(quick: bool = False, write_readme: bool = False) -> dict:
+def main(quick: bool = False, write_readme: bool | None = None) -> dict:
+    """Run, save, and (by default for a full run, as under ``make bench``) rewrite the README tables."""
     res = run(quick)
     res["quick"] = quick
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / ("precision_quick.json" if quick else "precision.json")).write_text(json.dumps(res, indent=1))
     md = table(res)
     (RESULTS / ("precision_quick.md" if quick else "precision.md")).write_text(md)
-    if write_readme:
+    if write_readme or (write_readme is None and not quick):
         print("table written into", ", ".join(write_readmes(md)) or "no file (markers missing)")
     return res
 
@@ -168,6 +169,7 @@ def main(quick: bool = False, write_readme: bool = False) -> dict:
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="two points, three rtols, no scipy (development)")
-    ap.add_argument("--write-readme", action="store_true", help="copy the table into README.md and bench/README.md")
+    ap.add_argument("--write-readme", action="store_true", default=None,
+                    help="copy the table into README.md and bench/README.md (default for a full run)")
     a = ap.parse_args()
     main(a.quick, a.write_readme)

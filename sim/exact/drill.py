@@ -199,7 +199,7 @@ def make_workspace(p, period, s, ny):
                             M[a, b] += ua * V[k, b]
     wk[0, 3 * NZ + R_INFO, 1] = h
     wk[0, 3 * NZ + R_INFO, 2] = n_grid
-    gk = np.zeros((NT + 4, max(NZ, NT)))
+    gk = np.zeros((1, 1))          # unused: integrate_cycles keeps its scratch contiguous
     return wk, gk
 
 
@@ -221,8 +221,8 @@ def _dot(r, z):
 
 
 @njit(cache=True)
-def _series(A, z, L, C, typ):
-    """C[k] = (L A)^k z / k!, k < NT; the tail is cut (set to 0) once two successive terms are below
+def _series(wk, ph, z, L, C, typ):
+    """C[k] = (L A)^k z / k!, k < NT (A = wk[ph, :NZ]); the tail is cut (set to 0) once two successive terms are below
     1e-17 of the first in the norm scaled by the typical state magnitudes ``typ``."""
     C[0, :] = z
     n0 = 0.0
@@ -235,7 +235,7 @@ def _series(A, z, L, C, typ):
         for i in range(NZ):
             acc = 0.0
             for m in range(NZ):
-                acc += A[i, m] * C[k - 1, m]
+                acc += wk[ph, i, m] * C[k - 1, m]
             v = acc * L / k
             C[k, i] = v
             nk += abs(v) / typ[i]
@@ -249,98 +249,119 @@ def _series(A, z, L, C, typ):
     for j in range(k, NT):
         for i in range(NZ):
             C[j, i] = 0.0
+    return k
 
 
 @njit(cache=True)
-def _poly(r, C, a):
-    for k in range(NT):
+def _poly(r, C, a, nt):
+    for k in range(nt):
         a[k] = _dot(r, C[k])
+    for k in range(nt, NT):
+        a[k] = 0.0
 
 
 @njit(cache=True, inline="always")
-def _peval(a, th):
-    v = a[NT - 1]
-    for k in range(NT - 2, -1, -1):
+def _peval(a, th, nt):
+    v = a[nt - 1]
+    for k in range(nt - 2, -1, -1):
         v = v * th + a[k]
     return v
 
 
 @njit(cache=True, inline="always")
-def _dpeval(a, th):
-    v = (NT - 1) * a[NT - 1]
-    for k in range(NT - 2, 0, -1):
+def _dpeval(a, th, nt):
+    v = (nt - 1) * a[nt - 1]
+    for k in range(nt - 2, 0, -1):
         v = v * th + k * a[k]
     return v
 
 
+@njit(cache=True, inline="always")
+def _f(a, x, deriv, nt):
+    return _dpeval(a, x, nt) if deriv else _peval(a, x, nt)
+
+
+@njit(cache=True, inline="always")
+def _d2eval(a, th, nt):
+    v = 0.0
+    for k in range(nt - 1, 1, -1):
+        v = v * th + k * (k - 1) * a[k]
+    return v
+
+
 @njit(cache=True)
-def _root(a, lo, hi, deriv):
-    """Root of the polynomial (deriv: of its derivative) in [lo, hi] where it changes sign from
-    ≤ 0 to > 0 (guards) or from > 0 to ≤ 0 (derivative at a maximum); Illinois to machine precision.
-    Returns the bracket end on the far side."""
-    fa = _dpeval(a, lo) if deriv else _peval(a, lo)
-    fb = _dpeval(a, hi) if deriv else _peval(a, hi)
-    side = 0
-    for it in range(200):
-        if hi - lo <= 4e-16 * max(1.0, hi):
+def _root(a, lo, hi, deriv, nt):
+    """Root in [lo, hi] of the polynomial a (deriv: of its derivative), which is ≤ 0 at one end and > 0
+    at the other; safeguarded Newton (bisection when a step leaves the bracket) to machine precision.
+    Returns a point on the side of ``hi`` (the crossed side), within a few ulps of the root."""
+    flo = _f(a, lo, deriv, nt)
+    fhi = _f(a, hi, deriv, nt)
+    pos_hi = fhi > 0.0
+    x = lo if abs(flo) < abs(fhi) else hi
+    for _ in range(100):
+        fx = _f(a, x, deriv, nt)
+        if (fx > 0.0) == pos_hi:
+            hi = x
+        else:
+            lo = x
+        if hi - lo <= 4e-16 * max(1.0, abs(hi)) or (hi - lo <= 0.0) or fx == 0.0:
             break
-        if it % 3 == 2 or fb == fa:
-            c = 0.5 * (lo + hi)
-        else:
-            c = (lo * fb - hi * fa) / (fb - fa)
-            if not (lo < c < hi):
-                c = 0.5 * (lo + hi)
-        fc = _dpeval(a, c) if deriv else _peval(a, c)
-        if (fc > 0.0) == (fb > 0.0):
-            hi = c
-            fb = fc
-            if side == -1:
-                fa *= 0.5
-            side = -1
-        else:
-            lo = c
-            fa = fc
-            if side == 1:
-                fb *= 0.5
-            side = 1
+        d = _d2eval(a, x, nt) if deriv else _dpeval(a, x, nt)
+        xn = x - fx / d if d != 0.0 else 0.5 * (lo + hi)
+        if not (min(lo, hi) < xn < max(lo, hi)):
+            xn = 0.5 * (lo + hi)
+        if abs(xn - x) <= 1e-17 * max(1.0, abs(x)):
+            break
+        x = xn
+    # Newton may approach from the uncrossed side: step across in growing ulp-sized nudges
+    if hi - lo > 4e-16 * max(1.0, abs(hi)):
+        eps = 4e-16 * max(1.0, abs(lo))
+        for _ in range(60):
+            xx = lo + eps
+            if xx >= hi:
+                break
+            if (_f(a, xx, deriv, nt) > 0.0) == pos_hi:
+                hi = xx
+                break
+            lo = xx
+            eps *= 2.0
     return hi
 
 
 @njit(cache=True)
-def _eval_state(C, th, z):
+def _eval_state(C, th, z, nt):
     for i in range(NZ):
-        v = C[NT - 1, i]
-        for k in range(NT - 2, -1, -1):
+        v = C[nt - 1, i]
+        for k in range(nt - 2, -1, -1):
             v = v * th + C[k, i]
         z[i] = v
 
 
 @njit(cache=True)
-def _work(C, th, L, f0):
-    """F0 ∫ c v1 dτ over [0, θ L] from the series coefficients."""
+def _work(C, th, L, f0, nt, pw):
+    """F0 ∫ c v1 dτ over [0, θ L] from the series coefficients (pw: scratch of 2 NT + 1)."""
     acc = 0.0
-    pw = np.empty(2 * NT + 1)
     pw[0] = 1.0
-    for k in range(1, 2 * NT + 1):
+    for k in range(1, 2 * nt + 1):
         pw[k] = pw[k - 1] * th
-    for j in range(NT):
+    for j in range(nt):
         cj = C[j, IC]
         if cj != 0.0:
-            for k in range(NT):
+            for k in range(nt):
                 acc += cj * C[k, IV1] * pw[j + k + 1] / (j + k + 1)
     return f0 * L * acc
 
 
 @njit(cache=True)
-def _max_on(C, r, a, lo, hi):
+def _max_on(C, r, a, lo, hi, nt):
     """Max over [lo, hi] of row r on the series: at the root of the derivative if it turns there."""
-    _poly(r, C, a)
-    d_lo = _dpeval(a, lo)
-    d_hi = _dpeval(a, hi)
-    best = max(_peval(a, lo), _peval(a, hi))
+    _poly(r, C, a, nt)
+    d_lo = _dpeval(a, lo, nt)
+    d_hi = _dpeval(a, hi, nt)
+    best = max(_peval(a, lo, nt), _peval(a, hi, nt))
     if d_lo > 0.0 and d_hi <= 0.0:
-        th = _root(a, lo, hi, True)
-        best = max(best, _peval(a, th))
+        th = _root(a, lo, hi, True, nt)
+        best = max(best, _peval(a, th, nt))
     return best
 
 
@@ -360,11 +381,13 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
     om = 2.0 * math.pi * p[FREQ]
     f0 = p[F0]
     max_ev = int(s[S_MAX_STEPS_PER_CYCLE])
-    C = gk[0:NT, 0:NZ]
-    zz = gk[NT, 0:NZ]
-    z1 = gk[NT + 1, 0:NZ]
-    poly = gk[NT + 2, 0:NT]
-    poly2 = gk[NT + 3, 0:NT]
+    # contiguous scratch (typed as C-layout arrays by numba: strided views index slower)
+    C = np.empty((NT, NZ))
+    zz = np.empty(NZ)
+    z1 = np.empty(NZ)
+    poly = np.empty(NT)
+    poly2 = np.empty(NT)
+    pw = np.empty(2 * NT + 1)
     nbd = strobe.shape[1]
     bvec = np.empty(nbd)
     ph = ph_arr[0]
@@ -443,36 +466,36 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                     k_ev = -1
                 else:
                     R = wk[ph, rr:rr + 9]
-                    _series(wk[ph, 0:NZ], zz, L, C, typ)
+                    nt = _series(wk, ph, zz, L, C, typ)
                     th_end = 1.0
                     k_ev = -1
                     for gi in range(ng):
-                        _poly(R[R_G0 + gi], C, poly)
+                        _poly(R[R_G0 + gi], C, poly, nt)
                         # a switch is located where the guard exceeds +eta (a rounding band): a guard
                         # that starts on its surface (e.g. x1 - xt = 0 right after a release) is on the
                         # non-triggering side, as in the reference, and the new phase is chosen from a
                         # state clear of the surface (location error eta / |dg/dt| ~ 1e-15 s)
                         poly[0] -= eta[ph, gi]
                         ga = poly[0]
-                        gb = _peval(poly, 1.0)
+                        gb = _peval(poly, 1.0, nt)
                         th_c = -1.0
                         if (ga < 0.0 and gb >= 0.0) or (ga <= 0.0 and gb > 0.0):
-                            th_c = _root(poly, 0.0, 1.0, False)
-                        elif _dpeval(poly, 0.0) > 0.0 and _dpeval(poly, 1.0) < 0.0:
-                            tm = _root(poly, 0.0, 1.0, True)
-                            if _peval(poly, tm) > 0.0 and ga <= 0.0:
-                                th_c = _root(poly, 0.0, tm, False)
+                            th_c = _root(poly, 0.0, 1.0, False, nt)
+                        elif _dpeval(poly, 0.0, nt) > 0.0 and _dpeval(poly, 1.0, nt) < 0.0:
+                            tm = _root(poly, 0.0, 1.0, True, nt)
+                            if _peval(poly, tm, nt) > 0.0 and ga <= 0.0:
+                                th_c = _root(poly, 0.0, tm, False, nt)
                         if th_c >= 0.0 and th_c < th_end:
                             th_end = th_c
                             k_ev = gi
-                    _eval_state(C, th_end, z1)
-                    w += _work(C, th_end, L, f0)
+                    _eval_state(C, th_end, z1, nt)
+                    w += _work(C, th_end, L, f0, nt, pw)
                     if record:
-                        bd = _max_on(C, R[R_D], poly2, 0.0, th_end)
+                        bd = _max_on(C, R[R_D], poly2, 0.0, th_end, nt)
                         if bd > acc[4]:
                             acc[4] = bd
                         if ph > 0:
-                            bf = _max_on(C, R[R_F], poly2, 0.0, th_end)
+                            bf = _max_on(C, R[R_F], poly2, 0.0, th_end, nt)
                             if bf > acc[0]:
                                 acc[0] = bf
                             if bf > acc[5]:
