@@ -95,7 +95,7 @@ def _objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th, which):
 @njit(cache=True, nogil=True)
 def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                      atol, record, strobe, bmin, bmax,
-                     acc, hist_t, hist_y, hist_obs, hist_ph, hist_dt, counters):
+                     acc, hist_t, hist_y, hist_obs, hist_ph, hist_dt, counters, wk, gk):
     """Integrate ``n_cycles`` whole forcing cycles from ``t0`` (y, z, ph_arr edited in place).
 
     strobe[c] receives the bounded coordinates at the start of cycle c, bmin/bmax
@@ -107,28 +107,30 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
         acc[7] -1 while the contact open at the window start lasts, then its max (-2: none)
     and, when hist_dt > 0, uniform samples are written to hist_* (index counters[2]).
     counters: [steps, events, hist_index, status, reason].
+    wk (17, ny) and gk (5, max(8, N_BOUNDED)) are scratch space (``_workspace``).
     Returns the end time.
     """
     ny = y.shape[0]
     ng = 8
     rtol = s[S_RTOL]
-    k1 = np.empty(ny); k2 = np.empty(ny); k3 = np.empty(ny); k4 = np.empty(ny)
-    k5 = np.empty(ny); k6 = np.empty(ny); k7 = np.empty(ny)
-    ytmp = np.empty(ny); y1 = np.empty(ny); err = np.empty(ny)
-    r1 = np.empty(ny); r2 = np.empty(ny); r3 = np.empty(ny); r4 = np.empty(ny); r5 = np.empty(ny)
-    yd = np.empty(ny); dyd = np.empty(ny)
-    g0 = np.empty(ng); g1 = np.empty(ng); gm = np.empty(ng)
-    obs = np.empty(N_OBS)
+    # views of the run's workspace (allocated once per run_point, not per call)
+    k1 = wk[0]; k2 = wk[1]; k3 = wk[2]; k4 = wk[3]; k5 = wk[4]; k6 = wk[5]; k7 = wk[6]
+    ytmp = wk[7]; y1 = wk[8]; err = wk[9]
+    r1 = wk[10]; r2 = wk[11]; r3 = wk[12]; r4 = wk[13]; r5 = wk[14]
+    yd = wk[15]; dyd = wk[16]
+    g0 = gk[0]; g1 = gk[1]; gm = gk[2]
+    obs = gk[3, :N_OBS]
     nbd = strobe.shape[1]
-    bvec = np.empty(nbd)
+    bvec = gk[4, :nbd]
     hmax = s[S_MAX_STEP_FRAC] * period
     ev_tol = s[S_EVENT_TOL] * period
     max_steps = int(s[S_MAX_STEPS_PER_CYCLE])
     ph = ph_arr[0]
     t = t0
     h = 1e-3 * period
-    interior = np.array([0.25, 0.5, 0.75])
-    n_sub = 4  # extra force/accel samples per step in contact
+    # step-end force / deceleration of the previous accepted step (-inf: unknown, after a switch)
+    f_prev = -np.inf
+    d_prev = -np.inf
 
     for cyc in range(n_cycles):
         t_end = t0 + (cyc + 1) * period
@@ -209,7 +211,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
             prev_th = 0.0
             for q in range(4):
                 if q < 3:
-                    th = interior[q]
+                    th = 0.25 * (q + 1)
                     _dense(r1, r2, r3, r4, r5, th, yd)
                     guards(t + th * h, yd, z, ph, p, gm)
                 else:
@@ -249,50 +251,56 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
             t_new = t + th_ev * h
             if th_ev < 1.0:
                 _dense(r1, r2, r3, r4, r5, th_ev, y1)
-            # monitoring: end point (and interior samples while in contact)
+            # monitoring: the window maxima of the contact force and the deceleration.  Samples at the
+            # step's start (the previous end, known unless a switch intervened), middle and end; a best
+            # sample that is not the end may hide a larger value inside the step: it is refined on the
+            # interpolant by golden section over the neighbouring samples.  A best at the end is left
+            # to the next step, where it is the start.  Never look back across a switch: there the
+            # interpolant belongs to another branch.
             if record:
-                if ph > 0:
-                    # contact: sample the step at n_sub + 2 points (both ends included); a maximum
-                    # that is not at the step's end is refined on the interpolant (golden section:
-                    # an interior best is bracketed by its neighbours; a best at the start lies
-                    # within one sample spacing either side of it).  A best at the end is left to
-                    # the next step, where it is the start.
+                in_c = ph > 0
+                if in_c:
                     acc[6] = 1.0
-                    f_run = acc[5]
-                    d_run = acc[4]
-                    bf = -np.inf
-                    bd = -np.inf
-                    qf = 0
-                    qd = 0
-                    for q in range(n_sub + 2):
-                        th = th_ev * q / (n_sub + 1)
-                        _dense(r1, r2, r3, r4, r5, th, yd)
-                        observe(t + th * h, yd, z, ph, p, obs, dyd)
-                        if obs[OBS_FORCE] > bf:
-                            bf = obs[OBS_FORCE]
-                            qf = q
-                        if -obs[OBS_ACCEL] > bd:
-                            bd = -obs[OBS_ACCEL]
-                            qd = q
-                    dth = th_ev / (n_sub + 1)
-                    # never look back across a switch: there the interpolant is another branch's
-                    lo_f = 0.0 if (qf == 0 and fresh) else (qf - 1) * dth
-                    lo_d = 0.0 if (qd == 0 and fresh) else (qd - 1) * dth
-                    if bf >= f_run and qf <= n_sub:
+                f_run = acc[5]
+                d_run = acc[4]
+                if fresh or f_prev == -np.inf:
+                    observe(t, y, z, ph, p, obs, dyd)
+                    f_prev = obs[OBS_FORCE]
+                    d_prev = -obs[OBS_ACCEL]
+                hm = 0.5 * th_ev
+                _dense(r1, r2, r3, r4, r5, hm, yd)
+                observe(t + hm * h, yd, z, ph, p, obs, dyd)
+                f_mid = obs[OBS_FORCE]
+                d_mid = -obs[OBS_ACCEL]
+                observe(t_new, y1, z, ph, p, obs, dyd)
+                f_end = obs[OBS_FORCE]
+                d_end = -obs[OBS_ACCEL]
+                bf = max(f_prev, f_mid, f_end)
+                bd = max(d_prev, d_mid, d_end)
+                back = 0.0 if fresh else -hm      # a best at the start may lie just before it
+                if in_c and bf >= f_run and f_end < bf:
+                    if f_prev < f_mid:
                         bf = max(bf, _golden_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd,
-                                                 lo_f, (qf + 1) * dth, OBS_FORCE))
-                    if bd >= d_run and qd <= n_sub:
+                                                 0.0, th_ev, OBS_FORCE))
+                    else:
+                        bf = max(bf, _golden_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd,
+                                                 back, hm, OBS_FORCE))
+                if bd >= d_run and d_end < bd:
+                    if d_prev < d_mid:
                         bd = max(bd, _golden_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd,
-                                                 lo_d, (qd + 1) * dth, OBS_ACCEL))
+                                                 0.0, th_ev, OBS_ACCEL))
+                    else:
+                        bd = max(bd, _golden_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd,
+                                                 back, hm, OBS_ACCEL))
+                if in_c:
                     if bf > acc[0]:
                         acc[0] = bf
                     if bf > acc[5]:
                         acc[5] = bf
-                    if bd > acc[4]:
-                        acc[4] = bd
-                else:
-                    observe(t_new, y1, z, ph, p, obs, dyd)
-                    _track(acc, obs, False)
+                if bd > acc[4]:
+                    acc[4] = bd
+                f_prev = f_end
+                d_prev = d_end
                 # uniform history samples
                 if hist_dt > 0.0:
                     idx = counters[2]
@@ -342,6 +350,8 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                     _track(acc, obs, ph > 0)
                 rhs(t, y, z, ph, p, k1)
                 guards(t, y, z, ph, p, g0)
+                f_prev = -np.inf
+                d_prev = -np.inf
                 # the step that ended on a switch was accurate; restart with a modest step
                 h = max(h * th_ev, 1e-6 * period)
                 fresh = True
@@ -359,6 +369,13 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
     ph_arr[0] = ph
     return t
 
+
+
+@njit(cache=True, nogil=True)
+def make_workspace(p, period, s, ny):
+    """Scratch arrays of ``integrate_cycles``, allocated once per run (an exact propagator that replaces
+    integrate_cycles replaces this too, see sim.compiled)."""
+    return np.empty((17, ny)), np.empty((5, max(8, N_BOUNDED)))
 
 
 @njit(cache=True, nogil=True)
@@ -408,6 +425,7 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
     bmin = np.zeros((max(max_tr, 1), N_BOUNDED))
     bmax = np.zeros((max(max_tr, 1), N_BOUNDED))
     prog = np.zeros(max_tr + 1)
+    wk, gk = make_workspace(p, period, s, y.shape[0])
     t = 0.0
     prog[0] = _progress(t, y, z, ph_arr[0], p, obs, dy)
     settled = False
@@ -415,7 +433,7 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
     for c in range(max_tr):
         t = integrate_cycles(p, y, z, ph_arr, t, period, 1, s,
                              atol, False, strobe[c:c + 1], bmin[c:c + 1], bmax[c:c + 1], acc_dummy,
-                             empty_t, empty_2, empty_o, empty_p, 0.0, counters)
+                             empty_t, empty_2, empty_o, empty_p, 0.0, counters, wk, gk)
         n_tr = c + 1
         prog[c + 1] = _progress(t, y, z, ph_arr[0], p, obs, dy)
         if counters[3] == STATUS_FAILED:
@@ -462,7 +480,7 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
     acc1[7] = -1.0 if ph_start > 0 else -2.0
     t = integrate_cycles(p, y, z, ph_arr, t, period, n1, s,
                          atol, True, ws[0:n1], wmin[0:n1], wmax[0:n1], acc1,
-                         hist_t, hist_y, hist_obs, hist_ph, 1.0 if hist_t.shape[0] > 0 else 0.0, counters)
+                         hist_t, hist_y, hist_obs, hist_ph, 1.0 if hist_t.shape[0] > 0 else 0.0, counters, wk, gk)
     prog_mid = _progress(t, y, z, ph_arr[0], p, obs, dy)
     w_mid = y[ny - 1]
     if counters[3] != STATUS_FAILED:
@@ -471,7 +489,7 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
         acc2[6] = 1.0 if ph_arr[0] > 0 else 0.0
         t = integrate_cycles(p, y, z, ph_arr, t, period, n2, s,
                              atol, True, ws[n1:n_win], wmin[n1:n_win], wmax[n1:n_win], acc2,
-                             hist_t, hist_y, hist_obs, hist_ph, 1.0 if hist_t.shape[0] > 0 else 0.0, counters)
+                             hist_t, hist_y, hist_obs, hist_ph, 1.0 if hist_t.shape[0] > 0 else 0.0, counters, wk, gk)
     if _record_counters(labels, counters):
         return labels
     prog1 = _progress(t, y, z, ph_arr[0], p, obs, dy)

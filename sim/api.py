@@ -5,14 +5,17 @@ import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
-from sim import integrator as I
+from sim import layout as I
 from sim.compiled import kernels
 from sim.models.base import ModelSpec, ParameterError
 from sim.registry import get_model
+
+if TYPE_CHECKING:                  # pandas is imported only where a table is built (history, batch)
+    import pandas as pd
 
 LABELS = ("rop_m_s", "peak_force_n", "mean_peak_force_n", "impacts_per_cycle", "period", "peak_decel_g",
           "energy_per_cycle_j", "specific_energy_j_m")
@@ -33,6 +36,9 @@ REASONS = {
 }
 
 
+METHODS = ("auto", "exact", "dopri5")
+
+
 @dataclass(frozen=True)
 class Settings:
     """Numerical settings of a run (all in forcing cycles unless stated).
@@ -41,7 +47,8 @@ class Settings:
     rtol × the model's typical magnitude of that state).  The default 1e-7 gives labels within
     ~1e-6 of the tight reference (bench/README.md), better than scipy RK45 at rtol 1e-6.  min_transient / max_transient:
     cycles discarded before the window (settlement is detected in between).  window:
-    recorded cycles.  period_tol: tolerance of the periodicity test relative to each
+    recorded cycles.  method: "auto" (the model's exact propagator where it is exact, sim/exact/, else
+    DOPRI5), "exact" (error if unavailable) or "dopri5" (always the numerical integrator).  period_tol: tolerance of the periodicity test relative to each
     bounded coordinate's range.  event_tol: switch location tolerance as a fraction of
     the period.  samples_per_cycle: history sampling when a history is requested.
     """
@@ -57,6 +64,7 @@ class Settings:
     max_step_frac: float = 0.05
     stat_tol: float = 0.05
     samples_per_cycle: int = 400
+    method: str = "auto"
 
     def validate(self) -> "Settings":
         checks = {
@@ -66,6 +74,7 @@ class Settings:
             "max_steps_per_cycle": self.max_steps_per_cycle > 10, "event_tol": 0 < self.event_tol < 1e-3,
             "max_step_frac": 0 < self.max_step_frac <= 1, "stat_tol": self.stat_tol > 0,
             "samples_per_cycle": self.samples_per_cycle >= 2,
+            "method": self.method in METHODS,
         }
         for name, ok in checks.items():
             if not ok:
@@ -110,7 +119,7 @@ class SimulationResult:
     model: str
     params: dict[str, float]
     labels: dict
-    history: pd.DataFrame | None = None
+    history: "pd.DataFrame | None" = None
     settings: Settings = field(default_factory=Settings)
     final_state: tuple | None = None   # (y, z, phase) at the end: pass as initial_state to continue
 
@@ -142,6 +151,26 @@ def _labels_from_vector(v: np.ndarray, precheck_msg: str | None) -> dict:
     out["n_steps"] = int(v[I.L_STEPS])
     out["n_events"] = int(v[I.L_EVENTS])
     return out
+
+
+def _exact_module(spec: ModelSpec, values: dict, st: Settings, history: bool) -> str | None:
+    """The exact propagator to use for this run (None: the numerical integrator)."""
+    if st.method == "dopri5" or spec.exact is None:
+        if st.method == "exact":
+            raise ParameterError(f"setting 'method': model '{spec.name}' has no exact propagator")
+        return None
+    import importlib
+
+    mod = importlib.import_module(spec.exact)
+    ok = mod.exact_applies(values, spec.effects)
+    if st.method == "exact":
+        if not ok:
+            raise ParameterError(f"setting 'method': the exact propagator of '{spec.name}' does not handle the "
+                                 f"active effects (handles {', '.join(mod.HANDLED_EFFECT_PARAMS)})")
+        if history:
+            raise ParameterError("setting 'method': the exact propagator returns no time history; use 'auto'")
+        return spec.exact
+    return spec.exact if ok and not history else None
 
 
 def _prepare(spec: ModelSpec, values: dict[str, float], rtol: float):
@@ -201,11 +230,13 @@ def simulate(model: str, preset: str | None = None, settings: Settings | dict | 
     if initial_state is not None:
         y0, z0, ph0 = _check_state(spec, initial_state)
     y, z, ph = y0.copy(), z0.copy(), np.array([ph0], dtype=np.int64)
-    run_one = kernels(spec.funcs, spec.n_bounded)
+    run_one = kernels(spec.funcs, spec.n_bounded, _exact_module(spec, values, st, history))
     v = run_one(p, y, z, ph, period, s, atol, ht, hy, ho, hp)
     labels = _labels_from_vector(v, msg)
     hist = None
     if history and labels["status"] not in ("runaway", "failed"):
+        import pandas as pd
+
         hist = pd.DataFrame({"t_s": ht})
         for i, name in enumerate(spec.states):
             hist[name] = hy[:, i]
@@ -220,13 +251,15 @@ def simulate(model: str, preset: str | None = None, settings: Settings | dict | 
 
 
 def simulate_batch(model: str, table, preset: str | None = None, settings: Settings | dict | None = None,
-                   n_threads: int | None = None) -> pd.DataFrame:
+                   n_threads: int | None = None) -> "pd.DataFrame":
     """Simulate every row of ``table`` (DataFrame or list of dicts of parameter overrides) in parallel.
 
     Returns a DataFrame: the full resolved parameters of each row, every label of MODELS.md §5,
     ``status`` and ``reason``.  Rows are validated first; a bad value raises ParameterError naming
     the row and the column, before anything runs.
     """
+    import pandas as pd
+
     spec = get_model(model)
     df = pd.DataFrame(table).reset_index(drop=True)
     st = make_settings(spec, settings)
@@ -250,12 +283,13 @@ def simulate_batch(model: str, table, preset: str | None = None, settings: Setti
     msgs = [spec.precheck(x[0]) for x in prepared]
     flagged = np.array([m is not None for m in msgs])
     out = np.empty((len(rows), I.N_LABELS))
-    run_one = kernels(spec.funcs, spec.n_bounded)
+    exact = [_exact_module(spec, v, st, False) for v in rows]
+    runners = {e: kernels(spec.funcs, spec.n_bounded, e) for e in set(exact)}
     arrays = {flag: st.to_array(runaway_check=flag) for flag in (False, True)}
     empty = (np.empty(0), np.empty((0, Y0.shape[1])), np.empty((0, I.N_OBS)), np.empty(0, dtype=np.int64))
 
     def work(i: int) -> None:  # run_one releases the GIL: threads run on all cores
-        out[i] = run_one(P[i], Y0[i].copy(), Z0[i].copy(), PH0[i:i + 1].copy(), periods[i],
+        out[i] = runners[exact[i]](P[i], Y0[i].copy(), Z0[i].copy(), PH0[i:i + 1].copy(), periods[i],
                          arrays[bool(flagged[i])], ATOL[i], *empty)
 
     workers = n_threads or os.cpu_count() or 1

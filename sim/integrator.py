@@ -52,34 +52,8 @@ D1, D3, D4, D5, D6, D7 = (-12715105075.0 / 11282082432.0, 87487479700.0 / 327004
                           -10690763975.0 / 1880347072.0, 701980252875.0 / 199316789632.0,
                           -1453857185.0 / 822651844.0, 69997945.0 / 29380423.0)
 
-# ----------------------------------------------------------------------------- settings layout
-# Float settings vector passed to the kernel (built by sim.api.Settings.to_array).
-S_RTOL = 0
-S_MIN_TRANSIENT = 1      # cycles
-S_MAX_TRANSIENT = 2      # cycles
-S_WINDOW = 3             # cycles
-S_PERIOD_TOL = 4         # relative to each bounded coordinate's range
-S_SETTLE_TOL = 5         # relative, used while waiting for settlement
-S_MAX_STEPS_PER_CYCLE = 6
-S_EVENT_TOL = 7          # seconds, relative to the forcing period
-S_MAX_STEP_FRAC = 8      # max step as a fraction of the forcing period
-S_STAT_TOL = 9           # relative agreement of half-window statistics for non-periodic steady states
-S_RUNAWAY_CHECK = 10     # 1: a pre-check flagged a possible runaway; confirm it from the drift
-N_SETTINGS = 11
-
-# ----------------------------------------------------------------------------- label layout
-L_STATUS, L_ROP, L_PEAK_F, L_MEAN_PEAK_F, L_IMPACTS, L_PERIOD, L_DECEL, L_ENERGY, L_SPEC_E, \
-    L_TRANSIENT, L_REASON, L_STEPS, L_EVENTS, L_DRIFT_ACC = range(14)
-N_LABELS = 14
-
-STATUS_OK, STATUS_NO_CONTACT, STATUS_RUNAWAY, STATUS_NOT_SETTLED, STATUS_FAILED = 0, 1, 2, 3, 4
-REASON_NONE, REASON_STEP_UNDERFLOW, REASON_TOO_MANY_STEPS, REASON_NONFINITE, REASON_DRIFT, \
-    REASON_PRECHECK, REASON_NOT_PERIODIC = range(7)
-
-OBS_FORCE, OBS_ACCEL, OBS_DISP, OBS_PROGRESS, OBS_VEL = 0, 1, 2, 3, 4
-N_OBS = 5
-G_ACCEL = 9.81
-MAX_PERIOD = 8
+from sim.layout import *  # noqa: F401,F403  (layouts re-exported for the kernel template)
+from sim.layout import MAX_PERIOD
 
 
 @njit(cache=True, inline="always")
@@ -89,7 +63,7 @@ def _dense(r1, r2, r3, r4, r5, th, out):
         out[i] = r1[i] + th * (r2[i] + th1 * (r3[i] + th * (r4[i] + th1 * r5[i])))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _error_norm(y0, y1, err, atol, rtol):
     s = 0.0
     n = y0.shape[0]

@@ -137,6 +137,7 @@ class ModelSpec:
         for n, ref in self.map_relative_to.items():
             if n not in self.map_ranges or ref not in names:
                 raise ValueError(f"{where}: map_relative_to {n} -> {ref}: needs a map range and a parameter")
+    exact: str | None = None   # module of an exact propagator of the model's phases (sim/exact/), if any
 
     @property
     def param_names(self) -> tuple[str, ...]:

@@ -328,10 +328,10 @@ SPEC = ModelSpec(
     impacting_mass="M1 (drill bit)",
     progression="xb (rock slider base)",
     default_settings={"min_transient": 20, "max_transient": 400, "window": 32},
-    # MODELS.md §6: the rock is calibrated (K1, C1, Pr); bounds one decade either side of the defaults
-    # (Pr: of the defaults' 1.5 kN and the lab preset's 3 kN).
     # MODELS.md §6 effects at the lab preset's scale (EFFECT_FIT_BOUNDS above: measured effect sizes at each bound)
     effect_bounds={n: FitBound(n, lo, hi, u) for n, (lo, hi, u) in EFFECT_FIT_BOUNDS.items()},
+    # MODELS.md §6: the rock is calibrated (K1, C1, Pr); bounds one decade either side of the defaults
+    # (Pr: of the defaults' 1.5 kN and the lab preset's 3 kN).
     calibratable=(FitBound("K1", 2e6, 2e8, "N/m"), FitBound("C1", 5e2, 5e4, "N s/m"),
                   FitBound("Pr", 150.0, 3e4, "N")),
     # "lab": LAB_SPACE above; "": the MODELS.md §2 ranges at the default Pr = 1.5 kN (f 10-400 Hz,
@@ -344,4 +344,5 @@ SPEC = ModelSpec(
     map_ranges={"frequency_hz": (10.0, 450.0), "amplitude_n": (0.0, 1.0), "static_force_n": (0.05, 1.1)},
     map_relative_to={"amplitude_n": "Pr", "static_force_n": "Pr"},
     progress_force_floor=lambda v: float(v["Pr"]) if "Pr" in v else None,   # MODELS.md §2: Pc must reach Pr
+    exact="sim.exact.drill",
 )
