@@ -192,7 +192,7 @@ def _run(root: Path, repro_args: list[str], exp: bool = False) -> int:
     if use_mlflow:
         os.environ.pop("VIBRO_PARENT_RUN_ID", None)
         mlflow = tracking.setup()
-        tags = {"vibro.stage": "pipeline", "vibro.stages_planned": ",".join(stale),
+        tags = {"vibro.stage": "pipeline", "vibro.stages_planned": ",".join(stale), **tracking.run_tags(),
                 "vibro.dvc_command": " ".join(["exp run" if exp else "repro", *repro_args])}
         run = mlflow.start_run(run_name="pipeline-exp" if exp else "pipeline", tags=tags)
         run_id = run.info.run_id
