@@ -11,6 +11,7 @@ import argparse
 import importlib
 import os
 import sys
+import time
 
 from pipeline.core.errors import USER_ERRORS
 
@@ -55,14 +56,27 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _done(args, wall: float) -> None:
+    """One stderr line with the command's wall and CPU time (the per-stage line of a pipeline run)."""
+    if getattr(args, "quiet", False) or wall < 2.0:
+        return
+    import resource
+
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    print(f"vibro {args.command}: done in {wall:.0f} s wall, {ru.ru_utime + ru.ru_stime:.0f} s CPU",
+          file=sys.stderr, flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    t0 = time.perf_counter()
     try:
         rc = args.func(args)
+        _done(args, time.perf_counter() - t0)
         return int(rc or 0)
     except USER_ERRORS as e:
         if args.debug:
