@@ -42,7 +42,7 @@ def label(name: str) -> str:
     if base not in ENGINEERING:
         return name
     text, unit, _ = ENGINEERING[base]
-    prefix = name.rsplit(".", 1)[0] + "." if "." in name else ""
+    prefix = name.rsplit(".", 1)[0] + "." if "." in name and not name.startswith("params.") else ""
     return f"{prefix}{text}{f' ({suf[1:]})' if suf else ''}" + (f" [{unit}]" if unit else "")
 
 
