@@ -40,9 +40,10 @@ REPORT_REL = Path("results/report/report.html")
 METRICS_DIR = Path("metrics")
 TIMES_REL = Path(".vibro/stage-times.json")
 _RUNNING = re.compile(r"Running stage '([^']+)'")
-TYPICAL_S = {"sweep": 40.0, "train": 150.0, "optimise@rop": 40.0, "optimise@pareto": 50.0, "verify": 25.0,
-             "diagnose@seed000-published": 150.0, "report": 15.0}
-"""Stage wall times [s] on two idle cores with the default params.yaml (README.md "Measured run time"):
+TYPICAL_S = {"sweep": 35.0, "train": 130.0, "optimise@rop": 25.0, "optimise@pareto": 25.0, "verify": 15.0,
+             "diagnose@seed000-published": 180.0, "report": 12.0}
+"""Stage wall times [s] on two idle cores with the default params.yaml, from the CPU times in README.md
+"Measured run time" plus process start-up:
 the first run's ETA; later runs use the previous run's times (``.vibro/stage-times.json``)."""
 
 
@@ -64,7 +65,7 @@ class StageClock:
         self.times: dict[str, float] = {}
 
     def _estimate(self, stage: str) -> float:
-        return self.known.get(stage, TYPICAL_S.get(stage, TYPICAL_S.get(stage.split("@")[0] + "@", 60.0)))
+        return self.known.get(stage, TYPICAL_S.get(stage, 60.0))
 
     def start(self, stage: str) -> None:
         """Stage ``stage`` began: close the previous one and print ``[k/N] stage: started ...``."""
