@@ -75,6 +75,15 @@ def kernels(funcs: tuple, n_bounded: int, exact: str | None = None):
 
 
 @lru_cache(maxsize=None)
+def kernel_path(funcs: tuple, exact: str | None = None, digest: str | None = None) -> Path:
+    """Path of the generated kernel module of the model functions ``funcs`` (and exact propagator ``exact``);
+    numba's cache of it lives in the ``__pycache__`` folder beside it."""
+    mod_name = funcs[0].py_func.__module__
+    digest = digest or _digest(mod_name, exact)
+    tag = f"{mod_name.replace('.', '_')}_{funcs[0].py_func.__name__}_{'exact_' if exact else ''}{digest}"
+    return _kernel_dir() / f"vibro_kernel_{tag}.py"
+
+
 def _kernels(funcs: tuple, n_bounded: int, exact: str | None = None):
     """run_one (GIL-free, cached) for the model functions ``funcs`` = (rhs, guards, on_event, observe, bounded)."""
     names = [f.py_func.__name__ for f in funcs]
@@ -85,19 +94,18 @@ def _kernels(funcs: tuple, n_bounded: int, exact: str | None = None):
     if exact is not None:
         importlib.import_module(exact)
     digest = _digest(mod_name, exact)
+    path = kernel_path(funcs, exact, digest)
     text = _HEADER.format(digest=digest, mod=mod_name, rhs=names[0], guards=names[1], on_event=names[2],
                           observe=names[3], bounded=names[4], n_bounded=n_bounded)
     text += (_SIM_DIR / "_kernel_template.py").read_text()
     if exact is not None:
         text += f"\n\n# the exact propagator replaces the numerical stepper\nfrom {exact} import integrate_cycles, make_workspace  # noqa: E402,F811\n"
-    tag = f"{mod_name.replace('.', '_')}_{names[0]}_{'exact_' if exact else ''}{digest}"
-    path = _kernel_dir() / f"vibro_kernel_{tag}.py"
     if not path.exists() or path.read_text() != text:
         fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
         with os.fdopen(fd, "w") as fh:
             fh.write(text)
         os.replace(tmp, path)
-    name = f"vibro_kernel_{tag}"
+    name = path.stem
     if name in sys.modules:
         module = sys.modules[name]
     else:

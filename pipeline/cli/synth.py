@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from pipeline.cli.args import add_quiet, add_workers, check_workers
 from pipeline.core.errors import UserError
 
 EPILOG = """\
@@ -45,7 +46,8 @@ def add_parser(sub) -> None:
                    help="recorded signals [accel_m_s2 force_n disp_m]; progression_m also possible")
     p.add_argument("--noise-accel", type=float, default=0.03, help="accel noise sd / signal sd [0.03]")
     p.add_argument("--noise-force", type=float, default=0.02, help="force noise sd / signal sd [0.02]")
-    p.add_argument("--threads", type=int, help="simulation threads (default: all cores)")
+    add_workers(p, dest="threads", help="simulation threads (default: all cores)")
+    add_quiet(p)
     p.set_defaults(func=run)
 
 
@@ -65,7 +67,7 @@ def run(args) -> int:
     cfg = SynthConfig(system=args.system, effects=resolve_effects(args.system, effects) if effects else {},
                       outside=args.outside, outside_params=parse_assignments(args.outside_param, "--outside-param"),
                       perturb=args.perturb, seed=args.seed, cycles=args.cycles, fs_hz=args.fs,
-                      noise_accel=args.noise_accel, noise_force=args.noise_force, n_threads=args.threads)
+                      noise_accel=args.noise_accel, noise_force=args.noise_force, n_threads=check_workers(args.threads))
     if args.frequencies:
         cfg.frequencies_hz = tuple(args.frequencies)
     if args.pressures:
@@ -74,7 +76,7 @@ def run(args) -> int:
         cfg.signals = tuple(args.signals)
     if any(f <= 0 for f in cfg.frequencies_hz) or any(p <= 0 for p in cfg.pressures_bar):
         raise UserError("--frequencies and --pressures must be > 0")
-    ds, info = synthesize(cfg, progress=True)
+    ds, info = synthesize(cfg, progress=not args.quiet)
     write_dataset(ds, args.out)
     print(f"wrote {len(ds.runs)} runs to {args.out} (truth: {info['truth']})")
     return 0

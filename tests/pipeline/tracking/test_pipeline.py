@@ -211,7 +211,7 @@ def test_report_is_self_contained_and_shows_every_section(tmp_path: Path):
     assert "1.8 mm/s" in md                                        # verified ROP of the recommended point
     assert "| seed000-published | indenter-metal | 0.5 | 0.3 | 0.12 | 0.1 | shaker_coil | True |" in md
     assert "| seed000-published | indenter-sandstone | 0.6 | 0.4 | 0.4 | 0.1 | none | False |" in md
-    assert "| rop_m_s | 0.93 |" in md                             # surrogate accuracy table
+    assert "| ROP [mm/s] | 0.93 |" in md                          # surrogate accuracy table, engineering units
     assert "40** simulated points" in md and "runaway: 5" in md
     for line in md.splitlines():                                   # every figure the .md links exists
         if line.startswith("!["):
@@ -219,6 +219,7 @@ def test_report_is_self_contained_and_shows_every_section(tmp_path: Path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["optimise"]["verified_rop_m_s"] == pytest.approx(1.8e-3)
     assert summary["optimise"]["pareto_size"] == 3
+    assert summary["answer"].startswith("Answer: ") and "verified ROP 1.80 mm/s" in summary["answer"]
 
 
 def test_report_bad_params_is_one_line_error(tmp_path: Path):
