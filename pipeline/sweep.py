@@ -443,12 +443,12 @@ def atomic_write_json(path: Path, obj) -> None:
 def _write_chunk(out: Path, k: int, table) -> None:
     import pyarrow.parquet as pq
 
+    from pipeline.integrity import write_with_checksum
+
     path = out / f"part-{k:05d}.parquet"
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     pq.write_table(table, tmp, compression="zstd")
-    with open(tmp, "rb") as fh:
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    write_with_checksum(tmp, path)      # sidecar part-XXXXX.parquet.sha256, checked on resume
 
 
 def _git_commit() -> dict:
@@ -511,39 +511,18 @@ def _spec_diff(old: dict, new: dict, prefix: str = "") -> list[str]:
     return diffs
 
 
-def _acquire_lock(out: Path) -> Path:
-    lock = out / LOCK_NAME
-    me = f"{socket.gethostname()} {os.getpid()}"
-    for _ in range(2):
-        try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-            os.write(fd, me.encode())
-            os.close(fd)
-            return lock
-        except FileExistsError:
-            try:
-                host, pid = lock.read_text().split()
-                alive = host != socket.gethostname()
-                if not alive:
-                    try:
-                        os.kill(int(pid), 0)
-                        alive = True
-                    except ProcessLookupError:
-                        alive = False
-                    except PermissionError:
-                        alive = True
-            except (OSError, ValueError):
-                alive = False
-            if alive:
-                raise UserError(f"{out}: another sweep (host/pid {host} {pid}) is writing this dataset; "
-                                f"wait for it, or delete {lock} if that process is gone") from None
-            lock.unlink(missing_ok=True)     # stale lock of a killed process
-    raise UserError(f"{out}: could not take the lock {lock}")
+def _acquire_lock(out: Path):
+    """The sweep's exclusive lock on ``out`` (pipeline.integrity.DirLock: flock, race-free, no stale locks)."""
+    from pipeline.integrity import DirLock
+
+    return DirLock(out / LOCK_NAME, what="sweep").acquire()
 
 
 def _existing_chunks(out: Path, spec: SweepSpec) -> set[int]:
     """Chunks already complete on disk (checked against the fingerprint and expected row count)."""
     import pyarrow.parquet as pq
+
+    from pipeline.integrity import verify_checksum
 
     done = set()
     fp = spec.fingerprint
@@ -554,6 +533,10 @@ def _existing_chunks(out: Path, spec: SweepSpec) -> set[int]:
             raise UserError(f"{p}: unexpected file name in a sweep dataset") from None
         if not 0 <= k < spec.n_chunks:
             raise UserError(f"{p}: chunk {k} is outside this sweep's {spec.n_chunks} chunks")
+        bad = verify_checksum(p)
+        if bad is not None:
+            print(f"warning: {p}: {bad}; it will be recomputed", file=sys.stderr)
+            continue
         try:
             md = pq.read_metadata(p)
         except Exception as e:  # noqa: BLE001 - a damaged file is recomputed, and said so
@@ -572,7 +555,7 @@ def _existing_chunks(out: Path, spec: SweepSpec) -> set[int]:
 
 
 def _clean_temp(out: Path) -> None:
-    for p in out.glob(".part-*.parquet.tmp-*"):
+    for p in list(out.glob(".part-*.parquet.tmp-*")) + list(out.glob(".part-*.parquet.sha256.tmp-*")):
         p.unlink(missing_ok=True)
 
 
@@ -580,6 +563,11 @@ def _prepare_out(out: Path, spec: SweepSpec, overwrite: bool) -> dict | None:
     """Check the output directory against ``spec``; returns the existing metadata (resume) or None."""
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out} exists and is not a directory")
+    if out.exists() and overwrite:
+        foreign = _foreign_files(out)
+        if foreign:
+            raise UserError(f"--overwrite: {out} holds {len(foreign)} file(s) this sweep did not write "
+                            f"(first: {foreign[0].name}); refusing to delete them: use a new --out")
     if not out.exists() or overwrite:
         return None
     meta = _read_meta(out)
@@ -599,8 +587,34 @@ def _prepare_out(out: Path, spec: SweepSpec, overwrite: bool) -> dict | None:
     return meta
 
 
+def _foreign_files(out: Path) -> list[Path]:
+    """Files in ``out`` that a sweep did not write (--overwrite never deletes those)."""
+    import pyarrow.parquet as pq
+
+    from pipeline.integrity import CHECKSUM_SUFFIX
+
+    own_names = {META_NAME, LOCK_NAME}
+    foreign = []
+    for p in sorted(out.iterdir()):
+        if p.name in own_names or (p.name.startswith(".part-") and ".tmp-" in p.name):
+            continue
+        if p.is_file() and p.name.startswith("part-") and p.name.endswith(".parquet" + CHECKSUM_SUFFIX):
+            continue
+        if p.is_file() and p.match(PART_GLOB):
+            try:
+                if b"vibro.fingerprint" in (pq.read_metadata(p).metadata or {}):
+                    continue
+            except Exception:  # noqa: BLE001 - unreadable: a damaged chunk of ours is still ours if sidecar exists
+                if (out / (p.name + CHECKSUM_SUFFIX)).exists():
+                    continue
+        foreign.append(p)
+    return foreign
+
+
 def _wipe(out: Path) -> None:
-    for p in list(out.glob(PART_GLOB)) + [out / META_NAME]:
+    from pipeline.integrity import CHECKSUM_SUFFIX
+
+    for p in list(out.glob(PART_GLOB)) + list(out.glob(PART_GLOB + CHECKSUM_SUFFIX)) + [out / META_NAME]:
         p.unlink(missing_ok=True)
 
 
@@ -738,7 +752,7 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, *, scheduler: str | None 
                      "finished": datetime.now(timezone.utc).isoformat(timespec="seconds")})
         atomic_write_json(out / META_NAME, meta)
     finally:
-        lock.unlink(missing_ok=True)
+        lock.release()
     return SweepSummary(out=str(out), n_points=spec.n_points, n_chunks=spec.n_chunks, computed=computed,
                         reused=n_done_pts, status_counts=counts, wall_time_s=wall, sims_per_s=rate,
                         fingerprint=spec.fingerprint, backend=backend, metadata=meta)
