@@ -33,15 +33,16 @@ class DirLock:
     ``with DirLock(path, what="sweep"):`` raises :class:`LockBusy` naming the holder when another
     process (or another open of the same file in this process) holds it."""
 
-    def __init__(self, path: str | os.PathLike, what: str = "writer") -> None:
+    def __init__(self, path: str | os.PathLike, what: str = "writer", blocking: bool = False) -> None:
         self.path = Path(path)
         self.what = what
+        self.blocking = blocking        # True: wait for the holder instead of raising LockBusy
         self._fd: int | None = None
 
     def acquire(self) -> "DirLock":
         fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fd, fcntl.LOCK_EX if self.blocking else fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             try:
                 holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "unknown"
