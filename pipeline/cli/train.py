@@ -7,7 +7,7 @@ from pathlib import Path
 from pipeline.core.errors import UserError
 
 EPILOG = """what it writes (in --out):
-  bundle.joblib, bundle.json   the chosen models, input schema (names, trained ranges), model/preset and the
+  bundle.skops, bundle.json    the chosen models, input schema (names, trained ranges), model/preset and the
                                dataset fingerprint; load with surrogate.load_bundle(DIR or MLFLOW_RUN_ID)
   report.json                  CV scores of every candidate, held-out R2 / MAE / RMSE / interval coverage per
                                target, accuracy + confusion matrix, learning curve, simulations needed per goal
