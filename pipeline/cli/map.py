@@ -5,11 +5,10 @@ import argparse
 import time
 from pathlib import Path
 
-from pipeline.cli.args import parse_assignments
+from pipeline.cli.args import check_settings, count, finite, parse_assignments, threads
 from pipeline.core.errors import UserError
 
 KINDS = ("auto", "peterka", "rop", "label", "bifurcation")
-INT_SETTINGS = ("min_transient", "max_transient", "window", "samples_per_cycle", "max_steps_per_cycle")
 
 EPILOG = """\
 kinds (--kind auto picks: no --y -> bifurcation; pendulum/rimd -> peterka; drill/indenter-* -> rop):
@@ -46,12 +45,12 @@ def add_parser(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG)
     p.add_argument("model", help="drill | indenter-metal | indenter-sandstone | pendulum | rimd")
     p.add_argument("--x", required=True, metavar="PARAM", help="parameter on the horizontal axis (e.g. frequency_hz)")
-    p.add_argument("--x-range", nargs=2, type=float, metavar=("LO", "HI"),
+    p.add_argument("--x-range", nargs=2, type=finite, metavar=("LO", "HI"),
                    help="range of --x in SI units (default: per model, ModelSpec.map_ranges; drill forces are multiples of Pr)")
-    p.add_argument("--nx", type=int, default=40, help="number of --x values (default 40)")
+    p.add_argument("--nx", type=count(2, 10_000), default=40, help="number of --x values (default 40)")
     p.add_argument("--y", metavar="PARAM", help="parameter on the vertical axis (omit for a bifurcation diagram)")
-    p.add_argument("--y-range", nargs=2, type=float, metavar=("LO", "HI"), help="range of --y in SI units")
-    p.add_argument("--ny", type=int, default=40, help="number of --y values (default 40)")
+    p.add_argument("--y-range", nargs=2, type=finite, metavar=("LO", "HI"), help="range of --y in SI units")
+    p.add_argument("--ny", type=count(2, 10_000), default=40, help="number of --y values (default 40)")
     p.add_argument("--log-x", action="store_true", help="geometric spacing of --x values")
     p.add_argument("--log-y", action="store_true", help="geometric spacing of --y values")
     p.add_argument("--color", metavar="LABEL",
@@ -67,7 +66,7 @@ def add_parser(sub) -> None:
     p.add_argument("--setting", dest="settings", action="append", metavar="NAME=VALUE",
                    help="numerical setting (repeatable): rtol, min_transient, max_transient, window, period_tol, "
                         "settle_tol, event_tol, max_step_frac, stat_tol")
-    p.add_argument("--threads", type=int, help="worker threads (default: all cores)")
+    p.add_argument("--threads", type=threads, help="worker threads (default: all cores)")
     p.add_argument("--out", metavar="PREFIX", help="output prefix: writes PREFIX.png and PREFIX.parquet")
     p.add_argument("--no-mlflow", action="store_true", help="do not log the run to MLflow")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
@@ -75,9 +74,7 @@ def add_parser(sub) -> None:
 
 
 def _settings(items):
-    s = parse_assignments(items, "--setting") or None
-    if s:
-        s = {k: (int(v) if k in INT_SETTINGS else v) for k, v in s.items()}
+    s = check_settings(parse_assignments(items, "--setting")) or None
     return s
 
 
@@ -98,6 +95,11 @@ def resolve_kind(model: str, kind: str, has_y: bool) -> str:
 def run(args) -> int:
     import sim
     from tqdm import tqdm
+
+    from pipeline.cli.args import MAX_POINTS
+
+    if args.y and args.nx * args.ny > MAX_POINTS:
+        raise UserError(f"--nx x --ny = {args.nx * args.ny} points, more than the bound {MAX_POINTS}")
 
     from pipeline.maps import compute as M
     from pipeline.maps import plot as P

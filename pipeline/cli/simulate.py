@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from pipeline.cli.args import parse_assignments
+from pipeline.cli.args import check_settings, parse_assignments
 from pipeline.core.jsonable import dump_json
 
 
@@ -36,10 +36,7 @@ def run(args) -> int:
     from sim import simulate
 
     params = parse_assignments(args.sets)
-    settings = parse_assignments(args.settings, "--setting") or None
-    if settings:
-        settings = {k: (int(v) if k in ("min_transient", "max_transient", "window", "samples_per_cycle",
-                                         "max_steps_per_cycle") else v) for k, v in settings.items()}
+    settings = check_settings(parse_assignments(args.settings, "--setting")) or None
     res = simulate(args.model, preset=args.preset, settings=settings, history=bool(args.plot), **params)
     if args.json:
         print(dump_json(res.labels))

@@ -248,6 +248,16 @@ def status_counts(out: Path) -> dict[str, int]:
     return counts
 
 
+def _read_table(path: Path):
+    """A Parquet file as a pyarrow Table; UserError naming the file when it is not readable Parquet."""
+    import pyarrow.parquet as pq
+
+    try:
+        return pq.read_table(path)
+    except Exception as e:  # noqa: BLE001 - damaged / foreign file: the user's to fix
+        raise UserError(f"{path}: not a readable Parquet file ({type(e).__name__}: {str(e).splitlines()[0][:120]})") from None
+
+
 def load_dataset(path: str | os.PathLike, allow_partial: bool = False) -> pd.DataFrame:
     """Read a sweep dataset (directory of chunks, or one .parquet file), rows ordered by ``point_id``.
 
@@ -262,13 +272,13 @@ def load_dataset(path: str | os.PathLike, allow_partial: bool = False) -> pd.Dat
     if not path.exists():
         raise FileNotFoundError(2, "no such sweep dataset", str(path))
     if path.is_file():
-        df = pq.read_table(path).to_pandas()
+        df = _read_table(path).to_pandas()
         return df.sort_values("point_id", kind="stable").reset_index(drop=True)
     meta = _read_meta(path)
     parts = sorted(path.glob(PART_GLOB))
     if not parts:
         raise UserError(f"{path}: no {PART_GLOB} files (not a sweep dataset, or nothing computed yet)")
-    table = pa.concat_tables([pq.read_table(p) for p in parts])
+    table = pa.concat_tables([_read_table(p) for p in parts])
     df = table.to_pandas().sort_values("point_id", kind="stable").reset_index(drop=True)
     if df["point_id"].duplicated().any():
         raise UserError(f"{path}: duplicate point_id values (files from different runs mixed by hand?)")
