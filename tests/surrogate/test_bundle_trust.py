@@ -112,7 +112,7 @@ def test_tampered_payload_with_matching_manifest_is_refused_by_type_check(bundle
     _rehash(d)
     verify_bundle(d)                                   # the hashes match now
     with pytest.raises(UserError, match=r"holds type\(s\) a vibro bundle never contains "
-                                        r"\(tests.test_reliability_bundle.Payload\)"):
+                                        r"\(tests.surrogate.test_bundle_trust.Payload\)"):
         load_bundle(d)
     assert not flag.exists()
 

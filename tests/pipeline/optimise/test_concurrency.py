@@ -10,7 +10,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import optuna
@@ -69,19 +68,16 @@ def test_concurrent_creation_of_a_new_store(tmp_path):
 
 
 def _kill_after(db: Path, n_seen: int, sig: int, seed: int = 0, n: int = 24) -> None:
-    p = _spawn(db, n, seed, 0.3)
+    """Start a worker and send ``sig`` while it evaluates a batch, once ``n_seen`` trials are complete (the
+    worker announces each evaluation and then sleeps 1 s, so the signal lands with trials in flight)."""
+    p = _spawn(db, n, seed, 1.0)
     assert p.stdout.readline().strip() == "opened", p.stderr.read()    # never read a store being created
-    deadline = time.time() + 120
-    while True:
+    for line in p.stdout:
         assert p.poll() is None, p.stderr.read()
-        assert time.time() < deadline
-        if db.exists():
-            try:
-                if sum(t.state == TS.COMPLETE for t in _trials(db)) >= n_seen:
-                    break
-            except Exception:  # noqa: BLE001 - study not created yet
-                pass
-        time.sleep(0.05)
+        if line.strip() == "evaluating" and sum(t.state == TS.COMPLETE for t in _trials(db)) >= n_seen:
+            break
+    else:
+        raise AssertionError(f"worker ended before {n_seen} trials: {p.stderr.read()}")
     p.send_signal(sig)
     p.communicate(timeout=60)
 
@@ -98,7 +94,7 @@ def test_interrupted_study_resumes_to_the_uninterrupted_result(tmp_path, sig):
     db = tmp_path / "s.db"
     _kill_after(db, 6, sig)
     left = _trials(db)
-    assert any(t.state != TS.COMPLETE for t in left) or sig == signal.SIGINT   # kill -9 leaves RUNNING trials
+    assert any(t.state != TS.COMPLETE for t in left)                          # trials were in flight
     if sig == signal.SIGINT:
         assert not [t for t in left if t.state == TS.RUNNING]                 # Ctrl-C fails its own trials
     W.run(str(db), 24, 0, 0.0)
