@@ -47,10 +47,10 @@ def add_parser(sub) -> None:
     p.add_argument("--x", required=True, metavar="PARAM", help="parameter on the horizontal axis (e.g. frequency_hz)")
     p.add_argument("--x-range", nargs=2, type=finite, metavar=("LO", "HI"),
                    help="range of --x in SI units (default: per model, ModelSpec.map_ranges; drill forces are multiples of Pr)")
-    p.add_argument("--nx", type=count(2, 10_000), default=40, help="number of --x values (default 40)")
+    p.add_argument("--nx", type=count(1, 10_000), default=40, help="number of --x values (default 40)")
     p.add_argument("--y", metavar="PARAM", help="parameter on the vertical axis (omit for a bifurcation diagram)")
     p.add_argument("--y-range", nargs=2, type=finite, metavar=("LO", "HI"), help="range of --y in SI units")
-    p.add_argument("--ny", type=count(2, 10_000), default=40, help="number of --y values (default 40)")
+    p.add_argument("--ny", type=count(1, 10_000), default=40, help="number of --y values (default 40)")
     p.add_argument("--log-x", action="store_true", help="geometric spacing of --x values")
     p.add_argument("--log-y", action="store_true", help="geometric spacing of --y values")
     p.add_argument("--color", metavar="LABEL",

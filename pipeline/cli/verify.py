@@ -86,12 +86,12 @@ def run(args) -> int:
                        max_specific_energy_j_m=args.max_specific_energy_j_m, require_settled=not args.allow_not_settled)
     cons.check(None, None)
     out = Path(args.out)
-    inputs = [args.points, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None,
-              args.feedback, args.metrics]
-    check_out(out, inputs=inputs, overwrite=args.overwrite, marker="verify")
+    sources = [args.points, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None,
+               args.feedback, args.metrics]
+    check_out(out, inputs=sources, overwrite=args.overwrite, marker="verify")
     params = {"points": args.points, "surrogate": args.surrogate, "model": model, "preset": preset,
               "inputs": ",".join(inputs), "rel_tol": args.rel_tol, **cons.to_dict()}
-    with prepare_out(out, inputs=inputs, overwrite=args.overwrite, marker="verify") as tmp, \
+    with prepare_out(out, inputs=sources, overwrite=args.overwrite, marker="verify") as tmp, \
             tracking.run("verify", params, enabled=not args.no_mlflow) as mlflow:
         table, simres = verify_points(points, model, preset, inputs, cons, args.rel_tol, bundle=bundle, fixed=fixed,
                                       settings=settings,
