@@ -10,6 +10,8 @@ target would have if the point were in the target's training domain).
 """
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import warnings
 from dataclasses import dataclass, field
@@ -20,12 +22,15 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from pipeline.core.errors import UserError
-from pipeline.core.files import atomic_write_text, atomic_write_with
+from pipeline.core.files import atomic_write_bytes, atomic_write_text
 from surrogate.candidates import SubsampledGP
 from surrogate.features import InputScaler, TargetTransform
 from surrogate.intervals import ConformalInterval
 
-FORMAT = 1
+FORMAT = 2                       # 1: bundle.joblib (pickle), no manifest; 2: skops + manifest
+PAYLOAD = "bundle.skops"
+MANIFEST = "manifest.json"
+MANIFEST_KIND = "vibro-surrogate-bundle"
 ARTIFACT_DIR = "surrogate"
 
 
@@ -159,40 +164,116 @@ class Bundle:
                 "versions": _versions()}
 
     def save(self, path: str | os.PathLike) -> Path:
-        """Write bundle.json (schema, human-readable), report.json and bundle.joblib (estimators), atomically."""
-        import joblib
+        """Write bundle.skops (estimators), bundle.json (schema), report.json, then manifest.json
+        (sha256 and size of each), each atomically; the manifest last, so a half-written bundle
+        never verifies."""
+        import skops.io as sio
 
         from pipeline.core.jsonable import dump_json
 
         d = Path(path)
         d.mkdir(parents=True, exist_ok=True)
+        data = sio.dumps(self)
+        unknown = sorted(set(sio.get_untrusted_types(data=data)) - set(TRUSTED_TYPES))
+        if unknown:   # a bug, not a user error: a new estimator class must be reviewed and listed
+            raise RuntimeError(f"bundle holds types not in surrogate.bundle.TRUSTED_TYPES: {unknown}")
+        atomic_write_bytes(d / PAYLOAD, data)
         atomic_write_text(d / "bundle.json", dump_json(self.schema()) + "\n")
         atomic_write_text(d / "report.json", dump_json(self.report) + "\n")
-        atomic_write_with(d / "bundle.joblib", lambda tmp: joblib.dump({"format": FORMAT, "bundle": self}, tmp, compress=3))
+        files = {n: {"sha256": hashlib.sha256((d / n).read_bytes()).hexdigest(), "size": (d / n).stat().st_size}
+                 for n in (PAYLOAD, "bundle.json", "report.json")}
+        atomic_write_text(d / MANIFEST, dump_json({"kind": MANIFEST_KIND, "format": FORMAT, "payload": PAYLOAD,
+                                                "files": files, "versions": _versions()}) + "\n")
         return d
+
+
+# Types a bundle may hold beyond skops' defaults (numpy, scipy, scikit-learn estimators): reviewed
+# classes of this package and scikit-learn internals skops does not trust by default.  Loading
+# refuses anything else *before* constructing it.
+TRUSTED_TYPES = (
+    "surrogate.bundle.Bundle", "surrogate.bundle.TargetModel", "surrogate.candidates.SubsampledGP",
+    "surrogate.features.InputScaler", "surrogate.features.TargetTransform", "surrogate.intervals.ConformalInterval",
+    "sklearn.gaussian_process.kernels.ConstantKernel", "sklearn.gaussian_process.kernels.Matern",
+    "sklearn.gaussian_process.kernels.RBF", "sklearn.gaussian_process.kernels.Product",
+    "sklearn.gaussian_process.kernels.Sum", "sklearn.gaussian_process.kernels.WhiteKernel",
+    "sklearn.gaussian_process.kernels.Hyperparameter",
+    "sklearn.neural_network._stochastic_optimizers.AdamOptimizer",
+    "sklearn.neural_network._stochastic_optimizers.SGDOptimizer",
+    "sklearn.tree._tree.Tree", "sklearn.ensemble._hist_gradient_boosting.predictor.TreePredictor",
+)
 
 
 def _versions() -> dict:
     import sklearn
+    import skops
 
-    return {"scikit-learn": sklearn.__version__, "numpy": np.__version__}
+    return {"scikit-learn": sklearn.__version__, "numpy": np.__version__, "skops": skops.__version__}
+
+
+def verify_bundle(path: str | os.PathLike) -> dict:
+    """Check a bundle directory's manifest and every file's size and sha256 WITHOUT deserialising
+    anything; returns the manifest.  UserError (one line naming the file) when corrupt, foreign,
+    tampered or of an old format.  This catches damage and mix-ups, not a deliberate attacker
+    (who can rewrite the manifest too): that is what the skops trusted-type check in
+    :func:`load_bundle` is for."""
+    d = Path(path)
+    mpath = d / MANIFEST
+    if not d.is_dir() or not (mpath.is_file() or (d / "bundle.joblib").is_file()):
+        raise UserError(f"'{path}' is not a surrogate bundle directory (no {MANIFEST})")
+    if not mpath.is_file():
+        raise UserError(f"{d}: an old-format surrogate bundle (bundle.joblib, a pickle without a manifest); it is not "
+                        f"loaded because unpickling runs code: retrain it with 'vibro train'")
+    try:
+        man = json.loads(mpath.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise UserError(f"{mpath}: unreadable bundle manifest ({type(e).__name__})") from None
+    if not isinstance(man, dict) or man.get("kind") != MANIFEST_KIND:
+        raise UserError(f"{mpath}: not a vibro surrogate bundle manifest")
+    if man.get("format") != FORMAT:
+        raise UserError(f"{mpath}: bundle format {man.get('format')!r}, this vibro reads format {FORMAT}; "
+                        f"retrain with 'vibro train'")
+    files = man.get("files")
+    if not isinstance(files, dict) or man.get("payload") != PAYLOAD or PAYLOAD not in files:
+        raise UserError(f"{mpath}: malformed bundle manifest (no '{PAYLOAD}' entry)")
+    for name, rec in files.items():
+        f = d / str(name)
+        if "/" in str(name) or not isinstance(rec, dict):
+            raise UserError(f"{mpath}: malformed entry {name!r}")
+        if not f.is_file():
+            raise UserError(f"{f}: missing (listed in the bundle manifest)")
+        if f.stat().st_size != rec.get("size"):
+            raise UserError(f"{f}: {f.stat().st_size} bytes, the manifest says {rec.get('size')} (truncated or replaced)")
+        if hashlib.sha256(f.read_bytes()).hexdigest() != rec.get("sha256"):
+            raise UserError(f"{f}: sha256 differs from the bundle manifest (damaged or tampered with)")
+    return man
 
 
 def load_bundle(ref: str | os.PathLike, model: str | None = None) -> Bundle:
     """Load a bundle from its directory (pipeline.tracking.load_bundle also resolves MLflow run ids).
 
-    ``model``: raise UserError unless the bundle was trained on that model's data."""
-    import joblib
+    Order: manifest and hashes (:func:`verify_bundle`), then the skops payload's types against
+    :data:`TRUSTED_TYPES`, and only then are objects constructed.  ``model``: raise UserError unless
+    the bundle was trained on that model's data."""
+    import skops.io as sio
 
     path = Path(ref)
-    if not (path / "bundle.joblib").is_file():
-        raise UserError(f"'{ref}' is not a surrogate bundle directory (no bundle.joblib)")
+    if not path.is_dir():
+        raise UserError(f"'{ref}' is not a surrogate bundle directory")
+    verify_bundle(path)
+    f = path / PAYLOAD
+    data = f.read_bytes()
     try:
-        obj = joblib.load(path / "bundle.joblib")
-    except Exception as e:  # noqa: BLE001 - corrupt / foreign pickle
-        raise UserError(f"{path / 'bundle.joblib'}: cannot be read ({type(e).__name__}: {e})") from None
-    if not isinstance(obj, dict) or obj.get("format") != FORMAT or not isinstance(obj.get("bundle"), Bundle):
-        raise UserError(f"{path / 'bundle.joblib'}: not a vibro surrogate bundle of format {FORMAT}")
-    b = obj["bundle"]
+        untrusted = sio.get_untrusted_types(data=data)
+    except Exception as e:  # noqa: BLE001 - not a skops file
+        raise UserError(f"{f}: cannot be read ({type(e).__name__})") from None
+    foreign = sorted(set(untrusted) - set(TRUSTED_TYPES))
+    if foreign:
+        raise UserError(f"{f}: holds type(s) a vibro bundle never contains ({', '.join(foreign[:3])}); refusing to load")
+    try:
+        b = sio.loads(data, trusted=list(untrusted))
+    except Exception as e:  # noqa: BLE001 - damaged content of a verified file: a foreign writer
+        raise UserError(f"{f}: cannot be read ({type(e).__name__}: {str(e)[:120]})") from None
+    if not isinstance(b, Bundle):
+        raise UserError(f"{f}: not a vibro surrogate bundle")
     b.check_model(model)
     return b

@@ -36,7 +36,7 @@ def _requirements() -> list[str]:
     from importlib.metadata import PackageNotFoundError, version
 
     out = []
-    for pkg in ("vibro", "scikit-learn", "numpy", "pandas", "scipy", "joblib"):
+    for pkg in ("vibro", "scikit-learn", "numpy", "pandas", "scipy", "skops"):
         try:
             out.append(f"{pkg}=={version(pkg)}")
         except PackageNotFoundError:

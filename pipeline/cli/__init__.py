@@ -82,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.debug:
             raise
         msg = str(e) if not isinstance(e, OSError) or not e.filename else f"{e.strerror}: {e.filename}"
+        msg = " ".join(ln.strip() for ln in msg.splitlines() if ln.strip())       # one line, always
         print(f"vibro {args.command}: error: {msg}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

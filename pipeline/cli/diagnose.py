@@ -8,6 +8,7 @@ from dataclasses import fields
 from pathlib import Path
 
 from pipeline.cli.args import add_quiet, add_workers, check_workers
+from pipeline.cli import args as A
 from pipeline.core.errors import UserError
 
 DESCRIPTION = """\
@@ -65,9 +66,17 @@ def add_parser(sub) -> None:
     p.add_argument("--metrics", metavar="FILE.json",
                    help="also write the headline numbers (errors, noise floor, selected effect) to this JSON file")
     add_workers(p, dest="threads", help="simulation threads (default: all cores)")
+    A.add_overwrite(p, "diagnosis")
     p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
     add_quiet(p)
     p.set_defaults(func=run)
+
+
+# integer settings: (low, high) — the highs bound the work (fits x starts x iterations)
+INT_BOUNDS = {"holdout_every": (1, 1000), "min_runs_holdout": (1, 100_000), "n_starts": (1, 100), "grid": (1, 100),
+              "candidate_starts": (1, 2), "max_nfev": (1, 10_000), "seed": (0, 2**32 - 1), "n_threads": (1, A.MAX_THREADS),
+              "record_window": (0, 10_000)}
+FLOAT_BOUNDS = {"max_harmonic_hz": 1e6, "diff_step": 1.0, "bic_margin": 1e12, "explained_nrms": 1e6, "fs_sim_hz": 1e7}
 
 
 def load_config(path: str | None, sets: dict, effects: list[str] | None, threads: int | None):
@@ -86,19 +95,17 @@ def load_config(path: str | None, sets: dict, effects: list[str] | None, threads
     for k in values:
         if k not in known:
             raise UserError(f"diagnose setting '{k}' is unknown (known: {', '.join(known)})")
-    ints = ("holdout_every", "min_runs_holdout", "n_starts", "grid", "candidate_starts", "max_nfev", "seed", "n_threads")
-    if "record_window" in values and (float(values["record_window"]) != int(float(values["record_window"]))
-                                      or int(float(values["record_window"])) < 0):
-        raise UserError(f"diagnose setting 'record_window' must be an integer >= 0, got {values['record_window']!r}")
-    for k in ints:
-        if k in values and values[k] is not None:
-            v = values[k]
-            if float(v) != int(float(v)) or int(float(v)) < (0 if k == "seed" else 1):
-                raise UserError(f"diagnose setting '{k}' must be a positive integer, got {v!r}")
-            values[k] = int(float(v))
-    for k in ("max_harmonic_hz", "diff_step", "bic_margin", "explained_nrms", "fs_sim_hz"):
-        if k in values and not float(values[k]) > 0:
-            raise UserError(f"diagnose setting '{k}' must be > 0, got {values[k]!r}")
+    for k, v in list(values.items()):
+        if k in INT_BOUNDS and v is not None:
+            lo, hi = INT_BOUNDS[k]
+            values[k] = A.number(v, f"diagnose setting '{k}'", integer=True, lo=lo, hi=hi)
+        elif k in FLOAT_BOUNDS and v is not None:
+            values[k] = A.number(v, f"diagnose setting '{k}'", lo=0.0, lo_open=True, hi=FLOAT_BOUNDS[k])
+    if values.get("effects") is not None and (not isinstance(values["effects"], list)
+                                              or not all(isinstance(e, str) for e in values["effects"])):
+        raise UserError(f"diagnose setting 'effects' must be a list of effect names, got {values['effects']!r}")
+    if values.get("sim_settings") is not None:
+        values["sim_settings"] = A.check_settings(values["sim_settings"], "diagnose setting 'sim_settings'")
     return DiagnoseConfig(**values)
 
 
@@ -109,11 +116,13 @@ def run(args) -> int:
     from pipeline.cli.args import parse_assignments
     from pipeline.core.files import atomic_write_text
     from pipeline.core.jsonable import dump_json
+    from pipeline.core.outdir import prepare_out
     from pipeline.diagnosis.driver import diagnose
     from pipeline.datasets.measured import load_dataset
 
     cfg = load_config(args.params, parse_assignments(args.sets, "--setting"), args.effects, check_workers(args.threads))
     ds = load_dataset(args.dataset)
+    check_signals(ds)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out '{out}' exists and is not a directory")
@@ -122,24 +131,63 @@ def run(args) -> int:
     for system in ds.systems:
         n = int((ds.runs["system"] == system).sum())
         n_steps += 1 if n >= max(cfg.min_runs_holdout, 3) else n
-    bar = tqdm(total=n_steps, desc="diagnose (folds)", disable=args.quiet, unit="fold", file=sys.stderr)
     from dataclasses import asdict
 
-    with tracking.run("diagnose", {"dataset": args.dataset, **asdict(cfg)}, enabled=not args.no_mlflow,
-                      variant=Path(args.dataset).resolve().name) as mlflow:
-        report = diagnose(ds, out, cfg, log=log, progress=lambda: bar.update(1))
-        bar.close()
-        headline = _headline(report)
-        if mlflow is not None:
-            mlflow.log_metrics({k: float(v) for k, v in _flat_metrics(report).items()})
-            mlflow.set_tag("vibro.selected", json.dumps(report["selected"]))
-            mlflow.log_artifacts(str(out), artifact_path="diagnose")
+    inputs = [args.dataset, args.params, args.metrics]
+    with prepare_out(out, inputs=inputs, overwrite=args.overwrite, marker="diagnose") as tmp:
+        bar = tqdm(total=n_steps, desc="diagnose (folds)", disable=args.quiet, unit="fold", file=sys.stderr)
+        with tracking.run("diagnose", {"dataset": args.dataset, **asdict(cfg)}, enabled=not args.no_mlflow,
+                          variant=Path(args.dataset).resolve().name) as mlflow:
+            report = diagnose(ds, tmp, cfg, log=log, progress=lambda: bar.update(1))
+            bar.close()
+            check_report(report)
+            headline = _headline(report)
+            if mlflow is not None:
+                mlflow.log_metrics({k: float(v) for k, v in _flat_metrics(report).items()})
+                mlflow.set_tag("vibro.selected", json.dumps(report["selected"]))
+                mlflow.log_artifacts(str(tmp), artifact_path="diagnose")
     if args.metrics:
         atomic_write_text(args.metrics, dump_json(headline))
     if not args.quiet:
         print(dump_json(headline))
         print(f"report: {out / 'report.md'}")
     return 0
+
+
+SIGNALS_CHECKED = ("accel_m_s2", "force_n")
+SUMMARY_CHECKED = ("peak_decel_g", "impacts_per_cycle", "rop_m_s", "peak_force_n", "spectral_ratio")
+
+
+def check_signals(ds) -> None:
+    """UserError when a run's acceleration or force series is constant (e.g. all zero): it carries no
+    feature to fit, and the fit's error would be meaningless."""
+    import numpy as np
+
+    if ds.summary is not None:
+        feats = ds.summary[[c for c in SUMMARY_CHECKED if c in ds.summary.columns]].to_numpy(dtype=float)
+        feats = feats[np.isfinite(feats)]
+        if feats.size and not np.any(feats):
+            raise UserError("summary.csv: every feature (" + ", ".join(c for c in SUMMARY_CHECKED if c in ds.summary.columns)
+                            + ") is zero in every run; nothing to diagnose")
+    for rid, df in ds.series.items():
+        for col in SIGNALS_CHECKED:
+            if col in df.columns:
+                v = df[col].to_numpy(dtype=float)
+                if v.size and np.ptp(v) == 0:
+                    raise UserError(f"series/{rid}.csv: column '{col}' is constant ({v[0]:g} in every row); "
+                                    f"nothing to diagnose")
+
+
+def check_report(report: dict) -> None:
+    """UserError when the diagnosis produced no finite error (features the model cannot match at all)."""
+    import math
+
+    for key in ("default_error", "base_error", "final_error"):
+        vals = report[key].values() if isinstance(report[key], dict) else [report[key]]
+        for v in vals:
+            if v is None or not math.isfinite(float(v)) or float(v) > 1e100:   # 1e100: an overflow, not a fit
+                raise UserError(f"diagnosis {key} = {v!r}: the dataset's features are degenerate "
+                                f"(the model cannot be compared with them); check the measured signals")
 
 
 def _headline(report: dict) -> dict:

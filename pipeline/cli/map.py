@@ -5,11 +5,11 @@ import argparse
 import time
 from pathlib import Path
 
-from pipeline.cli.args import add_quiet, add_rig, add_set, add_workers, check_workers, model_and_overrides, parse_assignments
+from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_settings, check_workers, count, finite,
+                               model_and_overrides, parse_assignments)
 from pipeline.core.errors import UserError
 
 KINDS = ("auto", "peterka", "rop", "label", "bifurcation")
-INT_SETTINGS = ("min_transient", "max_transient", "window", "samples_per_cycle", "max_steps_per_cycle")
 
 EPILOG = """\
 kinds (--kind auto picks: no --y -> bifurcation; pendulum/rimd -> peterka; drill/indenter-* -> rop):
@@ -51,14 +51,14 @@ def add_parser(sub) -> None:
                    help="parameter on the horizontal axis, optionally with its range in SI units (e.g. "
                         "frequency_hz=3:12; default range per model, ModelSpec.map_ranges; drill forces are "
                         "multiples of Pr)")
-    p.add_argument("--x-range", nargs=2, type=float, metavar=("LO", "HI"), help="range of --x (older spelling of "
-                                                                                 "--x PARAM=LO:HI)")
-    p.add_argument("--nx", type=int, default=40, help="number of --x values (default 40)")
+    p.add_argument("--x-range", nargs=2, type=finite, metavar=("LO", "HI"), help="range of --x (older spelling of "
+                                                                                  "--x PARAM=LO:HI)")
+    p.add_argument("--nx", type=count(1, 10_000), default=40, help="number of --x values (default 40)")
     p.add_argument("--y", metavar="PARAM[=LO:HI]",
                    help="parameter on the vertical axis, optionally with its range (omit for a bifurcation diagram)")
-    p.add_argument("--y-range", nargs=2, type=float, metavar=("LO", "HI"), help="range of --y (older spelling of "
-                                                                                 "--y PARAM=LO:HI)")
-    p.add_argument("--ny", type=int, default=40, help="number of --y values (default 40)")
+    p.add_argument("--y-range", nargs=2, type=finite, metavar=("LO", "HI"), help="range of --y (older spelling of "
+                                                                                  "--y PARAM=LO:HI)")
+    p.add_argument("--ny", type=count(1, 10_000), default=40, help="number of --y values (default 40)")
     p.add_argument("--log-x", action="store_true", help="geometric spacing of --x values")
     p.add_argument("--log-y", action="store_true", help="geometric spacing of --y values")
     p.add_argument("--color", metavar="LABEL",
@@ -82,9 +82,7 @@ def add_parser(sub) -> None:
 
 
 def _settings(items):
-    s = parse_assignments(items, "--setting") or None
-    if s:
-        s = {k: (int(v) if k in INT_SETTINGS else v) for k, v in s.items()}
+    s = check_settings(parse_assignments(items, "--setting")) or None
     return s
 
 
@@ -121,6 +119,11 @@ def resolve_kind(model: str, kind: str, has_y: bool) -> str:
 def run(args) -> int:
     import sim
     from tqdm import tqdm
+
+    from pipeline.cli.args import MAX_POINTS
+
+    if args.y and args.nx * args.ny > MAX_POINTS:
+        raise UserError(f"--nx x --ny = {args.nx * args.ny} points, more than the bound {MAX_POINTS}")
 
     from pipeline.maps import compute as M
     from pipeline.maps import plot as P

@@ -1,6 +1,10 @@
 """``vibro optimise``: search frequency, amplitude and static force for maximum ROP, verified by the simulator."""
 from __future__ import annotations
 
+from pathlib import Path
+
+from pipeline.cli import args as A
+
 import argparse
 
 
@@ -64,18 +68,18 @@ def add_parser(sub) -> None:
                    help="rop: maximise ROP (default); pareto: maximise ROP and minimise specific energy")
     p.add_argument("--sampler", choices=["tpe", "gp", "nsga2", "random"],
                    help="optuna sampler (default tpe: constraints, batches, no extra package; gp needs PyTorch)")
-    p.add_argument("--n-trials", type=int, help="total complete trials of the study (default 600 on the surrogate, "
+    p.add_argument("--n-trials", type=A.n_trials, help="total complete trials of the study (default 600 on the surrogate, "
                                                  "200 on the simulator = simulator calls)")
-    p.add_argument("--batch-size", type=int, help="trials proposed and evaluated together (default 8)")
-    p.add_argument("--seed", type=int, help="sampler seed (default 0): same seed, same study")
-    p.add_argument("--max-peak-force-n", type=float, metavar="N", help="constraint: peak_force_n <= N newtons")
-    p.add_argument("--peak-force-static-ratio", type=float, metavar="K",
+    p.add_argument("--batch-size", type=A.count(1, 10_000), help="trials proposed and evaluated together (default 8)")
+    p.add_argument("--seed", type=A.seed, help="sampler seed (default 0): same seed, same study")
+    p.add_argument("--max-peak-force-n", type=A.positive, metavar="N", help="constraint: peak_force_n <= N newtons")
+    p.add_argument("--peak-force-static-ratio", type=A.positive, metavar="K",
                    help="constraint: peak_force_n <= K × static_force_n (K = 1: impact below the static preload)")
-    p.add_argument("--max-specific-energy-j-m", type=float, metavar="E", help="constraint: specific_energy_j_m <= E J/m")
+    p.add_argument("--max-specific-energy-j-m", type=A.positive, metavar="E", help="constraint: specific_energy_j_m <= E J/m")
     p.add_argument("--allow-not-settled", action="store_true",
                    help="accept not_settled (bounded but aperiodic) points; runaway and failed never are")
-    p.add_argument("--n-verify", type=int, help="distinct best points (or front points) re-simulated (default 10)")
-    p.add_argument("--rel-tol", type=float, help="ROP relative error above which the surrogate is wrong (default 0.1)")
+    p.add_argument("--n-verify", type=A.count(1, 10_000), help="distinct best points (or front points) re-simulated (default 10)")
+    p.add_argument("--rel-tol", type=A.positive, help="ROP relative error above which the surrogate is wrong (default 0.1)")
     p.add_argument("--storage", metavar="URL", help="optuna storage URL (default sqlite:///<project root>/optuna.db)")
     p.add_argument("--study-name", help="study name (default derived from mode, objective, model, preset and settings)")
     p.add_argument("--feedback", metavar="FILE.parquet",
@@ -86,6 +90,7 @@ def add_parser(sub) -> None:
     p.add_argument("--metrics", metavar="FILE.json", help="write the small metrics JSON here (for dvc)")
     p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
     add_quiet(p)
+    A.add_overwrite(p, "optimisation result")
     p.set_defaults(func=run)
 
 
@@ -106,6 +111,13 @@ def _feedback_path(base: dict) -> None:
                         f"the next 'make run' replaces): write it elsewhere, e.g. {DEFAULT_FEEDBACK}")
 
 
+# params.yaml 'optimise' numbers: (integer?, low, high); floats must be > low
+OPTIMISE_BOUNDS = {"n_trials": (True, 1, A.MAX_TRIALS), "batch_size": (True, 1, 10_000), "seed": (True, 0, 2**32 - 1),
+                   "n_verify": (True, 1, 10_000), "n_threads": (True, 1, A.MAX_THREADS), "rel_tol": (False, 0.0, 1e6),
+                   "max_peak_force_n": (False, 0.0, None), "peak_force_static_ratio": (False, 0.0, None),
+                   "max_specific_energy_j_m": (False, 0.0, None)}
+
+
 def config_from_args(args):
     """OptimiseConfig from params.yaml's ``optimise`` section overridden by the flags."""
     from pipeline.optimise.workflow import OptimiseConfig
@@ -113,6 +125,10 @@ def config_from_args(args):
     from pipeline.core.params import read_section
 
     base: dict = read_section(args.params, "optimise")
+    where = f"{args.params}: optimise" if args.params else "optimise"
+    for key, (integer, lo, hi) in OPTIMISE_BOUNDS.items():
+        if base.get(key) is not None:
+            base[key] = A.number(base[key], f"{where}.{key}", integer=integer, lo=lo, hi=hi, lo_open=not integer)
     if args.simulator:
         base["mode"] = "simulator"
     elif args.surrogate:
@@ -149,9 +165,14 @@ def run(args) -> int:
     from pipeline import tracking
     from pipeline.optimise.workflow import run_optimise
 
+    from pipeline.core.outdir import prepare_out
+
     cfg = config_from_args(args)
-    with tracking.variant(cfg.objective):
-        rep = run_optimise(cfg, args.out, metrics_path=args.metrics, progress=not args.quiet,
+    inputs = [args.params, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None,
+              args.metrics, args.feedback]
+    with tracking.variant(cfg.objective), \
+            prepare_out(args.out, inputs=inputs, overwrite=args.overwrite, marker="optimise") as tmp:
+        rep = run_optimise(cfg, tmp, metrics_path=args.metrics, progress=not args.quiet,
                            mlflow_enabled=not args.no_mlflow)
     print(rep["outcome"])
     if cfg.mode == "surrogate" and rep.get("surrogate_note"):

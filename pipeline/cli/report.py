@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from pipeline.cli import args as A
 from pipeline.core.errors import UserError
 
 REPORT_KEYS = {"title", "max_rows", "dpi"}
@@ -23,7 +24,8 @@ def add_parser(sub) -> None:
                "  vibro report --out /tmp/rep --sweep data/sweep --surrogate models/surrogate --no-mlflow",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", default="results/report", help="output folder (default: results/report)")
-    p.add_argument("--params", default="params.yaml", help="params file; its 'report' section is read (default: params.yaml)")
+    p.add_argument("--params", default=None, help="params file; its 'report' section is read (default: params.yaml "
+                                                  "when present)")
     p.add_argument("--sweep", default="data/sweep", help="sweep dataset folder (default: data/sweep)")
     p.add_argument("--surrogate", default="models/surrogate", help="surrogate bundle folder (default: models/surrogate)")
     p.add_argument("--optimise", default="results/optimise", help="optimise output folder (default: results/optimise)")
@@ -32,14 +34,15 @@ def add_parser(sub) -> None:
     p.add_argument("--metrics-dir", default="metrics", help="folder of the stages' metrics JSON (default: metrics)")
     p.add_argument("--title", default=None, help="report title (overrides params.yaml report.title)")
     p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
+    A.add_overwrite(p, "report")
     p.set_defaults(func=run)
 
 
-def read_report_section(params_path: Path) -> dict:
+def read_report_section(params_path: Path, missing_ok: bool = True) -> dict:
     """The 'report' section of params.yaml ({} if the file or section is absent); unknown keys are an error."""
     from pipeline.core.params import read_section
 
-    sec = read_section(params_path, "report", missing_file_ok=True, known=REPORT_KEYS)
+    sec = read_section(params_path, "report", missing_file_ok=missing_ok, known=REPORT_KEYS)
     for key in ("max_rows", "dpi"):
         if key in sec and (not isinstance(sec[key], int) or sec[key] <= 0):
             raise UserError(f"{params_path}: report.{key} must be a positive integer, got {sec[key]!r}")
@@ -48,22 +51,29 @@ def read_report_section(params_path: Path) -> dict:
 
 def run(args) -> int:
     from pipeline import tracking
+    from pipeline.core.outdir import prepare_out
     from pipeline.report.build import ReportInputs, build_report
 
-    sec = read_report_section(Path(args.params))
+    if Path(args.surrogate).exists() and not Path(args.surrogate).is_dir():
+        raise UserError(f"--surrogate {args.surrogate}: not a surrogate bundle directory")
+    params = args.params or "params.yaml"                 # an explicit --params must exist
+    sec = read_report_section(Path(params), missing_ok=args.params is None)
     inp = ReportInputs(root=Path("."), sweep=Path(args.sweep), surrogate=Path(args.surrogate),
                        optimise=Path(args.optimise), verify=Path(args.verify), diagnose=Path(args.diagnose),
-                       metrics=Path(args.metrics_dir), params=Path(args.params),
+                       metrics=Path(args.metrics_dir), params=Path(params),
                        title=args.title or sec.get("title", "vibro pipeline report"),
                        max_rows=sec.get("max_rows", 15), dpi=sec.get("dpi", 100))
-    with tracking.run("report", {"out": args.out, **{f"report.{k}": v for k, v in sec.items()}},
-                      enabled=not args.no_mlflow) as mlflow:
-        res = build_report(inp, Path(args.out))
+    inputs = [params, args.sweep, args.surrogate, args.optimise, args.verify, args.diagnose, args.metrics_dir]
+    out = Path(args.out)
+    with prepare_out(out, inputs=inputs, overwrite=args.overwrite, marker="report") as tmp, \
+            tracking.run("report", {"out": args.out, **{f"report.{k}": v for k, v in sec.items()}},
+                         enabled=not args.no_mlflow) as mlflow:
+        res = build_report(inp, tmp)
         if mlflow is not None:
             mlflow.log_artifact(str(res.markdown), artifact_path="report")
             mlflow.log_artifact(str(res.html), artifact_path="report")
             for fig in res.figures:
                 mlflow.log_artifact(str(fig), artifact_path="report/figures")
             mlflow.log_metric("report.n_figures", len(res.figures))
-    print(f"report: {res.html} ({len(res.figures)} figures) and {res.markdown}")
+    print(f"report: {out / res.html.name} ({len(res.figures)} figures) and {out / res.markdown.name}")
     return 0

@@ -7,7 +7,8 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from pipeline.cli.args import add_quiet, add_rig, add_set, add_workers, load_rig, parse_assignments
+from pipeline.cli import args as A
+from pipeline.cli.args import add_quiet, add_rig, add_set, add_workers, check_settings, load_rig, number, parse_assignments
 from pipeline.core.errors import UserError
 
 EPILOG = """\
@@ -63,11 +64,11 @@ def add_parser(sub) -> None:
     p.add_argument("--design", choices=("sobol", "lhs", "grid"),
                    help="sobol: scrambled Sobol' (first n points of 2^ceil(log2 n) when n is not a power of 2); "
                         "lhs: Latin hypercube; grid: full factorial (n_points must be a product of levels)")
-    p.add_argument("--n-points", type=int, help="number of points (> 0)")
-    p.add_argument("--seed", type=int, help="seed of the design (same seed -> same dataset)")
+    p.add_argument("--n-points", type=A.n_points, help="number of points (> 0)")
+    p.add_argument("--seed", type=A.seed, help="seed of the design (same seed -> same dataset)")
     p.add_argument("--setting", dest="settings", action="append", metavar="NAME=VALUE",
                    help="simulation setting (repeatable), e.g. --setting window=16; part of the spec")
-    p.add_argument("--chunk-size", type=int, help="points per chunk file (default 64); keep it when resuming")
+    p.add_argument("--chunk-size", type=A.n_points, help="points per chunk file (default 64); keep it when resuming")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the chunks on an existing Dask distributed cluster (tcp://host:port), or on a "
                         "throw-away LocalCluster with local:N (N single-threaded worker processes)")
@@ -93,17 +94,11 @@ def _parse_vary(items: list[str]) -> dict[str, dict]:
             raise UserError(f"--vary expects NAME=LOW:HIGH[:SCALE[:LEVELS]], got '{item}'")
         entry: dict = {}
         for key, raw in zip(("low", "high"), parts[:2]):
-            try:
-                entry[key] = float(raw)
-            except ValueError:
-                raise UserError(f"--vary {name}: {key} '{raw}' is not a number") from None
+            entry[key] = number(raw, f"--vary {name}: {key}")
         if len(parts) >= 3 and parts[2]:
             entry["scale"] = parts[2]
         if len(parts) == 4:
-            try:
-                entry["levels"] = int(parts[3])
-            except ValueError:
-                raise UserError(f"--vary {name}: levels '{parts[3]}' is not an integer") from None
+            entry["levels"] = number(parts[3], f"--vary {name}: levels", integer=True, lo=1, hi=A.MAX_POINTS)
         out[name.strip()] = entry
     return out
 
@@ -119,8 +114,15 @@ def spec_from_args(args):
     raw.pop("scheduler", None)
     workers = args.workers if args.workers is not None else raw.pop("workers", None)
     raw.pop("workers", None)
-    if workers is not None and (not isinstance(workers, int) or workers < 1):
-        raise UserError(f"--workers must be an integer >= 1, got {workers!r}")
+    if workers is not None:
+        workers = number(workers, "--workers" if args.workers is not None else "sweep.workers", integer=True, lo=1,
+                         hi=A.MAX_THREADS)
+    where = f"{args.params}: sweep" if args.params else "sweep"
+    for key, hi in (("n_points", A.MAX_POINTS), ("chunk_size", A.MAX_POINTS), ("seed", 2**32 - 1)):
+        if raw.get(key) is not None:
+            raw[key] = number(raw[key], f"{where}.{key}", integer=True, lo=0 if key == "seed" else 1, hi=hi)
+    if raw.get("settings") is not None:
+        raw["settings"] = check_settings(raw["settings"], f"{where}.settings")
     rig_path = args.rig or raw.pop("rig", None)
     raw.pop("rig", None)
     rig = load_rig(rig_path, args.model, args.preset)
@@ -133,7 +135,7 @@ def spec_from_args(args):
     if args.vary:
         raw["vary"] = _parse_vary(args.vary)
     if args.settings:
-        raw["settings"] = {**(raw.get("settings") or {}), **parse_assignments(args.settings, "--setting")}
+        raw["settings"] = {**(raw.get("settings") or {}), **check_settings(parse_assignments(args.settings, "--setting"))}
     spec = make_spec(raw, model=None if rig else args.model, preset=None if rig else args.preset, design=args.design, n_points=args.n_points,
                      seed=args.seed, chunk_size=args.chunk_size)
     return spec, scheduler, workers

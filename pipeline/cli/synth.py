@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from pipeline.cli import args as A
 from pipeline.cli.args import add_quiet, add_workers, check_workers
 from pipeline.core.errors import UserError
 
@@ -35,19 +36,20 @@ def add_parser(sub) -> None:
     p.add_argument("--effect", action="append", metavar="NAME|PARAM=VALUE", help="switch on a §6 effect (repeatable)")
     p.add_argument("--outside", help="physics outside the library: mount_resonance | contact_hertz")
     p.add_argument("--outside-param", action="append", metavar="NAME=VALUE", help="parameter of --outside")
-    p.add_argument("--frequencies", type=float, nargs="+", metavar="HZ",
+    p.add_argument("--frequencies", type=A.positive, nargs="+", metavar="HZ",
                    help="forcing frequencies [Table 1: 30 40 ... 100]; amplitude from Table 1 (interpolated)")
-    p.add_argument("--pressures", type=float, nargs="+", metavar="BAR", help="pneumatic pressures [1.0 1.5]")
-    p.add_argument("--perturb", type=float, default=0.3, help="log-normal sd of the calibratable parameters [0.3]")
-    p.add_argument("--seed", type=int, default=0, help="random seed (parameters, noise, offsets) [0]")
-    p.add_argument("--cycles", type=int, default=40, help="recorded forcing cycles per run [40]")
-    p.add_argument("--fs", type=float, default=20000.0, help="approximate sample rate, Hz [20000]")
+    p.add_argument("--pressures", type=A.positive, nargs="+", metavar="BAR", help="pneumatic pressures [1.0 1.5]")
+    p.add_argument("--perturb", type=A.arg_type(lo=0.0, hi=5.0), default=0.3, help="log-normal sd of the calibratable parameters [0.3]")
+    p.add_argument("--seed", type=A.seed, default=0, help="random seed (parameters, noise, offsets) [0]")
+    p.add_argument("--cycles", type=A.count(4, 10_000), default=40, help="recorded forcing cycles per run [40]")
+    p.add_argument("--fs", type=A.arg_type(lo=0.0, lo_open=True, hi=1e7), default=20000.0, help="approximate sample rate, Hz [20000]")
     p.add_argument("--signals", nargs="+", metavar="SIGNAL",
                    help="recorded signals [accel_m_s2 force_n disp_m]; progression_m also possible")
-    p.add_argument("--noise-accel", type=float, default=0.03, help="accel noise sd / signal sd [0.03]")
-    p.add_argument("--noise-force", type=float, default=0.02, help="force noise sd / signal sd [0.02]")
+    p.add_argument("--noise-accel", type=A.arg_type(lo=0.0, hi=10.0), default=0.03, help="accel noise sd / signal sd [0.03]")
+    p.add_argument("--noise-force", type=A.arg_type(lo=0.0, hi=10.0), default=0.02, help="force noise sd / signal sd [0.02]")
     add_workers(p, dest="threads", help="simulation threads (default: all cores)")
     add_quiet(p)
+    A.add_overwrite(p, "synthetic dataset")
     p.set_defaults(func=run)
 
 
@@ -76,7 +78,11 @@ def run(args) -> int:
         cfg.signals = tuple(args.signals)
     if any(f <= 0 for f in cfg.frequencies_hz) or any(p <= 0 for p in cfg.pressures_bar):
         raise UserError("--frequencies and --pressures must be > 0")
+    from pipeline.core.outdir import check_out, prepare_out
+
+    check_out(args.out, overwrite=args.overwrite, marker="synth")     # before the simulations, not after
     ds, info = synthesize(cfg, progress=not args.quiet)
-    write_dataset(ds, args.out)
+    with prepare_out(args.out, overwrite=args.overwrite, marker="synth") as tmp:
+        write_dataset(ds, tmp)
     print(f"wrote {len(ds.runs)} runs to {args.out} (truth: {info['truth']})")
     return 0

@@ -4,11 +4,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from pipeline.cli import args as A
 from pipeline.cli.args import add_quiet, add_rig, add_workers, load_rig
 from pipeline.core.errors import UserError
 
 EPILOG = """what it writes (in --out):
-  bundle.joblib, bundle.json   the chosen models, input schema (names, trained ranges), model/preset and the
+  bundle.skops, bundle.json    the chosen models, input schema (names, trained ranges), model/preset and the
                                dataset fingerprint; load with surrogate.load_bundle(DIR or MLFLOW_RUN_ID)
   report.json                  CV scores of every candidate, held-out R2 / MAE / RMSE / interval coverage per
                                target, accuracy + confusion matrix, learning curve, simulations needed per goal
@@ -48,20 +49,21 @@ def add_parser(sub) -> None:
     p.add_argument("--inputs", help="comma-separated input columns (default: metadata 'vary', else varying controls)")
     p.add_argument("--regressors", help="comma-separated regressor candidates: gp, gbt, mlp, krr")
     p.add_argument("--classifiers", help="comma-separated classifier candidates: gbt, mlp, trees")
-    p.add_argument("--test-fraction", type=float, help="held-out fraction (default 0.2)")
-    p.add_argument("--cv-folds", type=int, help="cross-validation folds for model selection (default 5)")
-    p.add_argument("--seed", type=int, help="seed of the split, the models and the adaptive design (default 0)")
-    p.add_argument("--max-gp-points", type=int, help="Gaussian-process training subsample (default 600)")
+    p.add_argument("--test-fraction", type=A.arg_type(lo=0.0, hi=0.9, lo_open=True), help="held-out fraction (default 0.2)")
+    p.add_argument("--cv-folds", type=A.count(2, 100), help="cross-validation folds for model selection (default 5)")
+    p.add_argument("--seed", type=A.seed, help="seed of the split, the models and the adaptive design (default 0)")
+    p.add_argument("--max-gp-points", type=A.count(1, 100_000), help="Gaussian-process training subsample (default 600)")
     add_workers(p, dest="threads", help="BLAS/OpenMP threads while fitting (default 1)")
     p.add_argument("--adaptive", action="store_true",
                    help="also run adaptive sampling (calls the simulator) and compare it with the space-filling "
                         "design at equal numbers of simulations")
-    p.add_argument("--initial", type=int, help="adaptive: initial space-filling points (default 128)")
-    p.add_argument("--batch", type=int, help="adaptive: points added per round (default 64)")
-    p.add_argument("--budget", type=int, help="adaptive: total simulations (default 768)")
+    p.add_argument("--initial", type=A.count(2, A.MAX_POINTS), help="adaptive: initial space-filling points (default 128)")
+    p.add_argument("--batch", type=A.count(1, A.MAX_POINTS), help="adaptive: points added per round (default 64)")
+    p.add_argument("--budget", type=A.count(1, A.MAX_POINTS), help="adaptive: total simulations (default 768)")
     add_rig(p, "with --adaptive, simulate")
     p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
     add_quiet(p)
+    A.add_overwrite(p, "surrogate bundle")
     p.set_defaults(func=run)
 
 
@@ -111,6 +113,7 @@ def run(args) -> int:
 
     from pipeline import tracking
     from pipeline.core.files import atomic_write_parquet, atomic_write_text
+    from pipeline.core.outdir import check_out, prepare_out
     from pipeline.core.jsonable import dump_json
     from pipeline.datasets.store import load_with_metadata
     from surrogate import adaptive as adaptive_mod
@@ -133,11 +136,12 @@ def run(args) -> int:
     inputs, ranges = data.infer_inputs(df, meta, inputs_arg)
     fp = meta.get("fingerprint") or data.fingerprint_frame(df)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    check_out(out, inputs=[args.dataset, args.params, args.metrics], overwrite=args.overwrite, marker="train")
     params = {"dataset": str(args.dataset), "model": model, "preset": preset, "fingerprint": fp,
               "inputs": ",".join(inputs), "n_points": len(df),
               **{f"train.{k}": v for k, v in cfg.to_dict().items()}}
-    with tracking.run("train", params, enabled=not args.no_mlflow) as mlflow:
+    with prepare_out(out, inputs=[args.dataset, args.params, args.metrics], overwrite=args.overwrite,
+                     marker="train") as tmp, tracking.run("train", params, enabled=not args.no_mlflow) as mlflow:
         bundle = train_bundle(df, inputs, ranges, model, preset, cfg, scale=data.scales(meta, inputs),
                               fingerprint=fp, progress=not args.quiet, fixed=meta.get("fixed"),
                               settings=meta.get("settings"))
@@ -149,10 +153,10 @@ def run(args) -> int:
             with threadpool_limits(cfg.threads):
                 ad = adaptive_mod.run(bundle, train, test, cfg, _simulator(model, preset, meta, rig), progress=not args.quiet)
             design = ad.pop("design")
-            atomic_write_parquet(out / "adaptive_design.parquet", design)
+            atomic_write_parquet(tmp / "adaptive_design.parquet", design)
             bundle.report["adaptive"] = ad
-        bundle.save(out)
-        figs = report.figures(bundle, test, out, ad)
+        bundle.save(tmp)
+        figs = report.figures(bundle, test, tmp, ad)
         flat = report.flat_metrics(bundle.report)
         if args.metrics:
             m = Path(args.metrics)
@@ -166,7 +170,7 @@ def run(args) -> int:
             for path in figs.values():
                 mlflow.log_artifact(path, artifact_path="figures")
             mlflow.log_text(json.dumps(json.loads(dump_json(bundle.report)), indent=2), "report.json")
-            mlflow_model.log(mlflow, bundle, out, df)
+            mlflow_model.log(mlflow, bundle, tmp, df)
             run_id = mlflow.active_run().info.run_id
     _print_summary(bundle, out, ad)
     if mlflow is not None:

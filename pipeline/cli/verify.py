@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from pipeline.cli import args as A
 from pipeline.cli.args import add_quiet, add_rig, add_set, add_workers, check_workers, load_rig
 from pipeline.core.errors import UserError
 
@@ -39,17 +40,18 @@ def add_parser(sub) -> None:
     add_rig(p, "without --surrogate, re-simulate on")
     add_set(p, ("--fixed",), help="hold a parameter at a value (repeatable; over the rig or the surrogate's "
                                   "sweep conditions); alias --fixed")
-    p.add_argument("--max-peak-force-n", type=float, metavar="N", help="feasibility: peak_force_n <= N")
-    p.add_argument("--peak-force-static-ratio", type=float, metavar="K", help="feasibility: peak_force_n <= K × static_force_n")
-    p.add_argument("--max-specific-energy-j-m", type=float, metavar="E", help="feasibility: specific_energy_j_m <= E")
+    p.add_argument("--max-peak-force-n", type=A.positive, metavar="N", help="feasibility: peak_force_n <= N")
+    p.add_argument("--peak-force-static-ratio", type=A.positive, metavar="K", help="feasibility: peak_force_n <= K × static_force_n")
+    p.add_argument("--max-specific-energy-j-m", type=A.positive, metavar="E", help="feasibility: specific_energy_j_m <= E")
     p.add_argument("--allow-not-settled", action="store_true", help="count not_settled points as feasible")
-    p.add_argument("--rel-tol", type=float, default=0.1, help="ROP relative error marking a wrong prediction (default 0.1)")
+    p.add_argument("--rel-tol", type=A.positive, default=0.1, help="ROP relative error marking a wrong prediction (default 0.1)")
     p.add_argument("--feedback", metavar="FILE.parquet", help="append the simulated points to this feedback file")
     add_workers(p, dest="n_threads", help="simulator threads (default: all cores)")
     add_quiet(p)
     p.add_argument("--out", default="results/verify", help="output directory (default results/verify)")
     p.add_argument("--metrics", metavar="FILE.json", help="write the summary metrics JSON here too")
     p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
+    A.add_overwrite(p, "verification")
     p.set_defaults(func=run)
 
 
@@ -62,8 +64,9 @@ def run(args) -> int:
     from pipeline.core.jsonable import dump_json
     from pipeline.optimise import plots
     from pipeline.optimise.constraints import Constraints
-    from pipeline.optimise.verify import append_feedback, read_points, summarise, verify_points
+    from pipeline.optimise.verify import append_feedback, read_points, summarise
     from pipeline.core.files import atomic_write_text, atomic_write_with
+    from pipeline.core.outdir import check_out, prepare_out
     from pipeline.tracking import load_bundle
 
     if args.rel_tol <= 0:
@@ -98,26 +101,29 @@ def run(args) -> int:
                        max_specific_energy_j_m=args.max_specific_energy_j_m, require_settled=not args.allow_not_settled)
     cons.check(None, None)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    sources = [args.points, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None,
+               args.feedback, args.metrics]
+    check_out(out, inputs=sources, overwrite=args.overwrite, marker="verify")
     params = {"points": args.points, "surrogate": args.surrogate, "model": model, "preset": preset,
               "inputs": ",".join(inputs), "rel_tol": args.rel_tol, **cons.to_dict()}
-    with tracking.run("verify", params, enabled=not args.no_mlflow) as mlflow:
+    with prepare_out(out, inputs=sources, overwrite=args.overwrite, marker="verify") as tmp, \
+            tracking.run("verify", params, enabled=not args.no_mlflow) as mlflow:
         table, simres = _verify_in_chunks(points, model, preset, inputs, cons, args.rel_tol, bundle=bundle,
                                           fixed=fixed, settings=settings, n_threads=args.n_threads,
                                           source=args.points, progress=not args.quiet)
         summary = summarise(table)
-        atomic_write_with(out / "verified.csv", lambda tmp: table.to_csv(tmp, index=False))
-        fig = plots.plot_verification(table, out / "verification.png", f"verify: {Path(args.points).name}")
+        atomic_write_with(tmp / "verified.csv", lambda f: table.to_csv(f, index=False))
+        fig = plots.plot_verification(table, tmp / "verification.png", f"verify: {Path(args.points).name}")
         if args.feedback:
             summary["feedback_rows"] = append_feedback(simres, args.feedback, source="verify",
                                                        study=Path(args.points).name,
                                                        wrong=table["surrogate_wrong"].tolist(), inputs=inputs)
-        atomic_write_text(out / "summary.json", dump_json(summary))
+        atomic_write_text(tmp / "summary.json", dump_json(summary))
         if args.metrics:
             atomic_write_text(Path(args.metrics), dump_json(summary))
         if mlflow is not None:
             mlflow.log_metrics({k: float(v) for k, v in summary.items() if isinstance(v, (int, float))})
-            for f in (fig, str(out / "verified.csv"), str(out / "summary.json")):
+            for f in (fig, str(tmp / "verified.csv"), str(tmp / "summary.json")):
                 mlflow.log_artifact(f)
     print(f"verified {summary['n_points']} point(s): surrogate wrong at {summary['n_surrogate_wrong']}, "
           f"median ROP error {summary['rop_rel_error_median']}, statuses {summary['status_sim_counts']}")

@@ -18,7 +18,12 @@ def read_params(path: str | os.PathLike, missing_ok: bool = False) -> dict:
     try:
         data = yaml.safe_load(p.read_text()) or {}
     except yaml.YAMLError as e:
-        raise UserError(f"{p}: not valid YAML ({e})") from None
+        mark = getattr(e, "problem_mark", None)
+        where = f" line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        why = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise UserError(f"{p}{where}: not valid YAML ({why})") from None
+    except UnicodeDecodeError:
+        raise UserError(f"{p}: not a text (UTF-8) file") from None
     if not isinstance(data, dict):
         raise UserError(f"{p}: must be a mapping of sections")
     return data

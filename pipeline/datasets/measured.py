@@ -13,6 +13,8 @@ directory next to the target and renames it into place).
 """
 from __future__ import annotations
 
+import csv
+
 import os
 import re
 from dataclasses import dataclass, field
@@ -65,7 +67,9 @@ def _read_csv(path: Path, label: str) -> pd.DataFrame:
     except (pd.errors.ParserError, UnicodeDecodeError) as e:
         raise UserError(f"{label}: not a readable CSV file ({str(e).splitlines()[0]})") from None
     df.columns = [str(c).strip() for c in df.columns]
-    dup = [c for c in df.columns if list(df.columns).count(c) > 1]
+    with open(path, newline="", errors="replace") as fh:     # pandas renames a repeated column 'x' to 'x.1'
+        header = [c.strip() for c in next(csv.reader(fh), [])]
+    dup = [c for c in header if header.count(c) > 1]
     if dup:
         raise UserError(f"{label}: column '{dup[0]}' appears more than once")
     return df

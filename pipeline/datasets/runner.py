@@ -170,7 +170,7 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, *, backend: Backend | Non
                      "finished": datetime.now(timezone.utc).isoformat(timespec="seconds")})
         atomic_write_json(out / META_NAME, meta)
     finally:
-        lock.unlink(missing_ok=True)
+        lock.release()
     return SweepSummary(out=str(out), n_points=spec.n_points, n_chunks=spec.n_chunks, computed=computed,
                         reused=n_done_pts, status_counts=counts, wall_time_s=wall, sims_per_s=rate,
                         fingerprint=spec.fingerprint, backend=description, metadata=meta)

@@ -9,7 +9,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -19,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
-from pipeline.core.files import atomic_write_parquet
+from pipeline.core.integrity import CHECKSUM_SUFFIX, DirLock, checksum_path, verify_checksum, write_with_checksum
 from pipeline.core.names import STATUSES
 from pipeline.datasets.spec import SweepSpec
 
@@ -75,7 +74,10 @@ def _to_table(df: pd.DataFrame, model: str, meta: dict[str, str]):
 
 
 def _write_chunk(out: Path, k: int, table) -> None:
-    atomic_write_parquet(out / f"part-{k:05d}.parquet", table, compression="zstd")
+    """Write chunk ``k`` atomically with its sidecar ``part-XXXXX.parquet.sha256`` (checked on resume)."""
+    import pyarrow.parquet as pq
+
+    write_with_checksum(out / f"part-{k:05d}.parquet", lambda tmp: pq.write_table(table, tmp, compression="zstd"))
 
 
 def _git_commit() -> dict:
@@ -137,34 +139,9 @@ def _spec_diff(old: dict, new: dict, prefix: str = "") -> list[str]:
     return diffs
 
 
-def _acquire_lock(out: Path) -> Path:
-    lock = out / LOCK_NAME
-    me = f"{socket.gethostname()} {os.getpid()}"
-    for _ in range(2):
-        try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-            os.write(fd, me.encode())
-            os.close(fd)
-            return lock
-        except FileExistsError:
-            try:
-                host, pid = lock.read_text().split()
-                alive = host != socket.gethostname()
-                if not alive:
-                    try:
-                        os.kill(int(pid), 0)
-                        alive = True
-                    except ProcessLookupError:
-                        alive = False
-                    except PermissionError:
-                        alive = True
-            except (OSError, ValueError):
-                alive = False
-            if alive:
-                raise UserError(f"{out}: another sweep (host/pid {host} {pid}) is writing this dataset; "
-                                f"wait for it, or delete {lock} if that process is gone") from None
-            lock.unlink(missing_ok=True)     # stale lock of a killed process
-    raise UserError(f"{out}: could not take the lock {lock}")
+def _acquire_lock(out: Path) -> DirLock:
+    """The sweep's exclusive lock on ``out`` (pipeline.core.integrity.DirLock: flock, race-free, no stale locks)."""
+    return DirLock(out / LOCK_NAME, what="sweep").acquire()
 
 
 def _existing_chunks(out: Path, spec: SweepSpec) -> set[int]:
@@ -180,6 +157,10 @@ def _existing_chunks(out: Path, spec: SweepSpec) -> set[int]:
             raise UserError(f"{p}: unexpected file name in a sweep dataset") from None
         if not 0 <= k < spec.n_chunks:
             raise UserError(f"{p}: chunk {k} is outside this sweep's {spec.n_chunks} chunks")
+        bad = verify_checksum(p)
+        if bad is not None:
+            print(f"warning: {p}: {bad}; it will be recomputed", file=sys.stderr)
+            continue
         try:
             md = pq.read_metadata(p)
         except Exception as e:  # noqa: BLE001 - a damaged file is recomputed, and said so
@@ -198,7 +179,7 @@ def _existing_chunks(out: Path, spec: SweepSpec) -> set[int]:
 
 
 def _clean_temp(out: Path) -> None:
-    for p in out.glob(".part-*.parquet.tmp-*"):
+    for p in out.glob(".part-*"):       # temporaries of chunks and their sidecars (pipeline.core.files, older runs)
         p.unlink(missing_ok=True)
 
 
@@ -206,6 +187,11 @@ def _prepare_out(out: Path, spec: SweepSpec, overwrite: bool) -> dict | None:
     """Check the output directory against ``spec``; returns the existing metadata (resume) or None."""
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out} exists and is not a directory")
+    if out.exists() and overwrite:
+        foreign = _foreign_files(out)
+        if foreign:
+            raise UserError(f"--overwrite: {out} holds {len(foreign)} file(s) this sweep did not write "
+                            f"(first: {foreign[0].name}); refusing to delete them: use a new --out")
     if not out.exists() or overwrite:
         return None
     meta = _read_meta(out)
@@ -225,8 +211,30 @@ def _prepare_out(out: Path, spec: SweepSpec, overwrite: bool) -> dict | None:
     return meta
 
 
+def _foreign_files(out: Path) -> list[Path]:
+    """Files in ``out`` that a sweep did not write (--overwrite never deletes those)."""
+    import pyarrow.parquet as pq
+
+    own_names = {META_NAME, LOCK_NAME}
+    foreign = []
+    for p in sorted(out.iterdir()):
+        if p.name in own_names or (p.name.startswith(".part-") and p.name.endswith(".tmp")):
+            continue
+        if p.is_file() and p.name.startswith("part-") and p.name.endswith(".parquet" + CHECKSUM_SUFFIX):
+            continue
+        if p.is_file() and p.match(PART_GLOB):
+            try:
+                if b"vibro.fingerprint" in (pq.read_metadata(p).metadata or {}):
+                    continue
+            except Exception:  # noqa: BLE001 - unreadable: a damaged chunk of ours is still ours if its sidecar exists
+                if checksum_path(p).exists():
+                    continue
+        foreign.append(p)
+    return foreign
+
+
 def _wipe(out: Path) -> None:
-    for p in list(out.glob(PART_GLOB)) + [out / META_NAME]:
+    for p in list(out.glob(PART_GLOB)) + list(out.glob(PART_GLOB + CHECKSUM_SUFFIX)) + [out / META_NAME]:
         p.unlink(missing_ok=True)
 
 
@@ -238,6 +246,16 @@ def status_counts(out: Path) -> dict[str, int]:
         for s in pq.read_table(p, columns=["status"]).column("status").to_pylist():
             counts[s] = counts.get(s, 0) + 1
     return counts
+
+
+def _read_table(path: Path):
+    """A Parquet file as a pyarrow Table; UserError naming the file when it is not readable Parquet."""
+    import pyarrow.parquet as pq
+
+    try:
+        return pq.read_table(path)
+    except Exception as e:  # noqa: BLE001 - damaged / foreign file: the user's to fix
+        raise UserError(f"{path}: not a readable Parquet file ({type(e).__name__}: {str(e).splitlines()[0][:120]})") from None
 
 
 def load_dataset(path: str | os.PathLike, allow_partial: bool = False) -> pd.DataFrame:
@@ -254,13 +272,13 @@ def load_dataset(path: str | os.PathLike, allow_partial: bool = False) -> pd.Dat
     if not path.exists():
         raise FileNotFoundError(2, "no such sweep dataset", str(path))
     if path.is_file():
-        df = pq.read_table(path).to_pandas()
+        df = _read_table(path).to_pandas()
         return df.sort_values("point_id", kind="stable").reset_index(drop=True)
     meta = _read_meta(path)
     parts = sorted(path.glob(PART_GLOB))
     if not parts:
         raise UserError(f"{path}: no {PART_GLOB} files (not a sweep dataset, or nothing computed yet)")
-    table = pa.concat_tables([pq.read_table(p) for p in parts])
+    table = pa.concat_tables([_read_table(p) for p in parts])
     df = table.to_pandas().sort_values("point_id", kind="stable").reset_index(drop=True)
     if df["point_id"].duplicated().any():
         raise UserError(f"{path}: duplicate point_id values (files from different runs mixed by hand?)")

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from typing import Callable
 
 import numpy as np
@@ -65,10 +66,15 @@ def open_storage(url: str | None):
     url = url or default_storage()
     if not url.startswith("sqlite:"):
         return url
-    try:
-        storage = optuna.storages.RDBStorage(url, engine_kwargs={"connect_args": {"timeout": 60}})
-    except Exception as e:  # noqa: BLE001 - bad path / not a database
-        raise UserError(f"optuna storage '{url}': {str(e).splitlines()[0]}") from None
+    for attempt in range(5):    # another process (not holding the storage lock) may be creating the schema
+        try:
+            storage = optuna.storages.RDBStorage(url, engine_kwargs={"connect_args": {"timeout": 60}})
+            break
+        except Exception as e:  # noqa: BLE001 - bad path / not a database
+            if attempt < 4 and ("already exists" in str(e) or "UNIQUE constraint" in str(e)):
+                time.sleep(0.2 * (attempt + 1))
+                continue
+            raise UserError(f"optuna storage '{url}': {str(e).splitlines()[0]}") from None
 
     @event.listens_for(storage.engine, "connect")
     def _pragmas(dbapi_conn, _record):  # noqa: ANN001
@@ -89,9 +95,12 @@ def open_study(storage: str | None, name: str, objective: str, sampler, signatur
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     directions = ["maximize"] if objective == "rop" else ["maximize", "minimize"]
+    from pipeline.optimise.coordination import StudyGuard
+
     try:
-        study = optuna.create_study(storage=open_storage(storage), study_name=name, sampler=sampler,
-                                    directions=directions, load_if_exists=True)
+        with StudyGuard.for_url(storage or default_storage()).lock():   # concurrent creation of a new store
+            study = optuna.create_study(storage=open_storage(storage), study_name=name, sampler=sampler,
+                                        directions=directions, load_if_exists=True)
     except (sqlalchemy.exc.ArgumentError, sqlalchemy.exc.OperationalError, ValueError, ImportError) as e:
         raise UserError(f"optuna storage '{storage}': {e}".splitlines()[0]) from None
     if len(study.directions) != len(directions):
@@ -133,26 +142,48 @@ def _clean(v):
 
 
 def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Space, constraints: Constraints,
-              objective: str, n_trials: int, batch_size: int, progress: bool = True, desc: str = "study") -> int:
-    """Ask/evaluate/tell in batches until the study holds ``n_trials`` complete trials.
+              objective: str, n_trials: int, batch_size: int, progress: bool = True, desc: str = "study",
+              sampler_factory: Callable[[int], object] | None = None, guard=None) -> int:
+    """Ask/evaluate/tell in batches until the study holds ``n_trials`` trials (complete, or running
+    in another worker).  Returns the number of trials run now (0 when already complete).
 
-    Returns the number of trials run now (0 when a resumed study is already complete).  Every
-    trial records its labels in ``user_attrs["labels"]`` and each constraint via ``trial.set_constraint``.
-    An interruption marks the trials in flight as failed, so a rerun resumes cleanly.
+    Each batch is counted and asked under ``guard.lock()`` (pipeline.optimise.coordination), after
+    stale trials of dead workers are marked FAIL (they are re-run): several workers on one SQLite
+    study run exactly ``n_trials`` between them.  Batches start at multiples of ``batch_size`` and,
+    with ``sampler_factory(n_done)`` (a sampler seeded by coordination.batch_seed), each is
+    proposed by a sampler that depends only on the seed and the trials before it, so a resumed
+    study proposes what the uninterrupted one did.  Every trial records its labels in
+    ``user_attrs["labels"]`` and each constraint via ``trial.set_constraint``.  An interruption
+    marks the trials in flight as failed.
     """
     import optuna
     from tqdm import tqdm
 
+    from pipeline.optimise.coordination import WORKER_ATTR, StudyGuard, fail_orphan_trials, fail_stale_trials, worker_id
+
+    guard = guard or StudyGuard(None)
+    guard.register()
+    TS = optuna.trial.TrialState
     dists = space.distributions()
-    done = n_complete(study)
-    todo = max(n_trials - done, 0)
+    me = worker_id() if guard.db is not None else None
     ran = 0
-    bar = tqdm(total=n_trials, initial=done, desc=desc, disable=not progress, unit="trial", leave=False)
+    bar = tqdm(total=n_trials, initial=n_complete(study), desc=desc, disable=not progress, unit="trial", leave=False)
     try:
-        while ran < todo:
-            k = min(batch_size, todo - ran)
-            trials = [study.ask(dists) for _ in range(k)]
+        while True:
+            trials = []
             try:
+                with guard.lock():
+                    fail_stale_trials(study, guard)
+                    live = len(study.get_trials(deepcopy=False, states=(TS.COMPLETE, TS.RUNNING, TS.WAITING)))
+                    k = min(batch_size - live % batch_size, n_trials - live)
+                    if k <= 0:
+                        break
+                    if sampler_factory is not None:
+                        study.sampler = sampler_factory(live)
+                    for _ in range(k):
+                        trials.append(study.ask(dists))
+                        if me:
+                            trials[-1].set_user_attr(WORKER_ATTR, me)
                 X = pd.DataFrame([t.params for t in trials], columns=space.names)
                 out = evaluate(X)
                 for t, row in zip(trials, out.to_dict("records")):
@@ -163,38 +194,66 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
             except BaseException:
                 for t in trials:
                     try:
-                        study.tell(t, state=optuna.trial.TrialState.FAIL)
+                        study.tell(t, state=TS.FAIL)
                     except Exception:  # noqa: BLE001 - already told
                         pass
+                with guard.lock():      # an interrupt inside study.ask leaves a trial no list holds
+                    fail_orphan_trials(study, tagged=me is not None)
                 raise
             ran += k
             bar.update(k)
     finally:
         bar.close()
+        guard.close()
     return ran
+
+
+def _key(t) -> tuple:
+    return tuple(sorted(t.params.items()))
 
 
 def run_study_buffered(study, sampler, evaluate, space: Space, constraints: Constraints, objective: str,
                        n_trials: int, batch_size: int, checkpoint: int = 100, progress: bool = True,
-                       desc: str = "study"):
+                       desc: str = "study", sampler_factory: Callable[[int], object] | None = None, guard=None):
     """Like :func:`run_study` for cheap objectives (the surrogate): trials run in an in-memory copy of
-    ``study`` (resumed from its complete trials) and are written to the persistent storage every
-    ``checkpoint`` trials and on interruption — a database commit per trial would cost more than
-    the surrogate.  Returns (in-memory study holding every complete trial, trials run now)."""
+    ``study`` and are written to the persistent storage every ``checkpoint`` trials (segments end
+    at multiples of ``checkpoint``) and on interruption — a database commit per trial would cost
+    more than the surrogate.  Each segment starts from the storage's complete trials; a flush adds
+    (under ``guard.lock()``) only trials whose inputs are not stored yet and never more than
+    ``n_trials`` in all, so several workers leave exactly ``n_trials`` distinct trials.
+    Returns (in-memory study holding every stored complete trial, trials run now)."""
     import optuna
 
+    from pipeline.optimise.coordination import StudyGuard
+
+    guard = guard or StudyGuard(None)
     complete = (optuna.trial.TrialState.COMPLETE,)
-    mem = optuna.create_study(directions=study.directions, sampler=sampler)
-    mem.add_trials(study.get_trials(deepcopy=False, states=complete))
+
+    def stored():
+        return study.get_trials(deepcopy=False, states=complete)
+
     ran = 0
-    while n_complete(mem) < n_trials:
-        before = len(mem.trials)
-        target = min(n_complete(mem) + checkpoint, n_trials)
+    while True:
+        with guard.lock():
+            have = stored()
+        if len(have) >= n_trials:
+            break
+        mem = optuna.create_study(directions=study.directions, sampler=sampler)
+        mem.add_trials(have)
+        target = min((len(have) // checkpoint + 1) * checkpoint, n_trials)
         try:
-            ran += run_study(mem, evaluate, space, constraints, objective, target, batch_size, progress, desc)
+            ran += run_study(mem, evaluate, space, constraints, objective, target, batch_size, progress, desc,
+                             sampler_factory=sampler_factory)
         finally:
-            study.add_trials([t for t in mem.get_trials(deepcopy=False)[before:] if t.state in complete])
-    return mem, ran
+            new = [t for t in mem.get_trials(deepcopy=False)[len(have):] if t.state in complete]
+            with guard.lock():
+                now = stored()
+                keys = {_key(t) for t in now}
+                add = [t for t in new if _key(t) not in keys][:max(n_trials - len(now), 0)]
+                study.add_trials(add)
+    final = optuna.create_study(directions=study.directions, sampler=sampler)
+    final.add_trials(stored())
+    return final, ran
 
 
 def trials_frame(study, space: Space) -> pd.DataFrame:

@@ -141,6 +141,14 @@ def read_points(path: str | os.PathLike) -> pd.DataFrame:
         raise UserError(f"points file {p}: cannot be read ({str(e).splitlines()[0]})") from None
     if df.empty:
         raise UserError(f"points file {p}: no rows")
+    if p.suffix.lower() not in (".parquet", ".pq"):
+        import csv
+
+        with open(p, newline="", errors="replace") as fh:       # pandas renames a repeated column 'x' to 'x.1'
+            header = [c.strip() for c in next(csv.reader(fh), [])]
+        dup = [c for c in header if header.count(c) > 1]
+        if dup:
+            raise UserError(f"points file {p}: column '{dup[0]}' appears more than once")
     return df
 
 

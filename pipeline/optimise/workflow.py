@@ -26,7 +26,7 @@ from pipeline.optimise import plots
 from pipeline.optimise.constraints import Constraints, progress_force_floor
 from pipeline.optimise.evaluators import SimulatorEvaluator, SurrogateEvaluator
 from pipeline.optimise.space import Space, default_space, space_from_mapping
-from pipeline.optimise.study import (OBJECTIVES, SAMPLERS, make_sampler, open_study, pick_candidates, run_study, run_study_buffered,
+from pipeline.optimise.study import (OBJECTIVES, SAMPLERS, default_storage, make_sampler, open_study, pick_candidates, run_study, run_study_buffered,
                                   trials_frame, pareto_mask)
 from pipeline.optimise.verify import append_feedback, best_verified, compare
 from pipeline.core.files import atomic_write_text, atomic_write_with
@@ -229,13 +229,21 @@ def run_optimise(cfg: OptimiseConfig, out_dir: str | os.PathLike, bundle=None, m
 
     params = {**{k: v for k, v in asdict(cfg).items() if k not in ("ranges", "fixed", "settings")},
               "study_name": name, "space": json.dumps(space.to_dict()), "fixed": json.dumps(fixed)}
+    from pipeline.optimise.coordination import StudyGuard, batch_seed
+
+    def sampler_factory(n_done: int):      # per-batch seed: a resumed study proposes what an uninterrupted one did
+        return make_sampler(cfg.sampler, batch_seed(cfg.seed, n_done), n_obj, n_startup=min(20, max(n_trials // 5, 5)))
+
+    guard = StudyGuard.for_url(storage or default_storage())
     with tracking.run("optimise", params, enabled=mlflow_enabled) as mlflow:
         if cfg.mode == "surrogate":
             study, ran = run_study_buffered(study, sampler, study_eval, space, cons, cfg.objective, n_trials,
-                                            cfg.batch_size, progress=progress, desc="optimise surrogate")
+                                            cfg.batch_size, progress=progress, desc="optimise surrogate",
+                                            sampler_factory=sampler_factory, guard=guard)
         else:
             ran = run_study(study, study_eval, space, cons, cfg.objective, n_trials, cfg.batch_size,
-                            progress=progress, desc="optimise simulator")
+                            progress=progress, desc="optimise simulator", sampler_factory=sampler_factory,
+                            guard=guard)
         study_sim_calls = simulator.calls
         trials = trials_frame(study, space)
         cands = pick_candidates(trials, space, cfg.objective, cfg.n_verify)

@@ -248,6 +248,10 @@ def section_train(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
     if not path.is_dir():
         doc.add(Para(f"No surrogate bundle at `{inp.surrogate}`: the train stage has not run."))
         return
+    from surrogate.bundle import MANIFEST, PAYLOAD, verify_bundle
+
+    if any((path / f).exists() for f in (MANIFEST, PAYLOAD, "bundle.joblib")):
+        verify_bundle(path)    # a corrupt / foreign / tampered bundle is the user's error (exit 2), never skipped
     report = _read_json(path / "report.json")          # bundle.report as `vibro train` writes it
     if report is None:
         try:

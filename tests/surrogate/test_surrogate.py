@@ -192,7 +192,7 @@ def test_cli_train_writes_bundle_report_figures_and_mlflow_run(tmp_path, monkeyp
                "--quiet"])
     text = capsys.readouterr().out
     assert rc == 0, text
-    for f in ("bundle.joblib", "bundle.json", "report.json", "parity.png", "confusion.png", "learning_curve.png"):
+    for f in ("bundle.skops", "manifest.json", "bundle.json", "report.json", "parity.png", "confusion.png", "learning_curve.png"):
         assert (out / f).is_file(), f
     m = json.loads((tmp_path / "m.json").read_text())
     assert m["n_train"] + m["n_test"] == 256

@@ -40,7 +40,7 @@ def test_simulate_plot(tmp_path, capsys):
     (["simulate", "drill", "--set", "M1=abc"], "'abc' is not a number"),
     (["simulate", "drill", "--set", "M1=-2"], "'M1' must be > 0"),
     (["simulate", "drill", "--set", "frequency_hz=0"], "'frequency_hz' must be > 0"),
-    (["simulate", "drill", "--set", "K1=nan"], "'K1' must be finite"),
+    (["simulate", "drill", "--set", "K1=nan"], "--set K1: must be finite"),
     (["simulate", "drill", "--set", "zz=1"], "unknown parameter 'zz'"),
     (["simulate", "drill", "--preset", "bad"], "unknown preset 'bad'"),
 ])
