@@ -20,8 +20,25 @@ REGIME_TO_STATUS = {"progressing": "ok", "no_progress": "ok", "runaway": "runawa
                     "not_settled": "not_settled", "failed": "failed"}
 """The sweep status a regime stands for (inverse of the regime rule above, up to no_contact → ok)."""
 
-TARGETS = ("rop_m_s", "peak_force_n", "impacts_per_cycle", "specific_energy_j_m")
+TARGETS = ("rop_m_s", "peak_force_n", "impacts_per_cycle", "specific_energy_j_m", "power_w", "peak_decel_g")
 """Regression targets of the surrogate contract (each with _lo/_hi 90 % intervals)."""
+
+MAXIMISED = ("rop_m_s",)
+"""Labels an optimisation objective maximises by default; every other label is minimised (a cost)."""
+
+DISPLAY_UNITS = {"rop_m_s": ("mm/s", 1e3), "power_w": ("W", 1.0), "peak_decel_g": ("g", 1.0),
+                 "peak_force_n": ("kN", 1e-3), "mean_peak_force_n": ("kN", 1e-3),
+                 "specific_energy_j_m": ("kJ/m", 1e-3), "energy_per_cycle_j": ("J", 1.0),
+                 "impacts_per_cycle": ("-", 1.0), "frequency_hz": ("Hz", 1.0), "amplitude_n": ("kN", 1e-3),
+                 "static_force_n": ("kN", 1e-3), "amplitude_m": ("mm", 1e3), "gap_m": ("mm", 1e3)}
+"""Engineering unit of a label or control in reports: name -> (unit, factor from SI).  Power stays in W: the
+lab rig's exciter delivers 1-36 W over its search space (kW would print 0.013).""" 
+
+
+def display(name: str, value_si):
+    """(value in the engineering unit, unit) of a label or control; SI unchanged for unknown names."""
+    unit, factor = DISPLAY_UNITS.get(name, ("", 1.0))
+    return (None if value_si is None else float(value_si) * factor), unit
 
 CONTROLS = ("frequency_hz", "amplitude_n", "amplitude_m", "static_force_n", "gap_m")
 """Operating-point controls a surrogate's inputs are usually drawn from."""
