@@ -244,9 +244,25 @@ def section_train(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
         cols = ("n", "r2", "mae", "rmse", "coverage", "domain")
         targets = {t: {c: v.get(c) for c in cols if c in v} for t, v in held["targets"].items() if isinstance(v, dict)}
         chosen = ((report.get("selection") or {}).get("targets") or {})
+        constant = report.get("constant_targets") or {}
         for t in targets:
             targets[t]["model"] = (chosen.get(t) or {}).get("model")
-        doc.add(dict_table(targets, "Held-out accuracy per target (R², MAE, RMSE; coverage of the prediction interval)"))
+            targets[t]["scale"] = (chosen.get(t) or {}).get("transform")
+            if t in constant:   # nothing to learn: no R², no coverage to judge
+                targets[t] = {"n": targets[t].get("n"), "domain": targets[t].get("domain"), "model": "constant",
+                              "scale": f"constant = {constant[t]:.6g}"}
+        doc.add(dict_table(targets, "Held-out accuracy per target (R², MAE, RMSE; coverage of the prediction "
+                                    "interval; scale: log = learned as log10, chosen by range and CV)"))
+        notes = report.get("goals_notes") or {}
+        if constant or notes:
+            doc.add(Para("Not failures: " + "; ".join(
+                [f"`{t}` is constant in the data ({v:.6g} at every point), so it is predicted exactly and has no R² goal"
+                 for t, v in constant.items()]
+                + [f"{k}: {n}" for k, n in notes.items() if not (k.endswith("_r2") and k[:-3] in constant)]) + "."))
+        met = report.get("goals_met") or {}
+        if met:
+            doc.add(Para("Goals: " + ", ".join(f"{k} {'met' if v else 'NOT met'}" for k, v in met.items()
+                                               if v is not None) + "."))
         summary["train"] = {"held_out": held, "n_train": report.get("n_train"), "n_test": report.get("n_test")}
     elif report:
         doc.add(dict_table(report, "Held-out accuracy of the surrogate (bundle.report)"))
