@@ -20,6 +20,15 @@ from surrogate.intervals import ConformalInterval
 MIN_POINTS = 12   # fewer points in a target's domain: the target is not learned
 
 
+def with_power(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with a ``power_w`` column [W] = energy_per_cycle_j × frequency_hz when it lacks one but has both
+    (sweeps made before sim returned power_w)."""
+    if "power_w" in df.columns or not {"energy_per_cycle_j", "frequency_hz"} <= set(df.columns):
+        return df
+    e = pd.to_numeric(df["energy_per_cycle_j"], errors="coerce")
+    return df.assign(power_w=e * pd.to_numeric(df["frequency_hz"], errors="coerce"))
+
+
 def split(df: pd.DataFrame, regimes: np.ndarray, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Indices (train, held-out), stratified by regime where every regime has >= 2 points."""
     idx = np.arange(len(df))
@@ -130,8 +139,9 @@ def fit(df: pd.DataFrame, inputs: list[str], ranges: dict, scale: dict, model: s
             info["classifier"] = {"model": cs.name, "cv_accuracy": cs.scores, "cv_skipped": cs.errors,
                                   "classes": cs.classes}
             continue
-        if step not in df.columns:
-            raise UserError(f"dataset has no label column '{step}' (train.targets)")
+        if step not in df.columns:   # e.g. a sweep made before the label existed: say so, learn the rest
+            info["skipped_targets"][step] = f"the dataset has no column '{step}'"
+            continue
         m = domain_mask(df, step, cfg.domains[step])
         if m.sum() < MIN_POINTS:
             info["skipped_targets"][step] = f"only {int(m.sum())} training points in domain '{cfg.domains[step]}'"
@@ -210,7 +220,7 @@ def train_bundle(df: pd.DataFrame, inputs: list[str], ranges: dict, model: str, 
 
 
 def _train_bundle(df, inputs, ranges, model, preset, cfg: TrainConfig, scale, fingerprint, progress) -> Bundle:
-    df = df.reset_index(drop=True)
+    df = with_power(df.reset_index(drop=True))
     if "point_id" in df.columns:
         df = df.sort_values("point_id", kind="stable").reset_index(drop=True)
     scale = scale or {n: "linear" for n in inputs}
