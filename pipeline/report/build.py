@@ -25,6 +25,7 @@ from pipeline.core.errors import UserError  # noqa: E402
 from pipeline.report.doc import Document, Figure, Heading, Para, Table, fmt, to_html, to_markdown  # noqa: E402
 from pipeline.core.files import atomic_write_bytes, atomic_write_text  # noqa: E402
 from pipeline.core.jsonable import dump_json, flatten  # noqa: E402
+from pipeline.core.names import DISPLAY_UNITS, display  # noqa: E402
 
 
 @dataclass
@@ -301,6 +302,28 @@ def _recommendation(folder: Path) -> tuple[Path, dict] | None:
 VERIFIED_KEYS = ("rop_m_s_sim", "verified_rop_m_s", "rop_m_s_verified")
 
 
+def _base_name(key: str) -> str:
+    """'params.amplitude_n' / 'power_w_sim' / 'rop_m_s_pred' -> the label or control name."""
+    key = key.split(".")[-1]
+    for suffix in ("_sim", "_pred", "_lo", "_hi"):
+        if key.endswith(suffix):
+            return key[: -len(suffix)]
+    return key
+
+
+def _eng_name(key: str) -> str:
+    """Column name with its engineering unit (pipeline.core.names.DISPLAY_UNITS), e.g. 'power_w_sim [W]'."""
+    unit = display(_base_name(key), 0.0)[1]
+    return f"{key.split('.')[-1]} [{unit}]" if unit else key.split(".")[-1]
+
+
+def _eng_value(key: str, v):
+    """A value in the engineering unit of its column; non-numbers unchanged."""
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or _base_name(key) not in DISPLAY_UNITS:
+        return v
+    return display(_base_name(key), v)[0]
+
+
 def section_optimise(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) -> None:
     doc.add(Heading("3. Recommended operating point (optimise, verified by the simulator)"))
     path = inp.p(inp.optimise)
@@ -316,7 +339,18 @@ def section_optimise(doc: Document, figs: _Figs, inp: ReportInputs, summary: dic
         where = p.relative_to(inp.root) if p.is_relative_to(inp.root) else p
         doc.add(Para("Recommended point" + (f": verified ROP **{v * 1e3:.4g} mm/s**" if v is not None else "")
                      + f" (from `{where}`)."))
-        doc.add(dict_table(rec, "Recommended operating point (`_sim` = simulated, `_pred` = surrogate)"))
+        if rec.get("binding"):
+            doc.add(Para("It sits at the limit(s): " + ", ".join(rec["binding"]) + "."))
+        if rec.get("on_bounds"):
+            doc.add(Para("**On the edge of the search space:** " + ", ".join(
+                f"{h['name']} at its {'upper' if h['side'] == 'high' else 'lower'} bound {h['bound']:g}"
+                for h in rec["on_bounds"]) + ". The optimum may lie beyond this bound; widen that range to know."))
+        elif "on_bounds" in rec:
+            doc.add(Para("The recommended point lies inside the search space (no control within 2 % of a bound)."))
+        shown = {_eng_name(k): _eng_value(k, val) for k, val in flatten(rec).items()
+                 if k not in ("binding",) and not k.startswith("on_bounds")}
+        doc.add(dict_table(shown, "Recommended operating point in engineering units (`_sim` = simulated, "
+                                  "`_pred` = surrogate)"))
     else:
         doc.add(Para("No recommended point among the optimisation outputs (no feasible point was verified)."))
     mfiles = _metrics_files(inp, "optimise")
@@ -329,16 +363,20 @@ def section_optimise(doc: Document, figs: _Figs, inp: ReportInputs, summary: dic
         doc.add(Para("No Pareto front among the optimisation outputs."))
     else:
         summary.setdefault("optimise", {})["pareto_size"] = int(len(front))
-        doc.add(Table(list(front.columns), front.head(inp.max_rows).values.tolist(),
+        shown = front.copy()
+        for c in shown.columns:
+            if pd.api.types.is_numeric_dtype(shown[c]):
+                shown[c] = [_eng_value(c, x) for x in shown[c]]
+        doc.add(Table([_eng_name(c) for c in shown.columns], shown.head(inp.max_rows).values.tolist(),
                       f"Verified Pareto front ({len(front)} points; first {min(len(front), inp.max_rows)} shown)"))
         num = [c for c in front.columns if pd.api.types.is_numeric_dtype(front[c])]
         ycol = next((c for c in num if "rop" in c), None)
-        xcol = next((c for c in num if c != ycol and any(s in c for s in ("energy", "force", "decel"))), None)
+        xcol = next((c for c in num if c != ycol and any(s in c for s in ("power", "energy", "force", "decel"))), None)
         if ycol and xcol:
             fig, ax = plt.subplots(figsize=(6, 4))
             f2 = front.sort_values(xcol)
-            ax.plot(f2[xcol], f2[ycol] * (1e3 if ycol.endswith("_m_s") else 1), "o-")
-            ax.set_xlabel(xcol)
+            ax.plot([_eng_value(xcol, x) for x in f2[xcol]], f2[ycol] * (1e3 if ycol.endswith("_m_s") else 1), "o-")
+            ax.set_xlabel(_eng_name(xcol))
             ax.set_ylabel(ycol.replace("_m_s", " [mm/s]") if ycol.endswith("_m_s") else ycol)
             ax.set_title("Pareto front (verified by the simulator)")
             ax.grid(alpha=0.3)
