@@ -18,9 +18,13 @@ from sim.registry import get_model
 if TYPE_CHECKING:                  # pandas is imported only where a table is built (history, batch)
     import pandas as pd
 
-LABELS = ("rop_m_s", "peak_force_n", "mean_peak_force_n", "impacts_per_cycle", "period", "peak_decel_g",
-          "energy_per_cycle_j", "specific_energy_j_m")
-"""Numeric labels of MODELS.md §5 (plus ``status`` and ``reason``)."""
+KERNEL_LABELS = ("rop_m_s", "peak_force_n", "mean_peak_force_n", "impacts_per_cycle", "period", "peak_decel_g",
+                 "energy_per_cycle_j", "specific_energy_j_m")
+"""Numeric labels of MODELS.md §5 the kernel computes (plus ``status`` and ``reason``)."""
+
+LABELS = KERNEL_LABELS + ("power_w",)
+"""Every numeric label: the kernel's plus ``power_w``, the excitation's mean power [W] =
+energy_per_cycle_j × frequency_hz (null where the energy is null)."""
 
 DIAGNOSTICS = ("transient_cycles", "n_steps", "n_events")
 
@@ -129,6 +133,11 @@ class SimulationResult:
         return self.labels["status"]
 
 
+def _power_w(energy_per_cycle_j, frequency_hz: float) -> float | None:
+    """Mean excitation power [W] = energy per cycle [J] × frequency [Hz]; None where the energy is None."""
+    return None if energy_per_cycle_j is None else float(energy_per_cycle_j) * float(frequency_hz)
+
+
 def _labels_from_vector(v: np.ndarray, precheck_msg: str | None) -> dict:
     status_code = int(v[I.L_STATUS])
     status = STATUS_NAMES[status_code]
@@ -139,7 +148,7 @@ def _labels_from_vector(v: np.ndarray, precheck_msg: str | None) -> dict:
                                  if int(v[I.L_REASON]) == I.REASON_DRIFT else "")
     out = {}
     valid = status in ("ok", "no_contact", "not_settled")
-    for name, idx in zip(LABELS, (I.L_ROP, I.L_PEAK_F, I.L_MEAN_PEAK_F, I.L_IMPACTS, I.L_PERIOD, I.L_DECEL,
+    for name, idx in zip(KERNEL_LABELS, (I.L_ROP, I.L_PEAK_F, I.L_MEAN_PEAK_F, I.L_IMPACTS, I.L_PERIOD, I.L_DECEL,
                                   I.L_ENERGY, I.L_SPEC_E)):
         val = float(v[idx])
         if not valid or (math.isnan(val)):
@@ -250,6 +259,7 @@ def simulate(model: str, preset: str | None = None, settings: Settings | dict | 
                            final_state=(y, z, int(ph[0])))
     if spec.postprocess is not None:
         res = spec.postprocess(res)
+    res.labels["power_w"] = _power_w(res.labels.get("energy_per_cycle_j"), values["frequency_hz"])
     return res
 
 
@@ -311,4 +321,6 @@ def simulate_batch(model: str, table, preset: str | None = None, settings: Setti
             r = simulate(model, settings=st, **{k: v for k, v in values.items()})
             for k, v in r.labels.items():
                 res.at[i, k] = v
+    res["power_w"] = [_power_w(None if pd.isna(e) else e, f)
+                      for e, f in zip(res["energy_per_cycle_j"], res["frequency_hz"])]
     return res

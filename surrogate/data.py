@@ -19,7 +19,8 @@ from pipeline.core.names import BOUNDED_STATUSES, CONTROLS, REGIMES, SETTLED_STA
 # only exist as numbers inside the progressing regime (elsewhere ROP is 0 and specific
 # energy infinite); peak force and impacts per cycle exist at every settled point.
 DEFAULT_DOMAINS = {"rop_m_s": "progressing", "specific_energy_j_m": "progressing",
-                   "peak_force_n": "settled", "impacts_per_cycle": "settled"}
+                   "peak_force_n": "settled", "impacts_per_cycle": "settled", "power_w": "settled",
+                   "peak_decel_g": "settled"}
 
 
 def regime_of(df: pd.DataFrame) -> pd.Series:

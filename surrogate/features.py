@@ -26,6 +26,27 @@ class InputScaler:
         return out
 
 
+LOG_RULE_DECADES = 1.0
+"""A positive target spanning more than this many decades is learned as log10(y) (range rule)."""
+
+
+def decades(y: np.ndarray) -> float | None:
+    """log10(max / min) of the finite values, or None when any is <= 0 (no log scale) or none is finite."""
+    y = np.asarray(y, dtype=float)
+    y = y[np.isfinite(y)]
+    if not y.size or np.any(y <= 0):
+        return None
+    return float(np.log10(y.max() / y.min()))
+
+
+def is_constant(y: np.ndarray, rtol: float = 1e-6) -> bool:
+    """True when the finite values of ``y`` are one number (spread <= rtol × |mean|), e.g. peak force pinned
+    at Pr: there is nothing to learn and R² is undefined."""
+    y = np.asarray(y, dtype=float)
+    y = y[np.isfinite(y)]
+    return bool(y.size) and float(np.std(y)) <= rtol * max(abs(float(np.mean(y))), 1e-300)
+
+
 @dataclass
 class TargetTransform:
     """``log``: y -> log10(y) (strictly positive targets spanning decades); ``identity`` otherwise."""
@@ -34,13 +55,12 @@ class TargetTransform:
 
     @staticmethod
     def choose(y: np.ndarray, kind: str = "auto") -> "TargetTransform":
-        """auto: log when every value is positive and they span more than two decades."""
+        """auto: log when every value is positive and they span more than one decade (LOG_RULE_DECADES);
+        surrogate.train confirms the choice by cross-validation near that threshold."""
         if kind != "auto":
             return TargetTransform(kind)
-        y = y[np.isfinite(y)]
-        if y.size and np.all(y > 0) and np.log10(y.max() / y.min()) > 2.0:
-            return TargetTransform("log")
-        return TargetTransform("identity")
+        d = decades(y)
+        return TargetTransform("log" if d is not None and d > LOG_RULE_DECADES else "identity")
 
     def forward(self, y: np.ndarray) -> np.ndarray:
         return np.log10(y) if self.kind == "log" else np.asarray(y, dtype=float)

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from surrogate.features import is_constant
+
 
 def regression(y: np.ndarray, pred: np.ndarray, lo: np.ndarray | None = None, hi: np.ndarray | None = None) -> dict:
     """R², MAE, RMSE (units of y) and, given bounds, the fraction of y inside [lo, hi]."""
@@ -18,7 +20,7 @@ def regression(y: np.ndarray, pred: np.ndarray, lo: np.ndarray | None = None, hi
     out["rmse"] = float(np.sqrt(np.mean(err ** 2)))
     # R² is undefined for a (numerically) constant target, e.g. peak force pinned at Pr in the
     # progressing regime: report None rather than a meaningless huge negative number.
-    constant = float(np.std(y)) <= 1e-6 * max(abs(float(np.mean(y))), 1e-300)
+    constant = is_constant(y)
     out["r2"] = None if constant or ss_tot <= 0 else float(1.0 - np.sum(err ** 2) / ss_tot)
     if lo is not None and hi is not None:
         out["coverage"] = float(np.mean((y >= lo) & (y <= hi)))

@@ -13,7 +13,8 @@ import pandas as pd  # noqa: E402
 from pipeline.core.files import atomic_write_figure  # noqa: E402
 from surrogate.data import domain_mask  # noqa: E402
 
-UNITS = {"rop_m_s": "m/s", "peak_force_n": "N", "impacts_per_cycle": "-", "specific_energy_j_m": "J/m"}
+UNITS = {"rop_m_s": "m/s", "peak_force_n": "N", "impacts_per_cycle": "-", "specific_energy_j_m": "J/m", "power_w": "W",
+         "peak_decel_g": "g"}
 
 
 def _save(fig, path: Path) -> str:
@@ -79,6 +80,13 @@ def confusion(cls_report: dict, path: Path) -> str:
     """Held-out confusion matrix of the regime classifier."""
     cm = np.array(cls_report["confusion"])
     classes = cls_report["classes"]
+    if len(classes) <= 1:   # a 1x1 "matrix" would look like a result; say what the data hold instead
+        fig, ax = plt.subplots(figsize=(5, 2))
+        ax.axis("off")
+        ax.text(0.5, 0.5, f"one regime in the data: {', '.join(classes) or 'none'}\n"
+                          f"({cls_report.get('n', 0)} held-out points)\nno classification to assess",
+                ha="center", va="center")
+        return _save(fig, path)
     fig, ax = plt.subplots(figsize=(1.2 * len(classes) + 2.5, 1.0 * len(classes) + 2))
     ax.imshow(cm, cmap="Blues")
     for i in range(cm.shape[0]):

@@ -12,10 +12,21 @@ from surrogate import metrics, selection
 from surrogate.bundle import Bundle, TargetModel
 from surrogate.config import TrainConfig
 from surrogate.data import domain_mask, fingerprint_frame, regime_of
-from surrogate.features import InputScaler, TargetTransform
+from sklearn.dummy import DummyRegressor
+
+from surrogate.features import InputScaler, TargetTransform, decades, is_constant
 from surrogate.intervals import ConformalInterval
 
 MIN_POINTS = 12   # fewer points in a target's domain: the target is not learned
+
+
+def with_power(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with a ``power_w`` column [W] = energy_per_cycle_j × frequency_hz when it lacks one but has both
+    (sweeps made before sim returned power_w)."""
+    if "power_w" in df.columns or not {"energy_per_cycle_j", "frequency_hz"} <= set(df.columns):
+        return df
+    e = pd.to_numeric(df["energy_per_cycle_j"], errors="coerce")
+    return df.assign(power_w=e * pd.to_numeric(df["frequency_hz"], errors="coerce"))
 
 
 def split(df: pd.DataFrame, regimes: np.ndarray, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -36,13 +47,57 @@ def split_frame(df: pd.DataFrame, cfg: TrainConfig) -> tuple[pd.DataFrame, pd.Da
     return df.iloc[tr].reset_index(drop=True), df.iloc[te].reset_index(drop=True)
 
 
+CV_CHECK_DECADES = (0.5, 3.0)
+"""Positive targets spanning this many decades (around the 1-decade range rule) get the CV check of the
+transform: the cheapest candidate is cross-validated on log10(y) and on y, and the lower CV RMSE in the
+target's own units decides.  Below 0.5 decade a log scale changes little; above 3 the rule is never wrong."""
+
+
+def _check_candidate(cfg: TrainConfig) -> str:
+    return "gbt" if "gbt" in cfg.regressors else cfg.regressors[0]
+
+
+def choose_transform(t: str, Xs: np.ndarray, y: np.ndarray, cfg: TrainConfig) -> tuple[TargetTransform, dict]:
+    """The target's scale: ``train.transforms`` if set, else the range rule (log above LOG_RULE_DECADES) checked
+    by cross-validation in the CV_CHECK_DECADES band.  Returns (transform, how it was chosen)."""
+    asked = cfg.transforms.get(t, "auto")
+    d = decades(y)
+    rule = TargetTransform.choose(y, asked)
+    how = {"asked": asked, "decades": d, "rule": rule.kind}
+    if asked != "auto" or d is None or not CV_CHECK_DECADES[0] <= d <= CV_CHECK_DECADES[1]:
+        how["chosen"] = rule.kind
+        return rule, how
+    name = _check_candidate(cfg)
+    rmse = {}
+    for kind in ("log", "identity"):
+        tf = TargetTransform(kind)
+        sel = selection.select_regressor([name], Xs, tf.forward(y), tf, cfg.cv_folds, cfg.seed, cfg.max_gp_points)
+        rmse[kind] = sel.scores_original[name]
+    chosen = min(rmse, key=rmse.get)
+    how.update({"cv_candidate": name, "cv_rmse": rmse, "chosen": chosen})
+    return TargetTransform(chosen), how
+
+
+def _constant_target(t: str, y: np.ndarray, cfg: TrainConfig) -> tuple[TargetModel, dict]:
+    """A target with one value in the data: predicted as that value (interval of zero width), reported as
+    constant rather than scored against an R² goal it cannot have."""
+    value = float(np.mean(y))
+    est = DummyRegressor(strategy="constant", constant=value).fit(np.zeros((y.size, 1)), y)
+    iv = ConformalInterval(0.0, False, cfg.interval, int(y.size))
+    info = {"model": "constant", "transform": "identity", "constant": value, "n_train": int(y.size),
+            "interval_q": 0.0, "interval_normalised": False}
+    return TargetModel(t, "constant", est, TargetTransform("identity"), iv, cfg.domains[t]), info
+
+
 def _fit_target(t: str, Xs: np.ndarray, y: np.ndarray, cfg: TrainConfig, progress) -> tuple[TargetModel, dict]:
-    tf = TargetTransform.choose(y, cfg.transforms.get(t, "auto"))
+    if is_constant(y):
+        return _constant_target(t, y, cfg)
+    tf, how = choose_transform(t, Xs, y, cfg)
     z = tf.forward(y)
     sel = selection.select_regressor(cfg.regressors, Xs, z, tf, cfg.cv_folds, cfg.seed, cfg.max_gp_points)
     est = selection.fit_regressor(sel.name, Xs, z, cfg.seed, cfg.max_gp_points)
     iv = ConformalInterval.calibrate(z, sel.oof, sel.oof_std, cfg.interval)
-    info = {"model": sel.name, "transform": tf.kind, "cv_rmse_transformed": sel.scores,
+    info = {"model": sel.name, "transform": tf.kind, "transform_choice": how, "cv_rmse_transformed": sel.scores,
             "cv_rmse": sel.scores_original, "cv_skipped": sel.errors,
             "n_train": int(y.size), "interval_q": iv.q, "interval_normalised": iv.normalised}
     if progress:
@@ -84,8 +139,9 @@ def fit(df: pd.DataFrame, inputs: list[str], ranges: dict, scale: dict, model: s
             info["classifier"] = {"model": cs.name, "cv_accuracy": cs.scores, "cv_skipped": cs.errors,
                                   "classes": cs.classes}
             continue
-        if step not in df.columns:
-            raise UserError(f"dataset has no label column '{step}' (train.targets)")
+        if step not in df.columns:   # e.g. a sweep made before the label existed: say so, learn the rest
+            info["skipped_targets"][step] = f"the dataset has no column '{step}'"
+            continue
         m = domain_mask(df, step, cfg.domains[step])
         if m.sum() < MIN_POINTS:
             info["skipped_targets"][step] = f"only {int(m.sum())} training points in domain '{cfg.domains[step]}'"
@@ -109,7 +165,10 @@ def refit_same(bundle: Bundle, df: pd.DataFrame, cfg: TrainConfig) -> Bundle:
         if m.sum() < 3:
             continue
         z = tm.transform.forward(df[t].to_numpy(dtype=float)[m])
-        est = selection.fit_regressor(tm.name, Xs[m], z, cfg.seed, cfg.max_gp_points)
+        if tm.name == "constant":
+            est = DummyRegressor(strategy="constant", constant=float(np.mean(z))).fit(Xs[m], z)
+        else:
+            est = selection.fit_regressor(tm.name, Xs[m], z, cfg.seed, cfg.max_gp_points)
         regs[t] = TargetModel(t, tm.name, est, tm.transform, tm.interval, tm.domain)
     return Bundle(bundle.inputs, bundle.ranges, bundle.model, bundle.preset, bundle.fingerprint, bundle.scaler, clf,
                   bundle.classifier_name, [str(c) for c in clf.classes_], regs, {}, bundle.config, bundle.fixed,
@@ -161,7 +220,7 @@ def train_bundle(df: pd.DataFrame, inputs: list[str], ranges: dict, model: str, 
 
 
 def _train_bundle(df, inputs, ranges, model, preset, cfg: TrainConfig, scale, fingerprint, progress) -> Bundle:
-    df = df.reset_index(drop=True)
+    df = with_power(df.reset_index(drop=True))
     if "point_id" in df.columns:
         df = df.sort_values("point_id", kind="stable").reset_index(drop=True)
     scale = scale or {n: "linear" for n in inputs}
@@ -176,21 +235,33 @@ def _train_bundle(df, inputs, ranges, model, preset, cfg: TrainConfig, scale, fi
     g = cfg.goals
     goals = {"rop_m_s_r2": g.get("rop_m_s_r2"), "peak_force_n_r2": g.get("peak_force_n_r2"),
              "accuracy": g.get("accuracy")}
-    need = {k: needed(curve, k, v) for k, v in goals.items() if v is not None}
     tg = held["targets"]
-    cov = [m.get("coverage") for m in tg.values() if m.get("coverage") is not None]
+    constant = {t: i["constant"] for t, i in info["targets"].items() if i.get("model") == "constant"}
+    need = {k: needed(curve, k, v) for k, v in goals.items()
+            if v is not None and not (k.endswith("_r2") and k[:-3] in constant)}
+    cov = [m.get("coverage") for t, m in tg.items() if m.get("coverage") is not None and t not in constant]
+    notes: dict[str, str] = {}
+
     def r2_goal(target: str):
-        """True/False against the goal; None where R² is undefined (constant target)."""
+        """True/False against the goal; None (with a note) where R² is undefined: a constant target."""
         m = tg.get(target, {})
-        if m.get("n") and m.get("r2") is None:
+        if target in constant or (m.get("n") and m.get("r2") is None):
+            value = constant.get(target)
+            notes[f"{target}_r2"] = (f"constant in the data ({value:.6g}): nothing to learn, predicted exactly"
+                                     if value is not None else "constant in the held-out data: R² undefined")
             return None
         return (m.get("r2") if m.get("r2") is not None else -np.inf) >= goals[f"{target}_r2"]
 
+    classes = held["classification"].get("classes") or []
+    if len(classes) <= 1:
+        notes["accuracy"] = f"one regime in the data ({', '.join(classes) or 'none'}): no classification to assess"
+    if not cov:
+        notes["coverage"] = "no target with a varying value to cover"
     met = {
         "rop_m_s_r2": r2_goal("rop_m_s"),
         "peak_force_n_r2": r2_goal("peak_force_n"),
-        "accuracy": (held["classification"]["accuracy"] or 0) >= goals["accuracy"],
-        "coverage": bool(cov) and all(g["coverage_low"] <= c <= g["coverage_high"] for c in cov),
+        "accuracy": None if "accuracy" in notes else (held["classification"]["accuracy"] or 0) >= goals["accuracy"],
+        "coverage": None if not cov else all(g["coverage_low"] <= c <= g["coverage_high"] for c in cov),
     }
     bundle.report = {"model": model, "preset": preset, "fingerprint": fingerprint, "inputs": list(inputs),
                      "ranges": {k: list(v) for k, v in bundle.ranges.items()},
@@ -198,5 +269,6 @@ def _train_bundle(df, inputs, ranges, model, preset, cfg: TrainConfig, scale, fi
                      "regime_counts": {k: int(v) for k, v in pd.Series(regimes).value_counts().items()},
                      "selection": info, "held_out": held, "learning_curve": curve,
                      "simulations_needed": need, "goals": g, "goals_met": {k: (None if v is None else bool(v)) for k, v in met.items()},
+                     "goals_notes": notes, "constant_targets": constant,
                      "interval_level": cfg.interval}
     return bundle

@@ -15,6 +15,8 @@ what it writes under --out:
   verified.csv              verified points: inputs, T_pred [T_lo, T_hi], T_sim, statuses, surrogate_wrong, why
   trials.csv                every complete trial of the study (inputs, value(s), labels, feasibility)
   history.png, importances.png, verification.png, pareto.png (with --objective pareto)
+  the outcome line says which limits the recommendation sits at and whether it lies on a bound of the search
+  space (which control, lower or upper): there the optimum may lie beyond the box.
   feedback: verified points are appended to feedback/optimise.parquet (or --feedback FILE; never inside the
   surrogate's dvc-managed folder) so that
   training can include them (closing the loop).
@@ -26,7 +28,9 @@ several machines: give them the same --storage RDB URL and --study-name.
 examples:
   vibro optimise --surrogate models/surrogate --out results/optimise
   vibro optimise --surrogate models/surrogate --out results/optimise --max-peak-force-n 3000 --peak-force-static-ratio 2.5
+  vibro optimise --surrogate models/surrogate --out results/optimise --max-power-w 18 --max-decel-g 4
   vibro optimise --surrogate models/surrogate --out results/pareto --objective pareto --n-verify 12
+  vibro optimise --surrogate models/surrogate --out results/pareto --objective pareto --objectives rop_m_s,peak_decel_g
   vibro optimise --simulator --model drill --preset lab --n-trials 200 --out results/optimise-sim
   vibro optimise --simulator --preset lab --vary frequency_hz=150:350 --set static_force_n=1200 --out results/f-scan
   vibro optimise --simulator --rig my-rig.yaml --n-trials 200 --out results/my-rig      # your own rig
@@ -47,8 +51,9 @@ def add_parser(sub) -> None:
                     "with optuna (TPE by default), on a trained surrogate (then re-simulate the best distinct points) "
                     "or directly on the simulator, under constraints: a bounded settled steady state (never "
                     "runaway), optional upper limits on peak impact force (absolute, or k × static force: seed 002's "
-                    "bit-bounce rule) and on specific energy.  --objective pareto gives the front of ROP against "
-                    "specific energy.  The recommendation is the best *verified* point; where the surrogate was "
+                    "bit-bounce rule), on specific energy, on the exciter's mean power and on the bit's peak "
+                    "deceleration.  --objective pareto gives the front of ROP against the mean power (or the labels "
+                    "--objectives names).  The recommendation is the best *verified* point; where the surrogate was "
                     "wrong the report says so and the point is added to the feedback file for retraining.",
         formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG)
     p.add_argument("--params", metavar="FILE", help="params.yaml: its 'optimise' section gives defaults; flags override")
@@ -65,7 +70,10 @@ def add_parser(sub) -> None:
     add_set(p, ("--fixed",), help="hold a parameter at a value (repeatable), e.g. --set static_force_n=1200; "
                                   "alias --fixed")
     p.add_argument("--objective", choices=["rop", "pareto"],
-                   help="rop: maximise ROP (default); pareto: maximise ROP and minimise specific energy")
+                   help="rop: maximise ROP (default); pareto: the front of --objectives (default ROP against power_w)")
+    p.add_argument("--objectives", metavar="LABEL,LABEL[,...]",
+                   help="Pareto objectives (default rop_m_s,power_w): any labels; rop_m_s is maximised, the others "
+                        "minimised, or say max:LABEL / min:LABEL")
     p.add_argument("--sampler", choices=["tpe", "gp", "nsga2", "random"],
                    help="optuna sampler (default tpe: constraints, batches, no extra package; gp needs PyTorch)")
     p.add_argument("--n-trials", type=A.n_trials, help="total complete trials of the study (default 600 on the surrogate, "
@@ -76,6 +84,10 @@ def add_parser(sub) -> None:
     p.add_argument("--peak-force-static-ratio", type=A.positive, metavar="K",
                    help="constraint: peak_force_n <= K × static_force_n (K = 1: impact below the static preload)")
     p.add_argument("--max-specific-energy-j-m", type=A.positive, metavar="E", help="constraint: specific_energy_j_m <= E J/m")
+    p.add_argument("--max-power-w", type=A.positive, metavar="W",
+                   help="constraint: the excitation's mean power power_w <= W watts (the exciter's power rating)")
+    p.add_argument("--max-decel-g", type=A.positive, metavar="G",
+                   help="constraint: the bit's peak deceleration peak_decel_g <= G (in g; tool life)")
     p.add_argument("--allow-not-settled", action="store_true",
                    help="accept not_settled (bounded but aperiodic) points; runaway and failed never are")
     p.add_argument("--n-verify", type=A.count(1, 10_000), help="distinct best points (or front points) re-simulated (default 10)")
@@ -115,7 +127,8 @@ def _feedback_path(base: dict) -> None:
 OPTIMISE_BOUNDS = {"n_trials": (True, 1, A.MAX_TRIALS), "batch_size": (True, 1, 10_000), "seed": (True, 0, 2**32 - 1),
                    "n_verify": (True, 1, 10_000), "n_threads": (True, 1, A.MAX_THREADS), "rel_tol": (False, 0.0, 1e6),
                    "max_peak_force_n": (False, 0.0, None), "peak_force_static_ratio": (False, 0.0, None),
-                   "max_specific_energy_j_m": (False, 0.0, None)}
+                   "max_specific_energy_j_m": (False, 0.0, None), "max_power_w": (False, 0.0, None),
+                   "max_decel_g": (False, 0.0, None)}
 
 
 def config_from_args(args):
@@ -146,8 +159,10 @@ def config_from_args(args):
         base["ranges"] = parse_ranges(args.ranges, "--vary")
     if args.sets:
         base["fixed"] = {**(base.get("fixed") or {}), **parse_assignments(args.sets, "--set")}
+    if args.objectives:
+        base["objectives"] = [s.strip() for s in args.objectives.split(",") if s.strip()]
     for key in ("model", "preset", "objective", "sampler", "n_trials", "batch_size", "seed", "max_peak_force_n",
-                "peak_force_static_ratio", "max_specific_energy_j_m", "n_verify", "rel_tol", "storage", "study_name",
+                "peak_force_static_ratio", "max_specific_energy_j_m", "max_power_w", "max_decel_g", "n_verify", "rel_tol", "storage", "study_name",
                 "feedback", "n_threads"):
         v = getattr(args, key)
         if v is not None:
@@ -175,6 +190,9 @@ def run(args) -> int:
         rep = run_optimise(cfg, tmp, metrics_path=args.metrics, progress=not args.quiet,
                            mlflow_enabled=not args.no_mlflow)
     print(rep["outcome"])
+    if rep.get("pareto_verified") is not None:
+        print(f"verified Pareto front ({' vs '.join(rep.get('objectives', []))}): {len(rep['pareto_verified'])} "
+              f"distinct non-dominated points")
     if cfg.mode == "surrogate" and rep.get("surrogate_note"):
         print(rep["surrogate_note"])
     print(f"report: {args.out}/report.md")

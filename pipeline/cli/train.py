@@ -162,6 +162,10 @@ def run(args) -> int:
             m = Path(args.metrics)
             m.parent.mkdir(parents=True, exist_ok=True)
             headline = {"held_out": bundle.report["held_out"], "goals_met": bundle.report["goals_met"],
+                        "goals_notes": bundle.report.get("goals_notes", {}),
+                        "constant_targets": bundle.report.get("constant_targets", {}),
+                        "transforms": {t: i.get("transform_choice") for t, i in
+                                       bundle.report["selection"]["targets"].items() if i.get("transform_choice")},
                         "simulations_needed": bundle.report["simulations_needed"], "n_train": bundle.report["n_train"],
                         "n_test": bundle.report["n_test"], "adaptive_savings": (ad or {}).get("savings")}
             atomic_write_text(m, dump_json(headline) + "\n")
@@ -184,8 +188,12 @@ def _print_summary(bundle, out: Path, ad: dict | None) -> None:
     print(f"surrogate of '{r['model']}' (preset {r['preset']!r}) trained on {r['n_train']} simulations, "
           f"held out {r['n_test']}; written to {out}")
     print(f"  regime classifier {bundle.classifier_name}: held-out accuracy {c['accuracy']:.4f}")
+    constant = r.get("constant_targets") or {}
     for t, m in r["held_out"]["targets"].items():
         tm = bundle.regressors[t]
+        if t in constant:
+            print(f"  {t:<20} constant in the data: {constant[t]:.6g} at every point (nothing to learn; predicted exactly)")
+            continue
         r2 = "n/a" if m.get("r2") is None else f"{m['r2']:.4f}"
         print(f"  {t:<20} {tm.name:<4} ({tm.transform.kind}, {tm.domain}, n={m['n']}): R2 {r2}, "
               f"RMSE {m.get('rmse', float('nan')):.4g}, 90% interval coverage {m.get('coverage', float('nan')):.3f}")
@@ -193,7 +201,10 @@ def _print_summary(bundle, out: Path, ad: dict | None) -> None:
     if need:
         print("  training simulations needed: " + ", ".join(f"{k} {v if v is not None else 'not reached'}"
                                                           for k, v in need.items()))
-    print("  goals met: " + ", ".join(f"{k} {'yes' if v else 'NO'}" for k, v in r["goals_met"].items()))
+    notes = r.get("goals_notes") or {}
+    print("  goals met: " + ", ".join(f"{k} {'yes' if v else 'NO'}" for k, v in r["goals_met"].items() if v is not None))
+    for k, note in notes.items():
+        print(f"  {k}: not applicable, {note}")
     if ad:
         for k, s in ad["savings"].items():
             print(f"  adaptive ({k}): {s['adaptive_sims']} simulations reach {s['level']:.4g}; space-filling needs "

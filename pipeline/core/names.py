@@ -3,6 +3,8 @@
 One place, so a regime or target added here reaches every workflow."""
 from __future__ import annotations
 
+from pipeline.core.units import ENGINEERING
+
 STATUSES = ("ok", "no_contact", "not_settled", "runaway", "failed")
 """Per-point status of a sweep row (sim.simulate_batch's ``status`` column)."""
 
@@ -20,8 +22,20 @@ REGIME_TO_STATUS = {"progressing": "ok", "no_progress": "ok", "runaway": "runawa
                     "not_settled": "not_settled", "failed": "failed"}
 """The sweep status a regime stands for (inverse of the regime rule above, up to no_contact → ok)."""
 
-TARGETS = ("rop_m_s", "peak_force_n", "impacts_per_cycle", "specific_energy_j_m")
+TARGETS = ("rop_m_s", "peak_force_n", "impacts_per_cycle", "specific_energy_j_m", "power_w", "peak_decel_g")
 """Regression targets of the surrogate contract (each with _lo/_hi 90 % intervals)."""
+
+MAXIMISED = ("rop_m_s",)
+"""Labels an optimisation objective maximises by default; every other label is minimised (a cost)."""
+
+DISPLAY_UNITS = {name: (unit or "-", f) for name, (_, unit, f) in ENGINEERING.items()}
+"""Engineering unit of a label or control: name -> (unit, factor from SI), from pipeline.core.units."""
+
+
+def display(name: str, value_si):
+    """(value in the engineering unit, unit) of a label or control; SI unchanged for unknown names."""
+    unit, factor = DISPLAY_UNITS.get(name, ("", 1.0))
+    return (None if value_si is None else float(value_si) * factor), unit
 
 CONTROLS = ("frequency_hz", "amplitude_n", "amplitude_m", "static_force_n", "gap_m")
 """Operating-point controls a surrogate's inputs are usually drawn from."""

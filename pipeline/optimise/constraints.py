@@ -2,7 +2,8 @@
 
 Each constraint is normalised by its limit so violations are comparable (0.1 = 10 % over).
 Inputs are label rows: ``status`` (MODELS.md §5 status; surrogate regimes are mapped onto it),
-``rop_m_s`` [m/s], ``peak_force_n`` [N], ``specific_energy_j_m`` [J/m], ``static_force_n`` [N].
+``rop_m_s`` [m/s], ``peak_force_n`` [N], ``specific_energy_j_m`` [J/m], ``static_force_n`` [N],
+``power_w`` [W] (the excitation's mean power) and ``peak_decel_g`` [g] (the bit's peak deceleration).
 """
 from __future__ import annotations
 
@@ -27,6 +28,10 @@ def _num(x) -> float | None:
     return None if math.isnan(v) else v
 
 
+UPPER_LIMITS = {"power": ("power_w", "max_power_w"), "decel": ("peak_decel_g", "max_decel_g")}
+"""Plain upper limits on a label: constraint key -> (label, Constraints field)."""
+
+
 @dataclass(frozen=True)
 class Constraints:
     """What a recommended operating point must satisfy.
@@ -34,6 +39,8 @@ class Constraints:
     max_peak_force_n: peak_force_n <= this [N] (tool life).  peak_force_static_ratio: k with
     peak_force_n <= k × static_force_n (seed 002: the impulsive force should stay below the
     static preload to avoid bit bounce).  max_specific_energy_j_m: specific_energy_j_m <= this [J/m].
+    max_power_w: power_w <= this [W] (the exciter's power rating).  max_decel_g: peak_decel_g <= this [g]
+    (the bit's deceleration limit: tool life).
     require_settled: status must be ok/no_contact (else not_settled is allowed; runaway/failed never are).
     require_progress: rop_m_s > 0 (set by the Pareto mode, where specific energy is otherwise infinite).
     """
@@ -41,6 +48,8 @@ class Constraints:
     max_peak_force_n: float | None = None
     peak_force_static_ratio: float | None = None
     max_specific_energy_j_m: float | None = None
+    max_power_w: float | None = None
+    max_decel_g: float | None = None
     require_settled: bool = True
     require_progress: bool = False
 
@@ -54,6 +63,7 @@ class Constraints:
             out.append("peak_vs_static")
         if self.max_specific_energy_j_m is not None:
             out.append("specific_energy")
+        out += [key for key, (_, attr) in UPPER_LIMITS.items() if getattr(self, attr) is not None]
         return out
 
     def values(self, row: Mapping) -> dict[str, float]:
@@ -81,6 +91,11 @@ class Constraints:
             lim = self.max_specific_energy_j_m
             # inf (nothing progresses) -> a large finite violation: optuna stores finite constraints only
             out["specific_energy"] = 1.0 if se is None else (1e3 if math.isinf(se) else min((se - lim) / lim, 1e3))
+        for key, (label, attr) in UPPER_LIMITS.items():
+            lim = getattr(self, attr)
+            if lim is not None:
+                v = _num(row.get(label))
+                out[key] = 1.0 if v is None or math.isinf(v) else min((v - lim) / lim, 1e3)
         return out
 
     def feasible(self, row: Mapping) -> bool:
@@ -97,7 +112,8 @@ class Constraints:
         progress_force_floor: contact force the tool must reach to progress at all [N]
         (drill: the rock threshold Pr), or None when the model has no such floor.
         """
-        for name in ("max_peak_force_n", "peak_force_static_ratio", "max_specific_energy_j_m"):
+        for name in ("max_peak_force_n", "peak_force_static_ratio", "max_specific_energy_j_m", "max_power_w",
+                     "max_decel_g"):
             v = getattr(self, name)
             if v is not None and not (math.isfinite(v) and v > 0):
                 raise UserError(f"constraint {name} must be a positive number, got {v!r}")

@@ -66,26 +66,31 @@ def plot_importances(study, path: Path, title: str) -> str | None:
 
 
 def plot_pareto(trials: pd.DataFrame, front: pd.DataFrame, verified: pd.DataFrame | None, path: Path,
-                title: str) -> str:
-    """ROP [mm/s] against specific energy [J/m, log]: feasible trials, their front, and verified points
-    (arrow from the study's value to the simulator's)."""
+                title: str, names: list[str] | tuple[str, str] = ("rop_m_s", "power_w")) -> str:
+    """First objective (y) against the second (x), in engineering units: feasible trials, their front,
+    and the verified points (arrow from the study's value to the simulator's)."""
+    from pipeline.core.names import display
+
+    (ny, nx) = names[0], names[1]
+    (_, uy), (_, ux) = display(ny, 0.0), display(nx, 0.0)
+    fy, fx = display(ny, 1.0)[0], display(nx, 1.0)[0]
     fig, ax = plt.subplots(figsize=(8, 5))
     feas = trials[trials["feasible"] & np.isfinite(trials["value_2"].astype(float))]
-    ax.scatter(feas["value_2"], feas["value"] * MM, s=6, color="0.7", label="feasible trials")
-    f = front.sort_values("value")
-    ax.plot(f["value_2"], f["value"] * MM, "o-", color="C0", ms=4, label="Pareto front (study)")
-    if verified is not None and len(verified):
-        v = verified[np.isfinite(verified["specific_energy_j_m_sim"].astype(float))]
+    ax.scatter(feas["value_2"] * fx, feas["value"] * fy, s=6, color="0.7", label="feasible trials")
+    f = front.sort_values("value_2")
+    ax.plot(f["value_2"] * fx, f["value"] * fy, "o-", color="C0", ms=4, label="Pareto front (study)")
+    if verified is not None and len(verified) and f"{nx}_sim" in verified:
+        v = verified[np.isfinite(verified[f"{nx}_sim"].astype(float))]
         for _, r in v.iterrows():
-            ax.annotate("", xy=(r["specific_energy_j_m_sim"], r["rop_m_s_sim"] * MM),
-                        xytext=(r["specific_energy_j_m_pred"], r["rop_m_s_pred"] * MM),
+            ax.annotate("", xy=(r[f"{nx}_sim"] * fx, r[f"{ny}_sim"] * fy),
+                        xytext=(r[f"{nx}_pred"] * fx, r[f"{ny}_pred"] * fy),
                         arrowprops=dict(arrowstyle="->", color="C3", lw=0.8))
-        ax.scatter(v["specific_energy_j_m_sim"], v["rop_m_s_sim"] * MM, s=30, color="C3", marker="D",
+        ax.scatter(v[f"{nx}_sim"] * fx, v[f"{ny}_sim"] * fy, s=30, color="C3", marker="D",
                    label="verified by the simulator")
-    if len(feas) and (feas["value_2"] > 0).all():
+    if len(feas) and (feas["value_2"] > 0).all() and feas["value_2"].max() > 30 * feas["value_2"].min():
         ax.set_xscale("log")
-    ax.set_xlabel("specific energy [J/m]  (lower is better)")
-    ax.set_ylabel("ROP [mm/s]  (higher is better)")
+    ax.set_xlabel(f"{nx} [{ux}]")
+    ax.set_ylabel(f"{ny} [{uy}]")
     ax.set_title(title)
     ax.legend()
     return _save(fig, path)

@@ -11,6 +11,16 @@ from pipeline.core.errors import UserError
 from pipeline.core.unitcube import to_unit
 
 
+ON_BOUND_RTOL = 0.02
+"""A recommended value within 2 % of its range's width from a bound is reported as lying on that bound."""
+
+
+def describe_bounds(hits: list[dict]) -> str:
+    """'amplitude_n at its upper bound 2700, static_force_n at its lower bound 600' (empty for none)."""
+    return ", ".join(f"{h['name']} at its {'upper' if h['side'] == 'high' else 'lower'} bound {h['bound']:g}"
+                     for h in hits)
+
+
 @dataclass(frozen=True)
 class Space:
     """Box of named inputs ``{name: (low, high)}``; names in ``log`` are sampled on a log scale."""
@@ -62,6 +72,21 @@ class Space:
             if lo < a - tol or hi > b + tol:
                 bad.append(n)
         return bad
+
+    def on_bounds(self, point, rtol: float = ON_BOUND_RTOL) -> list[dict]:
+        """The bounds ``point`` ({name: value}) lies on: ``[{"name", "side": "low"|"high", "bound"}]``, a value
+        within ``rtol`` of its range's width from a bound counting as on it (an optimum there would likely
+        move if the box were larger)."""
+        out = []
+        for n, (lo, hi) in self.ranges.items():
+            if n not in point:
+                continue
+            v, tol = float(point[n]), rtol * (hi - lo)
+            if v - lo <= tol:
+                out.append({"name": n, "side": "low", "bound": lo, "value": v})
+            elif hi - v <= tol:
+                out.append({"name": n, "side": "high", "bound": hi, "value": v})
+        return out
 
     def to_dict(self) -> dict:
         return {n: {"low": lo, "high": hi, "scale": "log" if n in self.log else "linear"}

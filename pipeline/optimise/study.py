@@ -23,12 +23,40 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
+from pipeline.core.names import MAXIMISED, TARGETS
 from pipeline.optimise.constraints import Constraints
 from pipeline.optimise.space import Space
 
 SAMPLERS = ("tpe", "gp", "nsga2", "random")
 OBJECTIVES = ("rop", "pareto")
-ATTR_KEYS = ("status", "rop_m_s", "peak_force_n", "specific_energy_j_m", "impacts_per_cycle", "p_progress", "regime")
+ATTR_KEYS = ("status", *TARGETS, "p_progress", "regime")
+DEFAULT_PARETO = ("rop_m_s", "power_w")
+"""Objectives of ``--objective pareto`` unless the user names others: ROP against the exciter's mean power."""
+
+
+def parse_objectives(items, known) -> list[tuple[str, str]]:
+    """``["rop_m_s", "power_w"]`` or ``"rop_m_s,min:power_w"`` → ``[(label, "maximize"|"minimize"), ...]``.
+
+    A bare label takes its default direction (ROP maximised, every other label minimised); ``max:``/``min:``
+    choose it.  UserError naming the item for an unknown label, a repeated one, or fewer than two."""
+    if isinstance(items, str):
+        items = [s for s in items.split(",")]
+    out: list[tuple[str, str]] = []
+    for raw in items:
+        item = str(raw).strip()
+        way, sep, name = item.partition(":")
+        if not sep:
+            way, name = ("max" if item in MAXIMISED else "min"), item
+        if way not in ("max", "min"):
+            raise UserError(f"--objectives '{item}': the direction must be max: or min:")
+        if name not in known:
+            raise UserError(f"--objectives '{item}': '{name}' is not a label (known: {', '.join(known)})")
+        if any(name == n for n, _ in out):
+            raise UserError(f"--objectives: '{name}' is named twice")
+        out.append((name, "maximize" if way == "max" else "minimize"))
+    if len(out) < 2:
+        raise UserError(f"--objectives: a Pareto study needs at least two labels, got {[n for n, _ in out]}")
+    return out
 
 
 def default_storage() -> str:
@@ -87,14 +115,15 @@ def open_storage(url: str | None):
     return storage
 
 
-def open_study(storage: str | None, name: str, objective: str, sampler, signature: dict):
-    """Create or resume study ``name``; a resumed study must have the same ``signature``
-    (mode, model, preset, space, constraints, objective) or UserError explains the clash."""
+def open_study(storage: str | None, name: str, objectives: list[tuple[str, str]], sampler, signature: dict):
+    """Create or resume study ``name`` with ``objectives`` [(label, direction)]; a resumed study must have
+    the same ``signature`` (mode, model, preset, space, constraints, objectives) or UserError explains the clash."""
     import optuna
     import sqlalchemy.exc
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    directions = ["maximize"] if objective == "rop" else ["maximize", "minimize"]
+    directions = [d for _, d in objectives]
+    objective = ",".join(n for n, _ in objectives)
     from pipeline.optimise.coordination import StudyGuard
 
     try:
@@ -123,14 +152,16 @@ def n_complete(study) -> int:
     return sum(t.state == optuna.trial.TrialState.COMPLETE for t in study.get_trials(deepcopy=False))
 
 
-def _objective_values(row: dict, objective: str) -> list[float]:
-    rop = row.get("rop_m_s")
-    rop = 0.0 if rop is None or (isinstance(rop, float) and math.isnan(rop)) else float(rop)
-    if objective == "rop":
-        return [rop]
-    se = row.get("specific_energy_j_m")
-    se = math.inf if se is None or (isinstance(se, float) and math.isnan(se)) else float(se)
-    return [rop, se]
+def _objective_values(row: dict, objectives: list[tuple[str, str]]) -> list[float]:
+    """The row's value of each objective; a missing value is the worst (no ROP = 0, a missing cost = +inf)."""
+    out = []
+    for name, direction in objectives:
+        v = row.get(name)
+        missing = v is None or (isinstance(v, float) and math.isnan(v))
+        if missing:
+            v = 0.0 if name == "rop_m_s" else (-math.inf if direction == "maximize" else math.inf)
+        out.append(float(v))
+    return out
 
 
 def _clean(v):
@@ -142,10 +173,11 @@ def _clean(v):
 
 
 def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Space, constraints: Constraints,
-              objective: str, n_trials: int, batch_size: int, progress: bool = True, desc: str = "study",
-              sampler_factory: Callable[[int], object] | None = None, guard=None) -> int:
+              objectives: list[tuple[str, str]], n_trials: int, batch_size: int, progress: bool = True,
+              desc: str = "study", sampler_factory: Callable[[int], object] | None = None, guard=None) -> int:
     """Ask/evaluate/tell in batches until the study holds ``n_trials`` trials (complete, or running
-    in another worker).  Returns the number of trials run now (0 when already complete).
+    in another worker) on ``objectives`` [(label, direction)].  Returns the number of trials run now
+    (0 when already complete).
 
     Each batch is counted and asked under ``guard.lock()`` (pipeline.optimise.coordination), after
     stale trials of dead workers are marked FAIL (they are re-run): several workers on one SQLite
@@ -190,7 +222,7 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
                     t.set_user_attr("labels", {k: _clean(row[k]) for k in ATTR_KEYS if k in row})
                     for key, val in constraints.values(row).items():
                         t.set_constraint(key, val)
-                    study.tell(t, _objective_values(row, objective))
+                    study.tell(t, _objective_values(row, objectives))
             except BaseException:
                 for t in trials:
                     try:
@@ -212,7 +244,8 @@ def _key(t) -> tuple:
     return tuple(sorted(t.params.items()))
 
 
-def run_study_buffered(study, sampler, evaluate, space: Space, constraints: Constraints, objective: str,
+def run_study_buffered(study, sampler, evaluate, space: Space, constraints: Constraints,
+                       objectives: list[tuple[str, str]],
                        n_trials: int, batch_size: int, checkpoint: int = 100, progress: bool = True,
                        desc: str = "study", sampler_factory: Callable[[int], object] | None = None, guard=None):
     """Like :func:`run_study` for cheap objectives (the surrogate): trials run in an in-memory copy of
@@ -242,7 +275,7 @@ def run_study_buffered(study, sampler, evaluate, space: Space, constraints: Cons
         mem.add_trials(have)
         target = min((len(have) // checkpoint + 1) * checkpoint, n_trials)
         try:
-            ran += run_study(mem, evaluate, space, constraints, objective, target, batch_size, progress, desc,
+            ran += run_study(mem, evaluate, space, constraints, objectives, target, batch_size, progress, desc,
                              sampler_factory=sampler_factory)
         finally:
             new = [t for t in mem.get_trials(deepcopy=False)[len(have):] if t.state in complete]
@@ -269,40 +302,72 @@ def trials_frame(study, space: Space) -> pd.DataFrame:
         labels = t.user_attrs.get("labels", {})
         rec.update({k: labels.get(k) for k in ATTR_KEYS if k in labels})
         rec["value"] = t.values[0]
-        if len(t.values) > 1:
-            rec["value_2"] = t.values[1]
+        for k, v in enumerate(t.values[1:], start=2):
+            rec[f"value_{k}"] = v
         rec["violation"] = float(sum(max(v, 0.0) for v in cons.values()))
         rec["feasible"] = rec["violation"] <= 0
         rows.append(rec)
     return pd.DataFrame(rows)
 
 
-def pareto_mask(rop: np.ndarray, se: np.ndarray) -> np.ndarray:
-    """Non-dominated points for (maximise rop, minimise se)."""
-    n = len(rop)
-    keep = np.ones(n, dtype=bool)
-    for i in range(n):
-        dom = (rop >= rop[i]) & (se <= se[i]) & ((rop > rop[i]) | (se < se[i]))
+def value_columns(n_objectives: int) -> list[str]:
+    """Columns of :func:`trials_frame` holding the objective values: value, value_2, value_3, ..."""
+    return ["value"] + [f"value_{k}" for k in range(2, n_objectives + 1)]
+
+
+def pareto_mask(first: np.ndarray, *others: np.ndarray, directions: list[str] | None = None) -> np.ndarray:
+    """Non-dominated points of objective columns ``first, *others``; ``directions`` per column
+    (default: maximise the first, minimise the others — ROP against costs)."""
+    cols = [np.asarray(first, dtype=float), *(np.asarray(o, dtype=float) for o in others)]
+    directions = directions or ["maximize"] + ["minimize"] * (len(cols) - 1)
+    C = np.column_stack([-c if d == "maximize" else c for c, d in zip(cols, directions)])   # all minimised
+    keep = np.ones(len(C), dtype=bool)
+    for i in range(len(C)):
+        dom = np.all(C <= C[i], axis=1) & np.any(C < C[i], axis=1)
         keep[i] = not dom.any()
     return keep
 
 
-def pick_candidates(trials: pd.DataFrame, space: Space, objective: str, n: int, min_dist: float = 0.02) -> pd.DataFrame:
+def _spread(front: pd.DataFrame, cols: list[str], directions: list[str], n: int) -> pd.DataFrame:
+    """``n`` points of a front spread evenly along it: greedy farthest-point choice in the objectives
+    normalised to [0, 1], starting from the best of the first objective."""
+    V = front[cols].to_numpy(float)
+    span = np.where(np.ptp(V, axis=0) > 0, np.ptp(V, axis=0), 1.0)
+    U = (V - V.min(axis=0)) / span
+    start = int(np.argmax(V[:, 0]) if directions[0] == "maximize" else np.argmin(V[:, 0]))
+    picked = [start]
+    dist = np.linalg.norm(U - U[start], axis=1)
+    while len(picked) < n:
+        j = int(np.argmax(dist))
+        if dist[j] <= 0:
+            break
+        picked.append(j)
+        dist = np.minimum(dist, np.linalg.norm(U - U[j], axis=1))
+    return front.iloc[picked]
+
+
+def pick_candidates(trials: pd.DataFrame, space: Space, objective: str, n: int, min_dist: float = 0.02,
+                    directions: list[str] | None = None) -> pd.DataFrame:
     """Up to ``n`` distinct feasible candidates to verify.
 
     rop: best first, skipping points within ``min_dist`` (unit-cube distance) of one already picked.
-    pareto: the feasible Pareto front, thinned to ``n`` points spread along ROP.
+    pareto: the feasible Pareto front of the objective columns (``directions`` per objective, default
+    maximise ROP and minimise the rest), thinned to ``n`` points spread evenly along the front.
     """
     feas = trials[trials["feasible"]] if len(trials) else trials
     if feas.empty:
         return feas
     if objective == "pareto":
-        front = feas[pareto_mask(feas["value"].to_numpy(float), feas["value_2"].to_numpy(float))]
-        front = front.sort_values("value", ascending=False).drop_duplicates(subset=space.names)
+        directions = directions or ["maximize", "minimize"]
+        cols = value_columns(len(directions))
+        feas = feas[np.all(np.isfinite(feas[cols].to_numpy(float)), axis=1)]
+        if feas.empty:
+            return feas
+        front = feas[pareto_mask(*(feas[c].to_numpy(float) for c in cols), directions=directions)]
+        front = front.drop_duplicates(subset=space.names).drop_duplicates(subset=cols)
         if len(front) > n:
-            idx = np.unique(np.round(np.linspace(0, len(front) - 1, n)).astype(int))
-            front = front.iloc[idx]
-        return front.reset_index(drop=True)
+            front = _spread(front, cols, directions, n)
+        return front.sort_values("value", ascending=directions[0] != "maximize").reset_index(drop=True)
     ordered = feas.sort_values("value", ascending=False)
     U = space.unit(ordered)
     picked: list[int] = []

@@ -14,7 +14,8 @@ from pipeline.optimise.constraints import Constraints
 from pipeline.core.files import atomic_write_parquet
 from pipeline.core.names import REGIME_TO_STATUS, TARGETS  # noqa: F401 (TARGETS re-exported)
 
-COMPARED = ("rop_m_s", "peak_force_n", "impacts_per_cycle", "specific_energy_j_m")
+COMPARED = TARGETS
+"""Labels whose prediction is set next to the simulation (every surrogate target)."""
 
 
 def _f(x) -> float:
@@ -25,15 +26,25 @@ def _f(x) -> float:
     return v
 
 
-def compare(pred: pd.DataFrame, simres: pd.DataFrame, inputs: list[str], constraints: Constraints,
-            rel_tol: float) -> pd.DataFrame:
-    """One row per point: inputs, ``T_pred`` [``T_lo``, ``T_hi``] and ``T_sim`` for each label,
-    status_pred / status_sim, feasible_pred / feasible_sim, rop_rel_error, in_interval,
-    surrogate_wrong and why (text).
+def _rel_error(p: float, s: float, floor: float) -> float:
+    return abs(p - s) / max(abs(s), floor) if math.isfinite(p) and math.isfinite(s) else math.inf
 
-    The prediction is *wrong* when its feasibility differs from the simulator's, or its ROP is off
-    by more than ``rel_tol`` relative to the simulated ROP (absolute 1e-9 m/s floor).
+
+REL_FLOOR = {"rop_m_s": 1e-9}
+"""Smallest denominator of a relative error [label units] (default 1e-12)."""
+
+
+def compare(pred: pd.DataFrame, simres: pd.DataFrame, inputs: list[str], constraints: Constraints,
+            rel_tol: float, objectives: list[str] | tuple[str, ...] = ("rop_m_s",)) -> pd.DataFrame:
+    """One row per point: inputs, ``T_pred`` [``T_lo``, ``T_hi``] and ``T_sim`` for each label,
+    status_pred / status_sim, feasible_pred / feasible_sim, ``T_rel_error`` of ROP and of every
+    optimised objective, in_interval (ROP), surrogate_wrong and why (text).
+
+    The prediction is *wrong* when its feasibility differs from the simulator's, or its ROP or any
+    objective in ``objectives`` is off by more than ``rel_tol`` relative to the simulated value
+    (absolute floor 1e-9 m/s for ROP).
     """
+    checked = ["rop_m_s", *[o for o in objectives if o != "rop_m_s"]]
     pred = pred.reset_index(drop=True)
     simres = simres.reset_index(drop=True)
     rows = []
@@ -55,9 +66,14 @@ def compare(pred: pd.DataFrame, simres: pd.DataFrame, inputs: list[str], constra
         rec["feasible_pred"] = constraints.feasible(p_row)
         rec["feasible_sim"] = constraints.feasible(s_row)
         rec["violation_sim"] = constraints.violation(s_row)
-        rp, rs = rec.get("rop_m_s_pred", math.nan), rec["rop_m_s_sim"]
-        rel = abs(rp - rs) / max(abs(rs), 1e-9) if math.isfinite(rp) and math.isfinite(rs) else math.inf
-        rec["rop_rel_error"] = rel
+        rels = {}
+        for t in checked:
+            rec.setdefault(f"{t}_sim", _f(s.get(t)))
+            rec.setdefault(f"{t}_pred", _f(p.get(t)))
+            rels[t] = _rel_error(rec[f"{t}_pred"], rec[f"{t}_sim"], REL_FLOOR.get(t, 1e-12))
+            rec[f"{t}_rel_error"] = rels[t]
+        rec["rop_rel_error"] = rels["rop_m_s"]
+        rs = rec["rop_m_s_sim"]
         lo, hi = rec.get("rop_m_s_lo"), rec.get("rop_m_s_hi")
         rec["in_interval"] = (bool(lo <= rs <= hi) if lo is not None and hi is not None and math.isfinite(rs)
                               else None)
@@ -65,8 +81,10 @@ def compare(pred: pd.DataFrame, simres: pd.DataFrame, inputs: list[str], constra
         if rec["feasible_pred"] != rec["feasible_sim"]:
             why.append(f"predicted {'feasible' if rec['feasible_pred'] else 'infeasible'} but simulated "
                        f"{'feasible' if rec['feasible_sim'] else 'infeasible'} (status {s['status']})")
-        if rel > rel_tol:
-            why.append(f"ROP off by {rel:.1%}" if math.isfinite(rel) else "no simulated ROP")
+        for t, rel in rels.items():
+            if rel > rel_tol:
+                what = "ROP" if t == "rop_m_s" else t
+                why.append(f"{what} off by {rel:.1%}" if math.isfinite(rel) else f"no simulated {what}")
         rec["surrogate_wrong"] = bool(why)
         rec["why"] = "; ".join(why)
         rows.append(rec)

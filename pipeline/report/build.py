@@ -23,7 +23,7 @@ import pandas as pd  # noqa: E402
 
 from pipeline.core.errors import UserError  # noqa: E402
 from pipeline.report.doc import Document, Figure, Heading, Para, Table, fmt, to_html, to_markdown  # noqa: E402
-from pipeline.report.units import ENGINEERING, convert, factor, label, split  # noqa: E402
+from pipeline.core.units import ENGINEERING, convert, factor, label, split  # noqa: E402
 from pipeline.core.files import atomic_write_bytes, atomic_write_text  # noqa: E402
 from pipeline.core.jsonable import dump_json, flatten  # noqa: E402
 
@@ -271,9 +271,25 @@ def section_train(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
         cols = ("n", "r2", "mae", "rmse", "coverage", "domain")
         targets = {t: {c: v.get(c) for c in cols if c in v} for t, v in held["targets"].items() if isinstance(v, dict)}
         chosen = ((report.get("selection") or {}).get("targets") or {})
+        constant = report.get("constant_targets") or {}
         for t in targets:
             targets[t]["model"] = (chosen.get(t) or {}).get("model")
-        doc.add(dict_table(targets, "Held-out accuracy per target (R², MAE, RMSE; coverage of the prediction interval)"))
+            targets[t]["scale"] = (chosen.get(t) or {}).get("transform")
+            if t in constant:   # nothing to learn: no R², no coverage to judge
+                targets[t] = {"n": targets[t].get("n"), "domain": targets[t].get("domain"), "model": "constant",
+                              "scale": f"constant = {constant[t]:.6g}"}
+        doc.add(dict_table(targets, "Held-out accuracy per target (R², MAE, RMSE; coverage of the prediction "
+                                    "interval; scale: log = learned as log10, chosen by range and CV)"))
+        notes = report.get("goals_notes") or {}
+        if constant or notes:
+            doc.add(Para("Not failures: " + "; ".join(
+                [f"`{t}` is constant in the data ({v:.6g} at every point), so it is predicted exactly and has no R² goal"
+                 for t, v in constant.items()]
+                + [f"{k}: {n}" for k, n in notes.items() if not (k.endswith("_r2") and k[:-3] in constant)]) + "."))
+        met = report.get("goals_met") or {}
+        if met:
+            doc.add(Para("Goals: " + ", ".join(f"{k} {'met' if v else 'NOT met'}" for k, v in met.items()
+                                               if v is not None) + "."))
         summary["train"] = {"held_out": held, "n_train": report.get("n_train"), "n_test": report.get("n_test")}
     elif report:
         doc.add(dict_table(report, "Held-out accuracy of the surrogate (bundle.report)"))
@@ -312,6 +328,25 @@ def _recommendation(folder: Path) -> tuple[Path, dict] | None:
 VERIFIED_KEYS = ("rop_m_s_sim", "verified_rop_m_s", "rop_m_s_verified")
 
 
+def _base_name(key: str) -> str:
+    """'params.amplitude_n' / 'power_w_sim' / 'rop_m_s_pred' -> the label or control name."""
+    key = key.split(".")[-1]
+    for suffix in ("_sim", "_pred", "_lo", "_hi"):
+        if key.endswith(suffix):
+            return key[: -len(suffix)]
+    return key
+
+
+def _eng_name(key: str) -> str:
+    """Column name with its engineering unit (pipeline.core.units), e.g. 'power (sim) [W]'."""
+    return label(key.split(".")[-1])
+
+
+def _eng_value(key: str, v):
+    """A value in the engineering unit of its column; non-numbers unchanged."""
+    return convert(key, v)
+
+
 def section_optimise(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) -> None:
     doc.add(Heading("3. Recommended operating point (optimise, verified by the simulator)"))
     path = inp.p(inp.optimise)
@@ -327,7 +362,18 @@ def section_optimise(doc: Document, figs: _Figs, inp: ReportInputs, summary: dic
         where = p.relative_to(inp.root) if p.is_relative_to(inp.root) else p
         doc.add(Para("Recommended point" + (f": verified ROP **{v * 1e3:.4g} mm/s**" if v is not None else "")
                      + f" (from `{where}`)."))
-        doc.add(dict_table(rec, "Recommended operating point (`_sim` = simulated, `_pred` = surrogate)"))
+        if rec.get("binding"):
+            doc.add(Para("It sits at the limit(s): " + ", ".join(rec["binding"]) + "."))
+        if rec.get("on_bounds"):
+            doc.add(Para("**On the edge of the search space:** " + ", ".join(
+                f"{h['name']} at its {'upper' if h['side'] == 'high' else 'lower'} bound {h['bound']:g}"
+                for h in rec["on_bounds"]) + ". The optimum may lie beyond this bound; widen that range to know."))
+        elif "on_bounds" in rec:
+            doc.add(Para("The recommended point lies inside the search space (no control within 2 % of a bound)."))
+        shown = {_eng_name(k): _eng_value(k, val) for k, val in flatten(rec).items()
+                 if k not in ("binding",) and not k.startswith("on_bounds")}
+        doc.add(dict_table(shown, "Recommended operating point in engineering units (`_sim` = simulated, "
+                                  "`_pred` = surrogate)"))
     else:
         doc.add(Para("No recommended point among the optimisation outputs (no feasible point was verified)."))
     mfiles = _metrics_files(inp, "optimise")
@@ -344,7 +390,7 @@ def section_optimise(doc: Document, figs: _Figs, inp: ReportInputs, summary: dic
                             f"Verified Pareto front ({len(front)} points; first {min(len(front), inp.max_rows)} shown)"))
         num = [c for c in front.columns if pd.api.types.is_numeric_dtype(front[c])]
         ycol = next((c for c in num if "rop" in c), None)
-        xcol = next((c for c in num if c != ycol and any(s in c for s in ("energy", "force", "decel"))), None)
+        xcol = next((c for c in num if c != ycol and any(s in c for s in ("power", "energy", "force", "decel"))), None)
         if ycol and xcol:
             fig, ax = plt.subplots(figsize=(6, 4))
             f2 = front.sort_values(xcol)

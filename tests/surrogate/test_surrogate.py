@@ -274,3 +274,47 @@ def test_bundle_carries_the_sweeps_fixed_parameters_and_settings(tmp_path):
     assert b2.fixed == fixed and b2.settings == settings
     _, _, used_fixed, _, simulator, _ = _setup(OptimiseConfig(mode="surrogate", surrogate=str(tmp_path / "b")), b2)
     assert used_fixed == fixed and simulator.fixed == fixed and simulator.settings == settings
+
+
+# ---- target scale and constant targets (issue 13) -------------------------------------------------------------
+
+def test_constant_target_is_reported_as_constant_not_as_a_failed_goal():
+    # peak force pinned at one value (as the drill's is at Pr = 3 kN on the lab preset): nothing to learn
+    df = synthetic().assign(peak_force_n=3000.0)
+    b = train_bundle(df, list(RANGES), RANGES, "drill", None, FAST)
+    assert b.report["constant_targets"] == {"peak_force_n": 3000.0}
+    assert b.regressors["peak_force_n"].name == "constant"
+    assert b.report["goals_met"]["peak_force_n_r2"] is None and "constant" in b.report["goals_notes"]["peak_force_n_r2"]
+    X = pd.DataFrame({"frequency_hz": [50.0, 300.0], "amplitude_n": [2500.0, 2900.0]})
+    p = b.predict(X, conditional=True)
+    assert p["peak_force_n"].tolist() == [3000.0, 3000.0] and (p["peak_force_n_hi"] == p["peak_force_n_lo"]).all()
+    # coverage is judged on the varying targets only (a zero-width interval around a constant covers 100 %)
+    assert b.report["goals_met"]["coverage"] is not None
+
+
+def test_one_regime_is_not_scored_as_a_classification():
+    df = synthetic()
+    df = df[df["rop_m_s"] > 0].reset_index(drop=True)   # only the progressing regime left
+    b = train_bundle(df, list(RANGES), RANGES, "drill", None, FAST)
+    assert b.report["goals_met"]["accuracy"] is None and "one regime" in b.report["goals_notes"]["accuracy"]
+
+
+def test_targets_spanning_more_than_a_decade_are_learned_on_a_log_scale_checked_by_cv():
+    from surrogate.config import TrainConfig
+    from surrogate.features import TargetTransform, decades
+    from surrogate.train import choose_transform
+
+    y = np.array([1.0, 2.0, 30.0])
+    assert decades(y) == pytest.approx(np.log10(30.0))          # 1.48 decades > 1: the range rule says log
+    assert TargetTransform.choose(y).kind == "log" and TargetTransform.choose(y[:2]).kind == "identity"
+    assert decades(np.array([0.0, 1.0])) is None                # a zero: no log scale
+    # a multiplicative response over 1.7 decades: y = 10^(1.7 x); the CV check compares both scales
+    rng = np.random.default_rng(0)
+    X = rng.uniform(0, 1, (200, 2))
+    y = 10 ** (1.7 * X[:, 0])
+    cfg = TrainConfig.from_dict({**FAST, "regressors": ["gbt"]})
+    tf, how = choose_transform("power_w", X, y, cfg)
+    assert how["rule"] == "log" and set(how["cv_rmse"]) == {"log", "identity"}
+    assert tf.kind == min(how["cv_rmse"], key=how["cv_rmse"].get)      # the lower CV RMSE decides
+    tf2, how2 = choose_transform("power_w", X, y, TrainConfig.from_dict({**FAST, "transforms": {"power_w": "identity"}}))
+    assert tf2.kind == "identity" and "cv_rmse" not in how2                 # an explicit choice is kept

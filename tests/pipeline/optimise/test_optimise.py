@@ -29,7 +29,8 @@ class ToyBundle:
     predict).
 
     Predicts a smooth analytic ROP peaking at f = 280 Hz and growing with F0 and Fs (the shape MODELS.md §2 asks
-    of the lab preset), a constant peak force of Pr = 3 kN, specific energy = energy / ROP with energy ∝ F0²/f.
+    of the lab preset), a constant peak force of Pr = 3 kN, specific energy = energy / ROP with energy ∝ F0²/f,
+    mean power = energy × f ∝ F0² and a peak deceleration ∝ f × F0.
     ``rop_scale`` multiplies the ROP to make the double deliberately wrong.
     """
 
@@ -46,7 +47,8 @@ class ToyBundle:
         energy = 1e-6 * a ** 2 / f * 50.0
         out = pd.DataFrame({"p_progress": np.full(len(X), 0.99), "regime": ["progressing"] * len(X)})
         for t, v in (("rop_m_s", rop), ("peak_force_n", np.full(len(X), 3000.0)),
-                     ("impacts_per_cycle", np.ones(len(X))), ("specific_energy_j_m", energy * f / rop)):
+                     ("impacts_per_cycle", np.ones(len(X))), ("specific_energy_j_m", energy * f / rop),
+                     ("power_w", energy * f), ("peak_decel_g", 4.0 * (f / 280.0) * (a / 2700.0))):
             out[t], out[f"{t}_lo"], out[f"{t}_hi"] = v, 0.9 * v, 1.1 * v
         return out
 
@@ -168,17 +170,102 @@ def test_surrogate_study_verifies_flags_wrong_predictions_and_closes_the_loop(en
     assert len(pd.read_parquet(fb)) == 3
 
 
-def test_pareto_mode_plots_the_front_of_rop_against_specific_energy(env):
-    cfg = OptimiseConfig(mode="surrogate", surrogate=str(env), objective="pareto", ranges=SMALL, n_trials=40,
-                         n_verify=4, storage=f"sqlite:///{env / 'optuna.db'}", feedback=str(env / "fb.parquet"))
+def test_pareto_mode_trades_rop_against_power_with_ten_verified_points(env):
+    # the toy's ROP grows with F0 and Fs while its power grows as F0² (ToyBundle): a real trade-off
+    cfg = OptimiseConfig(mode="surrogate", surrogate=str(env), objective="pareto", ranges=SMALL, n_trials=200,
+                         n_verify=12, storage=f"sqlite:///{env / 'optuna.db'}", feedback=str(env / "fb.parquet"))
     rep = run_optimise(cfg, env / "out", bundle=ToyBundle(), progress=False, mlflow_enabled=False)
-    assert (env / "out" / "pareto.png").exists()
+    assert (env / "out" / "pareto.png").exists() and rep["objectives"] == ["rop_m_s", "power_w"]
+    table = pd.read_csv(env / "out" / "verified.csv")
+    assert len(table) == 12
+    # every optimised objective is verified: the simulator's power next to the prediction, with its error
+    truth = sim.simulate_batch("drill", table[["frequency_hz", "amplitude_n", "static_force_n"]], preset="lab")
+    np.testing.assert_allclose(table["power_w_sim"], truth["energy_per_cycle_j"] * truth["frequency_hz"], rtol=1e-12)
+    rel = (table["power_w_pred"] - table["power_w_sim"]).abs() / table["power_w_sim"]
+    np.testing.assert_allclose(table["power_w_rel_error"], rel, rtol=1e-9)
+    assert table["why"].fillna("").str.contains("power_w off by").tolist() == (rel > 0.1).tolist()
+    # the front is built from the *simulated* objectives: non-dominated, distinct, sorted by ROP
     front = rep["pareto_verified"]
-    assert front
     r = np.array([p["rop_m_s"] for p in front])
-    e = np.array([p["specific_energy_j_m"] for p in front])
-    assert pareto_mask(r, e).all()                 # verified front points do not dominate each other
-    assert np.all(np.diff(r) > 0) and (len(e) < 2 or np.all(np.diff(e) >= 0))   # more ROP costs energy
+    w = np.array([p["power_w"] for p in front])
+    assert pareto_mask(r, w).all() and len(set(zip(r, w))) == len(front)
+    ok = table[table["feasible_sim"]]
+    assert len(front) == int(pareto_mask(ok["rop_m_s_sim"].to_numpy(), ok["power_w_sim"].to_numpy()).sum())
+    assert np.all(np.diff(r) > 0) and np.all(np.diff(w) > 0)   # more ROP costs power
+    md = (env / "out" / "report.md").read_text()
+    assert "Verified Pareto front (rop_m_s vs power_w)" in md and "power_w [W]" in md
+
+
+def test_pareto_front_of_the_study_spreads_ten_distinct_candidates():
+    # a front of 50 points along rop = 1 - (1 - w)^2: 10 candidates, all distinct, spanning both ends
+    w = np.linspace(0.0, 1.0, 50)
+    trials = pd.DataFrame({"x": w, "value": 1 - (1 - w) ** 2, "value_2": w, "feasible": True})
+    c = pick_candidates(trials, Space({"x": (0.0, 1.0)}), "pareto", n=10)
+    assert len(c) == 10 and c["x"].nunique() == 10
+    assert c["x"].max() == 1.0 and c["x"].min() == 0.0
+
+
+def test_objectives_are_any_labels_with_a_direction():
+    from pipeline.optimise.study import parse_objectives
+
+    assert parse_objectives("rop_m_s,power_w", sim.LABELS) == [("rop_m_s", "maximize"), ("power_w", "minimize")]
+    assert parse_objectives(["max:peak_decel_g", "rop_m_s"], sim.LABELS)[0] == ("peak_decel_g", "maximize")
+    with pytest.raises(UserError, match="'watts' is not a label"):
+        parse_objectives("rop_m_s,watts", sim.LABELS)
+    with pytest.raises(UserError, match="at least two"):
+        parse_objectives("rop_m_s", sim.LABELS)
+    with pytest.raises(UserError, match="named twice"):
+        parse_objectives("power_w,power_w", sim.LABELS)
+
+
+def test_power_and_deceleration_limits_are_constraints():
+    c = Constraints(max_power_w=20.0, max_decel_g=4.0)
+    ok = {"status": "ok", "rop_m_s": 1e-3, "power_w": 10.0, "peak_decel_g": 3.0}
+    assert c.feasible(ok) and c.names() == ["steady_state", "power", "decel"]
+    # 25 W is 25 % over 20 W; 5 g is 25 % over 4 g; a missing label counts as violated
+    assert c.values({**ok, "power_w": 25.0})["power"] == pytest.approx(0.25)
+    assert c.values({**ok, "peak_decel_g": 5.0})["decel"] == pytest.approx(0.25)
+    assert not c.feasible({**ok, "power_w": None})
+    with pytest.raises(UserError, match="max_power_w must be a positive number"):
+        Constraints(max_power_w=-1.0).check(None, None)
+
+
+def test_on_bound_detection_names_the_control_and_side():
+    space = Space(dict(LAB))
+    hits = space.on_bounds({"frequency_hz": 262.0, "amplitude_n": 2700.0, "static_force_n": 1790.0})
+    # 1790 N is 10 N = 0.8 % of the 1200 N range below 1800 N: within the 2 % tolerance, so on the bound
+    assert [(h["name"], h["side"]) for h in hits] == [("amplitude_n", "high"), ("static_force_n", "high")]
+    assert space.on_bounds({"frequency_hz": 105.0})[0]["side"] == "low"      # 5 Hz of 350: 1.4 %
+    assert space.on_bounds({"frequency_hz": 110.0}) == []                    # 10 Hz of 350: 2.9 %
+
+
+def test_power_limit_moves_the_optimum_off_the_corner(env):
+    # without a limit the toy's best point is the corner F0 = 2700 N, Fs = 1800 N; its power is 5e-5·F0² W
+    # (ToyBundle), so 320 W allows F0 <= sqrt(320 / 5e-5) = 2530 N
+    base = dict(mode="surrogate", surrogate=str(env), ranges=SMALL, n_trials=60, n_verify=3,
+                storage=f"sqlite:///{env / 'optuna.db'}", feedback=str(env / "fb.parquet"))
+    free = run_optimise(OptimiseConfig(**base, study_name="free"), env / "free", bundle=ToyBundle(), progress=False,
+                        mlflow_enabled=False)
+    assert ("amplitude_n", "high") in [(h["name"], h["side"]) for h in free["recommendation"]["on_bounds"]]
+    assert "ON THE EDGE of the search space: amplitude_n at its upper bound 2700" in free["outcome"]
+    assert "On the edge of the search space" in (env / "free" / "report.md").read_text()
+    lim = run_optimise(OptimiseConfig(**base, study_name="lim", max_power_w=320.0), env / "lim", bundle=ToyBundle(),
+                       progress=False, mlflow_enabled=False)
+    trials = pd.read_csv(env / "lim" / "trials.csv")
+    assert (trials["feasible"] == (5e-5 * trials["amplitude_n"] ** 2 <= 320.0)).all()
+    a = lim["recommendation"]["params"]["amplitude_n"]
+    assert a <= 2530.0 and "amplitude_n" not in [h["name"] for h in lim["recommendation"]["on_bounds"]]
+
+
+def test_surrogate_without_the_constrained_label_is_refused(env):
+    class NoPower(ToyBundle):
+        def predict(self, X, strict=False):
+            return super().predict(X).drop(columns=["power_w", "power_w_lo", "power_w_hi"])
+
+    cfg = OptimiseConfig(mode="surrogate", surrogate=str(env), ranges=SMALL, n_trials=5, max_power_w=20.0,
+                         storage=f"sqlite:///{env / 'optuna.db'}")
+    with pytest.raises(UserError, match="predicts no power_w: retrain"):
+        run_optimise(cfg, env / "out", bundle=NoPower(), progress=False, mlflow_enabled=False)
 
 
 def test_no_feasible_point_ends_with_a_clear_message_and_a_report(env):

@@ -180,7 +180,8 @@ def _fake_outputs(root: Path) -> None:
     (opt / "pareto").mkdir(parents=True)
     (opt / "rop/report.json").write_text(json.dumps({"recommendation": {
         "params": {"frequency_hz": 205.0, "amplitude_n": 2500.0, "static_force_n": 900.0},
-        "rop_m_s_sim": 1.8e-3, "rop_m_s_pred": 1.9e-3, "status_sim": "ok"}}))
+        "rop_m_s_sim": 1.8e-3, "rop_m_s_pred": 1.9e-3, "status_sim": "ok", "power_w_sim": 16.8,
+        "on_bounds": [{"name": "amplitude_n", "side": "high", "bound": 2700.0, "value": 2690.0}]}}))
     (opt / "pareto/report.json").write_text(json.dumps({"recommendation": {"rop_m_s_sim": 1.5e-3}, "pareto_verified": [
         {"rop_m_s": r, "specific_energy_j_m": e, "params": {"frequency_hz": f}}
         for r, e, f in ((1e-3, 1e4, 150.0), (1.5e-3, 2e4, 200.0), (1.9e-3, 4e4, 250.0))]}))
@@ -209,6 +210,8 @@ def test_report_is_self_contained_and_shows_every_section(tmp_path: Path):
     assert page.count("src='data:image/png;base64,") >= 3          # sweep map, Pareto front, diagnosis
     assert "src='http" not in page and "src='figures" not in page  # nothing external
     assert "1.8 mm/s" in md                                        # verified ROP of the recommended point
+    assert "On the edge of the search space:** amplitude_n at its upper bound 2700" in md
+    assert "| amplitude_n [kN] | 2.5 |" in md and "| power_w_sim [W] | 16.8 |" in md   # engineering units
     assert "| seed000-published | indenter-metal | 0.5 | 0.3 | 0.12 | 0.1 | shaker_coil | True |" in md
     assert "| seed000-published | indenter-sandstone | 0.6 | 0.4 | 0.4 | 0.1 | none | False |" in md
     assert "| ROP [mm/s] | 0.93 |" in md                          # surrogate accuracy table, engineering units

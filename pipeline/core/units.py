@@ -1,4 +1,4 @@
-"""Engineering units for people: the report shows mm/s, kN, kW, g instead of the code's SI names.
+"""Engineering units for people: reports and commands show mm/s, kN, W, g instead of the code's SI names.
 
 ``ENGINEERING[name] = (label, unit, factor)``: a value of column/key ``name`` [SI] times ``factor`` is in ``unit``.
 """
@@ -14,7 +14,7 @@ ENGINEERING: dict[str, tuple[str, str, float]] = {
     "peak_force_n": ("peak impact force", "kN", 1e-3),
     "mean_peak_force_n": ("mean peak force", "kN", 1e-3),
     "peak_decel_g": ("peak deceleration", "g", 1.0),
-    "power_w": ("power", "kW", 1e-3),
+    "power_w": ("power", "W", 1.0),       # the lab rig exciter delivers 1-36 W over its search space (kW would print 0.013)
     "energy_per_cycle_j": ("energy per cycle", "J", 1.0),
     "specific_energy_j_m": ("specific energy", "kJ/m", 1e-3),
     "impacts_per_cycle": ("impacts per cycle", "", 1.0),
@@ -54,6 +54,8 @@ def factor(name: str) -> float:
 
 def convert(name: str, value):
     """``value`` of ``name`` in engineering units (non-numbers unchanged)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    import numbers
+
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
         return value
     return value * factor(name)
