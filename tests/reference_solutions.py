@@ -168,75 +168,119 @@ class _TwoIndicatorModel(_Model):
 # 2. drill
 # ---------------------------------------------------------------------------------------------------
 class _Drill(_Model):
+    """MODELS.md section 2 with the section-6 drill effects (all off at 0, the default):
+    shaker_coil (tau, beta): the harmonic force on M1 is Fh, tau dFh/dt + Fh = F0 cos(Om t) - beta (v1 - v2),
+    Fh(0) = 0; tau = 0 means the algebraic limit Fh = F0 cos(Om t) - beta (v1 - v2) (state Fh unused, stays 0).
+    rate_stiffening (alpha): contact expression P = K1 (1 + alpha max(v1, 0)) (x1 - xb) + C1 v1 (phase II force,
+    switching surfaces, and the slider law of phase III).  guide_friction (mu, v_eps): -mu tanh((v1 - v2)/v_eps)
+    on M1, reaction on M2.  tip_blunting (gamma): threshold Pr (1 + gamma (xb - G) / 1 mm).
+    suspension_hardening (kappa): K2 d (1 + kappa d^2), d = x1 - x2.
+    """
     name = "drill"
     # phases: 0 = I (no contact), 1 = II (contact, no progression), 2 = III (contact with progression)
     contact_branches = (1, 2)
-    bounded_names = ("x1-xb", "x2-xb", "x3-xb", "xt-xb", "v1", "v2", "v3")
+    bounded_names = ("x1-xb", "x2-xb", "x3-xb", "xt-xb", "v1", "v2", "v3", "Fh")
     PARAMS = ("M1", "M2", "M3", "K1", "K2", "K3", "C1", "C2", "C3", "Pr",
               "gap_m", "static_force_n", "amplitude_n", "frequency_hz")
+    EFFECTS = {"tau": 0.0, "beta": 0.0, "alpha": 0.0, "mu": 0.0, "gamma": 0.0, "kappa": 0.0, "v_eps": 1e-4}
 
     def __init__(self, params):
-        p = _req(params, self.PARAMS, self.name)
+        params = dict(params)
+        for k, v in self.EFFECTS.items():
+            params.setdefault(k, v)
+        p = _req(params, self.PARAMS + tuple(self.EFFECTS), self.name)
         super().__init__(p)
         self.G, self.Fs, self.F0 = p["gap_m"], p["static_force_n"], p["amplitude_n"]
+        self.coil_state = p["tau"] > 0.0
         fsc = max(abs(self.F0), abs(self.Fs), p["Pr"], 1.0)
-        # state [x1, v1, x2, v2, x3, v3, xt, xb, W]
-        self.scales = [1, self.Om, 1, self.Om, 1, self.Om, 1, 1, fsc]
+        # state [x1, v1, x2, v2, x3, v3, xt, xb, Fh, W]; Fh in N: same "atol_scale * force scale" as W
+        self.scales = [1, self.Om, 1, self.Om, 1, self.Om, 1, 1, fsc, fsc]
         self.etaP = 1e-10 * max(p["Pr"], 1.0)
-        self.bscales = np.array([1, 1, 1, 1, self.Om, self.Om, self.Om])
+        self.bscales = np.array([1, 1, 1, 1, self.Om, self.Om, self.Om, fsc])
 
     def initial(self):
         G = self.G
-        return np.array([0, 0, 0, 0, 0, 0, G, G, 0.0]), None
+        return np.array([0, 0, 0, 0, 0, 0, G, G, 0, 0.0]), None
+
+    # effect-aware pieces (scalar) -----------------------------------------------------------------
+    def _F(self, t, y):
+        """Force the exciter applies to M1."""
+        if self.coil_state:
+            return y[8]
+        return self.F0 * math.cos(self.Om * t) - self.p["beta"] * (y[1] - y[3])
+
+    def _P(self, y):
+        """Phase-II contact expression (rate_stiffening acts on K1)."""
+        p = self.p
+        return p["K1"] * (1.0 + p["alpha"] * max(y[1], 0.0)) * (y[0] - y[7]) + p["C1"] * y[1]
+
+    def _Pr(self, y):
+        return self.p["Pr"] * (1.0 + self.p["gamma"] * (y[7] - self.G) / 1e-3)
+
+    def _link(self, y):
+        """Force of the bit-exciter link on M1 (pulls M1 back, pushes M2): damper + spring + guides."""
+        p = self.p
+        d, dv = y[0] - y[2], y[1] - y[3]
+        return (p["C2"] * dv + p["K2"] * d * (1.0 + p["kappa"] * d * d)
+                + p["mu"] * math.tanh(dv / p["v_eps"]))
 
     def rhs(self, t, y, br, disc):
         p = self.p
-        x1, v1, x2, v2, x3, v3, xt, xb, _ = y
-        K1, C1, Pr = p["K1"], p["C1"], p["Pr"]
+        x1, v1, x2, v2, x3, v3, xt, xb, Fh, _ = y
+        K1, C1 = p["K1"], p["C1"]
         if br == 0:
             Pc = 0.0
             dxt = -(K1 / C1) * (xt - xb)
             dxb = 0.0
         elif br == 1:
-            Pc = K1 * (x1 - xb) + C1 * v1
+            Pc = self._P(y)
             dxt = v1
             dxb = 0.0
         else:
-            Pc = Pr
+            Pc = self._Pr(y)
             dxt = v1
-            dxb = v1 + (K1 / C1) * (x1 - xb) - Pr / C1
-        F = self.F0 * math.cos(self.Om * t)
-        a1 = (F - p["C2"] * (v1 - v2) - p["K2"] * (x1 - x2) - Pc) / p["M1"]
-        a2 = (self.Fs - p["C2"] * (v2 - v1) - p["K2"] * (x2 - x1)
-              - p["C3"] * (v2 - v3) - p["K3"] * (x2 - x3)) / p["M2"]
+            dxb = (self._P(y) - Pc) / C1
+        F = self._F(t, y)
+        link = self._link(y)
+        a1 = (F - link - Pc) / p["M1"]
+        a2 = (self.Fs + link - p["C3"] * (v2 - v3) - p["K3"] * (x2 - x3)) / p["M2"]
         a3 = (-p["C3"] * (v3 - v2) - p["K3"] * (x3 - x2)) / p["M3"]
-        return [v1, a1, v2, a2, v3, a3, dxt, dxb, F * v1]
+        if self.coil_state:
+            dFh = (self.F0 * math.cos(self.Om * t) - p["beta"] * (v1 - v2) - Fh) / p["tau"]
+        else:
+            dFh = 0.0
+        return [v1, a1, v2, a2, v3, a3, dxt, dxb, dFh, F * v1]
 
     def _a1(self, t, y, Pc):
+        return (self._F(t, y) - self._link(y) - Pc) / self.p["M1"]
+
+    def _Pdot(self, t, y, Pc):
+        """dP/dt along the phase-II flow (xb fixed) with contact force Pc acting on the bit."""
         p = self.p
-        return (self.F0 * math.cos(self.Om * t) - p["C2"] * (y[1] - y[3])
-                - p["K2"] * (y[0] - y[2]) - Pc) / p["M1"]
+        a1 = self._a1(t, y, Pc)
+        v1 = y[1]
+        k1 = p["K1"] * (1.0 + p["alpha"] * max(v1, 0.0))
+        dk1 = p["K1"] * p["alpha"] * a1 if v1 > 0.0 else 0.0
+        return k1 * v1 + dk1 * (y[0] - y[7]) + p["C1"] * a1
 
     def classify(self, t, y, disc):
-        p = self.p
-        K1, C1, Pr = p["K1"], p["C1"], p["Pr"]
-        x1, v1, xt, xb = y[0], y[1], y[6], y[7]
+        x1, xt = y[0], y[6]
         d = x1 - xt
         if d < -ETA_X:
             return 0, y, disc
-        # at (or beyond) the plate: d(x1 - xt)/dt in phase I equals P/C1, so P decides
-        P = K1 * (x1 - xb) + C1 * v1
+        # at (or beyond) the plate: d(x1 - xt)/dt in phase I equals the base P/C1; at x1 = xt >= xb the
+        # rate_stiffening term K1 alpha max(v1, 0) (x1 - xb) >= 0 vanishes unless v1 > 0, so P has the same sign
+        P = self._P(y)
+        Pr = self._Pr(y)
         eP = self.etaP
         if P > Pr + eP:
             br = 2
         elif P >= Pr - eP:                     # on the II/III surface: where does P go?
-            Pdot = K1 * v1 + C1 * self._a1(t, y, Pr)
-            br = 2 if Pdot > 0.0 else 1
+            br = 2 if self._Pdot(t, y, Pr) > 0.0 else 1
         elif P > eP:
             br = 1
         elif P >= -eP:                         # on the I/II surface
-            Pdot = K1 * v1 + C1 * self._a1(t, y, 0.0)
-            br = 1 if Pdot > 0.0 else 0
+            br = 1 if self._Pdot(t, y, 0.0) > 0.0 else 0
         else:
             br = 0
         if br != 0:
@@ -244,15 +288,22 @@ class _Drill(_Model):
             y[6] = x1          # plate rides on the bit
         return br, y, disc
 
-    def events(self, br, disc):
+    def _P_vec(self, Y):
         p = self.p
-        K1, C1, Pr, eP = p["K1"], p["C1"], p["Pr"], self.etaP
+        return p["K1"] * (1.0 + p["alpha"] * np.maximum(Y[1], 0.0)) * (Y[0] - Y[7]) + p["C1"] * Y[1]
+
+    def _Pr_vec(self, Y):
+        return self.p["Pr"] * (1.0 + self.p["gamma"] * (Y[7] - self.G) / 1e-3)
+
+    def events(self, br, disc):
+        eP = self.etaP
+        P, Pr = self._P_vec, self._Pr_vec
         if br == 0:
             return [(lambda t, y: y[0] - y[6] - ETA_X, 1.0)]
         if br == 1:
-            return [(lambda t, y: K1 * (y[0] - y[7]) + C1 * y[1] + eP, -1.0),        # -> I
-                    (lambda t, y: K1 * (y[0] - y[7]) + C1 * y[1] - Pr - eP, 1.0)]    # -> III
-        return [(lambda t, y: K1 * (y[0] - y[7]) + C1 * y[1] - Pr + eP, -1.0)]       # -> II
+            return [(lambda t, y: P(y) + eP, -1.0),               # -> I
+                    (lambda t, y: P(y) - Pr(y) - eP, 1.0)]        # -> III
+        return [(lambda t, y: P(y) - Pr(y) + eP, -1.0)]           # -> II
 
     def on_event(self, br, idx, t, y, disc):
         if br != 0:
@@ -262,23 +313,27 @@ class _Drill(_Model):
 
     # vectorised ------------------------------------------------------------------------------------
     def force(self, t, Y, br, disc):
-        p = self.p
         if br == 0:
             return np.zeros_like(t)
         if br == 1:
-            return np.maximum(p["K1"] * (Y[0] - Y[7]) + p["C1"] * Y[1], 0.0)
-        return np.full_like(t, p["Pr"])
+            return np.maximum(self._P_vec(Y), 0.0)
+        return self._Pr_vec(Y) * np.ones_like(t)
 
     def accel(self, t, Y, br, disc):
         p = self.p
         if br == 0:
             Pc = 0.0
         elif br == 1:
-            Pc = p["K1"] * (Y[0] - Y[7]) + p["C1"] * Y[1]
+            Pc = self._P_vec(Y)
         else:
-            Pc = p["Pr"]
-        return (self.F0 * np.cos(self.Om * t) - p["C2"] * (Y[1] - Y[3])
-                - p["K2"] * (Y[0] - Y[2]) - Pc) / p["M1"]
+            Pc = self._Pr_vec(Y)
+        if self.coil_state:
+            F = Y[8]
+        else:
+            F = self.F0 * np.cos(self.Om * t) - p["beta"] * (Y[1] - Y[3])
+        d, dv = Y[0] - Y[2], Y[1] - Y[3]
+        link = p["C2"] * dv + p["K2"] * d * (1.0 + p["kappa"] * d * d) + p["mu"] * np.tanh(dv / p["v_eps"])
+        return (F - link - Pc) / p["M1"]
 
     def disp(self, t, Y, br, disc):
         return Y[0]
@@ -291,7 +346,7 @@ class _Drill(_Model):
 
     def bounded(self, t, Y, br, disc):
         xb = Y[7]
-        return np.array([Y[0] - xb, Y[2] - xb, Y[4] - xb, Y[6] - xb, Y[1], Y[3], Y[5]])
+        return np.array([Y[0] - xb, Y[2] - xb, Y[4] - xb, Y[6] - xb, Y[1], Y[3], Y[5], Y[8]])
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -52,7 +52,7 @@ def test_drill_progresses_periodic():
     assert 0.0 < r["peak_force_n"] <= DRILL["Pr"] * (1 + 1e-9)
     assert r["energy_per_cycle_j"] > 0.0
     assert math.isfinite(r["specific_energy_j_m"])
-    assert r["strobe"].shape == (20, 7)
+    assert r["strobe"].shape == (20, 8)          # 7 mechanical coordinates + coil force Fh
 
 
 def test_drill_no_forcing_no_progress():

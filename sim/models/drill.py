@@ -1,9 +1,25 @@
-"""Three-mass vibro-impact drilling model with a drifting rock slider (MODELS.md §2).
+"""Three-mass vibro-impact drilling model with a drifting rock slider (MODELS.md §2), with the §6 effects.
 
-States y = [x1, v1, x2, v2, x3, v3, xt, xb, W] (bit, exciter, top mass, rock surface,
-slider base, excitation work).  Phases: 0 = I no contact, 1 = II contact without
-progression, 2 = III contact with progression (Pc = Pr).  In contact phases xt is
-integrated with ẋt = ẋ1 from xt = x1, so it equals x1 exactly.
+States y = [x1, v1, x2, v2, x3, v3, xt, xb, fh, W] (bit, exciter, top mass, rock surface,
+slider base, coil force (a state only with `shaker_coil`), excitation work; W is last).
+Phases: 0 = I no contact, 1 = II contact without progression, 2 = III contact with
+progression (Pc = Pr).  In contact phases xt is integrated with ẋt = ẋ1 from xt = x1,
+so it equals x1 exactly.
+
+Effects (MODELS.md §6, drill column; all off at their default 0, and then every term below
+is exactly the base model's):
+  shaker_coil (tau [s], beta [N s/m]): the harmonic force on M1 is Fh with
+      τ Ḟh + Fh = F0 cos Ωt − β (ẋ1 − ẋ2), Fh(0) = 0.  τ = 0 is the algebraic limit
+      Fh = F0 cos Ωt − β (ẋ1 − ẋ2) (the state fh then stays 0); τ = β = 0 is the ideal force
+      source.  As in the base model the force acts on M1 only; W integrates Fh ẋ1.
+  rate_stiffening (alpha [s/m]): K1 → K1 (1 + α max(ẋ1, 0)) in Pc = K1 (x1 − xb) + C1 ẋ1; the
+      same expression drives the guards, the phase check and the slider law of phase III
+      (ẋb = (Pc − Pr)/C1, so ẋb is continuous at II↔III).  Phase I's surface relaxation keeps K1
+      (the bit is off the rock; the surface moves back, so max(δ̇, 0) = 0 there anyway).
+  guide_friction (mu [N]): −μ tanh((ẋ1 − ẋ2)/v_eps) on M1, reaction on M2 (sgn regularised as
+      MODELS.md §1 does for the indenter; v_eps default 1e-4 m/s).
+  tip_blunting (gamma [-]): Pr → Pr (1 + γ (xb − G)/1 mm).
+  suspension_hardening (kappa [1/m^2]): K2 (x1 − x2) → K2 (x1 − x2)(1 + κ (x1 − x2)²).
 """
 from __future__ import annotations
 
@@ -15,11 +31,13 @@ from numba import njit
 from sim.models.base import ModelSpec, Param
 
 # parameter vector layout
-M1, M2, M3, K1, K2, K3, C1, C2, C3, PR, GAP, FS, F0, FREQ, GAMMA = range(15)
-NP = 15
-IX1, IV1, IX2, IV2, IX3, IV3, IXT, IXB, IW = range(9)
-NY = 9
-N_BOUNDED = 7
+(M1, M2, M3, K1, K2, K3, C1, C2, C3, PR, GAP, FS, F0, FREQ, GAMMA,
+ TAU, BETA, ALPHA, MU, KAPPA, VEPS) = range(21)
+NP = 21
+# state layout: W stays LAST (the kernel reads the excitation work from y[-1])
+IX1, IV1, IX2, IV2, IX3, IV3, IXT, IXB, IFH, IW = range(10)
+NY = 10
+N_BOUNDED = 8
 
 
 @njit(cache=True, inline="always")
@@ -30,7 +48,17 @@ def _pr_eff(y, p):
 
 @njit(cache=True, inline="always")
 def _pc_expr(y, p):
-    return p[K1] * (y[IX1] - y[IXB]) + p[C1] * y[IV1]
+    """Phase-II contact force expression; rate_stiffening: K1 → K1 (1 + α max(ẋ1, 0))."""
+    k1 = p[K1] * (1.0 + p[ALPHA] * max(y[IV1], 0.0))
+    return k1 * (y[IX1] - y[IXB]) + p[C1] * y[IV1]
+
+
+@njit(cache=True, inline="always")
+def _harmonic(t, y, p):
+    """Harmonic force on M1: F0 cos Ωt, or the shaker coil's Fh (state for τ > 0, algebraic for τ = 0)."""
+    if p[TAU] > 0.0:
+        return y[IFH]
+    return p[F0] * math.cos(2.0 * math.pi * p[FREQ] * t) - p[BETA] * (y[IV1] - y[IV2])
 
 
 @njit(cache=True, inline="always")
@@ -44,11 +72,13 @@ def _contact_force(y, ph, p):
 
 @njit(cache=True)
 def rhs(t, y, z, ph, p, dy):
-    om = 2.0 * math.pi * p[FREQ]
-    fh = p[F0] * math.cos(om * t)
+    fh = _harmonic(t, y, p)
     x1, v1, x2, v2, x3, v3 = y[IX1], y[IV1], y[IX2], y[IV2], y[IX3], y[IV3]
     pc = _contact_force(y, ph, p)
-    s12 = p[C2] * (v1 - v2) + p[K2] * (x1 - x2)
+    d12 = x1 - x2
+    # bit-exciter link: damper, (hardening) spring, guide friction; each effect term is exactly 0 when off
+    s12 = (p[C2] * (v1 - v2) + p[K2] * d12 * (1.0 + p[KAPPA] * d12 * d12)
+           + p[MU] * math.tanh((v1 - v2) / p[VEPS]))
     s23 = p[C3] * (v2 - v3) + p[K3] * (x2 - x3)
     dy[IX1] = v1
     dy[IV1] = (fh - s12 - pc) / p[M1]
@@ -65,6 +95,10 @@ def rhs(t, y, z, ph, p, dy):
     else:
         dy[IXT] = v1
         dy[IXB] = (_pc_expr(y, p) - _pr_eff(y, p)) / p[C1]
+    if p[TAU] > 0.0:
+        dy[IFH] = (p[F0] * math.cos(2.0 * math.pi * p[FREQ] * t) - p[BETA] * (v1 - v2) - y[IFH]) / p[TAU]
+    else:
+        dy[IFH] = 0.0
     dy[IW] = fh * v1
 
 
@@ -126,6 +160,7 @@ def bounded(t, y, z, ph, p, b):
     b[4] = y[IV1]
     b[5] = y[IV2]
     b[6] = y[IV3]
+    b[7] = y[IFH]     # coil force: bounded; identically 0 when the coil is off (range 0, repeats exactly)
 
 
 def _initial(p: np.ndarray):
@@ -148,7 +183,8 @@ def _atol(p: np.ndarray) -> np.ndarray:
     xs = max(p[F0] + p[FS], 1.0) / p[K2]          # a deflection scale of the bit spring
     om = 2.0 * math.pi * p[FREQ]
     vs = xs * om
-    return np.array([xs, vs, xs, vs, xs, vs, xs, xs, max(p[F0], 1.0) * xs])
+    fsc = max(p[F0], 1.0)
+    return np.array([xs, vs, xs, vs, xs, vs, xs, xs, fsc, fsc * xs])
 
 
 PARAMS = (
@@ -167,10 +203,54 @@ PARAMS = (
     Param("amplitude_n", 1500.0, "N", "harmonic force amplitude F0 on M1 (F0 cos Ωt)", nonnegative=True),
     Param("frequency_hz", 200.0, "Hz", "forcing frequency f", positive=True),
     Param("gamma", 0.0, "-", "tip_blunting: Pr -> Pr (1 + γ (xb - G)/1 mm); 0 = off", nonnegative=True),
+    Param("tau", 0.0, "s", "shaker_coil: electrical time constant L/R (0 with beta=0: ideal force source)",
+          nonnegative=True),
+    Param("beta", 0.0, "N s/m", "shaker_coil: back-EMF damping (Bl)^2/R on ẋ1 - ẋ2", nonnegative=True),
+    Param("alpha", 0.0, "s/m", "rate_stiffening: K1 -> K1 (1 + α max(ẋ1,0)) in phase II", nonnegative=True),
+    Param("mu", 0.0, "N", "guide_friction: Coulomb friction on the bit's guides, on ẋ1 - ẋ2", nonnegative=True),
+    Param("kappa", 0.0, "1/m^2", "suspension_hardening: K2 φ -> K2 φ (1 + κ φ²), φ = x1 - x2", nonnegative=True),
+    Param("v_eps", 1e-4, "m/s", "tanh regularisation speed of the Coulomb term (guide_friction)", positive=True),
 )
 
-STATES = ("x1", "v1", "x2", "v2", "x3", "v3", "xt", "xb", "work")
-BOUNDED = ("x1-xb", "x2-xb", "x3-xb", "xt-xb", "v1", "v2", "v3")
+# Fit bounds of the §6 effect parameters for identification from rig data at the `lab` preset's scale:
+# (lo, hi, unit).  lo = where the effect just becomes measurable, hi = large but still simulable.  Measured with
+# sim.simulate_batch("drill", preset="lab", default settings) at the default operating point (280 Hz, F0 2250 N,
+# Fs 1200 N; base ROP 3.576 mm/s, peak decel 3.457 g, 1 impact/cycle, period 1), one effect on at a time:
+#   tau    3e-5 s:      ROP -0.6 %, decel -0.35 %  | 5e-4 s: ROP -97 %, decel -32 % (Fh lags Ω by ~40°, still
+#                       impacting; τ < 3e-5 s only makes the fh equation stiff: 5x the steps of the base run at 3e-5)
+#   beta   200 N s/m:   ROP -0.55 %, decel -0.33 % | 3e4 N s/m: ROP -54 %, decel -36 % (β ~ C2 = 4.8e4 would
+#                       double the bit-exciter damping)
+#   alpha  3 s/m:       ROP +0.6 %, decel -0.37 %  | 1000 s/m: ROP +25 %, decel -9 % (K1 x15 at the bit's
+#                       ~0.014 m/s; the effect saturates: phase III caps the force at Pr)
+#   mu     2 N:         ROP -0.5 %, decel -0.37 %  | 500 N: ROP -81 %, decel -43 % (0.22 F0)
+#   gamma  3e-4:        ROP -0.5 %, force +0.16 %  | 1.0: ROP -93 %, peak force +99 % (tip blunting never
+#                       settles: numbers after the 400-cycle default transient cap, ~1.4 s from rest)
+#   kappa  2e7 1/m^2:   ROP -0.65 %, decel -0.46 % | 3e9 1/m^2: ROP -67 %, decel -35 % (link deflection ~3e-5 m,
+#                       κ φ² ~ 3 at hi)
+EFFECT_FIT_BOUNDS = {
+    "tau": (3e-5, 5e-4, "s"),
+    "beta": (200.0, 3e4, "N s/m"),
+    "alpha": (3.0, 1000.0, "s/m"),
+    "mu": (2.0, 500.0, "N"),
+    "gamma": (3e-4, 1.0, "-"),
+    "kappa": (2e7, 3e9, "1/m^2"),
+}
+
+# A clearly visible strength of each effect on the `lab` preset at its default operating point (same
+# measurement as above; for synthetic rig data and the validation against tests/reference_solutions.py):
+#   shaker_coil tau 1e-4 s + beta 3e3 N s/m: ROP -14.1 %, decel -8.6 %    rate_stiffening alpha 50 s/m: ROP +7.7 %, decel -4.3 %
+#   guide_friction mu 50 N: ROP -12.1 %, decel -9.3 %                      tip_blunting gamma 0.01: ROP -14.3 %, force +5.1 %
+#   suspension_hardening kappa 3e8 1/m^2: ROP -9.5 %, decel -6.7 %
+EFFECT_VISIBLE = {
+    "shaker_coil": {"tau": 1e-4, "beta": 3e3},
+    "rate_stiffening": {"alpha": 50.0},
+    "guide_friction": {"mu": 50.0},
+    "tip_blunting": {"gamma": 0.01},
+    "suspension_hardening": {"kappa": 3e8},
+}
+
+STATES = ("x1", "v1", "x2", "v2", "x3", "v3", "xt", "xb", "fh", "work")
+BOUNDED = ("x1-xb", "x2-xb", "x3-xb", "xt-xb", "v1", "v2", "v3", "fh")
 
 PRESETS = {
     # Seed 003's own parameter table (MODELS.md §2): Fs = 1260 kN >= Pr = 95 kN, a runaway.
@@ -242,7 +322,8 @@ SPEC = ModelSpec(
     initial=_initial,
     atol=_atol,
     precheck=_precheck,
-    effects={"tip_blunting": ("gamma",)},
+    effects={"shaker_coil": ("tau", "beta"), "rate_stiffening": ("alpha",), "guide_friction": ("mu",),
+             "tip_blunting": ("gamma",), "suspension_hardening": ("kappa",)},
     presets=PRESETS,
     impacting_mass="M1 (drill bit)",
     progression="xb (rock slider base)",
