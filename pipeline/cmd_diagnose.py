@@ -26,7 +26,9 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
 
 EPILOG = """\
 params.yaml section 'diagnose' (all optional; defaults in brackets):
-  max_harmonic_hz [1000]   harmonics of f up to this frequency are features
+  max_harmonic_hz [per system: indenter 1000, drill 3000, pendulum 100, rimd 200]
+                           harmonics of f up to this frequency are features (least squares on the record's
+                           own time base: any sampling rate, any record length >= 2 cycles)
   holdout_every [4]        single split: every n-th run (sorted by static force, frequency) is held out
   min_runs_holdout [8]     a system with fewer runs is cross-validated leave-one-run-out
   n_starts [2]             base-model starts (defaults + seeded random points)
@@ -156,7 +158,7 @@ def _headline(report: dict) -> dict:
 def _flat_metrics(report: dict) -> dict:
     out = {"wall_time_s": report["wall_time_s"]}
     for name, rep in report["systems"].items():
-        tag = name.split("-")[1]
+        tag = name.split("-")[-1]
         for k in ("noise_floor", "default_error", "base_error", "final_error", "default_nrms", "base_nrms",
                   "final_nrms"):
             out[f"{tag}.{k}"] = rep[k]

@@ -18,9 +18,9 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from pipeline.diagnosis.features import Target, series_target, summary_target
+from pipeline.diagnosis.features import CONTROL_NAMES, Target, series_target, summary_target
 from pipeline.diagnosis.fit import FitResult, fit
-from pipeline.diagnosis.model import BASE, Evaluator, FreeParam, candidates
+from pipeline.diagnosis.model import Evaluator, FreeParam, calibratable, candidates, default_max_harmonic_hz, supported
 from pipeline.errors import UserError
 
 
@@ -28,7 +28,8 @@ from pipeline.errors import UserError
 class DiagnoseConfig:
     """Settings of ``vibro diagnose`` (params.yaml section ``diagnose``; README.md)."""
 
-    max_harmonic_hz: float = 1000.0     # harmonics of f up to this frequency are features
+    max_harmonic_hz: float | None = None  # harmonics of f up to this frequency are features (None: per system,
+    #                                       model.default_max_harmonic_hz: indenter 1000, drill 3000, pendulum 100, rimd 200)
     holdout_every: int = 4              # single split: every n-th run (sorted by static force, f) is held out
     min_runs_holdout: int = 8           # fewer runs of a system -> leave-one-run-out cross-validation
     n_starts: int = 2                   # base-model starts: defaults + (n_starts - 1) seeded random points
@@ -48,18 +49,31 @@ class DiagnoseConfig:
 
 
 def build_targets(ds, cfg: DiagnoseConfig) -> dict[str, list[Target]]:
-    """Targets per system, in runs.csv order (series preferred over summary when both exist)."""
+    """Targets per system, in runs.csv order (series preferred over summary when both exist).  Each
+    target carries its run's controls (the model's own control names), the known rig parameters
+    (preset / parameter columns) and ``record_start_s`` (None where not given: steady state)."""
+    import sim
+
     out: dict[str, list[Target]] = {}
     sd = {k: tuple(v) for k, v in cfg.summary_sd.items()}
     for row in ds.runs.to_dict("records"):
-        if row["system"] not in BASE:
-            raise UserError(f"runs.csv, run '{row['run_id']}': system '{row['system']}' cannot be diagnosed "
-                            f"(supported: {', '.join(BASE)})")
+        system = row["system"]
+        if system not in supported():
+            raise UserError(f"runs.csv, run '{row['run_id']}': system '{system}' cannot be diagnosed "
+                            f"(supported: {', '.join(supported())})")
+        names = sim.get_model(system).param_names
+        rs = row.get("record_start_s")
+        tg = Target(run_id=row["run_id"], system=system, kind="",
+                    controls={c: float(row[c]) for c in CONTROL_NAMES if c in names and c in row},
+                    known=dict(ds.known.get(row["run_id"], {})),
+                    record_start_s=None if rs is None or not np.isfinite(rs) else float(rs),
+                    duration_s=float(row["duration_s"]))
+        mh = cfg.max_harmonic_hz or default_max_harmonic_hz(system)
         if row["run_id"] in ds.series:
-            tg = series_target(row, ds.series[row["run_id"]], cfg.max_harmonic_hz)
+            tg = series_target(tg, ds.series[row["run_id"]], mh)
         else:
-            tg = summary_target(row, ds.summary.loc[row["run_id"]], cfg.max_harmonic_hz, sd)
-        out.setdefault(row["system"], []).append(tg)
+            tg = summary_target(tg, ds.summary.loc[row["run_id"]], mh, sd)
+        out.setdefault(system, []).append(tg)
     return out
 
 
@@ -68,8 +82,10 @@ def make_folds(targets: list[Target], cfg: DiagnoseConfig) -> tuple[str, list[tu
     (static force, frequency)-sorted list held out (offset 1, so both ends stay in calibration);
     fewer: leave-one-run-out."""
     n = len(targets)
-    order = sorted(range(n), key=lambda i: (targets[i].controls["static_force_n"],
-                                            targets[i].controls["frequency_hz"], targets[i].run_id))
+    c = [targets[i].controls for i in range(n)]
+    order = sorted(range(n), key=lambda i: (c[i].get("static_force_n", 0.0), c[i].get("gap_m", 0.0),
+                                            c[i].get("amplitude_n", c[i].get("amplitude_m", 0.0)),
+                                            c[i]["frequency_hz"], targets[i].run_id))
     if n >= max(cfg.min_runs_holdout, 3):
         test = sorted(order[j] for j in range(n) if j % cfg.holdout_every == 1)
         cal = sorted(set(range(n)) - set(test))
@@ -123,8 +139,8 @@ def _fit_models(ev: Evaluator, idx: list[int], cfg: DiagnoseConfig, cands: dict,
     import sim
 
     system = ev.system
-    free = list(BASE[system])
-    d = sim.get_model(system).defaults()
+    free = list(calibratable(system))
+    d = {**sim.get_model(system).defaults(), **ev.targets[idx[0]].known}   # nominal: the rig's known values
     starts = [warm["base"].values] if warm else _random_starts(free, d, cfg.n_starts, rng)
     out = {"base": fit(ev, idx, free, {}, starts, cfg.max_nfev, cfg.diff_step)}
     log(f"  base: chi2/n = {out['base'].chi2 / out['base'].n:.4g}")
@@ -197,7 +213,7 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
     explained = bool(base_ok or selected is not None)
     final = selected or "base"
     cand_list = [{"effect": m, "params": {p: final_fits[m].values[p] for p in final_fits[m].free
-                                          if p not in [q.name for q in BASE[system]]},
+                                          if p not in [q.name for q in calibratable(system)]},
                   "param_sd": {p: final_fits[m].sd[p] for p in final_fits[m].free},
                   "calibrated": final_fits[m].values,
                   "error": err[m]["error"], "nrms": err[m]["nrms"], "score": bic[m],
