@@ -10,9 +10,9 @@ c_k = a_k − i b_k (amplitude and phase of every impact harmonic; the offset a0
 offsets do not matter); the drift s absorbs progression / creep, and for ``progression_m`` it is the
 progression rate (with its regression standard error), plus, for a record from rest, the mean
 position (the record's depth in the rig frame).
-Noise: the sd σx of the signal's measurement noise is estimated by phase-folding the drift-removed
-record and taking the robust (median absolute) difference of phase-neighbouring samples of
-different cycles, /√2.  It does not see the harmonics above K or the sharp impact transients that make
+Noise: the sd σx of the signal's measurement noise is estimated by removing that fit, phase-folding the
+rest and taking the robust (median absolute) deviation of each sample from the linear interpolation of its
+two phase neighbours (samples of other cycles), scaled by that difference's noise gain.  It does not see the harmonics above K or the sharp impact transients that make
 a least-squares residual non-white (neighbours in phase are ≤ T/N apart), and for an integer number of
 samples per cycle it equals the old scatter about the synchronous average.  Each coefficient part
 then has sd σx·sqrt(2/N) (white-noise model, N samples) — the same noise model as before.
@@ -98,16 +98,21 @@ def harmonic_fit(t: np.ndarray, x: np.ndarray, f: float, k_max: int) -> Harmonic
     return HarmonicFit(c=c, offset=float(coef[0]), slope=float(coef[1]), slope_se=se, n=int(x.size))
 
 
-def noise_sd(t: np.ndarray, x: np.ndarray, f: float, slope: float = 0.0) -> float:
-    """Measurement-noise sd [unit of x]: phase-fold the drift-removed record and take the robust
-    difference of phase-neighbouring samples (1.4826 · median |Δ| / √2; see the module docstring)."""
-    y = x - slope * t
-    phase = np.mod(t * f, 1.0)
-    order = np.argsort(phase, kind="stable")
-    d = np.diff(y[order])
-    if d.size == 0:
+def noise_sd(t: np.ndarray, x: np.ndarray, f: float, k_max: int = 0) -> float:
+    """Measurement-noise sd [unit of x]: remove the least-squares fit (offset, drift, harmonics 1..k_max),
+    phase-fold the rest and take the robust deviation from the interpolation between phase neighbours
+    (1.4826 · median |e| / sqrt(1 + w1² + w2²); see the module docstring)."""
+    a = _design(t, f, k_max)
+    y = x - a @ np.linalg.lstsq(a, x, rcond=None)[0]
+    ph = np.mod(t * f, 1.0)
+    order = np.argsort(ph, kind="stable")
+    ph, y = ph[order], y[order]
+    if y.size < 3:
         return 0.0
-    return float(1.4826 * np.median(np.abs(d)) / math.sqrt(2.0))
+    h1, h2 = ph[1:-1] - ph[:-2], ph[2:] - ph[1:-1]
+    w1 = np.where(h1 + h2 > 0, h2 / np.maximum(h1 + h2, 1e-300), 0.5)   # linear interpolation weights
+    e = y[1:-1] - (w1 * y[:-2] + (1.0 - w1) * y[2:])
+    return float(1.4826 * np.median(np.abs(e) / np.sqrt(1.0 + w1 ** 2 + (1.0 - w1) ** 2)))
 
 
 @dataclass
@@ -133,6 +138,8 @@ class Target:
     ratio_ref_hz: float = 0.0
     noise: dict = field(default_factory=dict)      # signal -> estimated sd (series)
     segments: dict = field(default_factory=dict)   # signal -> (n_seg, K) complex harmonics per time segment
+    t_rec: np.ndarray | None = None                # record time base [s] (series)
+    pinv: np.ndarray | None = None                 # least-squares operator of the record's design matrix
 
     @property
     def n(self) -> int:
@@ -167,13 +174,15 @@ def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segmen
     dt = float(t_rec[1] - t_rec[0])
     tg.kind, tg.k_max, tg.fs_hz, tg.duration_s = "series", k, 1.0 / dt, float(t_rec[-1] - t_rec[0] + dt)
     t = record_time(tg, t_rec)
+    tg.t_rec = t_rec
+    tg.pinv = np.linalg.pinv(_design(t, f, k))
     names, y, sd, group, sigs = [], [], [], [], []
     for sig in HARMONIC_SIGNALS:
         if sig not in df.columns:
             continue
         x = df[sig].to_numpy()
         hf = harmonic_fit(t, x, f, k)
-        s = noise_sd(t, x, f, hf.slope)
+        s = noise_sd(t, x, f, k)
         tg.noise[sig] = s
         csd = max(s * math.sqrt(2.0 / x.size), 1e-12 * (np.abs(hf.c).max() + 1e-30))
         n_, v = _complex_features(sig, hf.c)
@@ -188,7 +197,7 @@ def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segmen
     if "progression_m" in df.columns:
         x = df["progression_m"].to_numpy()
         hf = harmonic_fit(t, x, f, k)
-        s = noise_sd(t, x, f, hf.slope)
+        s = noise_sd(t, x, f, k)
         tg.noise["progression_m"] = s
         names.append("rop_m_s")
         y.append(np.array([hf.slope]))
@@ -259,6 +268,22 @@ def _history_summary(name: str, t: np.ndarray, h: pd.DataFrame, f: float) -> flo
     raise KeyError(name)
 
 
+def model_on_record(tg: Target, h: pd.DataFrame, sig: str) -> np.ndarray:
+    """A simulated signal on the measured record's own time base (linear interpolation of the densely
+    sampled model: the model's harmonics then see the same sampling as the measurement's).  Steady state:
+    the window starts at forcing phase 0 and repeats if the record is longer; from rest: absolute time."""
+    th = h["t_s"].to_numpy()
+    x = h[sig].to_numpy()
+    if tg.record_start_s is None:
+        th = th - th[0]
+        tq = tg.t_rec
+        span = th[-1] + (th[1] - th[0])
+        if tq[-1] >= span:
+            tq = np.mod(tq, span)
+        return np.interp(tq, th, x)
+    return np.interp(record_time(tg, tg.t_rec), th, x)
+
+
 def simulated_features(tg: Target, res) -> np.ndarray | None:
     """The model's values of ``tg``'s features from a SimulationResult with history (None if the
     run failed or ran away)."""
@@ -266,18 +291,18 @@ def simulated_features(tg: Target, res) -> np.ndarray | None:
     if h is None:
         return None
     f = tg.frequency_hz
-    t, hr = model_record(tg, h)
-    if t.size < 4:
-        return None
     if tg.kind == "series":
         out = []
         for sig in tg.signals:
-            hf = harmonic_fit(t, hr[sig].to_numpy(), f, tg.k_max)
+            coef = tg.pinv @ model_on_record(tg, h, sig)
             if sig == "progression_m":
-                out.append(np.array([hf.slope] + ([hf.offset] if tg.record_start_s is not None else [])))
+                out.append(np.array([coef[1]] + ([coef[0]] if tg.record_start_s is not None else [])))
             else:
-                out.append(_complex_features(sig, hf.c)[1])
+                out.append(_complex_features(sig, coef[2::2] - 1j * coef[3::2])[1])
         return np.concatenate(out)
+    t, hr = model_record(tg, h)
+    if t.size < 4:
+        return None
     lab = res.labels
     vals = []
     for name in tg.names:

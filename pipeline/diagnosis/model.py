@@ -129,21 +129,23 @@ MAX_SPC = 4096
 """Cap on the model's samples per cycle (the history is only output; the integrator steps on its own)."""
 
 
-def run_settings(tg: Target, sim_settings: dict, fs_sim_hz: float, max_window: int = 0) -> dict:
-    """Simulator settings of one run.  The model is sampled at about the record's rate (the same
-    aliasing of the impact harmonics), at least 4 K + 8 samples per cycle.  Steady-state record: as
+def run_settings(tg: Target, sim_settings: dict, fs_sim_hz: float, max_window: int = 0,
+                 oversample: float = 4.0) -> dict:
+    """Simulator settings of one run.  The model is sampled densely (``oversample`` x the record's rate,
+    at least 4 K + 8 samples per cycle, at most MAX_SPC) and interpolated onto the record's own time base
+    (features.model_on_record), so its harmonics see the same sampling as the measurement's.  Steady-state record: as
     many cycles as were recorded (up to ``max_window``; drifting effects depend on it).  Record from
     rest (``record_start_s``): no transient, a window from rest that covers [record_start_s,
     record_start_s + duration_s] (features.model_record cuts it)."""
     f = tg.frequency_hz
     fs = tg.fs_hz or fs_sim_hz
-    spc = min(max(int(math.ceil(fs / f)), 4 * tg.k_max + 8), MAX_SPC)
+    spc = min(max(int(math.ceil(oversample * fs / f)), 4 * tg.k_max + 8), MAX_SPC)
     st = {**sim_settings, "samples_per_cycle": spc}
     if tg.record_start_s is not None:
         end = tg.record_start_s + max(tg.duration_s, 2.0 / f)
         st.update(min_transient=0, max_transient=0, window=max(int(math.ceil(end * f)) + 1, 2))
     elif max_window and tg.kind == "series":
-        st["window"] = max(int(st.get("window", 2)), min(int(math.floor(tg.cycles)), max_window))
+        st["window"] = max(int(st.get("window", 2)), min(int(math.ceil(tg.cycles)), max_window))
     return st
 
 
