@@ -20,7 +20,8 @@ import numpy as np
 
 from pipeline.diagnosis.features import CONTROL_NAMES, Target, series_target, summary_target
 from pipeline.diagnosis.fit import FitResult, fit
-from pipeline.diagnosis.model import Evaluator, FreeParam, calibratable, candidates, default_max_harmonic_hz, supported
+from pipeline.diagnosis.model import (Evaluator, FreeParam, calibratable, candidates, default_fit_settings,
+                                      default_max_harmonic_hz, supported)
 from pipeline.errors import UserError
 
 
@@ -34,8 +35,9 @@ class DiagnoseConfig:
     min_runs_holdout: int = 8           # fewer runs of a system -> leave-one-run-out cross-validation
     n_starts: int = 2                   # base-model starts: defaults + (n_starts - 1) seeded random points
     grid: int = 4                       # candidate start search: grid points per effect parameter
-    candidate_starts: int = 2           # candidate starts: effect grid at the calibrated base (1), also at the defaults (2)
-    max_nfev: int = 15                  # least_squares iterations per start
+    candidate_starts: int | None = None  # candidate starts: effect grid at the calibrated base (1), also at the
+    #                                      defaults (2); None: per system (model.default_fit_settings)
+    max_nfev: int | None = None         # least_squares iterations per start; None: per system
     diff_step: float = 0.01             # forward-difference step in log10 of a parameter
     bic_margin: float = 10.0            # a candidate must beat the base BIC by this much
     explained_nrms: float = 1.5         # held-out nrms at or below this = "at the noise level"
@@ -163,6 +165,9 @@ def _param_report(fr: FitResult) -> dict:
 def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log=print, progress=None) -> dict:
     """Diagnose one system's runs; returns the per-system report dictionary (plus private '_' keys
     holding the evaluator and fitted parameter sets for the figures)."""
+    from dataclasses import replace
+
+    cfg = replace(cfg, **{k: v for k, v in default_fit_settings(system).items() if getattr(cfg, k) is None})
     ev = Evaluator(system, targets, dict(cfg.sim_settings), cfg.fs_sim_hz, cfg.n_threads, cfg.record_window)
     cands = candidates(system)
     if cfg.effects is not None:
