@@ -85,25 +85,26 @@ def _design(t: np.ndarray, f: float, k_max: int) -> np.ndarray:
     return np.column_stack(cols)
 
 
-def harmonic_fit(t: np.ndarray, x: np.ndarray, f: float, k_max: int) -> HarmonicFit:
-    """Fit offset, drift and harmonics 1..k_max of ``f`` to samples (t [s], x) by linear least squares."""
-    a = _design(t, f, k_max)
-    coef, *_ = np.linalg.lstsq(a, x, rcond=None)
+def _from_coef(a: np.ndarray, x: np.ndarray, coef: np.ndarray) -> tuple[HarmonicFit, np.ndarray]:
+    """HarmonicFit of the least-squares coefficients ``coef`` of ``x`` on design ``a``, and the residual."""
     res = x - a @ coef
     dof = max(x.size - a.shape[1], 1)
     s2 = float(res @ res) / dof
     tm = a[:, 1]
     se = math.sqrt(s2 / max(float(((tm - tm.mean()) ** 2).sum()), 1e-300))
     c = coef[2::2] - 1j * coef[3::2]
-    return HarmonicFit(c=c, offset=float(coef[0]), slope=float(coef[1]), slope_se=se, n=int(x.size))
+    return HarmonicFit(c=c, offset=float(coef[0]), slope=float(coef[1]), slope_se=se, n=int(x.size)), res
 
 
-def noise_sd(t: np.ndarray, x: np.ndarray, f: float, k_max: int = 0) -> float:
-    """Measurement-noise sd [unit of x]: remove the least-squares fit (offset, drift, harmonics 1..k_max),
-    phase-fold the rest and take the robust deviation from the interpolation between phase neighbours
-    (1.4826 · median |e| / sqrt(1 + w1² + w2²); see the module docstring)."""
+def harmonic_fit(t: np.ndarray, x: np.ndarray, f: float, k_max: int) -> HarmonicFit:
+    """Fit offset, drift and harmonics 1..k_max of ``f`` to samples (t [s], x) by linear least squares."""
     a = _design(t, f, k_max)
-    y = x - a @ np.linalg.lstsq(a, x, rcond=None)[0]
+    return _from_coef(a, x, np.linalg.lstsq(a, x, rcond=None)[0])[0]
+
+
+def _folded_noise(t: np.ndarray, y: np.ndarray, f: float) -> float:
+    """Robust noise sd of a residual ``y``: phase-fold and compare each sample with the interpolation
+    between its phase neighbours (1.4826 · median |e| / sqrt(1 + w1² + w2²))."""
     ph = np.mod(t * f, 1.0)
     order = np.argsort(ph, kind="stable")
     ph, y = ph[order], y[order]
@@ -113,6 +114,14 @@ def noise_sd(t: np.ndarray, x: np.ndarray, f: float, k_max: int = 0) -> float:
     w1 = np.where(h1 + h2 > 0, h2 / np.maximum(h1 + h2, 1e-300), 0.5)   # linear interpolation weights
     e = y[1:-1] - (w1 * y[:-2] + (1.0 - w1) * y[2:])
     return float(1.4826 * np.median(np.abs(e) / np.sqrt(1.0 + w1 ** 2 + (1.0 - w1) ** 2)))
+
+
+def noise_sd(t: np.ndarray, x: np.ndarray, f: float, k_max: int = 0) -> float:
+    """Measurement-noise sd [unit of x]: remove the least-squares fit (offset, drift, harmonics 1..k_max),
+    phase-fold the rest and take the robust deviation from the interpolation between phase neighbours
+    (see the module docstring)."""
+    a = _design(t, f, k_max)
+    return _folded_noise(t, x - a @ np.linalg.lstsq(a, x, rcond=None)[0], f)
 
 
 @dataclass
@@ -175,14 +184,27 @@ def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segmen
     tg.kind, tg.k_max, tg.fs_hz, tg.duration_s = "series", k, 1.0 / dt, float(t_rec[-1] - t_rec[0] + dt)
     t = record_time(tg, t_rec)
     tg.t_rec = t_rec
-    tg.pinv = np.linalg.pinv(_design(t, f, k))
+    a = _design(t, f, k)
+    tg.pinv = np.linalg.pinv(a)
+    # one operator for every signal of the record (the model's records use the same one, model_on_record)
+    fits = {sig: _from_coef(a, x, tg.pinv @ x) for sig in (*HARMONIC_SIGNALS, "progression_m") if sig in df.columns
+            for x in [df[sig].to_numpy()]}
+    present = [sig for sig in HARMONIC_SIGNALS if sig in df.columns]
+    seg_c: dict[str, list] = {sig: [] for sig in present}
+    if present and tg.cycles >= 2 * n_segments * MIN_CYCLES / 2:
+        x_all = np.column_stack([df[sig].to_numpy() for sig in present])
+        edges = np.linspace(0, t.size, n_segments + 1).astype(int)
+        for lo, hi in zip(edges[:-1], edges[1:]):    # the segment's own design (drift centring does not change c)
+            coef = np.linalg.lstsq(a[lo:hi], x_all[lo:hi], rcond=None)[0]
+            for j, sig in enumerate(present):
+                seg_c[sig].append(coef[2::2, j] - 1j * coef[3::2, j])
     names, y, sd, group, sigs = [], [], [], [], []
     for sig in HARMONIC_SIGNALS:
         if sig not in df.columns:
             continue
         x = df[sig].to_numpy()
-        hf = harmonic_fit(t, x, f, k)
-        s = noise_sd(t, x, f, k)
+        hf, res = fits[sig]
+        s = _folded_noise(t, res, f)
         tg.noise[sig] = s
         csd = max(s * math.sqrt(2.0 / x.size), 1e-12 * (np.abs(hf.c).max() + 1e-30))
         n_, v = _complex_features(sig, hf.c)
@@ -191,13 +213,12 @@ def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segmen
         sd.append(np.full(v.size, csd))
         group += [sig] * v.size
         sigs.append(sig)
-        if tg.cycles >= 2 * n_segments * MIN_CYCLES / 2:
-            edges = np.linspace(0, x.size, n_segments + 1).astype(int)
-            tg.segments[sig] = np.array([harmonic_fit(t[a:b], x[a:b], f, k).c for a, b in zip(edges[:-1], edges[1:])])
+        if seg_c[sig]:
+            tg.segments[sig] = np.array(seg_c[sig])
     if "progression_m" in df.columns:
         x = df["progression_m"].to_numpy()
-        hf = harmonic_fit(t, x, f, k)
-        s = noise_sd(t, x, f, k)
+        hf, res = fits["progression_m"]
+        s = _folded_noise(t, res, f)
         tg.noise["progression_m"] = s
         names.append("rop_m_s")
         y.append(np.array([hf.slope]))

@@ -39,11 +39,14 @@ class DiagnoseConfig:
     #                                      defaults (2); None: per system (model.default_fit_settings)
     max_nfev: int | None = None         # least_squares iterations per start; None: per system
     diff_step: float = 0.01             # forward-difference step in log10 of a parameter
+    refine_nfev: int = 15               # more iterations for the leading candidate if not yet at the noise level (0: off)
     bic_margin: float = 10.0            # a candidate must beat the base BIC by this much
     explained_nrms: float = 1.5         # held-out nrms at or below this = "at the noise level"
     effects: list[str] | None = None    # restrict the candidates (default: every §6 effect of the system)
     fs_sim_hz: float = 20000.0          # model sample rate for summary runs (series runs use the data's rate)
-    sim_settings: dict = field(default_factory=lambda: {"rtol": 1e-6, "window": 2, "max_step_frac": 0.05})
+    # rtol 1e-7 = the simulator's default (and vibro synth's): at 1e-6 the drill's guide friction (a regularised
+    # sign(v) switch) drifted from the truth by nrms 1.3 on 3 runs, 7.3 on 16 (issue 12); the cost is the same
+    sim_settings: dict = field(default_factory=lambda: {"rtol": 1e-7, "window": 2, "max_step_frac": 0.05})
     record_window: int = 64             # model window = recorded cycles of a series, up to this (0: sim_settings window)
     summary_sd: dict = field(default_factory=dict)   # e.g. {"peak_decel_g": ["rel", 0.05]}
     seed: int = 0
@@ -155,7 +158,28 @@ def _fit_models(ev: Evaluator, idx: list[int], cfg: DiagnoseConfig, cands: dict,
             starts = [_candidate_start(ev, idx, b, ps, cfg.grid) for b in bases]
         out[eff] = fit(ev, idx, free + list(ps), {}, starts, cfg.max_nfev, cfg.diff_step)
         log(f"  {eff}: chi2/n = {out[eff].chi2 / out[eff].n:.4g}")
+    _refine_leader(ev, idx, cfg, cands, free, out, log)
     return out
+
+
+def _refine_leader(ev: Evaluator, idx: list[int], cfg: DiagnoseConfig, cands: dict, free: list[FreeParam],
+                   out: dict[str, FitResult], log) -> None:
+    """Spend ``cfg.refine_nfev`` more iterations on the leading candidate only, when it beats the base but has
+    not reached the noise level (calibration chi2/n above explained_nrms^2).  A strong effect seen from a base
+    fit that compensated for it (drill shaker_coil: K1 fitted 35 % low) needs ~20 iterations; giving every
+    candidate that many would double the time, and the others are not near the data anyway."""
+    if not cands or cfg.refine_nfev <= 0:
+        return
+    lead = min(cands, key=lambda m: out[m].chi2)
+    fr = out[lead]
+    if fr.chi2 >= out["base"].chi2 or fr.chi2 / fr.n <= cfg.explained_nrms ** 2:
+        return
+    more = fit(ev, idx, free + list(cands[lead]), {}, [fr.values], cfg.refine_nfev, cfg.diff_step)
+    if more.chi2 < fr.chi2:
+        more.nfev += fr.nfev
+        more.starts = fr.starts + more.starts
+        out[lead] = more
+    log(f"  {lead} (refined): chi2/n = {out[lead].chi2 / out[lead].n:.4g}")
 
 
 def _param_report(fr: FitResult) -> dict:

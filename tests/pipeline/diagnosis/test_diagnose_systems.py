@@ -33,13 +33,7 @@ def test_every_system_has_calibratable_params_and_bounded_effects(system):
         assert all(p.name in bounds and p.name in names for p in ps)
 
 
-@pytest.mark.parametrize("system", [
-    "drill", "rimd",
-    pytest.param("pendulum", marks=pytest.mark.xfail(strict=True, reason=(
-        "known issue (issue 12 report): the pendulum's steady-state synthetic records are not reproduced at the "
-        "true parameters (nrms ~8); suspected: the recorded window's start within a multi-cycle orbit or the "
-        "transient detection differs between synth (window ceil(cycles)+1, rtol 1e-7) and the diagnosis"))),
-])
+@pytest.mark.parametrize("system", ["drill", "pendulum", "rimd"])
 def test_truth_is_at_noise_level_defaults_are_not(tmp_path, system):
     cfg = SynthConfig(system=system, seed=5, n_threads=2, **SMALL[system])
     ds, info = synthesize(cfg)
