@@ -117,3 +117,41 @@ def test_pendulum_needs_amplitude_m(tmp_path):
     runs = MIXED.replace(",amplitude_m", "").replace(",,0.00089", "").replace("2250,,", "2250,").replace("1,,,", "1,,")
     with pytest.raises(UserError, match="runs.csv: missing column 'amplitude_m' .needed by run 'p1', system pendulum"):
         load_dataset(_ds(tmp_path, runs))
+
+
+# ----------------------------------------------------------------------------- targets of a whole dataset
+def test_undersampled_run_is_named_by_diagnose(tmp_path, capsys):
+    """d1 (drill, 213 Hz) at a 5 kHz DAQ: the drill's features go to 3 kHz (ModelSpec.diagnose_max_harmonic_hz),
+    harmonic 14 = 2982 Hz is above Nyquist 2500 Hz; `vibro diagnose` says so in one line naming the run."""
+    from pipeline.cli import main
+
+    d = _ds(tmp_path, MIXED, fs=5000.0)
+    assert main(["diagnose", str(d), "--out", str(tmp_path / "out"), "--quiet", "--no-mlflow"]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "series/d1.csv: sampling rate 5000 Hz cannot resolve harmonic 14 of 213 Hz" in err[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_summary_only_runs_and_signal_subsets_make_targets(tmp_path):
+    """A drill day: d1 logged the accelerometer only, from rest (record_start_s 0.4 s); d2 only a summary.
+    Both become targets of the drill with the preset's rock; d1's features are its accel harmonics and the
+    record's own time base is kept for the model (t_rec)."""
+    from pipeline.diagnosis.run import DiagnoseConfig, build_targets
+
+    runs = ("run_id,system,frequency_hz,amplitude_n,static_force_n,gap_m,duration_s,preset,record_start_s\n"
+            "d1,drill,213,2250,1200,0,0.05,lab,0.4\n"
+            "d2,drill,307,2250,1200,0,0.05,lab,\n")
+    d = tmp_path / "ds"
+    (d / "series").mkdir(parents=True)
+    (d / "runs.csv").write_text(runs)
+    t, x = _signal(213.0, 25600.0, 10.65)            # 0.05 s at 25.6 kHz: 1280 samples, not whole cycles
+    pd.DataFrame({"t_s": t, "accel_m_s2": x}).to_csv(d / "series" / "d1.csv", index=False)
+    (d / "summary.csv").write_text("run_id,rop_m_s,peak_force_n\nd2,0.0031,2700\n")
+    targets = {tg.run_id: tg for tg in build_targets(load_dataset(d), DiagnoseConfig())["drill"]}
+    d1, d2 = targets["d1"], targets["d2"]
+    assert (d1.kind, d1.signals, d1.record_start_s) == ("series", ("accel_m_s2",), 0.4)
+    assert d1.k_max == 14 and d1.t_rec.size == t.size and d1.known["K1"] == 6e8
+    # 3 cos(Ω t_rec) on the absolute time base t_rec + 0.4 s: c1 = 3 exp(-iΩ 0.4 s) (c = a - i b)
+    ph = 2 * np.pi * 213.0 * 0.4
+    assert d1.y[:2] == pytest.approx([3 * np.cos(ph), -3 * np.sin(ph)], abs=1e-6)
+    assert (d2.kind, d2.names, d2.record_start_s) == ("summary", ["rop_m_s", "peak_force_n"], None)
