@@ -16,11 +16,13 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
 1. validate the dataset strictly (errors name file, line and column; nothing is written on error);
 2. split the runs deterministically into calibration and held-out runs (>= min_runs_holdout runs per system:
    every holdout_every-th run held out; fewer: leave-one-run-out cross-validation);
-3. calibrate the base model's uncertain parameters (MODELS.md §1: metal k1, c1, pm; sandstone kl, ku, pm)
+3. calibrate the base model's uncertain parameters (MODELS.md §6: metal k1, c1, pm; sandstone kl, ku, pm;
+   drill K1, C1, Pr; pendulum ki, ci, zeta; rimd ki, lambda_i, c1), the rig's known parameters coming from the
+   runs' preset / parameter columns
    by multi-start least squares on noise-normalised features: amplitude and phase of every harmonic of the
    forcing frequency up to max_harmonic_hz of acceleration, force and displacement, the progression rate, or
    the summary features (peak_decel_g, impacts_per_cycle, rop_m_s, peak_force_n, spectral_ratio);
-4. fit every §6 effect that applies (shaker_coil, rate_stiffening, guide_friction, tip_blunting (sandstone),
+4. fit every §6 effect that applies to the system (shaker_coil, rate_stiffening, guide_friction, tip_blunting,
    suspension_hardening, sensor_lowpass) on top of the calibrated base model, rank by BIC, and select one
    only if its held-out residual is at the measurement-noise level estimated from the data;
 5. write DIR/report.json, DIR/report.md and PNG figures (residual structure before/after, measured vs
@@ -28,14 +30,16 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
 
 EPILOG = """\
 params.yaml section 'diagnose' (all optional; defaults in brackets):
-  max_harmonic_hz [1000]   harmonics of f up to this frequency are features
+  max_harmonic_hz [per system: indenter 1000, drill 3000, pendulum 100, rimd 200]
+                           harmonics of f up to this frequency are features (least squares on the record's
+                           own time base: any sampling rate, any record length >= 2 cycles)
   holdout_every [4]        single split: every n-th run (sorted by static force, frequency) is held out
   min_runs_holdout [8]     a system with fewer runs is cross-validated leave-one-run-out
   n_starts [2]             base-model starts (defaults + seeded random points)
   grid [4]                 grid points per effect parameter for a candidate's starting point
-  candidate_starts [2]     candidate fits start from the grid's best point at the calibrated base (1) and also
+  candidate_starts [2 indenter, 1 others]  candidate fits start from the grid's best point at the calibrated base (1) and also
                            at the default base parameters (2)
-  max_nfev [15]            least-squares iterations per start
+  max_nfev [15 indenter, 10 others]  least-squares iterations per start
   diff_step [0.01]         finite-difference step in log10 of a parameter
   bic_margin [10]          a candidate must beat the base model's BIC by this much
   explained_nrms [1.5]     held-out residual/noise at or below this counts as explained
@@ -199,7 +203,7 @@ def _headline(report: dict) -> dict:
 def _flat_metrics(report: dict) -> dict:
     out = {"wall_time_s": report["wall_time_s"]}
     for name, rep in report["systems"].items():
-        tag = name.split("-")[1]
+        tag = name.split("-")[-1]
         for k in ("noise_floor", "default_error", "base_error", "final_error", "default_nrms", "base_nrms",
                   "final_nrms"):
             out[f"{tag}.{k}"] = rep[k]

@@ -26,9 +26,16 @@ import pandas as pd
 from pipeline.core.errors import UserError
 from pipeline.core.files import atomic_directory
 
-RUN_COLUMNS = ("run_id", "system", "frequency_hz", "amplitude_n", "static_force_n", "gap_m", "duration_s")
-RUN_NUMERIC = {"frequency_hz": "positive", "amplitude_n": "nonnegative", "static_force_n": "nonnegative",
-               "gap_m": "nonnegative", "duration_s": "positive"}
+RUN_COLUMNS = ("run_id", "system", "frequency_hz", "gap_m", "duration_s")
+"""Required for every run.  The amplitude and static-force columns are required for the runs whose
+model has them as parameters: amplitude_n (indenter, drill, rimd) or amplitude_m (pendulum, MODELS.md §3),
+static_force_n (indenter, drill)."""
+RUN_NUMERIC = {"frequency_hz": "positive", "amplitude_n": "nonnegative", "amplitude_m": "nonnegative",
+               "static_force_n": "nonnegative", "gap_m": "nonnegative", "duration_s": "positive"}
+CONTROL_COLUMNS = ("amplitude_n", "amplitude_m", "static_force_n")
+"""Controls needed only by the runs whose model has them as a parameter."""
+OPTIONAL_RUN_COLUMNS = {"record_start_s": "nonnegative"}
+"""Optional numeric runs.csv columns; an empty cell means 'not given' for that run (record in steady state)."""
 SERIES_SIGNALS = ("accel_m_s2", "force_n", "disp_m", "progression_m")
 SUMMARY_FEATURES = ("rop_m_s", "peak_force_n", "peak_decel_g", "impacts_per_cycle")
 SUMMARY_EXTRAS = ("spectral_ratio", "spectral_ratio_ref_hz", "spectral_peak_hz", "impacts_per_cycle_lower_bound")
@@ -46,6 +53,7 @@ class Dataset:
     series: dict[str, pd.DataFrame] = field(default_factory=dict)
     summary: pd.DataFrame | None = None
     path: Path | None = None
+    known: dict[str, dict[str, float]] = field(default_factory=dict)   # run_id -> known rig parameters
     extra_files: dict[str, str] = field(default_factory=dict)   # relative path -> text (README.md, truth.json)
 
     @property
@@ -76,9 +84,10 @@ def _read_csv(path: Path, label: str) -> pd.DataFrame:
 
 
 def _numeric(df: pd.DataFrame, col: str, label: str, rule: str | None = None,
-             allow_empty: bool = False) -> np.ndarray:
+             allow_empty: bool | np.ndarray = False) -> np.ndarray:
     """Column as float; the first bad cell raises an error naming file, line and column.
-    ``allow_empty``: an empty cell means "not measured" (NaN in memory; summary.csv only)."""
+    ``allow_empty``: an empty cell means "not measured" / "not needed" (NaN in memory); a boolean
+    array allows it row by row."""
     raw = df[col].astype(str).str.strip()
     vals = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
     empty = (raw == "").to_numpy()
@@ -117,13 +126,32 @@ def _load_runs(root: Path) -> pd.DataFrame:
         i = int(np.argmax(dup.to_numpy()))
         raise UserError(f"{_where(label, i + 2, 'run_id')}: run id '{out['run_id'].iloc[i]}' appears twice")
     known = sim.model_names()
-    for i, s in enumerate(out["system"]):
-        if s not in known:
-            raise UserError(f"{_where(label, i + 2, 'system')}: unknown system '{s}' (known: {', '.join(known)})")
+    for i, s_ in enumerate(out["system"]):
+        if s_ not in known:
+            raise UserError(f"{_where(label, i + 2, 'system')}: unknown system '{s_}' (known: {', '.join(known)})")
+    params_of = {s_: set(sim.get_model(s_).param_names) for s_ in set(out["system"])}
+    for col in CONTROL_COLUMNS:
+        need = np.array([col in params_of[s_] for s_ in out["system"]])
+        if need.any() and col not in df.columns:
+            i = int(np.argmax(need))
+            raise UserError(f"{label}: missing column '{col}' (needed by run '{out['run_id'].iloc[i]}', "
+                            f"system {out['system'].iloc[i]})")
     for col, rule in RUN_NUMERIC.items():
-        out[col] = _numeric(df, col, label, rule)
+        if col in RUN_COLUMNS:
+            out[col] = _numeric(df, col, label, rule)
+        elif col in df.columns:
+            need = np.array([col in params_of[s_] for s_ in out["system"]])
+            vals = _numeric(df, col, label, rule, allow_empty=~need)
+            if (~need & np.isfinite(vals) & (vals != 0)).any():
+                i = int(np.argmax(~need & np.isfinite(vals) & (vals != 0)))
+                raise UserError(f"{_where(label, i + 2, col)}: system {out['system'].iloc[i]} has no parameter "
+                                f"'{col}' (leave the cell empty)")
+            out[col] = vals
+    for col, rule in OPTIONAL_RUN_COLUMNS.items():
+        if col in df.columns:
+            out[col] = _numeric(df, col, label, rule, allow_empty=True)
     for col in df.columns:
-        if col not in RUN_COLUMNS:
+        if col not in out.columns:
             out[col] = df[col].to_numpy()
     return out
 
@@ -207,15 +235,59 @@ def load_dataset(path: str | os.PathLike) -> Dataset:
                 raise UserError(f"series/{f.name}: run '{f.stem}' is not in runs.csv")
             series[f.stem] = _load_series(f, f.stem)
     summary = _load_summary(root, ids)
+    known = known_parameters(runs)
     for i, rid in enumerate(runs["run_id"]):
         if rid not in series and (summary is None or rid not in summary.index):
             raise UserError(f"{_where('runs.csv', i + 2, 'run_id')}: run '{rid}' has neither a series "
                             f"(series/{rid}.csv) nor a row in summary.csv")
-    return Dataset(runs=runs, series=series, summary=summary, path=root)
+    return Dataset(runs=runs, series=series, summary=summary, path=root, known=known)
+
+
+def known_parameters(runs: pd.DataFrame) -> dict[str, dict[str, float]]:
+    """Known rig parameters of every run (MODELS.md §7): the model defaults, then the ``preset`` column's
+    named preset, then explicit columns named after a parameter of the run's model (``M1``, ``k2``, ...).
+    An unknown preset, a parameter column that belongs to no parameter of the run's model but to another
+    model's, a bad value: UserError naming runs.csv, the line and the column."""
+    import sim
+
+    label = "runs.csv"
+    controls = set(RUN_NUMERIC) | {"run_id", "system", "preset", *OPTIONAL_RUN_COLUMNS}
+    all_params = {p for m in sim.model_names() for p in sim.get_model(m).param_names} - controls
+    out: dict[str, dict[str, float]] = {}
+    for i, row in enumerate(runs.to_dict("records")):
+        spec = sim.get_model(row["system"])
+        preset = str(row.get("preset", "") or "").strip()
+        if preset and preset not in spec.presets:
+            raise UserError(f"{_where(label, i + 2, 'preset')}: unknown preset '{preset}' for system {row['system']} "
+                            f"(known: {', '.join(sorted(spec.presets)) or 'none'})")
+        vals: dict[str, float] = {k: v for k, v in spec.presets.get(preset, {}).items() if k not in RUN_NUMERIC}
+        for col in runs.columns:
+            if col not in all_params:
+                continue
+            cell = str(row[col]).strip()
+            if cell in ("", "nan"):
+                continue
+            if col not in spec.param_names:
+                raise UserError(f"{_where(label, i + 2, col)}: '{col}' is not a parameter of system {row['system']} "
+                                f"(known: {', '.join(p for p in spec.param_names if p not in controls)})")
+            try:
+                vals[col] = float(cell)
+            except ValueError:
+                raise UserError(f"{_where(label, i + 2, col)}: '{cell}' is not a finite number") from None
+        ctrl = {c: row[c] for c in RUN_NUMERIC if c in spec.param_names and c != "duration_s"
+                and c in row and np.isfinite(row[c])}
+        try:
+            spec.resolve(preset or None, **{**vals, **ctrl})
+        except sim.ParameterError as e:
+            bad = next((c for c in (*vals, *ctrl) if f"'{c}'" in str(e)), "preset" if preset else "system")
+            raise UserError(f"{_where(label, i + 2, bad)}: {e}") from None
+        out[row["run_id"]] = vals
+    return out
 
 
 def _fmt(df: pd.DataFrame) -> str:
-    return df.to_csv(index=False, float_format="%.10g", lineterminator="\n")
+    """CSV text; NaN (a control a run's system does not have, an unmeasured summary feature) is an empty cell."""
+    return df.to_csv(index=False, float_format="%.10g", lineterminator="\n", na_rep="")
 
 
 def write_dataset(ds: Dataset, path: str | os.PathLike) -> Path:
@@ -226,9 +298,6 @@ def write_dataset(ds: Dataset, path: str | os.PathLike) -> Path:
         raise UserError(f"--out '{root}' exists and is not a directory")
     if root.exists() and any(root.iterdir()) and not (root / "runs.csv").exists():
         raise UserError(f"--out '{root}' is a non-empty directory that is not a dataset; choose another path")
-    for col in ds.runs.columns:
-        if ds.runs[col].dtype.kind == "f" and ds.runs[col].isna().any():
-            raise UserError(f"refusing to write NaN in runs.csv column '{col}'")
     with atomic_directory(root) as tmp:
         (tmp / "runs.csv").write_text(_fmt(ds.runs))
         if ds.series:

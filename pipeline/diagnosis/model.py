@@ -29,11 +29,34 @@ def supported_systems() -> tuple[str, ...]:
     return tuple(n for n in sim.model_names() if sim.get_model(n).calibratable)
 
 
-def calibratable(system: str) -> tuple[FitBound, ...]:
-    """The calibratable parameters of ``system`` with their fit bounds (``ModelSpec.calibratable``)."""
+def _spec(system: str):
+    """The ModelSpec of a system the diagnosis supports (UserError naming the supported ones otherwise)."""
     import sim
 
-    return sim.get_model(system).calibratable
+    if system not in sim.model_names() or not sim.get_model(system).calibratable:
+        raise UserError(f"system '{system}': the diagnosis supports {', '.join(supported_systems())} "
+                        "(models with calibratable parameters, MODELS.md §6)")
+    return sim.get_model(system)
+
+
+def calibratable(system: str) -> tuple[FitBound, ...]:
+    """The calibratable parameters of ``system`` with their fit bounds (``ModelSpec.calibratable``)."""
+    return _spec(system).calibratable
+
+
+def effect_bounds(system: str) -> dict[str, FitBound]:
+    """Fit bounds of every §6 effect parameter of ``system`` (``ModelSpec.effect_bounds``)."""
+    return dict(_spec(system).effect_bounds)
+
+
+def default_max_harmonic_hz(system: str) -> float:
+    """Default highest harmonic used as a feature [Hz] (``ModelSpec.diagnose_max_harmonic_hz``)."""
+    return _spec(system).diagnose_max_harmonic_hz
+
+
+def default_fit_settings(system: str) -> dict:
+    """Default candidate_starts and max_nfev of ``system`` (``ModelSpec.diagnose_fit``; DiagnoseConfig None values)."""
+    return dict(_spec(system).diagnose_fit)
 
 
 warm = sim_warm
@@ -45,7 +68,36 @@ def candidates(system: str) -> dict[str, tuple[FreeParam, ...]]:
     import sim
 
     spec = sim.get_model(system)
-    return {eff: tuple(spec.effect_bounds[p] for p in ps) for eff, ps in spec.effects.items()}
+    bounds = effect_bounds(system)
+    return {eff: tuple(bounds[p] for p in ps) for eff, ps in spec.effects.items()}
+
+
+MAX_MODEL_SAMPLES = 500_000
+"""Cap on the samples of one model history (memory; the integrator steps on its own, the history is only output).
+A cap per cycle instead (4096) starved low-frequency runs: the pendulum at 3 Hz recorded at 10 kHz got 1.2x
+instead of 4x oversampling and its truth mismatch was ~8 instead of ~1 (issue 12)."""
+
+
+def run_settings(tg: Target, sim_settings: dict, fs_sim_hz: float, max_window: int = 0,
+                 oversample: float = 4.0) -> dict:
+    """Simulator settings of one run.  The model is sampled densely (``oversample`` x the record's rate,
+    at least 4 K + 8 samples per cycle, at most MAX_MODEL_SAMPLES in the whole window) and interpolated onto the
+    record's own time base (features.model_on_record), so its harmonics see the same sampling as the measurement's.
+    Steady-state record: as many cycles as were recorded (up to ``max_window``; drifting effects depend on it).
+    Record from rest (``record_start_s``): no transient, a window from rest that covers [record_start_s,
+    record_start_s + duration_s] (features.model_record cuts it)."""
+    f = tg.frequency_hz
+    fs = tg.fs_hz or fs_sim_hz
+    st = dict(sim_settings)
+    if tg.record_start_s is not None:
+        end = tg.record_start_s + max(tg.duration_s, 2.0 / f)
+        st.update(min_transient=0, max_transient=0, window=max(int(math.ceil(end * f)) + 1, 2))
+    elif max_window and tg.kind == "series":
+        st["window"] = max(int(st.get("window", 2)), min(int(math.ceil(tg.cycles)), max_window))
+    window = int(st.get("window", 2))
+    st["samples_per_cycle"] = max(min(int(math.ceil(oversample * fs / f)), MAX_MODEL_SAMPLES // max(window, 1)),
+                                  4 * tg.k_max + 8)
+    return st
 
 
 class Evaluator:
@@ -54,20 +106,11 @@ class Evaluator:
 
     def __init__(self, system: str, targets: list[Target], sim_settings: dict, fs_sim_hz: float,
                  n_threads: int | None = None, max_window: int = 0):
-        if system not in supported_systems():
-            raise UserError(f"system '{system}': the diagnosis supports {', '.join(supported_systems())} "
-                            "(models with calibratable parameters, MODELS.md §6)")
+        calibratable(system)
         self.system = system
         self.targets = targets
         self.n_threads = n_threads or os.cpu_count() or 1
-        self.settings = []
-        for tg in targets:
-            f = tg.controls["frequency_hz"]
-            spc = tg.spc or max(int(math.ceil(fs_sim_hz / f)), 4 * tg.k_max + 8)
-            st = {**sim_settings, "samples_per_cycle": spc}
-            if max_window and tg.cycles:   # simulate as many cycles as were recorded (drifting effects)
-                st["window"] = max(int(st.get("window", 2)), min(tg.cycles, max_window))
-            self.settings.append(st)
+        self.settings = [run_settings(tg, sim_settings, fs_sim_hz, max_window) for tg in targets]
         self.n_sims = 0
         warm(system)
 
@@ -82,7 +125,7 @@ class Evaluator:
             tg = self.targets[i]
             try:
                 return sim.simulate(self.system, settings=self.settings[i], history=True,
-                                    **tg.controls, **param_sets[j])
+                                    **{**tg.known, **tg.controls, **param_sets[j]})
             except sim.ParameterError as e:
                 raise UserError(f"run {tg.run_id}: {e}") from None
 

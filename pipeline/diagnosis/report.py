@@ -12,7 +12,15 @@ import numpy as np  # noqa: E402
 from scipy.stats import spearmanr  # noqa: E402
 
 from pipeline.core.files import atomic_write_figure  # noqa: E402
-from pipeline.diagnosis.features import cycle_matrix  # noqa: E402
+from pipeline.diagnosis.features import harmonic_fit, model_record, record_time  # noqa: E402
+
+
+CONTROL_KEYS = ("frequency_hz", "amplitude_n", "amplitude_m", "static_force_n", "gap_m")
+
+
+def _tag(system: str) -> str:
+    """Short file tag of a system: indenter-metal -> metal, drill -> drill."""
+    return system.split("-")[-1]
 
 
 def _nrms(r: np.ndarray) -> float:
@@ -26,13 +34,16 @@ def residual_structure(rep: dict, base_runs: list[dict], final_runs: list[dict])
     rows = []
     for b, f in zip(base_runs, final_runs):
         tg = ev.targets[b["run"]]
-        rows.append({"run_id": tg.run_id, **tg.controls, "peak_velocity_m_s": b["peak_velocity_m_s"],
+        rows.append({"run_id": tg.run_id, **{k: tg.controls.get(k) for k in CONTROL_KEYS}, **tg.controls,
+                     "peak_velocity_m_s": b["peak_velocity_m_s"],
                      "base_nrms": _nrms(b["residual"]), "final_nrms": _nrms(f["residual"]),
                      "held_out": b["run"] in rep["_test_idx"]})
     corr = {}
     y = [r["base_nrms"] for r in rows]
-    for key in ("frequency_hz", "amplitude_n", "static_force_n", "peak_velocity_m_s"):
+    for key in (*CONTROL_KEYS, "peak_velocity_m_s"):
         x = [r[key] if r[key] is not None else np.nan for r in rows]
+        if all(v is None or not np.isfinite(v) for v in x):
+            continue
         if len(set(x)) > 2:
             rho = spearmanr(x, y, nan_policy="omit").statistic
             corr[key] = None if rho is None or not np.isfinite(rho) else float(rho)
@@ -73,12 +84,14 @@ def figures(rep: dict, ds, base_runs: list[dict], final_runs: list[dict], defaul
             out: Path) -> list[str]:
     """Residual before/after, residual structure, measured vs simulated time histories and spectra."""
     ev, sysname = rep["_ev"], rep["system"]
-    tag = sysname.split("-")[1]
+    tag = _tag(sysname)
     files = []
     st = rep["residual_structure"]
     rows = st["by_run"]
     fig, ax = plt.subplots(2, 3, figsize=(13, 7))
-    for key, a in zip(("frequency_hz", "amplitude_n", "static_force_n", "peak_velocity_m_s"), ax.ravel()):
+    keys = [k for k in (*CONTROL_KEYS, "peak_velocity_m_s")
+            if len({r.get(k) for r in rows if r.get(k) is not None}) > 1][:4]
+    for key, a in zip(keys, ax.ravel()):
         for col, lab, mk in (("base_nrms", "calibrated base (before)", "o"), ("final_nrms", f"with {rep['_final']} (after)", "s")):
             x = [r[key] for r in rows]
             a.scatter(x, [r[col] for r in rows], marker=mk, label=lab, alpha=0.7)
@@ -117,21 +130,20 @@ def figures(rep: dict, ds, base_runs: list[dict], final_runs: list[dict], defaul
             sigs = [s for s in ("accel_m_s2", "force_n") if s in df.columns]
             fig, ax = plt.subplots(len(sigs), 2, figsize=(12, 3.4 * len(sigs)), squeeze=False)
             for r_, sig in enumerate(sigs):
-                cyc = cycle_matrix(df["t_s"].to_numpy(), df[sig].to_numpy(), f)
-                mean = cyc.mean(axis=0)
-                ph = np.arange(mean.size) / mean.size
-                ax[r_, 0].plot(ph, mean - mean.mean(), "k", lw=2, label="measured (cycle average)")
-                spec_m = np.abs(np.fft.rfft(mean))[1:tg.k_max + 1] * 2 / mean.size
+                ph = np.linspace(0.0, 1.0, 200, endpoint=False)
+                basis = np.exp(2j * np.pi * np.outer(ph, np.arange(1, tg.k_max + 1)))
+                hm = harmonic_fit(record_time(tg, df["t_s"].to_numpy()), df[sig].to_numpy(), f, tg.k_max).c
+                ax[r_, 0].plot(ph, (basis @ hm).real, "k", lw=2, label=f"measured (harmonics 1-{tg.k_max})")
+                spec_m = np.abs(hm)
                 kk = np.arange(1, tg.k_max + 1) * f
                 ax[r_, 1].plot(kk, spec_m, "ko-", lw=2, label="measured")
                 for name, res in runs.items():
                     if res is None or res.history is None:
                         continue
-                    h = res.history
-                    t = h["t_s"].to_numpy() - h["t_s"].iloc[0]
-                    c = cycle_matrix(t, h[sig].to_numpy(), f).mean(axis=0)
-                    ax[r_, 0].plot(np.arange(c.size) / c.size, c - c.mean(), lw=1, label=name)
-                    ax[r_, 1].plot(kk, np.abs(np.fft.rfft(c))[1:tg.k_max + 1] * 2 / c.size, ".-", lw=1, label=name)
+                    t, hr = model_record(tg, res.history)
+                    c = harmonic_fit(t, hr[sig].to_numpy(), f, tg.k_max).c
+                    ax[r_, 0].plot(ph, (basis @ c).real, lw=1, label=name)
+                    ax[r_, 1].plot(kk, np.abs(c), ".-", lw=1, label=name)
                 ax[r_, 0].set_xlabel("forcing phase [cycles]")
                 ax[r_, 0].set_ylabel(f"{sig} (mean removed)")
                 ax[r_, 1].set_xlabel("harmonic frequency [Hz]")

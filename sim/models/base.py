@@ -60,6 +60,9 @@ class FitBound:
         return (math.log10(self.lo), math.log10(self.hi)) if self.log else (self.lo, self.hi)
 
 
+DIAGNOSE_FIT_KEYS = ("candidate_starts", "max_nfev")
+"""Keys of ``ModelSpec.diagnose_fit`` (the diagnosis' default fit effort)."""
+
 MAP_KINDS = ("pattern", "rop")
 """Kinds of parameter maps: Peterka-style impact-pattern maps, or ROP maps."""
 
@@ -101,6 +104,10 @@ class ModelSpec:
     map_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)   # default map axis ranges [SI]
     map_relative_to: dict[str, str] = field(default_factory=dict)  # axis -> parameter its map range is a multiple of
     progress_force_floor: Callable[[Mapping[str, float]], float | None] = lambda v: None  # force needed to progress [N]
+    diagnose_max_harmonic_hz: float = 1000.0                  # highest harmonic the diagnosis uses as a feature [Hz]
+    diagnose_fit: dict[str, int] = field(default_factory=lambda: {"candidate_starts": 1, "max_nfev": 10})
+    # diagnosis fit effort: random starts per candidate, least-squares iterations (DIAGNOSE_FIT_KEYS)
+    exact: str | None = None   # module of an exact propagator of the model's phases (sim/exact/), if any
 
     def __post_init__(self):
         """A table checks itself: fills effect bounds from the shared §6 table (sim.models.effects) where the
@@ -137,7 +144,12 @@ class ModelSpec:
         for n, ref in self.map_relative_to.items():
             if n not in self.map_ranges or ref not in names:
                 raise ValueError(f"{where}: map_relative_to {n} -> {ref}: needs a map range and a parameter")
-    exact: str | None = None   # module of an exact propagator of the model's phases (sim/exact/), if any
+        if not (math.isfinite(self.diagnose_max_harmonic_hz) and self.diagnose_max_harmonic_hz > 0):
+            raise ValueError(f"{where}: diagnose_max_harmonic_hz must be > 0, got {self.diagnose_max_harmonic_hz!r}")
+        if set(self.diagnose_fit) != set(DIAGNOSE_FIT_KEYS) or not all(
+                isinstance(v, int) and v >= 1 for v in self.diagnose_fit.values()):
+            raise ValueError(f"{where}: diagnose_fit must give integers >= 1 for exactly {DIAGNOSE_FIT_KEYS}, "
+                             f"got {self.diagnose_fit!r}")
 
     @property
     def param_names(self) -> tuple[str, ...]:

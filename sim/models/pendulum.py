@@ -164,6 +164,11 @@ SPEC = ModelSpec(
     # MODELS.md §6: the load cell (ki, ci) and the free-swing damping zeta; one decade either side of the defaults.
     calibratable=(FitBound("ki", 5.5e5, 5.5e7, "N/m"), FitBound("ci", 1.2e2, 1.2e4, "N s/m"),
                   FitBound("zeta", 5e-4, 5e-2, "-")),
+    # contact rate of the hammer ~0.1-0.5 m/s: alpha ~ 0.1-10 s/m changes the contact stiffness by 1-100 %
+    effect_bounds={"alpha": FitBound("alpha", 1e-2, 100.0, "s/m")},
+    # the 3-8 Hz impacts are resolved by their first ~25 harmonics
+    diagnose_max_harmonic_hz=100.0,
+    diagnose_fit={"candidate_starts": 1, "max_nfev": 10},
     # impact-pattern maps over the seed's ranges (seed 001 Figs. 13-14: 1-10 Hz, gaps up to 3 mm)
     map_kind="pattern",
     map_ranges={"frequency_hz": (1.0, 10.0), "gap_m": (0.0, 3.0e-3), "amplitude_m": (0.2e-3, 1.5e-3)},
