@@ -8,15 +8,22 @@ STAMP  := $(VENV)/.installed
 .PHONY: install run test test-all bench clean
 
 $(STAMP): pyproject.toml requirements.lock
-	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -c requirements.lock -e ".[dev]"
+	@test -x $(BIN)/python || { echo "==> [install 1/3] creating $(VENV) with $(PYTHON)"; $(PYTHON) -m venv $(VENV); }
+	@echo "==> [install 2/3] upgrading pip in $(VENV)"
+	@$(BIN)/python -m pip install --quiet --upgrade pip
+	@echo "==> [install 3/3] installing vibro and its pinned dependencies (requirements.lock) into $(VENV):"
+	@echo "    first time about 5 minutes (numpy, numba, scikit-learn, mlflow, dvc, optuna, ...); one line per package"
+	@$(BIN)/python -m pip install --progress-bar off -c requirements.lock -e ".[dev]" \
+	  | grep --line-buffered -E "^(Collecting|Successfully installed)" | sed -u 's/^/    /' || true
+	@$(BIN)/python -c "import pipeline, sim, surrogate" || { echo "install failed: rerun 'make install' to see pip's errors"; exit 1; }
 	@touch $(STAMP)
+	@echo "==> installed; .venv/bin/vibro --version: $$($(BIN)/vibro --version)"
 
 install: $(STAMP)
 
 run: install
-	$(BIN)/python -m pipeline.tracking.repro
+	@echo "==> running the pipeline: dvc repro under one MLflow parent run (python -m pipeline.tracking.repro)"
+	@$(BIN)/python -m pipeline.tracking.repro
 
 test: install
 	$(BIN)/python -m pytest -q -n 2 --dist loadgroup

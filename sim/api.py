@@ -11,6 +11,7 @@ import pandas as pd
 
 from sim import integrator as I
 from sim.compiled import kernels
+from sim.compile_notice import announce_compile
 from sim.models.base import ModelSpec, ParameterError
 from sim.registry import get_model
 
@@ -201,6 +202,7 @@ def simulate(model: str, preset: str | None = None, settings: Settings | dict | 
     if initial_state is not None:
         y0, z0, ph0 = _check_state(spec, initial_state)
     y, z, ph = y0.copy(), z0.copy(), np.array([ph0], dtype=np.int64)
+    announce_compile(spec)
     run_one = kernels(spec.funcs, spec.n_bounded)
     v = run_one(p, y, z, ph, period, s, atol, ht, hy, ho, hp)
     labels = _labels_from_vector(v, msg)
@@ -250,6 +252,7 @@ def simulate_batch(model: str, table, preset: str | None = None, settings: Setti
     msgs = [spec.precheck(x[0]) for x in prepared]
     flagged = np.array([m is not None for m in msgs])
     out = np.empty((len(rows), I.N_LABELS))
+    announce_compile(spec)
     run_one = kernels(spec.funcs, spec.n_bounded)
     arrays = {flag: st.to_array(runaway_check=flag) for flag in (False, True)}
     empty = (np.empty(0), np.empty((0, Y0.shape[1])), np.empty((0, I.N_OBS)), np.empty(0, dtype=np.int64))

@@ -37,7 +37,9 @@ def get_model(name: str) -> ModelSpec:
 def warm(name: str) -> None:
     """Load/compile ``name``'s kernel in the calling thread before worker threads use it
     (sim.compiled.kernels is not thread-safe on its first call)."""
+    from sim.compile_notice import announce_compile
     from sim.compiled import kernels
 
     spec = get_model(name)
+    announce_compile(spec)
     kernels(spec.funcs, spec.n_bounded)

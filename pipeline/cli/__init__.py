@@ -11,10 +11,27 @@ import argparse
 import importlib
 import os
 import sys
+import time
 
 from pipeline.core.errors import USER_ERRORS
 
 SUBCOMMANDS = ("simulate", "sweep", "train", "optimise", "verify", "diagnose", "synth", "map", "report", "models")
+
+
+def version() -> str:
+    """The installed package's version (pyproject.toml), or the source tree's when not installed."""
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as _v
+
+    try:
+        return _v("vibro")
+    except PackageNotFoundError:
+        import re
+        from pathlib import Path
+
+        text = (Path(__file__).resolve().parents[2] / "pyproject.toml").read_text()
+        m = re.search(r'^version\s*=\s*"([^"]+)"', text, re.M)
+        return m.group(1) if m else "unknown"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -26,6 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "(specification: MODELS.md).",
         epilog="Run 'vibro SUBCOMMAND --help' for the options of each subcommand.")
     parser.add_argument("--debug", action="store_true", help="show Python tracebacks on errors")
+    parser.add_argument("--version", action="version", version=f"vibro {version()}")
     sub = parser.add_subparsers(dest="command", metavar="SUBCOMMAND")
     for name in SUBCOMMANDS:
         try:
@@ -38,14 +56,27 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _done(args, wall: float) -> None:
+    """One stderr line with the command's wall and CPU time (the per-stage line of a pipeline run)."""
+    if getattr(args, "quiet", False) or wall < 2.0:
+        return
+    import resource
+
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    print(f"vibro {args.command}: done in {wall:.0f} s wall, {ru.ru_utime + ru.ru_stime:.0f} s CPU",
+          file=sys.stderr, flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    t0 = time.perf_counter()
     try:
         rc = args.func(args)
+        _done(args, time.perf_counter() - t0)
         return int(rc or 0)
     except USER_ERRORS as e:
         if args.debug:

@@ -3,9 +3,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from dataclasses import fields
 from pathlib import Path
 
+from pipeline.cli.args import add_quiet, add_workers, check_workers
 from pipeline.core.errors import UserError
 
 DESCRIPTION = """\
@@ -55,7 +57,7 @@ examples:
   vibro synth --out data/synth-coil --system indenter-metal --effect shaker_coil
   vibro diagnose data/synth-coil --out results/diagnose-coil
   vibro diagnose measured/seed000-published --out results/diagnose-seed000 --metrics results/diagnose.json
-  vibro diagnose DATA --out DIR --params params.yaml --set max_nfev=10 --effects shaker_coil sensor_lowpass"""
+  vibro diagnose DATA --out DIR --params params.yaml --setting max_nfev=10 --effects shaker_coil sensor_lowpass"""
 
 
 def add_parser(sub) -> None:
@@ -64,14 +66,15 @@ def add_parser(sub) -> None:
     p.add_argument("dataset", help="measured dataset directory (MODELS.md §7)")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory (report.json, report.md, figures)")
     p.add_argument("--params", metavar="FILE.yaml", help="read settings from this file's 'diagnose' section")
-    p.add_argument("--set", dest="sets", action="append", metavar="KEY=VALUE",
-                   help="override one numeric 'diagnose' setting (repeatable), e.g. --set max_nfev=10")
+    p.add_argument("--setting", "--set", dest="sets", action="append", metavar="KEY=VALUE",
+                   help="override one numeric 'diagnose' setting (repeatable), e.g. --setting max_nfev=10; "
+                        "alias --set (older spelling)")
     p.add_argument("--effects", nargs="+", metavar="EFFECT", help="only try these candidate effects")
     p.add_argument("--metrics", metavar="FILE.json",
                    help="also write the headline numbers (errors, noise floor, selected effect) to this JSON file")
-    p.add_argument("--threads", type=int, help="simulation threads (default: all cores)")
+    add_workers(p, dest="threads", help="simulation threads (default: all cores)")
     p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
-    p.add_argument("--quiet", action="store_true", help="no progress output")
+    add_quiet(p)
     p.set_defaults(func=run)
 
 
@@ -117,20 +120,21 @@ def run(args) -> int:
     from pipeline.diagnosis.driver import diagnose
     from pipeline.datasets.measured import load_dataset
 
-    cfg = load_config(args.params, parse_assignments(args.sets), args.effects, args.threads)
+    cfg = load_config(args.params, parse_assignments(args.sets, "--setting"), args.effects, check_workers(args.threads))
     ds = load_dataset(args.dataset)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out '{out}' exists and is not a directory")
-    log = (lambda s: None) if args.quiet else (lambda s: tqdm.write(s))
+    log = (lambda s: None) if args.quiet else (lambda s: tqdm.write(s, file=sys.stderr))
     n_steps = 0
     for system in ds.systems:
         n = int((ds.runs["system"] == system).sum())
         n_steps += 1 if n >= max(cfg.min_runs_holdout, 3) else n
-    bar = tqdm(total=n_steps, desc="diagnose (folds)", disable=args.quiet, unit="fold")
+    bar = tqdm(total=n_steps, desc="diagnose (folds)", disable=args.quiet, unit="fold", file=sys.stderr)
     from dataclasses import asdict
 
-    with tracking.run("diagnose", {"dataset": args.dataset, **asdict(cfg)}, enabled=not args.no_mlflow) as mlflow:
+    with tracking.run("diagnose", {"dataset": args.dataset, **asdict(cfg)}, enabled=not args.no_mlflow,
+                      variant=Path(args.dataset).resolve().name) as mlflow:
         report = diagnose(ds, out, cfg, log=log, progress=lambda: bar.update(1))
         bar.close()
         headline = _headline(report)

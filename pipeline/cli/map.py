@@ -5,7 +5,7 @@ import argparse
 import time
 from pathlib import Path
 
-from pipeline.cli.args import parse_assignments
+from pipeline.cli.args import add_quiet, add_rig, add_set, add_workers, check_workers, model_and_overrides, parse_assignments
 from pipeline.core.errors import UserError
 
 KINDS = ("auto", "peterka", "rop", "label", "bifurcation")
@@ -27,7 +27,8 @@ OUT.strobe.parquet with one row per recorded cycle).  Default OUT: maps/<model>_
 examples:
   vibro map pendulum --x frequency_hz --y gap_m                         # Peterka map, 40 x 40, 1-10 Hz x 0-3 mm
   vibro map pendulum --x frequency_hz --nx 100 --y gap_m --ny 100 --out maps/pendulum_peterka_100
-  vibro map rimd --x frequency_hz --x-range 3 12 --y gap_m --y-range 0 0.003
+  vibro map rimd --x frequency_hz=3:12 --y gap_m=0:0.003                # axis ranges as NAME=LO:HI
+  vibro map --rig my-rig.yaml --x frequency_hz --y static_force_n --set amplitude_n=2250   # your own rig
   vibro map rimd --x frequency_hz --x-range 4 10 --nx 49 --set gap_m=0.001 --direction both   # bifurcation
   vibro map drill --preset lab --x frequency_hz --y amplitude_n --set static_force_n=1200
   vibro map drill --preset lab --x frequency_hz --y static_force_n --set amplitude_n=2250
@@ -44,13 +45,19 @@ def add_parser(sub) -> None:
                     "--y: a bifurcation diagram along --x, each point continued from the previous point's "
                     "final state, swept up and/or down to show coexisting attractors and jumps.",
         formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG)
-    p.add_argument("model", help="drill | indenter-metal | indenter-sandstone | pendulum | rimd")
-    p.add_argument("--x", required=True, metavar="PARAM", help="parameter on the horizontal axis (e.g. frequency_hz)")
-    p.add_argument("--x-range", nargs=2, type=float, metavar=("LO", "HI"),
-                   help="range of --x in SI units (default: per model, ModelSpec.map_ranges; drill forces are multiples of Pr)")
+    p.add_argument("model", nargs="?", help="drill | indenter-metal | indenter-sandstone | pendulum | rimd "
+                                            "(optional with --rig)")
+    p.add_argument("--x", required=True, metavar="PARAM[=LO:HI]",
+                   help="parameter on the horizontal axis, optionally with its range in SI units (e.g. "
+                        "frequency_hz=3:12; default range per model, ModelSpec.map_ranges; drill forces are "
+                        "multiples of Pr)")
+    p.add_argument("--x-range", nargs=2, type=float, metavar=("LO", "HI"), help="range of --x (older spelling of "
+                                                                                 "--x PARAM=LO:HI)")
     p.add_argument("--nx", type=int, default=40, help="number of --x values (default 40)")
-    p.add_argument("--y", metavar="PARAM", help="parameter on the vertical axis (omit for a bifurcation diagram)")
-    p.add_argument("--y-range", nargs=2, type=float, metavar=("LO", "HI"), help="range of --y in SI units")
+    p.add_argument("--y", metavar="PARAM[=LO:HI]",
+                   help="parameter on the vertical axis, optionally with its range (omit for a bifurcation diagram)")
+    p.add_argument("--y-range", nargs=2, type=float, metavar=("LO", "HI"), help="range of --y (older spelling of "
+                                                                                 "--y PARAM=LO:HI)")
     p.add_argument("--ny", type=int, default=40, help="number of --y values (default 40)")
     p.add_argument("--log-x", action="store_true", help="geometric spacing of --x values")
     p.add_argument("--log-y", action="store_true", help="geometric spacing of --y values")
@@ -62,15 +69,15 @@ def add_parser(sub) -> None:
     p.add_argument("--direction", choices=("up", "down", "both"), default="both",
                    help="bifurcation sweep direction (default both)")
     p.add_argument("--preset", help="named parameter set of the model (see 'vibro models MODEL')")
-    p.add_argument("--set", dest="sets", action="append", metavar="NAME=VALUE",
-                   help="fix another parameter (repeatable), e.g. --set static_force_n=700")
+    add_rig(p, "map")
+    add_set(p, help="fix another parameter (repeatable; over the rig), e.g. --set static_force_n=700")
     p.add_argument("--setting", dest="settings", action="append", metavar="NAME=VALUE",
                    help="numerical setting (repeatable): rtol, min_transient, max_transient, window, period_tol, "
                         "settle_tol, event_tol, max_step_frac, stat_tol")
-    p.add_argument("--threads", type=int, help="worker threads (default: all cores)")
+    add_workers(p, dest="threads", help="worker threads (default: all cores)")
     p.add_argument("--out", metavar="PREFIX", help="output prefix: writes PREFIX.png and PREFIX.parquet")
     p.add_argument("--no-mlflow", action="store_true", help="do not log the run to MLflow")
-    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    add_quiet(p)
     p.set_defaults(func=run)
 
 
@@ -79,6 +86,22 @@ def _settings(items):
     if s:
         s = {k: (int(v) if k in INT_SETTINGS else v) for k, v in s.items()}
     return s
+
+
+def _axis(value: str | None, legacy, flag: str) -> tuple[str | None, tuple]:
+    """``NAME`` or ``NAME=LO:HI`` of --x/--y -> (name, (lo, hi) or (None, None)); --x-range/--y-range as fallback."""
+    if value is None:
+        return None, (None, None)
+    name, eq, rest = value.partition("=")
+    if not eq:
+        return value, tuple(legacy) if legacy else (None, None)
+    lo_s, colon, hi_s = rest.partition(":")
+    try:
+        if not colon:
+            raise ValueError
+        return name.strip(), (float(lo_s), float(hi_s))
+    except ValueError:
+        raise UserError(f"{flag} expects PARAM or PARAM=LO:HI, got '{value}'") from None
 
 
 def resolve_kind(model: str, kind: str, has_y: bool) -> str:
@@ -103,23 +126,23 @@ def run(args) -> int:
     from pipeline.maps import plot as P
     from pipeline import tracking
 
+    args.x, xr = _axis(args.x, args.x_range, "--x")
+    args.y, yr = _axis(args.y, args.y_range, "--y")
+    args.model, args.preset, fixed = model_and_overrides(args.model, args.preset, args.rig,
+                                                         parse_assignments(args.sets))
     spec = sim.get_model(args.model)
     kind = resolve_kind(args.model, args.kind, bool(args.y))
     if args.y and args.x == args.y:
         raise UserError(f"--x and --y must be different parameters (both are '{args.x}')")
-    fixed = parse_assignments(args.sets)
     settings = _settings(args.settings)
-    if args.threads is not None and args.threads < 1:
-        raise UserError(f"--threads must be >= 1, got {args.threads}")
+    check_workers(args.threads)
     color = args.color or ("rop_m_s" if kind in ("rop", "label") else "peak_force_n")
     if color not in sim.LABELS:
         raise UserError(f"--color '{color}' is not a label; known: {', '.join(sim.LABELS)}")
     base = spec.resolve(args.preset, **{k: v for k, v in fixed.items() if k not in (args.x, args.y)})
-    xr = args.x_range or (None, None)
     xs = M.axis_values(args.model, args.x, xr[0], xr[1], args.nx, args.log_x, base)
     ys = None
     if args.y:
-        yr = args.y_range or (None, None)
         ys = M.axis_values(args.model, args.y, yr[0], yr[1], args.ny, args.log_y, base)
     out = Path(args.out or f"maps/{args.model}_{kind}_{args.x}" + (f"_{args.y}" if args.y else ""))
     png, pq = out.with_name(out.name + ".png"), out.with_name(out.name + ".parquet")
@@ -127,14 +150,14 @@ def run(args) -> int:
     spec.resolve(args.preset, **{**fixed, args.x: float(xs[0]), **({args.y: float(ys[0])} if args.y else {})})
     sim.api.make_settings(spec, settings)
     params = {"model": args.model, "kind": kind, "x": args.x, "x_lo": xs[0], "x_hi": xs[-1], "nx": xs.size,
-              "y": args.y or "", "ny": 0 if ys is None else ys.size, "color": color, "preset": args.preset or "",
+              "y": args.y or "", "ny": 0 if ys is None else ys.size, "color": color, "preset": args.preset or "", "rig": args.rig or "",
               **{f"set.{k}": v for k, v in fixed.items()}, **{f"setting.{k}": v for k, v in (settings or {}).items()}}
     title_fixed = ", ".join(f"{k}={v:g}" for k, v in fixed.items())
     t0 = time.perf_counter()
     with tracking.run("map", params, enabled=not args.no_mlflow) as mlflow:
         if kind == "bifurcation":
             n = xs.size * (2 if args.direction == "both" else 1)
-            with tqdm(total=n, desc=f"{args.model} {args.x} sweep", unit="pt", disable=args.no_progress) as bar:
+            with tqdm(total=n, desc=f"{args.model} {args.x} sweep", unit="pt", disable=args.quiet) as bar:
                 pts, strobe = M.bifurcation(args.model, args.x, xs, args.direction, args.preset, fixed, settings,
                                             progress=bar.update)
             strobe_pq = out.with_name(out.name + ".strobe.parquet")
@@ -145,7 +168,7 @@ def run(args) -> int:
             table, files = pts, [png, pq, strobe_pq]
         else:
             with tqdm(total=xs.size * ys.size, desc=f"{args.model} {kind} map", unit="cell",
-                      disable=args.no_progress) as bar:
+                      disable=args.quiet) as bar:
                 table = M.grid_map(args.model, args.x, xs, args.y, ys, args.preset, fixed, settings,
                                    n_threads=args.threads, progress=bar.update)
             M.write_parquet(table, pq)

@@ -1,28 +1,76 @@
-"""``vibro models``: list models, presets, parameters (name, default, unit) and effects."""
+"""``vibro models [MODEL]``: the models; for one model every parameter with its default and every preset's values."""
 from __future__ import annotations
+
+import argparse
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("models", help="list the models, their presets, parameters and effects",
-                       description="List every model (or one) with its presets, parameters (name, default, unit, "
-                                   "meaning) and the MODELS.md §6 effects it supports.")
-    p.add_argument("model", nargs="?", help="show only this model")
+    p = sub.add_parser(
+        "models", help="list the models; 'vibro models MODEL' shows parameters, presets, effects, fit bounds",
+        description="Without MODEL: every model with its presets, effects and parameters (name, default, unit, "
+                    "meaning).  With MODEL: also the value of every parameter in every preset (a blank cell = the "
+                    "default), the MODELS.md §6 effects with their parameters and fit bounds, the calibratable "
+                    "parameters (what 'vibro diagnose' fits) and the search spaces (the default sweep and "
+                    "optimisation ranges).",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  vibro models\n  vibro models drill\n  vibro models indenter-metal")
+    p.add_argument("model", nargs="?", help="show this model in full")
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
-    from sim import get_model, model_names
+def _g(v) -> str:
+    return "derived" if v is None else f"{v:g}"
 
+
+def describe(name: str, full: bool) -> list[str]:
+    """Lines describing model ``name`` (``full``: presets' values, effects' bounds, calibratable, search spaces)."""
+    from sim import get_model
+
+    spec = get_model(name)
+    lines = [f"{spec.name}: {spec.description}"]
+    if spec.presets:
+        lines.append(f"  presets: {', '.join(spec.presets)}")
+    if spec.effects:
+        lines.append("  effects: " + "; ".join(f"{k} ({', '.join(v)})" for k, v in spec.effects.items()))
+    presets = list(spec.presets) if full else []
+    head = f"    {'parameter':<16} {'default':>10} " + "".join(f"{p:>14} " for p in presets) + f"{'unit':<8} meaning"
+    lines.append(head)
+    for prm in spec.params:
+        cells = "".join(f"{_g(spec.presets[p][prm.name]) if prm.name in spec.presets[p] else '':>14} "
+                        for p in presets)
+        lines.append(f"    {prm.name:<16} {_g(prm.default):>10} {cells}{prm.unit:<8} {prm.description}")
+    if not full:
+        return lines
+    units = {p.name: p.unit for p in spec.params}
+    if spec.effects:
+        lines.append("  effects (MODELS.md §6; all off at 0) with fit bounds:")
+        for eff, names in spec.effects.items():
+            parts = []
+            for n in names:
+                b = spec.effect_bounds.get(n)
+                parts.append(f"{n} [{b.lo:g} .. {b.hi:g}] {units.get(n, b.unit)}" if b else n)
+            lines.append(f"    {eff:<22} " + "; ".join(parts))
+    if spec.calibratable:
+        lines.append("  calibratable (fitted by 'vibro diagnose', perturbed by 'vibro synth'):")
+        for b in spec.calibratable:
+            lines.append(f"    {b.name:<16} [{b.lo:g} .. {b.hi:g}] {b.unit}{' (log)' if b.log else ''}")
+    if spec.search_spaces:
+        lines.append("  search spaces (default sweep 'vary' and optimisation space):")
+        for preset, space in spec.search_spaces.items():
+            rng = ", ".join(f"{k} {lo:g}..{hi:g} {units.get(k, '')}".rstrip() for k, (lo, hi) in space.items())
+            lines.append(f"    {preset or '(defaults)':<16} {rng}")
+    return lines
+
+
+def run(args) -> int:
+    from sim import model_names
+
+    from pipeline.core.errors import UserError
+
+    if args.model and args.model not in model_names():
+        raise UserError(f"unknown model '{args.model}'; known models: {', '.join(model_names())}")
     names = [args.model] if args.model else list(model_names())
     for name in names:
-        spec = get_model(name)
-        print(f"{spec.name}: {spec.description}")
-        if spec.presets:
-            print(f"  presets: {', '.join(spec.presets)}")
-        if spec.effects:
-            print("  effects: " + "; ".join(f"{k} ({', '.join(v)})" for k, v in spec.effects.items()))
-        for prm in spec.params:
-            default = "derived" if prm.default is None else f"{prm.default:g}"
-            print(f"    {prm.name:<16} {default:>10} {prm.unit:<8} {prm.description}")
+        print("\n".join(describe(name, full=bool(args.model))))
         print()
     return 0

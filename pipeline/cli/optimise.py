@@ -11,7 +11,8 @@ what it writes under --out:
   verified.csv              verified points: inputs, T_pred [T_lo, T_hi], T_sim, statuses, surrogate_wrong, why
   trials.csv                every complete trial of the study (inputs, value(s), labels, feasibility)
   history.png, importances.png, verification.png, pareto.png (with --objective pareto)
-  feedback: verified points are appended to <surrogate dir>/feedback.parquet (or --feedback FILE) so that
+  feedback: verified points are appended to feedback/optimise.parquet (or --feedback FILE; never inside the
+  surrogate's dvc-managed folder) so that
   training can include them (closing the loop).
 
 studies persist in optuna storage (default: sqlite file optuna.db at the project root); rerunning the same
@@ -23,10 +24,16 @@ examples:
   vibro optimise --surrogate models/surrogate --out results/optimise --max-peak-force-n 3000 --peak-force-static-ratio 2.5
   vibro optimise --surrogate models/surrogate --out results/pareto --objective pareto --n-verify 12
   vibro optimise --simulator --model drill --preset lab --n-trials 200 --out results/optimise-sim
-  vibro optimise --simulator --preset lab --range frequency_hz=150:350 --fixed static_force_n=1200 --out results/f-scan
+  vibro optimise --simulator --preset lab --vary frequency_hz=150:350 --set static_force_n=1200 --out results/f-scan
+  vibro optimise --simulator --rig my-rig.yaml --n-trials 200 --out results/my-rig      # your own rig
   vibro optimise --params params.yaml --metrics metrics/optimise.json
   vibro optimise --simulator --storage postgresql://user@host/optuna --study-name rig-a --n-trials 400
 """
+
+
+from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_workers, load_rig,  # noqa: E402
+                               parse_assignments, parse_ranges)
+from pipeline.core.errors import UserError  # noqa: E402
 
 
 def add_parser(sub) -> None:
@@ -47,11 +54,12 @@ def add_parser(sub) -> None:
     src.add_argument("--simulator", action="store_true", help="optimise directly on the simulator (mode 'simulator')")
     p.add_argument("--model", help="model for --simulator (default drill; the surrogate knows its own)")
     p.add_argument("--preset", help="preset for --simulator (default lab)")
-    p.add_argument("--range", dest="ranges", action="append", metavar="NAME=LOW:HIGH",
+    add_rig(p, "with --simulator, optimise")
+    p.add_argument("--vary", "--range", dest="ranges", action="append", metavar="NAME=LOW:HIGH",
                    help="search range (repeatable); default: the surrogate's training ranges, or the preset's published "
-                        "space (drill lab: LAB_SPACE)")
-    p.add_argument("--fixed", action="append", metavar="NAME=VALUE",
-                   help="hold a parameter at a value (repeatable), e.g. --fixed static_force_n=1200")
+                        "space (drill lab: LAB_SPACE); alias --range")
+    add_set(p, ("--fixed",), help="hold a parameter at a value (repeatable), e.g. --set static_force_n=1200; "
+                                  "alias --fixed")
     p.add_argument("--objective", choices=["rop", "pareto"],
                    help="rop: maximise ROP (default); pareto: maximise ROP and minimise specific energy")
     p.add_argument("--sampler", choices=["tpe", "gp", "nsga2", "random"],
@@ -71,19 +79,35 @@ def add_parser(sub) -> None:
     p.add_argument("--storage", metavar="URL", help="optuna storage URL (default sqlite:///<project root>/optuna.db)")
     p.add_argument("--study-name", help="study name (default derived from mode, objective, model, preset and settings)")
     p.add_argument("--feedback", metavar="FILE.parquet",
-                   help="append verified points here (default <surrogate dir>/feedback.parquet; simulator mode: none)")
-    p.add_argument("--threads", type=int, dest="n_threads", help="simulator threads (default: all cores)")
+                   help=f"append verified points here (default {DEFAULT_FEEDBACK}, outside every dvc output; "
+                        "never inside the surrogate's folder)")
+    add_workers(p, dest="n_threads", help="simulator threads (default: all cores)")
     p.add_argument("--out", default="results/optimise", help="output directory (default results/optimise)")
     p.add_argument("--metrics", metavar="FILE.json", help="write the small metrics JSON here (for dvc)")
     p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_quiet(p)
     p.set_defaults(func=run)
+
+
+DEFAULT_FEEDBACK = "feedback/optimise.parquet"
+"""Where verified points go without --feedback: outside every dvc-managed output (dvc.yaml outs)."""
+
+
+def _feedback_path(base: dict) -> None:
+    """Default the feedback file outside the (dvc-managed) surrogate folder; refuse one inside it."""
+    from pathlib import Path
+
+    fb = base.get("feedback")
+    sur = base.get("surrogate") or "models/surrogate" if base.get("mode", "surrogate") == "surrogate" else None
+    if fb is None and sur is not None and Path(str(sur)).is_dir():
+        base["feedback"] = fb = DEFAULT_FEEDBACK
+    if fb and sur and Path(str(sur)).is_dir() and Path(str(sur)).resolve() in Path(fb).resolve().parents:
+        raise UserError(f"--feedback {fb} is inside the surrogate folder {sur} (a dvc-managed output that "
+                        f"the next 'make run' replaces): write it elsewhere, e.g. {DEFAULT_FEEDBACK}")
 
 
 def config_from_args(args):
     """OptimiseConfig from params.yaml's ``optimise`` section overridden by the flags."""
-    from pipeline.cli.args import parse_assignments
-    from pipeline.optimise.space import parse_range
     from pipeline.optimise.workflow import OptimiseConfig
 
     from pipeline.core.params import read_section
@@ -93,10 +117,19 @@ def config_from_args(args):
         base["mode"] = "simulator"
     elif args.surrogate:
         base["mode"], base["surrogate"] = "surrogate", args.surrogate
+    rig_path = args.rig or base.pop("rig", None)
+    base.pop("rig", None)
+    if rig_path:
+        if base.get("mode", "surrogate") != "simulator":
+            raise UserError(f"--rig {rig_path} needs --simulator (a surrogate carries the rig it was trained on)")
+        rig = load_rig(rig_path, args.model, args.preset)
+        base["model"], base["preset"] = rig.model, rig.preset
+        base["fixed"] = {**rig.overrides(), **(base.get("fixed") or {})}
+        args.model = args.preset = None
     if args.ranges:
-        base["ranges"] = dict(parse_range(r) for r in args.ranges)
-    if args.fixed:
-        base["fixed"] = {**(base.get("fixed") or {}), **parse_assignments(args.fixed, "--fixed")}
+        base["ranges"] = parse_ranges(args.ranges, "--vary")
+    if args.sets:
+        base["fixed"] = {**(base.get("fixed") or {}), **parse_assignments(args.sets, "--set")}
     for key in ("model", "preset", "objective", "sampler", "n_trials", "batch_size", "seed", "max_peak_force_n",
                 "peak_force_static_ratio", "max_specific_energy_j_m", "n_verify", "rel_tol", "storage", "study_name",
                 "feedback", "n_threads"):
@@ -107,15 +140,19 @@ def config_from_args(args):
         base["allow_not_settled"] = True
     if str(base.get("preset", "")).lower() == "none":
         base["preset"] = None
+    check_workers(base.get("n_threads"))
+    _feedback_path(base)
     return OptimiseConfig.from_mapping(base)
 
 
 def run(args) -> int:
+    from pipeline import tracking
     from pipeline.optimise.workflow import run_optimise
 
     cfg = config_from_args(args)
-    rep = run_optimise(cfg, args.out, metrics_path=args.metrics, progress=not args.quiet,
-                       mlflow_enabled=not args.no_mlflow)
+    with tracking.variant(cfg.objective):
+        rep = run_optimise(cfg, args.out, metrics_path=args.metrics, progress=not args.quiet,
+                           mlflow_enabled=not args.no_mlflow)
     print(rep["outcome"])
     if cfg.mode == "surrogate" and rep.get("surrogate_note"):
         print(rep["surrogate_note"])

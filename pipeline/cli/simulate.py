@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from pipeline.cli.args import parse_assignments
+from pipeline.cli.args import add_rig, add_set, model_and_overrides, parse_assignments
 from pipeline.core.jsonable import dump_json
 
 
@@ -17,11 +17,13 @@ def add_parser(sub) -> None:
         epilog="examples:\n  vibro simulate drill --preset lab --set frequency_hz=120 --set amplitude_n=800\n"
                "  vibro simulate indenter-metal --preset table1-60hz --json\n"
                "  vibro simulate indenter-sandstone --set frequency_hz=80 --set amplitude_n=650 --plot out.png\n"
+               "  vibro simulate --rig my-rig.yaml --set frequency_hz=250   # your own rig (README.md 'Rig files')\n"
                "  vibro models            # lists models, presets and every parameter with its default and unit")
-    p.add_argument("model", help="drill | indenter-metal | indenter-sandstone | pendulum | rimd")
+    p.add_argument("model", nargs="?", help="drill | indenter-metal | indenter-sandstone | pendulum | rimd "
+                                            "(optional with --rig)")
     p.add_argument("--preset", help="named parameter set of the model (see 'vibro models MODEL')")
-    p.add_argument("--set", dest="sets", action="append", metavar="NAME=VALUE",
-                   help="override a parameter by name (repeatable), e.g. --set gap_m=0.001")
+    add_rig(p)
+    add_set(p)
     p.add_argument("--setting", dest="settings", action="append", metavar="NAME=VALUE",
                    help="numerical setting (repeatable): rtol, min_transient, max_transient, window, period_tol, "
                         "settle_tol, event_tol, max_step_frac, stat_tol, samples_per_cycle")
@@ -35,12 +37,12 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     from sim import simulate
 
-    params = parse_assignments(args.sets)
+    model, preset, params = model_and_overrides(args.model, args.preset, args.rig, parse_assignments(args.sets))
     settings = parse_assignments(args.settings, "--setting") or None
     if settings:
         settings = {k: (int(v) if k in ("min_transient", "max_transient", "window", "samples_per_cycle",
                                          "max_steps_per_cycle") else v) for k, v in settings.items()}
-    res = simulate(args.model, preset=args.preset, settings=settings, history=bool(args.plot), **params)
+    res = simulate(model, preset=preset, settings=settings, history=bool(args.plot), **params)
     if args.json:
         print(dump_json(res.labels))
     else:

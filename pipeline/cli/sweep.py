@@ -7,13 +7,14 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from pipeline.cli.args import parse_assignments
+from pipeline.cli.args import add_quiet, add_rig, add_set, add_workers, load_rig, parse_assignments
 from pipeline.core.errors import UserError
 
 EPILOG = """\
 spec (params.yaml section 'sweep'; command-line options override it):
   model: drill                 preset: lab (null = model defaults)
-  fixed: {gap_m: 0.0}          parameters held constant
+  rig: my-rig.yaml             optional rig file: model, preset, parameters, effects (README.md "Rig files")
+  fixed: {gap_m: 0.0}          parameters held constant (on top of the rig)
   vary:                        varied parameters; scale linear|log; levels = grid points (grid only)
     frequency_hz: {low: 10.0, high: 400.0, scale: linear}
   design: sobol|lhs|grid       n_points: 1024      seed: 0
@@ -35,6 +36,7 @@ examples:
   vibro sweep --params params.yaml --out data/sweep --scheduler tcp://10.0.0.5:8786
   vibro sweep --params params.yaml --out data/sweep --scheduler local:2     # throw-away 2-worker LocalCluster
   vibro sweep --params params.yaml --out /tmp/x --dry-run                   # validate and print the plan
+  vibro sweep --rig my-rig.yaml --vary frequency_hz=100:450 --vary static_force_n=600:1800 --out data/my-rig
 """
 
 
@@ -52,8 +54,9 @@ def add_parser(sub) -> None:
     p.add_argument("--out", default="data/sweep", metavar="DIR", help="dataset directory (default: data/sweep)")
     p.add_argument("--model", help="model name (drill, indenter-metal, indenter-sandstone, ...)")
     p.add_argument("--preset", help="named parameter set of the model; 'none' for the model defaults")
-    p.add_argument("--fix", action="append", metavar="NAME=VALUE",
-                   help="hold a parameter at a value (repeatable; added to the spec's 'fixed')")
+    add_rig(p, "sweep")
+    add_set(p, ("--fix",), help="hold a parameter at a value (repeatable; added to the spec's 'fixed', over the "
+                                "rig); alias --fix")
     p.add_argument("--vary", action="append", metavar="NAME=LOW:HIGH[:SCALE[:LEVELS]]",
                    help="vary a parameter (repeatable); SCALE linear (default) or log; LEVELS = grid points on "
                         "this axis. Given on the command line, --vary replaces the spec's whole 'vary' section")
@@ -68,7 +71,7 @@ def add_parser(sub) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the chunks on an existing Dask distributed cluster (tcp://host:port), or on a "
                         "throw-away LocalCluster with local:N (N single-threaded worker processes)")
-    p.add_argument("--workers", type=int, metavar="N", help="local threads (default: all cores)")
+    add_workers(p, help="local threads (default: all cores)")
     p.add_argument("--metrics", metavar="FILE.json",
                    help="write counts per status, n_points, wall time and sims/s to this JSON file")
     p.add_argument("--plot", metavar="FILE.png",
@@ -76,7 +79,7 @@ def add_parser(sub) -> None:
                         "by default written to a temporary file and only logged to MLflow")
     p.add_argument("--overwrite", action="store_true", help="discard an existing dataset in --out and start afresh")
     p.add_argument("--dry-run", action="store_true", help="validate the spec and print the plan; write nothing")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_quiet(p)
     p.add_argument("--no-mlflow", action="store_true", help="do not log the run to MLflow")
     p.set_defaults(func=run)
 
@@ -118,13 +121,20 @@ def spec_from_args(args):
     raw.pop("workers", None)
     if workers is not None and (not isinstance(workers, int) or workers < 1):
         raise UserError(f"--workers must be an integer >= 1, got {workers!r}")
-    if args.fix:
-        raw["fixed"] = {**(raw.get("fixed") or {}), **parse_assignments(args.fix, "--fix")}
+    rig_path = args.rig or raw.pop("rig", None)
+    raw.pop("rig", None)
+    rig = load_rig(rig_path, args.model, args.preset)
+    args.rig = rig_path
+    if rig is not None:            # the rig's model, preset, parameters and effects; 'fixed' and --set on top
+        raw["model"], raw["preset"] = rig.model, rig.preset
+        raw["fixed"] = {**rig.overrides(), **(raw.get("fixed") or {})}
+    if args.sets:
+        raw["fixed"] = {**(raw.get("fixed") or {}), **parse_assignments(args.sets, "--set")}
     if args.vary:
         raw["vary"] = _parse_vary(args.vary)
     if args.settings:
         raw["settings"] = {**(raw.get("settings") or {}), **parse_assignments(args.settings, "--setting")}
-    spec = make_spec(raw, model=args.model, preset=args.preset, design=args.design, n_points=args.n_points,
+    spec = make_spec(raw, model=None if rig else args.model, preset=None if rig else args.preset, design=args.design, n_points=args.n_points,
                      seed=args.seed, chunk_size=args.chunk_size)
     return spec, scheduler, workers
 
@@ -169,7 +179,7 @@ def run(args) -> int:
             print(f"  fixed {name} = {v:g}")
         print(f"  -> {args.out} (nothing written: --dry-run)")
         return 0
-    params = {"model": spec.model, "preset": spec.preset, "design": spec.design, "n_points": spec.n_points,
+    params = {"model": spec.model, "preset": spec.preset, "rig": args.rig or "", "design": spec.design, "n_points": spec.n_points,
               "seed": spec.seed, "chunk_size": spec.chunk_size, "fingerprint": spec.fingerprint,
               "scheduler": scheduler or "local", "out": args.out,
               **{f"vary.{k}": f"{r.low:g}:{r.high:g}:{r.scale}" for k, r in spec.vary.items()},
@@ -177,7 +187,7 @@ def run(args) -> int:
               **{f"settings.{k}": v for k, v in spec.settings.items()}}
     with tracking.run("sweep", params, enabled=not args.no_mlflow) as mlflow:
         summary = run_sweep(spec, args.out, backend=make_backend(scheduler, workers),
-                            progress=not args.no_progress,
+                            progress=not args.quiet,
                             overwrite=args.overwrite)
         print("\n".join(summary.lines()))
         if args.metrics:

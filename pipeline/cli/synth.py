@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from pipeline.cli.args import add_quiet, add_workers, check_workers
 from pipeline.core.errors import UserError
 
 EPILOG = """\
@@ -56,7 +57,8 @@ def add_parser(sub) -> None:
                    help="recorded signals (accel_m_s2 force_n disp_m progression_m) [rig default]")
     p.add_argument("--noise-accel", type=float, default=0.03, help="accel noise sd / signal sd [0.03]")
     p.add_argument("--noise-force", type=float, default=0.02, help="force noise sd / signal sd [0.02]")
-    p.add_argument("--threads", type=int, help="simulation threads (default: all cores)")
+    add_workers(p, dest="threads", help="simulation threads (default: all cores)")
+    add_quiet(p)
     p.set_defaults(func=run)
 
 
@@ -85,10 +87,10 @@ def run(args) -> int:
                       levels=tuple(args.levels) if args.levels else None,
                       record_start_s=None if args.record_start is None else tuple(args.record_start),
                       summary_runs=args.summary_runs, signals=tuple(args.signals) if args.signals else None,
-                      noise_accel=args.noise_accel, noise_force=args.noise_force, n_threads=args.threads)
+                      noise_accel=args.noise_accel, noise_force=args.noise_force, n_threads=check_workers(args.threads))
     if any(f <= 0 for f in cfg.frequencies_hz or ()) or any(x < 0 for x in cfg.record_start_s or ()):
         raise UserError("--frequencies must be > 0 and --record-start >= 0")
-    ds, info = synthesize(cfg, progress=True)
+    ds, info = synthesize(cfg, progress=not args.quiet)
     write_dataset(ds, args.out)
     truth = Path(args.truth) if args.truth else Path(str(Path(args.out)).rstrip("/") + ".truth.json")
     truth.parent.mkdir(parents=True, exist_ok=True)

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from pipeline.cli.args import add_quiet, add_rig, add_workers, load_rig
 from pipeline.core.errors import UserError
 
 EPILOG = """what it writes (in --out):
@@ -17,6 +18,7 @@ examples:
   vibro train data/sweep --out models/surrogate --params params.yaml --metrics metrics/train.json
   vibro train data/sweep --regressors gbt,mlp --no-mlflow          # quick: no Gaussian process
   vibro train data/sweep --adaptive --budget 768 --batch 64         # + adaptive sampling vs space-filling
+  vibro train data/my-rig --adaptive --rig my-rig.yaml               # adaptive sampling simulates your rig
   vibro train points.parquet --model drill --inputs frequency_hz,amplitude_n
 
 params.yaml section 'train' (all optional; flags override): test_fraction 0.2, cv_folds 5, seed 0,
@@ -50,15 +52,16 @@ def add_parser(sub) -> None:
     p.add_argument("--cv-folds", type=int, help="cross-validation folds for model selection (default 5)")
     p.add_argument("--seed", type=int, help="seed of the split, the models and the adaptive design (default 0)")
     p.add_argument("--max-gp-points", type=int, help="Gaussian-process training subsample (default 600)")
-    p.add_argument("--threads", type=int, help="BLAS/OpenMP threads while fitting (default 1)")
+    add_workers(p, dest="threads", help="BLAS/OpenMP threads while fitting (default 1)")
     p.add_argument("--adaptive", action="store_true",
                    help="also run adaptive sampling (calls the simulator) and compare it with the space-filling "
                         "design at equal numbers of simulations")
     p.add_argument("--initial", type=int, help="adaptive: initial space-filling points (default 128)")
     p.add_argument("--batch", type=int, help="adaptive: points added per round (default 64)")
     p.add_argument("--budget", type=int, help="adaptive: total simulations (default 768)")
+    add_rig(p, "with --adaptive, simulate")
     p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    add_quiet(p)
     p.set_defaults(func=run)
 
 
@@ -84,12 +87,15 @@ def _config(args):
     return TrainConfig.from_dict(d)
 
 
-def _simulator(model: str, preset, meta: dict):
-    """table of inputs -> labelled frame, with the sweep's fixed parameters and settings."""
+def _simulator(model: str, preset, meta: dict, rig=None):
+    """table of inputs -> labelled frame, with the sweep's fixed parameters and settings (with ``rig``: the
+    rig's preset, parameters and effects instead of the sweep's preset and fixed parameters)."""
     import sim
 
     fixed = meta.get("fixed") or {}
     settings = meta.get("settings") or None
+    if rig is not None:
+        preset, fixed = rig.preset, rig.overrides()
 
     def run(table):
         for k, v in fixed.items():
@@ -120,6 +126,9 @@ def run(args) -> int:
     if args.model and meta.get("model") and args.model != meta["model"]:
         raise UserError(f"--model {args.model} but dataset '{args.dataset}' was simulated with model '{meta['model']}'")
     preset = meta.get("preset")
+    if args.rig and not cfg.adaptive.enabled:
+        raise UserError(f"--rig {args.rig} is used by --adaptive (the only part of training that simulates)")
+    rig = load_rig(args.rig, model)
     inputs_arg = [s.strip() for s in args.inputs.split(",")] if args.inputs else None
     inputs, ranges = data.infer_inputs(df, meta, inputs_arg)
     fp = meta.get("fingerprint") or data.fingerprint_frame(df)
@@ -138,7 +147,7 @@ def run(args) -> int:
             from threadpoolctl import threadpool_limits
 
             with threadpool_limits(cfg.threads):
-                ad = adaptive_mod.run(bundle, train, test, cfg, _simulator(model, preset, meta), progress=not args.quiet)
+                ad = adaptive_mod.run(bundle, train, test, cfg, _simulator(model, preset, meta, rig), progress=not args.quiet)
             design = ad.pop("design")
             atomic_write_parquet(out / "adaptive_design.parquet", design)
             bundle.report["adaptive"] = ad

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from pipeline.cli.args import add_quiet, add_rig, add_set, add_workers, check_workers, load_rig
 from pipeline.core.errors import UserError
 
 EPILOG = """\
@@ -16,7 +17,8 @@ feasible_sim, rop_rel_error, in_interval, surrogate_wrong, why), verification.pn
 examples:
   vibro verify results/optimise/verified.csv --surrogate models/surrogate --out results/verify
   vibro verify candidates.parquet --model drill --preset lab --out results/verify --metrics metrics/verify.json
-  vibro verify points.csv --surrogate models/surrogate --feedback models/surrogate/feedback.parquet
+  vibro verify points.csv --surrogate models/surrogate --feedback feedback/verify.parquet
+  vibro verify candidates.csv --rig my-rig.yaml --out results/verify-my-rig       # your own rig
 """
 
 
@@ -30,18 +32,21 @@ def add_parser(sub) -> None:
     p.add_argument("points", help="CSV or Parquet file of points")
     p.add_argument("--surrogate", metavar="DIR|RUN_ID", help="predict with this surrogate bundle (model, preset and "
                                                               "inputs come from it)")
-    p.add_argument("--model", default="drill", help="model to simulate without --surrogate (default drill)")
-    p.add_argument("--preset", default="lab", help="preset without --surrogate (default lab; 'none' for the defaults)")
+    p.add_argument("--model", help="model to simulate without --surrogate (default drill)")
+    p.add_argument("--preset", help="preset without --surrogate (default lab; 'none' for the defaults)")
     p.add_argument("--inputs", nargs="+", metavar="NAME",
                    help="input columns (default: the surrogate's inputs, else every model parameter in the file)")
-    p.add_argument("--fixed", action="append", metavar="NAME=VALUE", help="hold a parameter at a value (repeatable)")
+    add_rig(p, "without --surrogate, re-simulate on")
+    add_set(p, ("--fixed",), help="hold a parameter at a value (repeatable; over the rig or the surrogate's "
+                                  "sweep conditions); alias --fixed")
     p.add_argument("--max-peak-force-n", type=float, metavar="N", help="feasibility: peak_force_n <= N")
     p.add_argument("--peak-force-static-ratio", type=float, metavar="K", help="feasibility: peak_force_n <= K × static_force_n")
     p.add_argument("--max-specific-energy-j-m", type=float, metavar="E", help="feasibility: specific_energy_j_m <= E")
     p.add_argument("--allow-not-settled", action="store_true", help="count not_settled points as feasible")
     p.add_argument("--rel-tol", type=float, default=0.1, help="ROP relative error marking a wrong prediction (default 0.1)")
     p.add_argument("--feedback", metavar="FILE.parquet", help="append the simulated points to this feedback file")
-    p.add_argument("--threads", type=int, dest="n_threads", help="simulator threads (default: all cores)")
+    add_workers(p, dest="n_threads", help="simulator threads (default: all cores)")
+    add_quiet(p)
     p.add_argument("--out", default="results/verify", help="output directory (default results/verify)")
     p.add_argument("--metrics", metavar="FILE.json", help="write the summary metrics JSON here too")
     p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
@@ -63,16 +68,26 @@ def run(args) -> int:
 
     if args.rel_tol <= 0:
         raise UserError(f"--rel-tol must be > 0, got {args.rel_tol}")
+    check_workers(args.n_threads)
+    if args.rig and args.surrogate:
+        raise UserError(f"--rig {args.rig} and --surrogate: the surrogate carries the rig it was trained on; "
+                        "give one of them")
     points = read_points(args.points)
-    fixed = parse_assignments(args.fixed, "--fixed")
+    fixed = parse_assignments(args.sets, "--set")
     bundle = load_bundle(args.surrogate) if args.surrogate else None
     if bundle is not None:
         model, preset = bundle.model, bundle.preset
-        fixed = {**bundle.fixed, **fixed}     # the sweep's conditions, overridden by --fixed
+        fixed = {**bundle.fixed, **fixed}     # the sweep's conditions, overridden by --set
         settings = bundle.settings or None
         inputs = args.inputs or list(bundle.inputs)
     else:
-        model, preset = args.model, (None if str(args.preset).lower() == "none" else args.preset)
+        rig = load_rig(args.rig, args.model, args.preset)
+        if rig is not None:
+            model, preset = rig.model, rig.preset
+            fixed = {**rig.overrides(), **fixed}
+        else:
+            model = args.model or "drill"
+            preset = "lab" if args.preset is None else (None if str(args.preset).lower() == "none" else args.preset)
         settings = None
         names = sim.get_model(model).param_names
         inputs = args.inputs or [c for c in points.columns if c in names]
@@ -87,9 +102,9 @@ def run(args) -> int:
     params = {"points": args.points, "surrogate": args.surrogate, "model": model, "preset": preset,
               "inputs": ",".join(inputs), "rel_tol": args.rel_tol, **cons.to_dict()}
     with tracking.run("verify", params, enabled=not args.no_mlflow) as mlflow:
-        table, simres = verify_points(points, model, preset, inputs, cons, args.rel_tol, bundle=bundle, fixed=fixed,
-                                      settings=settings,
-                                      n_threads=args.n_threads, source=args.points)
+        table, simres = _verify_in_chunks(points, model, preset, inputs, cons, args.rel_tol, bundle=bundle,
+                                          fixed=fixed, settings=settings, n_threads=args.n_threads,
+                                          source=args.points, progress=not args.quiet)
         summary = summarise(table)
         atomic_write_with(out / "verified.csv", lambda tmp: table.to_csv(tmp, index=False))
         fig = plots.plot_verification(table, out / "verification.png", f"verify: {Path(args.points).name}")
@@ -108,3 +123,37 @@ def run(args) -> int:
           f"median ROP error {summary['rop_rel_error_median']}, statuses {summary['status_sim_counts']}")
     print(f"table: {out / 'verified.csv'}")
     return 0
+
+
+CHUNK = 32
+"""Points re-simulated per call (the progress bar's step)."""
+
+
+def _verify_in_chunks(points, model, preset, inputs, cons, rel_tol, bundle, fixed, settings, n_threads, source,
+                      progress: bool):
+    """``verify_points`` over chunks of ``points`` with a progress bar on stderr; same result as one call
+    (every point is verified on its own)."""
+    import sys
+
+    import numpy as np
+    import pandas as pd
+    from tqdm import tqdm
+
+    from pipeline.optimise.verify import verify_points
+
+    for c in inputs:                      # row numbers of the whole file in the error, not of a chunk
+        if c in points.columns:
+            col = pd.to_numeric(points[c], errors="coerce").to_numpy(dtype=float)
+            bad = np.flatnonzero(~np.isfinite(col))
+            if bad.size:
+                raise UserError(f"{source}: row {int(bad[0])} column '{c}': {points[c].iloc[bad[0]]!r} "
+                                "is not a finite number")
+    tables, sims = [], []
+    with tqdm(total=len(points), desc="verify (simulate)", unit="pt", disable=not progress, file=sys.stderr) as bar:
+        for i in range(0, max(len(points), 1), CHUNK):
+            t, r = verify_points(points.iloc[i:i + CHUNK], model, preset, inputs, cons, rel_tol, bundle=bundle,
+                                 fixed=fixed, settings=settings, n_threads=n_threads, source=source)
+            tables.append(t)
+            sims.append(r)
+            bar.update(len(t))
+    return pd.concat(tables, ignore_index=True), pd.concat(sims, ignore_index=True)

@@ -27,6 +27,22 @@ HEADER = """\
 """
 
 
+def _loader():
+    """yaml.SafeLoader that also reads ``5e8`` / ``5.0e8`` as floats (YAML 1.2; PyYAML's 1.1 rules need ``5.0e+8``)."""
+    import re
+
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        pass
+
+    Loader.add_implicit_resolver(
+        "tag:yaml.org,2002:float",
+        re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+        list("-+0123456789."))
+    return Loader
+
+
 def read_rig(path: str | os.PathLike):
     """The validated ``sim.Rig`` of a rig file (UserError naming the file and the culprit)."""
     import yaml
@@ -37,7 +53,7 @@ def read_rig(path: str | os.PathLike):
     if not p.is_file():
         raise UserError(f"rig file {p}: not found")
     try:
-        data = yaml.safe_load(p.read_text())
+        data = yaml.load(p.read_text(), Loader=_loader())  # noqa: S506 - a SafeLoader subclass
     except (yaml.YAMLError, UnicodeDecodeError) as e:
         raise UserError(f"rig file {p}: not valid YAML ({str(e).splitlines()[0]})") from None
     try:

@@ -23,6 +23,7 @@ import pandas as pd  # noqa: E402
 
 from pipeline.core.errors import UserError  # noqa: E402
 from pipeline.report.doc import Document, Figure, Heading, Para, Table, fmt, to_html, to_markdown  # noqa: E402
+from pipeline.report.units import ENGINEERING, convert, factor, label, split  # noqa: E402
 from pipeline.core.files import atomic_write_bytes, atomic_write_text  # noqa: E402
 from pipeline.core.jsonable import dump_json, flatten  # noqa: E402
 
@@ -83,8 +84,22 @@ def _num(v) -> float | None:
     return None
 
 
+ROW_UNIT_COLUMNS = ("mae", "rmse", "value", "sd", "default", "calibrated")
+"""Columns whose values are in the unit of their row's quantity (e.g. a target's MAE)."""
+
+
+def _cell(row: str, col: str, v):
+    """A value in engineering units: by its column's quantity, else (error columns) by its row's."""
+    if split(col)[0] in ENGINEERING:
+        return convert(col, v)
+    if col in ROW_UNIT_COLUMNS:
+        return convert(row, v)
+    return v
+
+
 def dict_table(d: dict, caption: str = "", max_rows: int = 60) -> Table:
-    """A dict as a table: {row: {col: scalar}} → rows × columns; anything else → flattened key / value."""
+    """A dict as a table: {row: {col: scalar}} → rows × columns; anything else → flattened key / value.
+    Known quantities (``rop_m_s``, ``peak_force_n``, ...) are shown in engineering units (mm/s, kN, kW, g)."""
     if d and all(isinstance(v, dict) for v in d.values()):
         inner = [v for v in d.values()]
         if all(all(not isinstance(x, (dict, list)) for x in v.values()) for v in inner):
@@ -92,11 +107,18 @@ def dict_table(d: dict, caption: str = "", max_rows: int = 60) -> Table:
             for v in inner:
                 cols += [c for c in v if c not in cols]
             if len(cols) <= 10:
-                rows = [[k] + [v.get(c) for c in cols] for k, v in d.items()][:max_rows]
-                return Table(["", *cols], rows, caption)
+                rows = [[label(k)] + [_cell(k, c, v.get(c)) for c in cols] for k, v in d.items()][:max_rows]
+                return Table(["", *[label(c) for c in cols]], rows, caption)
     flat = flatten(d, leaf=_leaf)
-    rows = [[k, v] for k, v in flat.items()][:max_rows]
+    rows = [[label(k), convert(k, v)] for k, v in flat.items()][:max_rows]
     return Table(["quantity", "value"], rows, caption)
+
+
+def frame_table(df: pd.DataFrame, caption: str) -> Table:
+    """A data frame as a table, columns labelled and converted to engineering units."""
+    cols = list(df.columns)
+    rows = [[convert(c, v) for c, v in zip(cols, r)] for r in df.values.tolist()]
+    return Table([label(c) for c in cols], rows, caption)
 
 
 def _find_key(d, names: tuple[str, ...]):
@@ -194,8 +216,9 @@ def section_sweep(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
     rows = []
     for c in inputs + labels:
         col = pd.to_numeric(ok[c], errors="coerce").replace([np.inf, -np.inf], np.nan).dropna()
-        rows.append([c, "input" if c in inputs else "label (ok points)", col.min() if len(col) else None,
-                     col.median() if len(col) else None, col.max() if len(col) else None])
+        k = factor(c)
+        rows.append([label(c), "input" if c in inputs else "label (ok points)", col.min() * k if len(col) else None,
+                     col.median() * k if len(col) else None, col.max() * k if len(col) else None])
     if rows:
         doc.add(Table(["column", "kind", "min", "median", "max"], rows, "Ranges over the dataset"))
     if "rop_m_s" in ok and len(ok):
@@ -206,13 +229,13 @@ def section_sweep(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
         xcol = "amplitude_n" if "amplitude_n" in df else (inputs[1] if len(inputs) > 1 else "frequency_hz")
         sc = ax[0].scatter(ok["frequency_hz"], ok[xcol], c=pd.to_numeric(ok["rop_m_s"]) * 1e3, s=12, cmap="viridis")
         fig.colorbar(sc, ax=ax[0], label="ROP [mm/s]")
-        ax[0].set_xlabel("frequency_hz")
-        ax[0].set_ylabel(xcol)
+        ax[0].set_xlabel(label("frequency_hz"))
+        ax[0].set_ylabel(f"{xcol} [SI]")
         ax[0].set_title("ROP over the sweep (status ok)")
         for st, grp in df.groupby("status"):
             ax[1].scatter(grp["frequency_hz"], grp[xcol], s=8, label=f"{st} ({len(grp)})")
-        ax[1].set_xlabel("frequency_hz")
-        ax[1].set_ylabel(xcol)
+        ax[1].set_xlabel(label("frequency_hz"))
+        ax[1].set_ylabel(f"{xcol} [SI]")
         ax[1].set_title("status of every point")
         ax[1].legend(fontsize=8)
         doc.add(Figure(figs.save(fig, "sweep-rop-map"), "Sweep: ROP of the progressing points (left) and the "
@@ -313,20 +336,20 @@ def section_optimise(doc: Document, figs: _Figs, inp: ReportInputs, summary: dic
         doc.add(Para("No Pareto front among the optimisation outputs."))
     else:
         summary.setdefault("optimise", {})["pareto_size"] = int(len(front))
-        doc.add(Table(list(front.columns), front.head(inp.max_rows).values.tolist(),
-                      f"Verified Pareto front ({len(front)} points; first {min(len(front), inp.max_rows)} shown)"))
+        doc.add(frame_table(front.head(inp.max_rows),
+                            f"Verified Pareto front ({len(front)} points; first {min(len(front), inp.max_rows)} shown)"))
         num = [c for c in front.columns if pd.api.types.is_numeric_dtype(front[c])]
         ycol = next((c for c in num if "rop" in c), None)
         xcol = next((c for c in num if c != ycol and any(s in c for s in ("energy", "force", "decel"))), None)
         if ycol and xcol:
             fig, ax = plt.subplots(figsize=(6, 4))
             f2 = front.sort_values(xcol)
-            ax.plot(f2[xcol], f2[ycol] * (1e3 if ycol.endswith("_m_s") else 1), "o-")
-            ax.set_xlabel(xcol)
-            ax.set_ylabel(ycol.replace("_m_s", " [mm/s]") if ycol.endswith("_m_s") else ycol)
+            ax.plot(f2[xcol] * factor(xcol), f2[ycol] * factor(ycol), "o-")
+            ax.set_xlabel(label(xcol))
+            ax.set_ylabel(label(ycol))
             ax.set_title("Pareto front (verified by the simulator)")
             ax.grid(alpha=0.3)
-            doc.add(Figure(figs.save(fig, "pareto-front"), f"Pareto front: {ycol} against {xcol}."))
+            doc.add(Figure(figs.save(fig, "pareto-front"), f"Pareto front: {label(ycol)} against {label(xcol)}."))
     _stage_figures(doc, figs, path, "optimise", limit=8)
 
 
@@ -403,7 +426,57 @@ def section_diagnose(doc: Document, figs: _Figs, inp: ReportInputs, summary: dic
         ax.grid(axis="y", alpha=0.3)
         doc.add(Figure(figs.save(fig, "diagnosis-errors"), "Diagnosis: error with default parameters, after "
                                                           "calibration (before) and with the selected effect (after)."))
+    _calibrated_tables(doc, reports, summary)
     _stage_figures(doc, figs, path, "diagnose", limit=8)
+
+
+def _param_info(system: str) -> dict[str, tuple[float | None, str]]:
+    """parameter -> (default, unit) of model ``system`` ({} when it is not a model name)."""
+    try:
+        import sim
+
+        return {p.name: (p.default, p.unit) for p in sim.get_model(system).params}
+    except Exception:  # noqa: BLE001 - a report of an unknown system still lists its values
+        return {}
+
+
+def calibrated_rows(rep: dict, system: str) -> list[list]:
+    """Rows (parameter, role, default, calibrated, ± sd, 95 % interval, unit) of one system's diagnosis:
+    the calibrated base parameters, then the selected effect's parameters."""
+    info = _param_info(system)
+    rows = []
+    for role, key in (("calibrated", "calibrated_uncertainty"), ("selected effect", "selected_params")):
+        block = rep.get(key)
+        if not isinstance(block, dict):
+            if role == "calibrated" and isinstance(rep.get("calibrated"), dict):
+                block = {n: {"value": v} for n, v in rep["calibrated"].items()}
+            else:
+                continue
+        for name, d in block.items():
+            if not isinstance(d, dict) or role == "selected effect" and name in (rep.get("calibrated") or {}):
+                continue
+            default, unit = info.get(name, (None, ""))
+            ci = d.get("ci95") if isinstance(d.get("ci95"), list) and len(d["ci95"]) == 2 else None
+            rows.append([name, role, default, d.get("value"), d.get("sd"),
+                         f"{fmt(ci[0])} .. {fmt(ci[1])}" if ci else None, unit])
+    return rows
+
+
+def _calibrated_tables(doc: Document, reports: dict[str, dict], summary: dict) -> None:
+    """The diagnosis's calibrated parameters (and the selected effect's) per dataset and system, with the
+    model defaults next to them: what a rig file of the measured machine would hold."""
+    out = {}
+    for name, rep in reports.items():
+        systems = rep.get("systems") if isinstance(rep.get("systems"), dict) else {str(rep.get("system", name)): rep}
+        for system, r in systems.items():
+            rows = calibrated_rows(r, system) if isinstance(r, dict) else []
+            if not rows:
+                continue
+            out[f"{name}/{system}"] = {row[0]: row[3] for row in rows}
+            doc.add(Table(["parameter", "role", "default", "calibrated", "± sd", "95 % interval", "unit"], rows,
+                          f"Calibrated parameters: {name}, {system} (SI units; sd from the fit's Jacobian)"))
+    if out:
+        summary["diagnose_calibrated"] = out
 
 
 SECTIONS = (section_sweep, section_train, section_optimise, section_verify, section_diagnose)
@@ -432,6 +505,11 @@ def build_report(inp: ReportInputs, out: Path) -> ReportResult:
     page = to_html(doc)
     atomic_write_text(out / "report.md", md)
     atomic_write_text(out / "report.html", page)
+    from pipeline.report.answer import answer_line
+
+    line = answer_line(summary, out / "report.html")
+    if line:
+        summary["answer"] = line
     atomic_write_text(out / "summary.json", dump_json(summary))
     return ReportResult(out / "report.md", out / "report.html", summary, figs.paths)
 

@@ -10,7 +10,11 @@
 3. Closes the parent run with a summary: tags ``vibro.status`` and ``vibro.stages_ran``, the
    metrics of every stage (``metrics/<stage>.json``, numeric leaves as ``<stage>.<key>``), the wall
    time, and the report, ``params.yaml`` and ``dvc.lock`` as artifacts; status FAILED if dvc failed.
-4. Prints where the report is and the exact ``mlflow ui`` command to browse the runs.
+4. Prints one progress line per stage (``[2/7] train: started, 0:41 elapsed, about 3 min left``; the
+   estimate comes from the last run's stage times on this machine, ``.vibro/stage-times.json``, else
+   from :data:`TYPICAL_S`), lets the stages' progress bars through on stderr, and ends with one line
+   holding the answer (operating point, verified ROP, power) and where the report is, then the exact
+   ``mlflow ui`` command to browse the runs.
 
 Extra arguments are passed to ``dvc repro`` (e.g. ``-f`` to force every stage, or stage names).
 """
@@ -34,7 +38,75 @@ from pipeline.core.jsonable import flatten
 
 REPORT_REL = Path("results/report/report.html")
 METRICS_DIR = Path("metrics")
+TIMES_REL = Path(".vibro/stage-times.json")
 _RUNNING = re.compile(r"Running stage '([^']+)'")
+TYPICAL_S = {"sweep": 40.0, "train": 150.0, "optimise@rop": 40.0, "optimise@pareto": 50.0, "verify": 25.0,
+             "diagnose@seed000-published": 150.0, "report": 15.0}
+"""Stage wall times [s] on two idle cores with the default params.yaml (README.md "Measured run time"):
+the first run's ETA; later runs use the previous run's times (``.vibro/stage-times.json``)."""
+
+
+def _mmss(seconds: float) -> str:
+    s = int(round(max(seconds, 0.0)))
+    return f"{s // 60}:{s % 60:02d}"
+
+
+class StageClock:
+    """Per-stage progress lines with elapsed time and an ETA from remembered stage times."""
+
+    def __init__(self, planned: list[str], known: dict[str, float], out=None):
+        self.planned = list(planned)
+        self.known = dict(known)
+        self.out = out or sys.stdout
+        self.t0 = time.time()
+        self.current: str | None = None
+        self.started = self.t0
+        self.times: dict[str, float] = {}
+
+    def _estimate(self, stage: str) -> float:
+        return self.known.get(stage, TYPICAL_S.get(stage, TYPICAL_S.get(stage.split("@")[0] + "@", 60.0)))
+
+    def start(self, stage: str) -> None:
+        """Stage ``stage`` began: close the previous one and print ``[k/N] stage: started ...``."""
+        self.finish()
+        self.current, self.started = stage, time.time()
+        if stage not in self.planned:
+            self.planned.append(stage)
+        k = self.planned.index(stage) + 1
+        left = sum(self._estimate(st) for st in self.planned[k - 1:] if st not in self.times)
+        self.out.write(f"[{k}/{len(self.planned)}] {stage}: started, {_mmss(self.started - self.t0)} elapsed, "
+                       f"about {_mmss(left)} left (estimate)\n")
+        self.out.flush()
+
+    def finish(self) -> None:
+        """The current stage ended: print its wall time."""
+        if self.current is None:
+            return
+        dt = time.time() - self.started
+        self.times[self.current] = dt
+        self.out.write(f"      {self.current}: done in {_mmss(dt)}\n")
+        self.out.flush()
+        self.current = None
+
+
+def read_stage_times(root: Path) -> dict[str, float]:
+    """Stage wall times of the last run in ``root`` ({} when none)."""
+    try:
+        data = json.loads((root / TIMES_REL).read_text())
+        return {str(k): float(v) for k, v in data.items()}
+    except (OSError, ValueError, AttributeError):
+        return {}
+
+
+def write_stage_times(root: Path, times: dict[str, float]) -> None:
+    """Remember this run's stage wall times (merged with earlier ones) for the next ETA."""
+    from pipeline.core.files import atomic_write_text
+
+    if times:
+        try:
+            atomic_write_text(root / TIMES_REL, json.dumps({**read_stage_times(root), **times}, indent=1))
+        except OSError:
+            pass
 
 
 def dvc_executable() -> str:
@@ -49,11 +121,12 @@ def dvc_executable() -> str:
 
 
 def dvc_env(extra: dict[str, str] | None = None) -> dict[str, str]:
-    """Environment for dvc and the stage commands: the .venv's bin first on PATH (so the stage
-    commands' ``vibro`` is the project's), dvc analytics off, plus ``extra``."""
+    """Environment for dvc and the stage commands: the .venv's bin first on PATH, ``VIBRO_PYTHON`` = this
+    interpreter (what ``bin/vibro`` runs), dvc analytics off, plus ``extra``."""
     env = dict(os.environ)
     bindir = str(Path(sys.executable).parent)
     env["PATH"] = bindir + os.pathsep + env.get("PATH", "")
+    env.setdefault("VIBRO_PYTHON", sys.executable)
     env["DVC_NO_ANALYTICS"] = "1"
     env.update(extra or {})
     return env
@@ -109,6 +182,11 @@ def mlflow_ui_command() -> str:
 def print_where(root: Path) -> None:
     report = root / REPORT_REL
     if report.exists():
+        from pipeline.report.answer import answer_from_report
+
+        line = answer_from_report(report.parent)
+        if line:
+            print(line)
         print(f"Report:  {report}  (Markdown: {report.with_suffix('.md')})")
     else:
         print(f"Report:  not built yet ({report})")
@@ -117,19 +195,25 @@ def print_where(root: Path) -> None:
 
 
 def run_repro(root: Path, dvc: str, command: list[str], repro_args: list[str],
-               env: dict[str, str]) -> tuple[int, list[str]]:
-    """Run ``dvc <command>`` (repro or exp run), echoing its output; returns (exit code, stages that ran)."""
+              env: dict[str, str], clock: StageClock | None = None) -> tuple[int, list[str]]:
+    """Run ``dvc <command>`` (repro or exp run), echoing its output with a progress line per stage
+    (``clock``); the stages' stderr (progress bars) passes straight through.  Returns (exit code, stages that ran)."""
     ran: list[str] = []
     proc = subprocess.Popen([dvc, *command, *repro_args], cwd=root, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, bufsize=1)
+                            stderr=None, text=True, bufsize=1)
     assert proc.stdout is not None
     for line in proc.stdout:
-        sys.stdout.write(line)
-        sys.stdout.flush()
         m = _RUNNING.search(line)
         if m and m.group(1) not in ran:
             ran.append(m.group(1))
-    return proc.wait(), ran
+            if clock is not None:
+                clock.start(m.group(1))
+        sys.stdout.write(line)
+        sys.stdout.flush()
+    rc = proc.wait()
+    if clock is not None:
+        clock.finish()
+    return rc, ran
 
 
 def _log_pipeline_files(mlflow, root: Path) -> None:
@@ -192,7 +276,7 @@ def _run(root: Path, repro_args: list[str], exp: bool = False) -> int:
     if use_mlflow:
         os.environ.pop("VIBRO_PARENT_RUN_ID", None)
         mlflow = tracking.setup()
-        tags = {"vibro.stage": "pipeline", "vibro.stages_planned": ",".join(stale),
+        tags = {"vibro.stage": "pipeline", "vibro.stages_planned": ",".join(stale), **tracking.run_tags(),
                 "vibro.dvc_command": " ".join(["exp run" if exp else "repro", *repro_args])}
         run = mlflow.start_run(run_name="pipeline-exp" if exp else "pipeline", tags=tags)
         run_id = run.info.run_id
@@ -201,9 +285,12 @@ def _run(root: Path, repro_args: list[str], exp: bool = False) -> int:
         env_extra["VIBRO_EXPERIMENT"] = tracking.experiment_name()
         print(f"MLflow parent run {run_id} (experiment '{tracking.experiment_name()}', {tracking.tracking_uri()})")
     rc, ran = 1, []
+    clock = StageClock(list(stale), read_stage_times(root))
     try:
         command = ["exp", "run"] if exp else ["repro"]
-        rc, ran = run_repro(root, dvc, command, repro_args, dvc_env(env_extra))
+        rc, ran = run_repro(root, dvc, command, repro_args, dvc_env(env_extra), clock)
+        if rc == 0:
+            write_stage_times(root, clock.times)
     finally:
         wall = time.time() - t0
         status = "ok" if rc == 0 else "failed"

@@ -4,11 +4,20 @@ Tracking URI: ``$MLFLOW_TRACKING_URI`` if set (e.g. a shared server), else a SQL
 ``mlflow.db`` at the repository root (``$VIBRO_HOME`` overrides the root).  Experiment:
 ``$VIBRO_EXPERIMENT`` or ``vibro``.  A ``dvc repro`` opens one parent run and exports
 its id as ``VIBRO_PARENT_RUN_ID``; every stage's run becomes its child.
+
+Every run carries the tags ``git_commit`` (the repository's HEAD, ``+dirty`` when tracked files
+differ) and ``dvc_exp`` (``$DVC_EXP_NAME``, set by ``dvc exp run``; ``workspace`` otherwise), and a
+run name that tells variants apart (``optimise-rop``, ``diagnose-seed000-published``).  The
+experiment is marked as classic model development (tag ``mlflow.experimentKind``), so the MLflow UI
+lists the surrogate under "Models", not "Agent versions".
 """
 from __future__ import annotations
 
 import contextlib
+import contextvars
+import functools
 import os
+import subprocess
 from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -27,6 +36,54 @@ def tracking_uri() -> str:
 
 def experiment_name() -> str:
     return os.environ.get("VIBRO_EXPERIMENT", "vibro")
+
+
+EXPERIMENT_KIND = "custom_model_development"
+"""MLflow 3's experiment kind for classic ML (the UI's 'Models' tab instead of GenAI 'Agent versions')."""
+
+
+@functools.lru_cache(maxsize=None)
+def git_commit(root: str | None = None) -> str:
+    """HEAD of the git repository at ``root`` (default: the project root), ``+dirty`` if tracked files changed;
+    ``unknown`` outside a repository or without git."""
+    cwd = root or str(project_root())
+    try:
+        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True, text=True, timeout=10)
+        if head.returncode != 0:
+            return "unknown"
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=cwd,
+                               capture_output=True, text=True, timeout=20)
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return head.stdout.strip() + ("+dirty" if dirty.returncode == 0 and dirty.stdout.strip() else "")
+
+
+def dvc_experiment() -> str:
+    """The dvc experiment this process runs in (``$DVC_EXP_NAME``, set by ``dvc exp run``), else ``workspace``."""
+    return os.environ.get("DVC_EXP_NAME") or "workspace"
+
+
+def run_tags() -> dict[str, str]:
+    """Tags every run carries: ``git_commit`` and ``dvc_exp``."""
+    return {"git_commit": git_commit(), "dvc_exp": dvc_experiment()}
+
+
+_VARIANT: contextvars.ContextVar[str | None] = contextvars.ContextVar("vibro_run_variant", default=None)
+
+
+@contextlib.contextmanager
+def variant(name: str | None):
+    """Runs opened inside are named ``<stage>-<name>`` (lets a command name the run a workflow opens)."""
+    token = _VARIANT.set(name)
+    try:
+        yield
+    finally:
+        _VARIANT.reset(token)
+
+
+def run_name(stage: str, variant: str | None = None) -> str:
+    """``stage`` or ``stage-variant`` (e.g. ``optimise-rop``): distinct names for the variants of a stage."""
+    return f"{stage}-{variant}" if variant and variant != stage else stage
 
 
 def _quiet_mlflow() -> None:
@@ -51,24 +108,32 @@ def setup():
             mlflow.create_experiment(experiment_name(), **kwargs)
         except Exception:  # noqa: BLE001 - created concurrently by another process
             pass
-    mlflow.set_experiment(experiment_name())
+    exp = mlflow.set_experiment(experiment_name())
+    if (exp.tags or {}).get("mlflow.experimentKind") != EXPERIMENT_KIND:
+        try:
+            mlflow.set_experiment_tag("mlflow.experimentKind", EXPERIMENT_KIND)
+        except Exception:  # noqa: BLE001 - a read-only tracking server: the UI label is cosmetic
+            pass
     return mlflow
 
 
 @contextlib.contextmanager
-def run(stage: str, params: dict | None = None, tags: dict | None = None, enabled: bool = True):
-    """Context manager: an MLflow run for ``stage`` (child of $VIBRO_PARENT_RUN_ID if set).
+def run(stage: str, params: dict | None = None, tags: dict | None = None, enabled: bool = True,
+        variant: str | None = None):
+    """Context manager: an MLflow run for ``stage`` (child of $VIBRO_PARENT_RUN_ID if set), named
+    ``run_name(stage, variant)`` (``variant`` defaults to the enclosing :func:`variant`), tagged with :func:`run_tags`.
 
     Yields the mlflow module (or None when ``enabled`` is false, e.g. ``--no-mlflow``)."""
     if not enabled or os.environ.get("VIBRO_NO_MLFLOW"):
         yield None
         return
     mlflow = setup()
-    all_tags = {"vibro.stage": stage, **(tags or {})}
+    all_tags = {"vibro.stage": stage, **run_tags(), **(tags or {})}
     parent = os.environ.get("VIBRO_PARENT_RUN_ID")
     if parent:
         all_tags["mlflow.parentRunId"] = parent
-    with mlflow.start_run(run_name=stage, tags=all_tags):
+    name = run_name(stage, variant or _VARIANT.get())
+    with mlflow.start_run(run_name=name, tags=all_tags):
         if params:
             log_params(mlflow, params)
         yield mlflow

@@ -37,3 +37,14 @@ def test_bad_rig_file(tmp_path, text, culprit):
 def test_missing_rig_file(tmp_path):
     with pytest.raises(UserError, match="not found"):
         read_rig(tmp_path / "none.yaml")
+
+
+def test_exponent_without_sign_or_dot_is_a_number(tmp_path):
+    """PyYAML's YAML 1.1 rules read '5.0e8' and '5e8' as strings; a rig file means numbers."""
+    from pipeline.core.rigfile import read_rig
+
+    p = tmp_path / "rig.yaml"
+    p.write_text("model: drill\npreset: lab\nparameters: {K1: 5.0e8, C1: 4e5, K2: 7.58e+07}\n")
+    rig = read_rig(p)
+    assert rig.parameters == {"K1": 5.0e8, "C1": 4.0e5, "K2": 7.58e7}
+    assert all(isinstance(v, float) for v in rig.parameters.values())

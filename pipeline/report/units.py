@@ -1,0 +1,59 @@
+"""Engineering units for people: the report shows mm/s, kN, kW, g instead of the code's SI names.
+
+``ENGINEERING[name] = (label, unit, factor)``: a value of column/key ``name`` [SI] times ``factor`` is in ``unit``.
+"""
+from __future__ import annotations
+
+ENGINEERING: dict[str, tuple[str, str, float]] = {
+    "rop_m_s": ("ROP", "mm/s", 1e3),
+    "frequency_hz": ("frequency", "Hz", 1.0),
+    "amplitude_n": ("force amplitude F0", "kN", 1e-3),
+    "amplitude_m": ("displacement amplitude", "mm", 1e3),
+    "static_force_n": ("static force Fs", "kN", 1e-3),
+    "gap_m": ("gap", "mm", 1e3),
+    "peak_force_n": ("peak impact force", "kN", 1e-3),
+    "mean_peak_force_n": ("mean peak force", "kN", 1e-3),
+    "peak_decel_g": ("peak deceleration", "g", 1.0),
+    "power_w": ("power", "kW", 1e-3),
+    "energy_per_cycle_j": ("energy per cycle", "J", 1.0),
+    "specific_energy_j_m": ("specific energy", "kJ/m", 1e-3),
+    "impacts_per_cycle": ("impacts per cycle", "", 1.0),
+    "period": ("period", "cycles", 1.0),
+    "Pr": ("Pr (progression threshold)", "kN", 1e-3),
+}
+SUFFIXES = ("_sim", "_pred", "_lo", "_hi", "_verified")
+"""Name suffixes kept after the label: ``rop_m_s_sim`` -> ``ROP (sim) [mm/s]``."""
+
+
+def split(name: str) -> tuple[str, str]:
+    """(base quantity name, suffix) of a column/key, e.g. ``('rop_m_s', '_sim')``; suffix '' if none."""
+    leaf = name.rsplit(".", 1)[-1]
+    for suf in SUFFIXES:
+        if leaf.endswith(suf) and leaf[: -len(suf)] in ENGINEERING:
+            return leaf[: -len(suf)], suf
+    if leaf.startswith("verified_") and leaf[9:] in ENGINEERING:
+        return leaf[9:], "_verified"
+    return leaf, ""
+
+
+def label(name: str) -> str:
+    """Human label with unit, e.g. ``rop_m_s_sim`` -> ``ROP (sim) [mm/s]``; unknown names unchanged."""
+    base, suf = split(name)
+    if base not in ENGINEERING:
+        return name
+    text, unit, _ = ENGINEERING[base]
+    prefix = name.rsplit(".", 1)[0] + "." if "." in name else ""
+    return f"{prefix}{text}{f' ({suf[1:]})' if suf else ''}" + (f" [{unit}]" if unit else "")
+
+
+def factor(name: str) -> float:
+    """Factor from SI to the engineering unit of ``name`` (1 for unknown names)."""
+    base, _ = split(name)
+    return ENGINEERING[base][2] if base in ENGINEERING else 1.0
+
+
+def convert(name: str, value):
+    """``value`` of ``name`` in engineering units (non-numbers unchanged)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return value
+    return value * factor(name)

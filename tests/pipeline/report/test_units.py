@@ -1,0 +1,47 @@
+"""The report speaks engineering units (mm/s, kN, kW, g) and shows the diagnosis's calibrated parameters."""
+from __future__ import annotations
+
+import pytest
+
+from pipeline.report.build import calibrated_rows, dict_table
+from pipeline.report.units import convert, label
+
+
+@pytest.mark.parametrize("name,text,si,shown", [
+    ("rop_m_s", "ROP [mm/s]", 0.008, 8.0),
+    ("rop_m_s_sim", "ROP (sim) [mm/s]", 0.008, 8.0),
+    ("peak_force_n", "peak impact force [kN]", 3000.0, 3.0),
+    ("power_w", "power [kW]", 1500.0, 1.5),
+    ("peak_decel_g", "peak deceleration [g]", 40.0, 40.0),
+    ("static_force_n", "static force Fs [kN]", 1200.0, 1.2),
+])
+def test_label_and_convert(name, text, si, shown):
+    assert label(name) == text
+    assert convert(name, si) == pytest.approx(shown)
+
+
+def test_unknown_names_and_non_numbers_pass_through():
+    assert label("status_sim") == "status_sim" and convert("rop_m_s", "ok") == "ok"
+
+
+def test_dict_table_converts_columns_and_row_errors():
+    t = dict_table({"rop_m_s": {"r2": 0.99, "rmse": 0.0002}, "peak_force_n": {"r2": 0.98, "rmse": 50.0}})
+    assert t.columns == ["", "r2", "rmse"]
+    assert t.rows[0][0] == "ROP [mm/s]" and t.rows[0][2] == pytest.approx(0.2)        # RMSE in mm/s
+    assert t.rows[1][0] == "peak impact force [kN]" and t.rows[1][2] == pytest.approx(0.05)
+    t = dict_table({"params": {"frequency_hz": 262.0}, "rop_m_s_sim": 0.008})
+    assert ["ROP (sim) [mm/s]", pytest.approx(8.0)] in [list(r) for r in t.rows]
+
+
+def test_calibrated_rows_list_base_and_effect_parameters_with_defaults():
+    rep = {"calibrated": {"k1": 2.0e6, "pm": 1.1},
+           "calibrated_uncertainty": {"k1": {"value": 2.0e6, "sd": 1.0e5, "ci95": [1.8e6, 2.2e6]},
+                                      "pm": {"value": 1.1, "sd": 0.05, "ci95": [1.0, 1.2]}},
+           "selected_params": {"k1": {"value": 2.1e6, "sd": 1e5, "ci95": [1.9e6, 2.3e6]},
+                               "tau": {"value": 1e-4, "sd": 1e-5, "ci95": [8e-5, 1.2e-4]}}}
+    rows = calibrated_rows(rep, "indenter-metal")
+    assert [r[:2] for r in rows] == [["k1", "calibrated"], ["pm", "calibrated"], ["tau", "selected effect"]]
+    import sim
+
+    spec = {p.name: p for p in sim.get_model("indenter-metal").params}
+    assert rows[0][2] == spec["k1"].default and rows[0][6] == spec["k1"].unit and rows[0][3] == 2.0e6

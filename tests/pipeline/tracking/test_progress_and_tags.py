@@ -1,0 +1,112 @@
+"""make run explains itself (stage lines with ETA, the one-line answer), dvc stage commands need no activated
+venv, and every MLflow run carries a distinct name plus git_commit / dvc_exp tags."""
+from __future__ import annotations
+
+import io
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import yaml
+
+from pipeline.report.answer import answer_line
+from pipeline.tracking import repro, runs
+
+REPO = Path(__file__).resolve().parents[3]
+
+
+def test_stage_clock_prints_one_line_per_stage_with_an_estimate():
+    out = io.StringIO()
+    clock = repro.StageClock(["sweep", "train"], {"sweep": 60.0, "train": 120.0}, out=out)
+    clock.start("sweep")
+    clock.start("train")
+    clock.finish()
+    lines = out.getvalue().splitlines()
+    assert lines[0].startswith("[1/2] sweep: started") and "about 3:00 left" in lines[0]   # 60 s + 120 s
+    assert lines[1].strip().startswith("sweep: done in")
+    assert lines[2].startswith("[2/2] train: started") and "about 2:00 left" in lines[2]
+    assert lines[3].strip().startswith("train: done in") and set(clock.times) == {"sweep", "train"}
+
+
+def test_stage_times_are_remembered_for_the_next_estimate(tmp_path):
+    repro.write_stage_times(tmp_path, {"train": 90.0})
+    repro.write_stage_times(tmp_path, {"sweep": 30.0})
+    assert repro.read_stage_times(tmp_path) == {"train": 90.0, "sweep": 30.0}
+
+
+def test_answer_line_has_point_rop_power_and_report():
+    summary = {"optimise": {"recommended": {"params": {"frequency_hz": 262.2, "amplitude_n": 2699.6,
+                                                       "static_force_n": 1789.7},
+                                            "rop_m_s_sim": 0.00803, "power_w_sim": 1234.0},
+                            "verified_rop_m_s": 0.00803}}
+    line = answer_line(summary, "results/report/report.html")
+    assert line == ("Answer: f = 262 Hz, F0 = 2.70 kN, Fs = 1.79 kN -> verified ROP 8.03 mm/s, power 1.23 kW; "
+                    "report: results/report/report.html")
+    del summary["optimise"]["recommended"]["power_w_sim"]
+    assert "power" not in answer_line(summary)
+    assert answer_line({}) is None
+
+
+def test_run_names_and_tags(monkeypatch):
+    assert runs.run_name("optimise", "rop") == "optimise-rop" and runs.run_name("train") == "train"
+    monkeypatch.setenv("DVC_EXP_NAME", "tidal-bass")
+    tags = runs.run_tags()
+    assert tags["dvc_exp"] == "tidal-bass"
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout.strip()
+    assert tags["git_commit"].split("+")[0] == (head or "unknown")
+    monkeypatch.delenv("DVC_EXP_NAME")
+    assert runs.run_tags()["dvc_exp"] == "workspace"
+
+
+def test_every_run_is_named_and_tagged_and_the_experiment_is_classic_ml(tmp_path, monkeypatch):
+    from mlflow.tracking import MlflowClient
+
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", f"sqlite:///{tmp_path / 'mlflow.db'}")
+    monkeypatch.setenv("VIBRO_EXPERIMENT", "tags-test")
+    monkeypatch.setenv("DVC_EXP_NAME", "exp-1")
+    monkeypatch.delenv("VIBRO_PARENT_RUN_ID", raising=False)
+    monkeypatch.delenv("VIBRO_NO_MLFLOW", raising=False)
+    with runs.variant("rop"):
+        with runs.run("optimise", {"a": 1}):
+            pass
+    with runs.run("optimise", {"a": 2}, variant="pareto"):
+        pass
+    client = MlflowClient()
+    exp = client.get_experiment_by_name("tags-test")
+    assert exp.tags.get("mlflow.experimentKind") == runs.EXPERIMENT_KIND
+    found = client.search_runs([exp.experiment_id])
+    assert sorted(r.info.run_name for r in found) == ["optimise-pareto", "optimise-rop"]
+    for r in found:
+        assert r.data.tags["dvc_exp"] == "exp-1" and r.data.tags["git_commit"]
+
+
+def test_dvc_stage_commands_use_the_repository_wrapper():
+    stages = yaml.safe_load((REPO / "dvc.yaml").read_text())["stages"]
+    for name, st in stages.items():
+        cmd = " ".join((st.get("do") or st)["cmd"].split())
+        assert cmd.startswith("bin/vibro "), (name, cmd)           # no bare `vibro` needing an activated venv
+        assert "--quiet" not in cmd and "--no-progress" not in cmd, name   # progress shows in make run
+        assert "bin/vibro" in (st.get("do") or st)["deps"], name
+
+
+def test_dvc_repro_runs_a_stage_from_a_plain_shell(tmp_path):
+    """A shell without the venv on PATH: dvc runs `bin/vibro`, which finds .venv/bin/python by itself."""
+    dvc = Path(sys.executable).with_name("dvc")
+    root = tmp_path / "repo"
+    for d in ("bin", "pipeline", "sim"):
+        shutil.copytree(REPO / d, root / d, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(REPO / "pyproject.toml", root / "pyproject.toml")
+    venv_python = root / ".venv" / "bin" / "python"
+    venv_python.parent.mkdir(parents=True)
+    venv_python.write_text(f"#!/bin/sh\nexec {sys.executable} \"$@\"\n")     # stands for `make install`'s venv
+    venv_python.chmod(0o755)
+    (root / "dvc.yaml").write_text("stages:\n  models:\n    cmd: bin/vibro models drill > models.txt\n"
+                                   "    deps: [bin/vibro]\n    outs: [models.txt]\n")
+    env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path), "DVC_NO_ANALYTICS": "1"}
+    for cmd in (["git", "init", "-q"], [str(dvc), "init", "-q"], [str(dvc), "stage", "list"],
+                [str(dvc), "repro", "--dry"], [str(dvc), "repro"]):
+        p = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True, timeout=300)
+        assert p.returncode == 0, (cmd, p.stdout[-2000:], p.stderr[-2000:])
+    assert "lab" in (root / "models.txt").read_text()
