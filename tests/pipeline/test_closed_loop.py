@@ -36,22 +36,27 @@ def _rop(rig, point) -> float:
 
 
 @pytest.mark.slow
-# seed per effect: shaker_coil uses seed 0 (the seed of measured/drill-rig) because with seed 1 the diagnosis
-# leaves it unexplained (nrms 358: the drill identification table's shaker_coil row, README.md) — an open issue
-# of the diagnosis, not of this loop; suspension_hardening uses seed 1.
+# The diagnosis runs with the pipeline's settings (params.yaml 'diagnose': n_starts 2, max_nfev 15).  At the drill's
+# lighter default effort (max_nfev 10) shaker_coil was left unexplained at seeds 0 and 1 (nrms 186 / 358, cf. the
+# drill identification table in README.md) — an open issue of the diagnosis, not of this loop.  shaker_coil: seed 0
+# (the seed of measured/drill-rig); suspension_hardening: seed 1 (passed at the default effort too).
 @pytest.mark.parametrize("effect, seed", [("shaker_coil", 0), ("suspension_hardening", 1)])
 def test_corrected_recommendation_reaches_the_truths_best(tmp_path, effect, seed):
     from pipeline.core.rigfile import read_rig
     from pipeline.datasets.measured import load_dataset, write_dataset
     from pipeline.datasets.synth import SynthConfig, resolve_effects, synthesize
     from pipeline.diagnosis.driver import diagnose
-    from pipeline.diagnosis.run import DiagnoseConfig
     from sim import Rig
 
     ds, info = synthesize(SynthConfig(system="drill", effects=resolve_effects("drill", {effect: None}), seed=seed))
     write_dataset(ds, tmp_path / "log")
     truth = Rig("drill", "lab").with_values(info["truth"])     # the rig the log was made on
-    rep = diagnose(load_dataset(tmp_path / "log"), tmp_path / "diag", DiagnoseConfig(), log=lambda s: None)
+    from pathlib import Path
+
+    from pipeline.cli.diagnose import load_config
+
+    cfg = load_config(str(Path(__file__).resolve().parents[2] / "params.yaml"), {}, None, None)
+    rep = diagnose(load_dataset(tmp_path / "log"), tmp_path / "diag", cfg, log=lambda s: None)
     corrected = read_rig(tmp_path / "diag" / "rig.yaml")
     assert rep["selected"] == effect, rep["rig"]["source"]
     point_c, _ = _best(corrected)
