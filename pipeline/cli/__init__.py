@@ -15,7 +15,8 @@ import time
 
 from pipeline.core.errors import USER_ERRORS
 
-SUBCOMMANDS = ("simulate", "sweep", "train", "optimise", "verify", "diagnose", "synth", "map", "report", "models")
+SUBCOMMANDS = ("simulate", "sweep", "train", "optimise", "verify", "diagnose", "synth", "map", "report", "models",
+               "compare")
 
 
 def version() -> str:

@@ -26,7 +26,11 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
    suspension_hardening, sensor_lowpass) on top of the calibrated base model, rank by BIC, and select one
    only if its held-out residual is at the measurement-noise level estimated from the data;
 5. write DIR/report.json, DIR/report.md and PNG figures (residual structure before/after, measured vs
-   simulated cycle histories and spectra), and log the run to MLflow."""
+   simulated cycle histories and spectra), and log the run to MLflow;
+6. write the corrected rig DIR/rig.yaml (DIR/rig-<system>.yaml per system of a several-system dataset):
+   preset, known and calibrated parameters, the selected effect with its fitted parameters and their sd
+   (README.md "Closing the loop"); use it with --rig in every simulating command.  An unexplained residual
+   still writes the calibrated base rig, marked UNEXPLAINED in its 'source' (report.json 'rig')."""
 
 EPILOG = """\
 params.yaml section 'diagnose' (all optional; defaults in brackets):
@@ -150,6 +154,9 @@ def run(args) -> int:
                 mlflow.log_metrics({k: float(v) for k, v in _flat_metrics(report).items()})
                 mlflow.set_tag("vibro.selected", json.dumps(report["selected"]))
                 mlflow.log_artifacts(str(tmp), artifact_path="diagnose")
+                for rig_file in sorted(Path(tmp).glob("rig*.yaml")):     # the corrected rig, also on its own
+                    mlflow.log_artifact(str(rig_file), artifact_path="rig")
+                mlflow.set_tag("vibro.rig_explained", str(bool(report["explained"])).lower())
     if args.metrics:
         atomic_write_text(args.metrics, dump_json(headline))
     if not args.quiet:
@@ -197,7 +204,9 @@ def check_report(report: dict) -> None:
 def _headline(report: dict) -> dict:
     keys = ("system", "selected", "explained", "noise_floor", "default_error", "base_error", "final_error",
             "default_nrms", "base_nrms", "final_nrms", "wall_time_s")
-    return {k: report[k] for k in keys}
+    out = {k: report[k] for k in keys}
+    out["rig"] = report.get("rig")
+    return out
 
 
 def _flat_metrics(report: dict) -> dict:

@@ -10,6 +10,7 @@ from pipeline.core.files import atomic_directory
 from pipeline.core.jsonable import to_jsonable
 from pipeline.diagnosis.features import simulated_features
 from pipeline.diagnosis.report import figures, markdown, residual_structure
+from pipeline.diagnosis.rigout import corrected_rig, rig_file_name
 from pipeline.diagnosis.run import DiagnoseConfig, build_targets, diagnose_system
 
 SUMMARY_NOTE = ("summary data: the measurement sd is assumed (summary.csv '<feature>_sd' columns or the defaults of "
@@ -18,7 +19,8 @@ SUMMARY_NOTE = ("summary data: the measurement sd is assumed (summary.csv '<feat
 
 
 def diagnose(ds, out: str | os.PathLike, cfg: DiagnoseConfig, log=print, progress=None) -> dict:
-    """Diagnose ``ds`` into directory ``out`` (report.json, report.md, PNG figures); returns the report."""
+    """Diagnose ``ds`` into directory ``out`` (report.json, report.md, PNG figures, and the corrected rig:
+    rig.yaml, or rig-<system>.yaml per system of a several-system dataset); returns the report."""
     t0 = time.time()
     out = Path(out)
     targets = build_targets(ds, cfg)
@@ -37,19 +39,38 @@ def diagnose(ds, out: str | os.PathLike, cfg: DiagnoseConfig, log=print, progres
         rep["notes"] = [SUMMARY_NOTE] if "summary" in rep["data"] else []
         rep["_runs"] = runs
         per.append(rep)
+    dataset = str(ds.path) if ds.path else "dataset"
+    rigs = []
+    for rep in per:
+        rows = ds.runs[ds.runs["system"] == rep["system"]]
+        presets = [str(p).strip() if isinstance(p, str) and p.strip() else None
+                   for p in (rows["preset"] if "preset" in rows else [None] * len(rows))]
+        rig, info = corrected_rig(rep, ev_targets(rep), presets, dataset)
+        info["file"] = rig_file_name(rep["system"], len(per))
+        rep["rig"] = info
+        rigs.append((info["file"], rig))
     with atomic_directory(out) as tmp:
+        from pipeline.core.rigfile import write_rig
+
+        for name, rig in rigs:
+            write_rig(tmp / name, rig, comment="the corrected rig of this diagnosis (report.json 'rig')")
         for rep in per:
             rep["figures"] = figures(rep, ds, rep["_runs"][1], rep["_runs"][2], rep["_runs"][0], tmp)
         public = [{k: v for k, v in r.items() if not k.startswith("_")} for r in per]
-        report = _combine(public, str(ds.path) if ds.path else "dataset", cfg)
+        report = _combine(public, dataset, cfg)
         report["wall_time_s"] = round(time.time() - t0, 1)
         (tmp / "report.json").write_text(json.dumps(to_jsonable(report), indent=2))
         (tmp / "report.md").write_text(markdown(report, public, report["wall_time_s"]))
     return report
 
 
+def ev_targets(rep: dict) -> list:
+    """The targets (runs.csv order) a system's diagnosis was evaluated on."""
+    return list(rep["_ev"].targets)
+
+
 KEYS = ("calibrated", "noise_floor", "default_error", "base_error", "candidates", "selected", "final_error",
-        "default_nrms", "base_nrms", "final_nrms")
+        "default_nrms", "base_nrms", "final_nrms", "rig")
 
 
 def _combine(per: list[dict], dataset: str, cfg: DiagnoseConfig) -> dict:

@@ -210,7 +210,11 @@ def markdown(report: dict, per_system: list[dict], seconds: float) -> str:
         sel = rep["selected"] or ("none (the calibrated base model fits to the noise level)" if rep["explained"]
                                   else f"none — no candidate brings the held-out residual to the noise level "
                                        f"(best partial: {rep['best_partial_candidate']})")
-        lines += [f"Selected effect: **{sel}**; residual {verdict}.", "",
+        lines += [f"Selected effect: **{sel}**; residual {verdict}.", ""]
+        if rep.get("rig"):
+            lines += [f"Corrected rig: [`{rep['rig']['file']}`]({rep['rig']['file']}) (use it with `--rig`): "
+                      f"{rep['rig']['source']}.", ""]
+        lines += [
                   "| model | held-out error | held-out nrms |", "|---|---|---|",
                   f"| default parameters | {_fmt(rep['default_error'])} | {_fmt(rep['default_nrms'])} |",
                   f"| calibrated base (before) | {_fmt(rep['base_error'])} | {_fmt(rep['base_nrms'])} |",

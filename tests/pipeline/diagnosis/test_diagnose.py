@@ -79,6 +79,22 @@ def test_small_end_to_end_recovers_sensor_lowpass(tmp_path, monkeypatch):
     mlflow.set_tracking_uri(f"sqlite:///{tmp_path / 'mlflow.db'}")
     runs = mlflow.search_runs(experiment_names=["vibro"])
     assert len(runs) == 1 and runs.iloc[0]["tags.vibro.stage"] == "diagnose"
+    # the corrected rig: written beside the report, logged with the run, and a rig every command reads
+    from pipeline.core.rigfile import read_rig
+
+    rig = read_rig(out / "rig.yaml")
+    sel = next(c for c in rep["candidates"] if c["effect"] == "sensor_lowpass")
+    assert rig.model == "indenter-metal" and rig.effects == {"sensor_lowpass": {"fc": pytest.approx(fc)}}
+    for name, value in sel["calibrated"].items():          # calibrated jointly with the selected effect
+        if name != "fc":
+            assert rig.parameters[name] == pytest.approx(value)
+    assert set(rig.uncertainty) == set(sel["param_sd"]) and all(v > 0 for v in rig.uncertainty.values())
+    assert rig.uncertainty["fc"] == pytest.approx(sel["param_sd"]["fc"])
+    assert "explained with sensor_lowpass" in rig.source and rep["rig"]["file"] == "rig.yaml"
+    assert rep["rig"]["explained"] is True
+    client = mlflow.tracking.MlflowClient()
+    assert [a.path for a in client.list_artifacts(runs.iloc[0]["run_id"], "rig")] == ["rig/rig.yaml"]
+    assert "rig.yaml" in (out / "report.md").read_text()
 
 
 # ----------------------------------------------------------------------------- slow matrix

@@ -1,0 +1,79 @@
+"""The corrected rig a diagnosis hands on: the model as the measurements corrected it (a ``sim.Rig``).
+
+Content (README.md "Closing the loop"):
+- ``preset``: the runs' common ``preset`` column (None if the runs name none);
+- ``parameters``: the runs' known parameters where they differ from that preset (runs.csv parameter columns),
+  then the calibrated parameters (MODELS.md §6) of the final model — fitted jointly with the selected effect
+  when one is selected, else the calibrated base model;
+- ``effects``: the selected §6 effect with its fitted parameters (none when nothing is selected);
+- ``uncertainty``: the standard deviation of every fitted parameter in its SI unit.  The fit works in
+  log10 p; its covariance is ``pinv(JᵀJ) · max(1, χ²/dof)`` (J = Jacobian of the noise-normalised residuals
+  at the optimum, inflated when the fit is worse than the noise), and sd(p) = p · ln 10 · sd(log10 p)
+  (delta method; ``pipeline.diagnosis.fit``).  Correlations between parameters are not kept.
+- ``source``: the dataset, the verdict and, for an unexplained residual, the held-out error against the
+  noise floor — the model is then known to be wrong by that much.
+"""
+from __future__ import annotations
+
+import math
+
+UNEXPLAINED_PREFIX = "UNEXPLAINED"
+"""First word of a rig's ``source`` when the diagnosis left the residual unexplained."""
+
+
+def rig_file_name(system: str, n_systems: int) -> str:
+    """``rig.yaml`` for a one-system dataset, ``rig-<system>.yaml`` for each system of a several-system one."""
+    return "rig.yaml" if n_systems == 1 else f"rig-{system}.yaml"
+
+
+def _common(values: list, what: str) -> tuple[object, str | None]:
+    """The value all runs share, or (first value, a note saying they differ)."""
+    first = values[0]
+    if all(v == first for v in values):
+        return first, None
+    return first, f"{what} differs between runs; the rig uses the first run's"
+
+
+def corrected_rig(rep: dict, targets: list, presets: list[str | None], dataset: str):
+    """(``sim.Rig``, info dict for report.json) of one system's diagnosis ``rep`` (with its private ``_fits``
+    and ``_final``), its ``targets`` (known parameters per run) and the runs' ``presets``."""
+    import sim
+
+    system = rep["system"]
+    spec = sim.get_model(system)
+    notes = []
+    preset, note = _common([p or None for p in presets], "preset")
+    if note:
+        notes.append(note)
+    base = spec.defaults(preset)
+    known_names = sorted({k for t in targets for k in t.known})
+    params: dict[str, float] = {}
+    for name in known_names:
+        v, note = _common([t.known.get(name, base.get(name)) for t in targets], f"known parameter {name}")
+        if note:
+            notes.append(note)
+        if v is not None and not math.isclose(float(v), float(base[name]), rel_tol=1e-12, abs_tol=0.0):
+            params[name] = float(v)
+    fr = rep["_fits"][rep["_final"]]
+    effect_params = {p for ps in spec.effects.values() for p in ps}
+    effects: dict[str, dict[str, float]] = {}
+    for name in fr.free:
+        if name in effect_params:
+            effects.setdefault(rep["selected"], {})[name] = float(fr.values[name])
+        else:
+            params[name] = float(fr.values[name])
+    uncertainty = {n: float(fr.sd[n]) for n in fr.free}
+    if rep["explained"]:
+        verdict = (f"explained with {rep['selected']}" if rep["selected"]
+                   else "explained by the calibrated base model (no effect needed)")
+    else:
+        verdict = (f"{UNEXPLAINED_PREFIX}: no §6 effect explains the residual; calibrated base model, known to be wrong "
+                   f"by held-out error {rep['final_error']:.3g} against a noise floor of {rep['noise_floor']:.3g} "
+                   f"(nrms {rep['final_nrms']:.3g})")
+    source = f"vibro diagnose {dataset} ({system}): {verdict}"
+    rig = sim.Rig(model=system, preset=preset, parameters=params, effects=effects, uncertainty=uncertainty,
+                  source=source)
+    info = {"explained": bool(rep["explained"]), "selected": rep["selected"], "source": source,
+            "model_error": float(rep["final_error"]), "noise_floor": float(rep["noise_floor"]),
+            "nrms": float(rep["final_nrms"]), "notes": notes}
+    return rig, info

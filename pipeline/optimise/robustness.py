@@ -1,0 +1,91 @@
+"""How sure is a recommended operating point?  Its ROP over samples of the rig's uncertain parameters.
+
+A corrected rig (``sim.Rig`` from ``vibro diagnose``) carries the standard deviation of every fitted
+parameter (``Rig.uncertainty``, SI units).  Every fitted parameter is positive and was fitted in log10, so a
+sample is log-normal around the fitted value: p = p̂ · exp(σ z), z ~ N(0, 1), σ = sd / p̂ (the delta-method
+inverse of the diagnosis's sd = p̂ · ln 10 · sd(log10 p)).  Samples are clipped to the parameter's fit bounds
+(``ModelSpec.calibratable`` / ``effect_bounds``: an unidentifiable parameter's huge sd then spans its bounds,
+not 50 decades).  Parameters are sampled independently (the rig file keeps no correlations, so the spread is
+an upper estimate where fitted parameters trade off against each other).  The point is re-simulated with
+every sample; a run that ends in any status but ``ok`` counts as zero ROP and as not progressing.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class RopSpread:
+    """ROP of one operating point over samples of the rig's fitted parameters [m/s]."""
+
+    nominal_rop_m_s: float            # at the fitted values
+    median_rop_m_s: float
+    p5_rop_m_s: float
+    p95_rop_m_s: float
+    fraction_progressing: float       # samples with status ok and ROP > 0
+    n_samples: int
+    sampled: tuple[str, ...]          # parameters that were sampled (sd > 0)
+    statuses: dict[str, int] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """Plain mapping (report.json / metrics)."""
+        return {"nominal_rop_m_s": self.nominal_rop_m_s, "median_rop_m_s": self.median_rop_m_s,
+                "p5_rop_m_s": self.p5_rop_m_s, "p95_rop_m_s": self.p95_rop_m_s,
+                "fraction_progressing": self.fraction_progressing, "n_samples": self.n_samples,
+                "sampled": list(self.sampled), "statuses": dict(self.statuses)}
+
+
+def fit_bounds(model: str) -> dict[str, tuple[float, float]]:
+    """(low, high) of every fitted parameter of ``model`` (calibratable and §6 effect parameters)."""
+    import sim
+
+    spec = sim.get_model(model)
+    out = {b.name: (float(b.lo), float(b.hi)) for b in spec.calibratable}
+    out.update({n: (float(b.lo), float(b.hi)) for n, b in dict(spec.effect_bounds).items()})
+    return out
+
+
+def parameter_samples(rig, n_samples: int, seed: int) -> list[dict[str, float]]:
+    """``n_samples`` log-normal samples of the rig's uncertain parameters (name -> value), clipped to the fit bounds."""
+    values = rig.resolve()
+    bounds = fit_bounds(rig.model)
+    names = [n for n, sd in rig.uncertainty.items() if float(sd) > 0.0 and float(values[n]) > 0.0]
+    rng = np.random.default_rng(seed)
+    z = rng.standard_normal((n_samples, len(names)))
+    out = []
+    for row in z:
+        sample = {}
+        for name, zi in zip(names, row):
+            v = float(values[name])
+            s = float(rig.uncertainty[name]) / v
+            x = v * math.exp(min(s * zi, 700.0))
+            lo, hi = bounds.get(name, (0.0, math.inf))
+            sample[name] = float(min(max(x, lo), hi))
+        out.append(sample)
+    return out
+
+
+def rop_spread(rig, point: Mapping[str, float], n_samples: int = 32, seed: int = 0,
+               settings: Mapping | None = None, n_threads: int | None = None) -> RopSpread:
+    """Re-simulate the operating point ``point`` (controls, e.g. frequency_hz, amplitude_n, static_force_n) on
+    ``rig`` at its fitted values and at ``n_samples`` samples of its uncertain parameters."""
+    import sim
+
+    if n_samples < 1:
+        raise ValueError(f"n_samples must be >= 1, got {n_samples}")
+    samples = parameter_samples(rig, n_samples, seed)
+    base = rig.resolve(**dict(point))          # every row holds every parameter (no NaN columns in the batch)
+    table = [base] + [{**base, **s} for s in samples]
+    df = sim.simulate_batch(rig.model, table, preset=rig.preset, settings=dict(settings or {}), n_threads=n_threads)
+    ok = (df["status"] == "ok").to_numpy()
+    rop = np.where(ok, df["rop_m_s"].astype(float).fillna(0.0).to_numpy(), 0.0)
+    rs = rop[1:]
+    counts = df["status"].iloc[1:].value_counts().to_dict()
+    return RopSpread(nominal_rop_m_s=float(rop[0]), median_rop_m_s=float(np.median(rs)),
+                     p5_rop_m_s=float(np.percentile(rs, 5)), p95_rop_m_s=float(np.percentile(rs, 95)),
+                     fraction_progressing=float(np.mean(ok[1:] & (rs > 0))), n_samples=int(n_samples),
+                     sampled=tuple(samples[0]) if samples else (), statuses={str(k): int(v) for k, v in counts.items()})

@@ -1,0 +1,67 @@
+"""The corrected rig of a diagnosis (pipeline.diagnosis.rigout): which values go where, and the verdict in
+``source`` — on hand-made diagnosis results (the end-to-end case is in test_diagnose.py)."""
+from __future__ import annotations
+
+import pytest
+
+from pipeline.diagnosis.features import Target
+from pipeline.diagnosis.fit import FitResult
+from pipeline.diagnosis.rigout import UNEXPLAINED_PREFIX, corrected_rig, rig_file_name
+
+
+def _fit(values: dict, sd: dict) -> FitResult:
+    return FitResult(values=values, sd=sd, ci95={k: (v / 2, v * 2) for k, v in values.items()}, chi2=1.0, n=10,
+                     free=list(values), nfev=1)
+
+
+def _rep(selected, explained, fits, final):
+    return {"system": "drill", "selected": selected, "explained": explained, "final_error": 0.21,
+            "noise_floor": 0.042, "final_nrms": 35.0, "_fits": fits, "_final": final}
+
+
+def _targets(known_m1=(12.0, 12.0)):
+    return [Target(run_id=f"r{i}", system="drill", kind="series", controls={"frequency_hz": 200.0},
+                   known={"M1": m1, "K2": 6e6}) for i, m1 in enumerate(known_m1)]
+
+
+BASE = {"K1": 5e8, "C1": 3e5, "Pr": 2800.0}
+
+
+def test_selected_effect_goes_under_effects_with_the_jointly_fitted_base():
+    import sim
+
+    lab = sim.get_model("drill").defaults("lab")
+    joint = {"K1": 5.5e8, "C1": 3.1e5, "Pr": 2900.0, "tau": 1.1e-4, "beta": 2900.0}
+    fits = {"base": _fit(BASE, {k: 0.1 * v for k, v in BASE.items()}),
+            "shaker_coil": _fit(joint, {k: 0.05 * v for k, v in joint.items()})}
+    rig, info = corrected_rig(_rep("shaker_coil", True, fits, "shaker_coil"), _targets((lab["M1"], lab["M1"])),
+                              ["lab", "lab"], "measured/drill-rig")
+    assert rig.preset == "lab" and rig.effects == {"shaker_coil": {"tau": 1.1e-4, "beta": 2900.0}}
+    assert rig.parameters["K1"] == 5.5e8 and rig.parameters["Pr"] == 2900.0     # the joint fit, not the base fit
+    assert "M1" not in rig.parameters                       # known and equal to the preset: not repeated
+    assert rig.parameters["K2"] == 6e6                      # known and different from the preset
+    assert rig.uncertainty["tau"] == pytest.approx(0.05 * 1.1e-4)
+    assert info["explained"] and "explained with shaker_coil" in rig.source and not info["notes"]
+    assert rig.resolve(frequency_hz=200.0)["tau"] == 1.1e-4   # the effect is on when the rig is simulated
+
+
+def test_unexplained_writes_the_calibrated_base_and_says_how_wrong():
+    fits = {"base": _fit(BASE, {k: 0.1 * v for k, v in BASE.items()}),
+            "shaker_coil": _fit({**BASE, "tau": 1e-4, "beta": 1e3}, {})}
+    rig, info = corrected_rig(_rep(None, False, fits, "base"), _targets(), ["lab", "lab"], "d")
+    assert rig.effects == {} and rig.parameters["K1"] == 5e8
+    assert rig.source.startswith(f"vibro diagnose d (drill): {UNEXPLAINED_PREFIX}")
+    assert "0.21" in rig.source and "0.042" in rig.source     # held-out error against the noise floor
+    assert info["explained"] is False and info["model_error"] == 0.21 and info["noise_floor"] == 0.042
+
+
+def test_runs_that_disagree_on_a_known_parameter_are_noted():
+    fits = {"base": _fit(BASE, {k: 0.1 * v for k, v in BASE.items()})}
+    rig, info = corrected_rig(_rep(None, True, fits, "base"), _targets((12.0, 13.0)), ["lab", None], "d")
+    assert rig.parameters["M1"] == 12.0
+    assert any("M1" in n for n in info["notes"]) and any("preset" in n for n in info["notes"])
+
+
+def test_file_names():
+    assert rig_file_name("drill", 1) == "rig.yaml"
+    assert rig_file_name("indenter-metal", 2) == "rig-indenter-metal.yaml"

@@ -1,0 +1,71 @@
+"""Closing the loop end to end against a known truth (issue 14, item 4).
+
+A drill rig log is made with `vibro synth` (python API: perturbed rock + a §6 effect the lab model lacks),
+diagnosed (`vibro diagnose`'s driver: calibration, candidate effects, corrected rig), and the operating point
+recommended on the corrected rig is simulated on the truth.  It must reach >= 98 % of the truth's own best ROP
+over the same search space (the lab preset's LAB_SPACE).  Optimiser here: the best point of one grid over
+LAB_SPACE (the same grid for the corrected rig, the truth and the uncorrected lab model, so the three are compared
+on equal terms); the shortfall of the uncorrected lab recommendation on the truth is printed and checked to be
+computed.  Slow: two drill diagnoses (~5 min each on 2 shared cores)."""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+GRID = {"frequency_hz": np.linspace(100.0, 450.0, 22), "amplitude_n": np.linspace(1800.0, 2700.0, 4),
+        "static_force_n": np.linspace(600.0, 1800.0, 4)}
+"""sim.models.drill.LAB_SPACE on a 22 x 4 x 4 grid (16.7 Hz, 300 N, 400 N steps)."""
+
+
+def _best(rig):
+    """(point, ROP) of the grid's best progressing point on ``rig`` (status ok only)."""
+    import sim
+
+    table = [{k: float(x) for k, x in zip(GRID, v)} for v in itertools.product(*GRID.values())]
+    df = sim.simulate_batch(rig.model, [{**rig.overrides(), **p} for p in table], preset=rig.preset)
+    rop = np.where(df["status"] == "ok", df["rop_m_s"].astype(float).fillna(0.0), 0.0)
+    i = int(np.argmax(rop))
+    return table[i], float(rop[i])
+
+
+def _rop(rig, point) -> float:
+    r = rig.simulate(**point)
+    return float(r.labels["rop_m_s"]) if r.status == "ok" else 0.0
+
+
+@pytest.mark.slow
+# The diagnosis runs with the pipeline's settings (params.yaml 'diagnose': n_starts 2, max_nfev 15).  At the drill's
+# lighter default effort (max_nfev 10) shaker_coil was left unexplained at seeds 0 and 1 (nrms 186 / 358, cf. the
+# drill identification table in README.md) — an open issue of the diagnosis, not of this loop.  shaker_coil: seed 0
+# (the seed of measured/drill-rig); suspension_hardening: seed 1 (passed at the default effort too).
+@pytest.mark.parametrize("effect, seed", [("shaker_coil", 0), ("suspension_hardening", 1)])
+def test_corrected_recommendation_reaches_the_truths_best(tmp_path, effect, seed):
+    from pipeline.core.rigfile import read_rig
+    from pipeline.datasets.measured import load_dataset, write_dataset
+    from pipeline.datasets.synth import SynthConfig, resolve_effects, synthesize
+    from pipeline.diagnosis.driver import diagnose
+    from sim import Rig
+
+    ds, info = synthesize(SynthConfig(system="drill", effects=resolve_effects("drill", {effect: None}), seed=seed))
+    write_dataset(ds, tmp_path / "log")
+    truth = Rig("drill", "lab").with_values(info["truth"])     # the rig the log was made on
+    from pathlib import Path
+
+    from pipeline.cli.diagnose import load_config
+
+    cfg = load_config(str(Path(__file__).resolve().parents[2] / "params.yaml"), {}, None, None)
+    rep = diagnose(load_dataset(tmp_path / "log"), tmp_path / "diag", cfg, log=lambda s: None)
+    corrected = read_rig(tmp_path / "diag" / "rig.yaml")
+    assert rep["selected"] == effect, rep["rig"]["source"]
+    point_c, _ = _best(corrected)
+    point_lab, _ = _best(Rig("drill", "lab"))
+    _, truth_best = _best(truth)
+    on_truth_c, on_truth_lab = _rop(truth, point_c), _rop(truth, point_lab)
+    print(f"\n{effect}: truth best {truth_best * 1e3:.4g} mm/s; corrected recommendation {point_c} -> "
+          f"{on_truth_c * 1e3:.4g} mm/s on the truth ({on_truth_c / truth_best:.1%}); uncorrected lab recommendation "
+          f"{point_lab} -> {on_truth_lab * 1e3:.4g} mm/s ({on_truth_lab / truth_best:.1%}); shortfall "
+          f"{(truth_best - on_truth_lab) * 1e3:.3g} mm/s")
+    assert on_truth_c >= 0.98 * truth_best
+    assert np.isfinite(on_truth_lab) and 0.0 <= on_truth_lab <= truth_best * (1 + 1e-9)
