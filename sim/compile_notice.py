@@ -4,19 +4,20 @@ from __future__ import annotations
 
 import sys
 
-_SEEN: set[str] = set()
+_SEEN: set[tuple] = set()
 
 
 def announce_compile(spec, exact: str | None = None) -> bool:
     """Print the notice when ``spec``'s kernel (with exact propagator ``exact``) has no numba cache yet
     (once per kernel and process); returns whether it was printed."""
+    key = (spec.name, exact)
+    if key in _SEEN:
+        return False
+    _SEEN.add(key)
     from sim.compiled import kernel_path
 
     path = kernel_path(spec.funcs, exact)
     stem, folder = path.stem, path.parent
-    if stem in _SEEN:
-        return False
-    _SEEN.add(stem)
     if any((folder / "__pycache__").glob(f"{stem}.*.nbi")):
         return False
     print(f"vibro: compiling the {spec.funcs[0].py_func.__module__.rsplit('.', 1)[-1]} kernel with numba "

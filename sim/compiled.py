@@ -74,7 +74,6 @@ def kernels(funcs: tuple, n_bounded: int, exact: str | None = None):
         return _kernels(funcs, n_bounded, exact)
 
 
-@lru_cache(maxsize=None)
 def kernel_path(funcs: tuple, exact: str | None = None, digest: str | None = None) -> Path:
     """Path of the generated kernel module of the model functions ``funcs`` (and exact propagator ``exact``);
     numba's cache of it lives in the ``__pycache__`` folder beside it."""
@@ -84,6 +83,7 @@ def kernel_path(funcs: tuple, exact: str | None = None, digest: str | None = Non
     return _kernel_dir() / f"vibro_kernel_{tag}.py"
 
 
+@lru_cache(maxsize=None)
 def _kernels(funcs: tuple, n_bounded: int, exact: str | None = None):
     """run_one (GIL-free, cached) for the model functions ``funcs`` = (rhs, guards, on_event, observe, bounded)."""
     names = [f.py_func.__name__ for f in funcs]

@@ -35,15 +35,15 @@ def run(db: str, n_trials: int, seed: int, delay_s: float, buffered: bool = Fals
     def factory(n_done: int):
         return make_sampler("tpe", batch_seed(seed, n_done), 1, n_startup=n_start)
 
-    study = open_study(url, "s", "rop", factory(0), {"test": 1})
+    study = open_study(url, "s", [("rop_m_s", "maximize")], factory(0), {"test": 1})
     print("opened", flush=True)
     guard = StudyGuard.for_url(url)
     ev = evaluate_factory(delay_s)
     if buffered:
-        study, ran = run_study_buffered(study, factory(0), ev, SPACE, Constraints(), "rop", n_trials, BATCH,
+        study, ran = run_study_buffered(study, factory(0), ev, SPACE, Constraints(), [("rop_m_s", "maximize")], n_trials, BATCH,
                                         checkpoint=8, progress=progress, sampler_factory=factory, guard=guard)
     else:
-        ran = run_study(study, ev, SPACE, Constraints(), "rop", n_trials, BATCH, progress=progress,
+        ran = run_study(study, ev, SPACE, Constraints(), [("rop_m_s", "maximize")], n_trials, BATCH, progress=progress,
                         sampler_factory=factory, guard=guard)
     return study, ran
 

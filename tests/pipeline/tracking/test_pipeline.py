@@ -211,7 +211,7 @@ def test_report_is_self_contained_and_shows_every_section(tmp_path: Path):
     assert "src='http" not in page and "src='figures" not in page  # nothing external
     assert "1.8 mm/s" in md                                        # verified ROP of the recommended point
     assert "On the edge of the search space:** amplitude_n at its upper bound 2700" in md
-    assert "| amplitude_n [kN] | 2.5 |" in md and "| power_w_sim [W] | 16.8 |" in md   # engineering units
+    assert "| force amplitude F0 [kN] | 2.5 |" in md and "| power (sim) [W] | 16.8 |" in md   # engineering units (pipeline.core.units)
     assert "| seed000-published | indenter-metal | 0.5 | 0.3 | 0.12 | 0.1 | shaker_coil | True |" in md
     assert "| seed000-published | indenter-sandstone | 0.6 | 0.4 | 0.4 | 0.1 | none | False |" in md
     assert "| ROP [mm/s] | 0.93 |" in md                          # surrogate accuracy table, engineering units
