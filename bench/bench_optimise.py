@@ -139,7 +139,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--initial", type=int, default=400, help="(a): Sobol training points (default 400)")
     ap.add_argument("--rounds", type=int, default=2, help="(a): optimise/verify/retrain rounds (default 2)")
     ap.add_argument("--skip", nargs="*", default=[], choices=["surrogate", "tpe", "random"], help="methods to skip")
+    ap.add_argument("--results", default=None,
+                    help="directory for optimise.json and the grid cache (default bench/results)")
     args = ap.parse_args(argv)
+    global RESULTS
+    if args.results:
+        RESULTS = Path(args.results)
     RESULTS.mkdir(parents=True, exist_ok=True)
     space = lab_space()
     t0 = time.time()

@@ -20,8 +20,10 @@ BENCH_DIR = Path(__file__).resolve().parent
 # count than their own defaults, every method still run); ``--quick`` is smaller still
 ARGS = {"bench_optimise": ["--budget", "300", "--grid", "16", "12", "12", "--initial", "200", "--rounds", "1"],
         "bench_sweep": ["--points", "256", "--peer-points", "8"]}
-QUICK_ARGS = {"bench_optimise": ["--budget", "80", "--grid", "4", "4", "4", "--initial", "60", "--rounds", "1"],
-              "bench_sweep": ["--points", "32", "--peer-points", "2"]}
+QUICK_ARGS = {"bench_optimise": ["--budget", "80", "--grid", "4", "4", "4", "--initial", "60", "--rounds", "1",
+                                 "--results", str(BENCH_DIR / "results" / "quick")],
+              "bench_sweep": ["--points", "32", "--peer-points", "2",
+                              "--out", str(BENCH_DIR / "results" / "quick" / "sweep.json")]}   # never the full results
 
 
 def modules() -> list[str]:
