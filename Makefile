@@ -33,7 +33,7 @@ test-all: install
 
 bench: install
 	$(BIN)/python -m pip install --quiet heyoka==7.13.2 CyRK==0.20.0 || true   # the bench extra by name: keeps the editable install
-	$(BIN)/python -m bench.run_all
+	$(BIN)/python -m bench.run_all $(BENCH_FLAGS)   # BENCH_FLAGS=--quick for the short version
 
 clean:
 	rm -rf $(VENV) .numba_cache .pytest_cache

@@ -15,13 +15,15 @@ G_ACC = 9.81
 
 DRILL_PARAMS = ("M1", "M2", "M3", "K1", "K2", "K3", "C1", "C2", "C3", "Pr",
                 "gap_m", "static_force_n", "amplitude_n", "frequency_hz")
+EFFECT_PARAMS = ("gamma", "tau", "beta", "alpha", "mu", "kappa")   # §6 effects of the drill (sim/models/drill.py)
 ETA_X = 1e-13          # hysteresis on the position switching function [m] (as the reference)
 
 
 def drill_values(params: dict) -> dict:
     """The drill parameters a peer needs, as floats (``params`` = a complete resolved dict)."""
-    if float(params.get("gamma", 0.0)) != 0.0:
-        raise ValueError("the peers implement the base drill model only (gamma = 0)")
+    on = [k for k in EFFECT_PARAMS if float(params.get(k, 0.0)) != 0.0]
+    if on:
+        raise ValueError(f"the peers implement the base drill model only (MODELS.md §2); effect parameters set: {on}")
     return {k: float(params[k]) for k in DRILL_PARAMS}
 
 

@@ -44,7 +44,7 @@ def brute_force_grid(space: dict, shape: tuple[int, ...], chunk: int = 256) -> p
     import sim
     from tqdm import tqdm
 
-    from pipeline.optim.verify import write_parquet_atomic
+    from pipeline.optimise.verify import write_parquet_atomic
 
     key = grid_key(space, shape)
     path = RESULTS / "optimise_grid.parquet"
@@ -73,7 +73,7 @@ def best_feasible(df: pd.DataFrame) -> pd.Series:
 
 def run_direct(sampler: str, budget: int, seed: int, workdir: Path) -> dict:
     """(b) / (c): a study on the simulator with ``budget - 3`` trials, then 3 re-simulations."""
-    from pipeline.optimise import OptimiseConfig, run_optimise
+    from pipeline.optimise.workflow import OptimiseConfig, run_optimise
 
     n_verify = 3
     cfg = OptimiseConfig(mode="simulator", model=MODEL, preset=PRESET, sampler=sampler, seed=seed,
@@ -91,7 +91,7 @@ def run_surrogate(budget: int, seed: int, workdir: Path, n_initial: int, rounds:
     from scipy.stats import qmc
 
     import surrogate
-    from pipeline.optimise import OptimiseConfig, run_optimise
+    from pipeline.optimise.workflow import OptimiseConfig, run_optimise
 
     space = lab_space()
     names = list(space)
@@ -139,7 +139,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--initial", type=int, default=400, help="(a): Sobol training points (default 400)")
     ap.add_argument("--rounds", type=int, default=2, help="(a): optimise/verify/retrain rounds (default 2)")
     ap.add_argument("--skip", nargs="*", default=[], choices=["surrogate", "tpe", "random"], help="methods to skip")
+    ap.add_argument("--results", default=None,
+                    help="directory for optimise.json and the grid cache (default bench/results)")
     args = ap.parse_args(argv)
+    global RESULTS
+    if args.results:
+        RESULTS = Path(args.results)
     RESULTS.mkdir(parents=True, exist_ok=True)
     space = lab_space()
     t0 = time.time()
@@ -175,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
     if "surrogate" in out["methods"]:
         out["target_met"] = out["methods"]["surrogate"]["ratio_min"] >= 0.98
     out["seconds"] = round(time.time() - t0, 1)
-    from pipeline.cliutil import dump_json
+    from pipeline.core.jsonable import dump_json
 
     tmpf = RESULTS / ".optimise.json.tmp"
     tmpf.write_text(dump_json(out))

@@ -44,7 +44,10 @@ def _peer_one(args: tuple[dict, int, int]) -> tuple[float | None, str, float]:
 
 
 def bench_local(spec, workdir: Path) -> dict:
-    from pipeline.sweep import compute_chunk, design_points, load_dataset, run_sweep
+    from pipeline.datasets.compute import compute_chunk
+    from pipeline.datasets.runner import run_sweep
+    from pipeline.datasets.spec import design_points
+    from pipeline.datasets.store import load_dataset
 
     compute_chunk(spec.model, spec.preset, spec.settings, spec.fixed, design_points(spec).iloc[:1])  # load kernel
     s = run_sweep(spec, workdir / "local", progress=True)
@@ -55,7 +58,11 @@ def bench_local(spec, workdir: Path) -> dict:
 def bench_dask(spec, workdir: Path, n_workers: int = 2) -> dict:
     from distributed import Client, LocalCluster
 
-    from pipeline.sweep import compute_chunk, design_points, load_dataset, run_sweep
+    from pipeline.datasets.compute import compute_chunk
+    from pipeline.datasets.dask_backend import DaskBackend
+    from pipeline.datasets.runner import run_sweep
+    from pipeline.datasets.spec import design_points
+    from pipeline.datasets.store import load_dataset
 
     t0 = time.perf_counter()
     with LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
@@ -63,7 +70,7 @@ def bench_dask(spec, workdir: Path, n_workers: int = 2) -> dict:
         one = design_points(spec).iloc[:1]
         client.run(compute_chunk, spec.model, spec.preset, spec.settings, spec.fixed, one, 1)   # warm every worker
         cold = time.perf_counter() - t0
-        s = run_sweep(spec, workdir / "dask", scheduler=cluster.scheduler_address, progress=True)
+        s = run_sweep(spec, workdir / "dask", backend=DaskBackend(cluster.scheduler_address), progress=True)
     return {"sims_per_s": s.sims_per_s, "wall_s": s.wall_time_s, "workers": n_workers,
             "cluster_start_and_warm_s": round(cold, 2), "_df": load_dataset(workdir / "dask")}
 
@@ -96,7 +103,9 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--peer-points", type=int, default=16, help="points run by the scipy peer (default 16)")
     ap.add_argument("--out", default=str(RESULTS / "sweep.json"), help="result JSON")
     a = ap.parse_args(argv)
-    from pipeline.sweep import atomic_write_json, make_spec, package_versions
+    from pipeline.core.files import atomic_write_json
+    from pipeline.datasets.spec import make_spec
+    from pipeline.datasets.store import package_versions
 
     spec = make_spec(None, n_points=a.points)          # the default sweep (drill lab, LAB_SPACE, sobol)
     with tempfile.TemporaryDirectory(prefix="vibro-bench-sweep-") as tmp:

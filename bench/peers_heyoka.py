@@ -32,6 +32,10 @@ from bench import G_ACC, drill_classify
 (P_M1, P_M2, P_M3, P_K1, P_K2, P_K3, P_C1, P_C2, P_C3, P_PR, P_F0, P_FS, P_OM,
  P_S1, P_S2, P_S3, P_REC, P_TWIN, P_ONSETS, P_PEAKF, P_DECEL, P_XB0, P_W0, P_ZERO) = range(24)
 NPARS = 24
+COOLDOWN_S = 1e-9      # [s] terminal-event cooldown: heyoka's automatic one (cooldown=-1) grows with tol and at
+#                        tol >= 1e-8 swallowed the release event after II -> III (the bit never left the rock:
+#                        label error 0.94); 1 ns is far below any phase duration, and the hysteresis ETA_X / eP
+#                        keeps a surface from re-firing at the restart
 ETA_X = 1e-13
 
 
@@ -112,8 +116,9 @@ def _decel_cb(ta, t, d_sgn) -> None:
     pars[P_DECEL] = max(pars[P_DECEL], _decel(pars, t, y, _phase(pars)))
 
 
-def build(tol: float | None = None, compact_mode: bool = False):
-    """Compile the integrator (returns it and the wall time of the LLVM compilation)."""
+def build(tol: float | None = None, compact_mode: bool = False, cooldown: float = COOLDOWN_S):
+    """Compile the integrator (returns it and the wall time of the LLVM compilation).  ``cooldown`` [s]: the
+    terminal events' cooldown (heyoka's automatic one grows with ``tol``; see :data:`COOLDOWN_S`)."""
     import heyoka as hy
 
     x1, v1, x2, v2, x3, v3, xt, xb, W = hy.make_vars("x1", "v1", "x2", "v2", "x3", "v3", "xt", "xb", "W")
@@ -134,10 +139,10 @@ def build(tol: float | None = None, compact_mode: bool = False):
     eP = 1e-10 * Pr
     neg, pos = hy.event_direction.negative, hy.event_direction.positive
     t_events = [
-        hy.t_event(s1 * (x1 - xt - ETA_X) + (1.0 - s1) * (-1.0), callback=_switch_cb, direction=pos),   # I -> II/III
-        hy.t_event(s2 * (P + eP) + (1.0 - s2), callback=_switch_cb, direction=neg),                  # II -> I
-        hy.t_event(s2 * (P - Pr - eP) + (1.0 - s2) * (-1.0), callback=_switch_cb, direction=pos),    # II -> III
-        hy.t_event(s3 * (P - Pr + eP) + (1.0 - s3), callback=_switch_cb, direction=neg),             # III -> II
+        hy.t_event(s1 * (x1 - xt - ETA_X) + (1.0 - s1) * (-1.0), callback=_switch_cb, direction=pos, cooldown=cooldown),   # I -> II/III
+        hy.t_event(s2 * (P + eP) + (1.0 - s2), callback=_switch_cb, direction=neg, cooldown=cooldown),                  # II -> I
+        hy.t_event(s2 * (P - Pr - eP) + (1.0 - s2) * (-1.0), callback=_switch_cb, direction=pos, cooldown=cooldown),    # II -> III
+        hy.t_event(s3 * (P - Pr + eP) + (1.0 - s3), callback=_switch_cb, direction=neg, cooldown=cooldown),             # III -> II
         # window start; the spare accumulator parameters ride along (times par[P_ZERO] = 0) so heyoka
         # sizes the parameter array to hold them
         hy.t_event(hy.time - twin + par[P_ZERO] * (par[P_ONSETS] + par[P_PEAKF] + par[P_DECEL]

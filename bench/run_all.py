@@ -2,6 +2,8 @@
 
 ``python -m bench.run_all [--quick] [--only sim,optimise]``; ``make bench`` runs the full set.
 A failing benchmark is reported and the others still run; the exit code is 1 if any failed.
+Benchmarks whose ``main`` parses its own arguments get the reduced profile of :data:`ARGS` (the full set
+stays under ~20 minutes on 2 shared cores) or, with ``--quick``, :data:`QUICK_ARGS`.
 """
 from __future__ import annotations
 
@@ -14,15 +16,23 @@ import traceback
 from pathlib import Path
 
 BENCH_DIR = Path(__file__).resolve().parent
+# argparse mains: the arguments ``make bench`` gives them (reduced but honest: smaller budget / grid / point
+# count than their own defaults, every method still run); ``--quick`` is smaller still
+ARGS = {"bench_optimise": ["--budget", "300", "--grid", "16", "12", "12", "--initial", "200", "--rounds", "1"],
+        "bench_sweep": ["--points", "256", "--peer-points", "8"]}
+QUICK_ARGS = {"bench_optimise": ["--budget", "80", "--grid", "4", "4", "4", "--initial", "60", "--rounds", "1",
+                                 "--results", str(BENCH_DIR / "results" / "quick")],
+              "bench_sweep": ["--points", "32", "--peer-points", "2",
+                              "--out", str(BENCH_DIR / "results" / "quick" / "sweep.json")]}   # never the full results
 
 
 def modules() -> list[str]:
     return sorted(p.stem for p in BENCH_DIR.glob("bench_*.py"))
 
 
-def call_main(main, quick: bool):
-    """``main(quick=...)`` if main takes ``quick``; ``main([])`` if it takes ``argv`` (an argparse main: it gets
-    no run_all flags, since it may not know ``--quick``); else ``main()``."""
+def call_main(main, quick: bool, argv: list[str] | None = None):
+    """``main(quick=...)`` if main takes ``quick``; ``main(argv or [])`` if it takes ``argv`` (an argparse main:
+    it gets no run_all flags, since it may not know ``--quick``, only ``argv``); else ``main()``."""
     try:
         params = inspect.signature(main).parameters
     except (TypeError, ValueError):
@@ -30,7 +40,7 @@ def call_main(main, quick: bool):
     if "quick" in params:
         return main(quick=quick)
     if "argv" in params:
-        return main([])
+        return main(list(argv or []))
     return main()
 
 
@@ -46,7 +56,7 @@ def run(names: list[str], quick: bool) -> int:
             main = getattr(mod, "main", None)
             if main is None:
                 raise AttributeError(f"bench/{name}.py has no main()")
-            call_main(main, quick)
+            call_main(main, quick, (QUICK_ARGS if quick else ARGS).get(name))
         except SystemExit as e:
             if e.code not in (0, None):
                 failed.append(name)
