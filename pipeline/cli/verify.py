@@ -89,7 +89,7 @@ def run(args) -> int:
             model, preset = rig.model, rig.preset
             fixed = {**rig.overrides(), **fixed}
         else:
-            model = args.model or "drill"
+            model = args.model or sim.registry.DEFAULT_MODEL
             preset = "lab" if args.preset is None else (None if str(args.preset).lower() == "none" else args.preset)
         settings = None
         names = sim.get_model(model).param_names

@@ -1,12 +1,12 @@
 """Synthetic measured datasets (MODELS.md §7) from the simulator, for testing the diagnosis.
 
-The "true" rig is any supported model (indenter-metal, indenter-sandstone, drill, pendulum, rimd) with
+The "true" rig is any model whose ModelSpec has a ``synth`` rig (sim.models.base.SynthRig) with
 (i) its calibratable parameters (MODELS.md §6) perturbed log-normally, (ii) optionally any §6 effect
 switched on, (iii) optionally physics outside the library (``outside``), and (iv) sensor noise and
 offsets.  It is recorded the way a data-acquisition system records it: uniformly at ``fs_hz`` (not a
 multiple of the forcing frequency; the model is simulated at >= 4x that rate and interpolated onto the
 DAQ's time base), over a record that is not a whole number of cycles, either in steady state or, with
-``record_start_s``, a stretch of a run from rest (the drill: blunting never settles).  ``summary_runs``
+``record_start_s``, a stretch of a run from rest (e.g. a drill whose bit blunting never settles).  ``summary_runs``
 runs are written as summary.csv rows only, and ``drop_signal_every`` removes one signal from some runs.
 The truth goes to a separate file (never read by the diagnosis).
 """
@@ -23,99 +23,47 @@ import pandas as pd
 from pipeline.core.errors import UserError
 from pipeline.datasets.measured import Dataset
 
-EFFECT_DEFAULTS = {
-    "shaker_coil": {"tau": 1.0e-3, "beta": 600.0},
-    "rate_stiffening": {"alpha": 3.0},
-    "guide_friction": {"mu": 40.0},
-    "tip_blunting": {"gamma": 0.05},
-    "suspension_hardening": {"kappa": 3.0e5},
-    "sensor_lowpass": {"fc": 350.0},
-}
-"""Indenter effect strengths used when only the effect's name is given: each visibly changes the response
-(order 10 % on the acceleration harmonics) without changing the impact regime everywhere."""
-_OTHER_DEFAULTS = {
-    # contact rate ~0.3 m/s: +30 % contact stiffness
-    "pendulum": {"rate_stiffening": {"alpha": 1.0}},
-    # impact velocity ~0.1 m/s: +20 %; beam amplitude ~2 mm: kappa x1^2 ~ 0.4
-    "rimd": {"rate_stiffening": {"alpha": 2.0}, "suspension_hardening": {"kappa": 1.0e5}},
-}
-
-
 def effect_defaults(system: str) -> dict[str, dict[str, float]]:
-    """Default effect strengths of ``system``: the drill's are its model's EFFECT_VISIBLE (measured visible on
-    the lab preset, sim/models/drill.py); pendulum and rimd as _OTHER_DEFAULTS; the indenter's EFFECT_DEFAULTS."""
-    if system == "drill":
-        from sim.models.drill import EFFECT_VISIBLE
+    """Default (clearly visible) effect strengths of ``system``: its ModelSpec's ``synth.effect_strengths``."""
+    return {k: dict(v) for k, v in rig_of(system).effect_strengths.items()}
 
-        return {k: dict(v) for k, v in EFFECT_VISIBLE.items()}
-    return {k: dict(v) for k, v in _OTHER_DEFAULTS.get(system, EFFECT_DEFAULTS).items()}
+
+def rig_of(system: str):
+    """The model's synthetic rig (``sim.models.base.SynthRig``); UserError for an unknown model or one without."""
+    import sim
+
+    if system not in sim.model_names():
+        raise UserError(f"--system {system}: unknown (known: {', '.join(sim.model_names())})")
+    rig = sim.get_model(system).synth
+    if rig is None:
+        known = ", ".join(n for n in sim.model_names() if sim.get_model(n).synth is not None)
+        raise UserError(f"--system {system}: vibro synth does not know model {system}'s rig (known: {known})")
+    return rig
 
 
 OUTSIDE = {
     "mount_resonance": "the accelerometer sits on a resonant mount: measured acceleration = true acceleration "
                        "through a lightly damped 2nd-order resonance (fr_hz, zeta); no §6 effect has a resonance",
-    "contact_hertz": "metal sample only: the contact is elastic Hertzian, F = kh (x1 - G)^1.5 with no damping "
-                     "(simulated with the sandstone law at kl = ku = kh, nl = nu = 1.5) instead of Kelvin-Voigt",
+    "contact_hertz": "the contact is elastic Hertzian, F = kh (x1 - G)^1.5 with no damping, simulated by the "
+                     "rig's hertz_model (power law at kl = ku = kh, nl = nu = 1.5) instead of a linear k1, c1 contact",
 }
-"""Physics outside the library, for the 'unexplained' test."""
-MOUNT_HZ = {"indenter-metal": 450.0, "indenter-sandstone": 450.0, "drill": 1200.0, "pendulum": 40.0, "rimd": 60.0}
-"""Default mount resonance per system: inside the harmonics the diagnosis uses (model.default_max_harmonic_hz)."""
-
-TABLE1_HZ = (30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0)
-
-
-@dataclass(frozen=True)
-class RigDefaults:
-    """What a rig of one system records by default: frequencies, the second control axis (name, values),
-    fixed controls, preset, signals, DAQ rate, record length, record_start_s (None: steady state)."""
-
-    frequencies_hz: tuple[float, ...]
-    level_name: str
-    levels: tuple[float, ...]
-    fixed: dict
-    preset: str | None
-    signals: tuple[str, ...]
-    fs_hz: float
-    cycles: float
-    record_start_s: tuple[float, ...] | None = None
-    summary_runs: int = 0
-    drop_signal_every: int = 0
-
-
-RIGS = {
-    "indenter-metal": RigDefaults(TABLE1_HZ, "pressure_bar", (1.0, 1.5), {"gap_m": 1e-3}, None,
-                                  ("accel_m_s2", "force_n", "disp_m"), 20000.0, 40),
-    "indenter-sandstone": RigDefaults(TABLE1_HZ, "pressure_bar", (1.0, 1.5), {"gap_m": 1e-3}, None,
-                                      ("accel_m_s2", "force_n", "disp_m"), 20000.0, 40),
-    # lab drilling rig (drill preset 'lab', MODELS.md §2): 8 frequencies across the RED resonance x two
-    # weights on bit; a 25.6 kHz DAQ logs 0.1 s stretches at different times (depths) after spud-in;
-    # two runs were logged as summaries only (ROP, peak WOB force, ...) and every 5th run lost its force channel
-    "drill": RigDefaults((150.0, 190.0, 230.0, 270.0, 310.0, 350.0, 390.0, 430.0), "static_force_n", (900.0, 1500.0),
-                         {"amplitude_n": 2250.0, "gap_m": 0.0}, "lab", ("accel_m_s2", "force_n", "progression_m"),
-                         25600.0, 28.3, (0.15, 0.3, 0.45, 0.6), 2, 5),
-    # pendulum (seed 001): around the z = 1/1 and 1/2 resonances, gaps 0 and 1 mm, 10 kHz DAQ
-    "pendulum": RigDefaults((2.5, 3.0, 3.5, 3.75, 4.5, 5.5, 6.5, 7.25), "gap_m", (0.0, 1.0e-3),
-                            {"amplitude_m": 0.89e-3}, None, ("accel_m_s2", "force_n", "disp_m"), 10000.0, 12.4),
-    # RIMD (seed 002): across the first impact resonance at gap 0, two forcing levels, 10 kHz DAQ
-    "rimd": RigDefaults((5.0, 6.0, 6.5, 7.0, 7.5, 8.0, 9.0, 10.0), "amplitude_n", (0.5, 1.0),
-                        {"gap_m": 0.0}, None, ("accel_m_s2", "force_n", "disp_m"), 10000.0, 16.3),
-}
+"""Physics outside the library, for the 'unexplained' test.  The default mount resonance of a rig is its
+``synth.mount_hz`` (inside the harmonics the diagnosis uses)."""
 
 
 @dataclass
 class SynthConfig:
     """What to generate.  Units: Hz, seconds, SI; ``levels`` are values of the rig's second control
-    (indenter: pressure in bar; drill: static force N; pendulum: gap m; rimd: amplitude N); noise_* are
-    fractions of the signal's standard deviation; offsets are sds of a constant sensor offset per run.
-    None = the system's RigDefaults."""
+    (``ModelSpec.synth.level_name``); noise_* are fractions of the signal's standard deviation; offsets are sds
+    of a constant sensor offset per run.  None = the model's rig default (``ModelSpec.synth``)."""
 
-    system: str                                                     # any model with calibratable parameters (RIGS)
+    system: str                                                     # any model with a synthetic rig (ModelSpec.synth)
     effects: dict[str, float] = field(default_factory=dict)        # parameter name -> value
     outside: str | None = None
     outside_params: dict[str, float] = field(default_factory=dict)
     frequencies_hz: tuple[float, ...] | None = None
     levels: tuple[float, ...] | None = None
-    pressures_bar: tuple[float, ...] | None = None    # indenter alias of levels
+    pressures_bar: tuple[float, ...] | None = None    # alias of levels (rigs whose level is a pressure)
     perturb: float = 0.3            # log-normal sd of the calibratable parameters
     seed: int = 0
     cycles: float | None = None     # recorded forcing cycles per run (need not be whole)
@@ -133,10 +81,8 @@ class SynthConfig:
     n_threads: int | None = None
 
     def resolved(self) -> "SynthConfig":
-        """A copy with every None filled from the system's RigDefaults."""
-        if self.system not in RIGS:
-            raise UserError(f"--system {self.system}: synthetic data are available for {', '.join(RIGS)}")
-        rig = RIGS[self.system]
+        """A copy with every None filled from the model's rig (ModelSpec.synth)."""
+        rig = rig_of(self.system)
         c = SynthConfig(**asdict(self))
         c.frequencies_hz = tuple(self.frequencies_hz or rig.frequencies_hz)
         c.levels = tuple(self.levels or self.pressures_bar or rig.levels)
@@ -154,10 +100,8 @@ def resolve_effects(system: str, names_or_values: dict[str, float | None]) -> di
     applies to ``system`` (MODELS.md §6)."""
     import sim
 
-    if system not in sim.model_names():
-        raise UserError(f"--system {system}: unknown (known: {', '.join(sim.model_names())})")
-    spec = sim.get_model(system)
     dflt = effect_defaults(system)
+    spec = sim.get_model(system)
     out: dict[str, float] = {}
     param_of = {p: eff for eff, ps in spec.effects.items() for p in ps}
     for key, val in names_or_values.items():
@@ -176,20 +120,12 @@ def resolve_effects(system: str, names_or_values: dict[str, float | None]) -> di
     return out
 
 
-def rig_systems() -> tuple[str, ...]:
-    """Models of the rig whose operating points the run table uses (Table 1 amplitudes, pneumatic static force)."""
-    from sim.models.indenter import SPECS
-
-    return tuple(SPECS)
-
-
 def true_parameters(cfg: SynthConfig) -> dict[str, float]:
     """Calibratable parameters perturbed log-normally (seeded) around the rig's values, plus the effects."""
     import sim
 
     cfg = cfg.resolved()
-    rig = RIGS[cfg.system]
-    d = sim.get_model(cfg.system).defaults(rig.preset)
+    d = sim.get_model(cfg.system).defaults(rig_of(cfg.system).preset)
     rng = np.random.default_rng(cfg.seed)
     truth = {p.name: float(d[p.name] * math.exp(cfg.perturb * rng.standard_normal())) for p in sim.get_model(cfg.system).calibratable}
     truth.update(cfg.effects)
@@ -210,11 +146,15 @@ def _mount_resonance(a: np.ndarray, fs: float, fr: float, zeta: float, periodic:
     return y[2 * a.size:]
 
 
-def _hertz_model() -> str:
-    """The rig model with power-law contact exponents (nl, nu): simulates a Hertz contact (nl = nu = 1.5)."""
+def _hertz_model(system: str) -> str:
+    """The model simulating ``system``'s contact as an elastic Hertz contact (its rig's hertz_model, with a
+    power-law contact kl, ku, nl, nu); UserError if the rig has none."""
     import sim
 
-    return next(n for n in rig_systems() if {"nl", "nu"} <= set(sim.get_model(n).param_names))
+    name = rig_of(system).hertz_model
+    if name is None or not {"kl", "ku", "nl", "nu"} <= set(sim.get_model(name).param_names):
+        raise UserError(f"--outside contact_hertz: the {system} rig has no Hertz-contact model")
+    return name
 
 
 def _simulate_run(cfg: SynthConfig, truth: dict, row: dict, known: dict):
@@ -238,7 +178,7 @@ def _simulate_run(cfg: SynthConfig, truth: dict, row: dict, known: dict):
     if cfg.outside == "contact_hertz":
         kh = cfg.outside_params.get("kh", 3.0e8)     # N/m^1.5: same order of contact force as k1 = 1e7 N/m
         params = {k: v for k, v in truth.items() if k not in ("k1", "c1")}
-        r = sim.simulate(_hertz_model(), settings=st, history=True, kl=kh, ku=kh, nl=1.5, nu=1.5,
+        r = sim.simulate(_hertz_model(cfg.system), settings=st, history=True, kl=kh, ku=kh, nl=1.5, nu=1.5,
                          **{**known, **ctrl, **params})
     else:
         r = sim.simulate(cfg.system, settings=st, history=True, **{**known, **ctrl, **truth})
@@ -249,7 +189,7 @@ def _simulate_run(cfg: SynthConfig, truth: dict, row: dict, known: dict):
     th = h["t_s"].to_numpy() - (0.0 if from_rest else float(h["t_s"].iloc[0]))
     a = h["accel_m_s2"].to_numpy()
     if cfg.outside == "mount_resonance":
-        a = _mount_resonance(a, spc * f, cfg.outside_params.get("fr_hz", MOUNT_HZ[cfg.system]),
+        a = _mount_resonance(a, spc * f, cfg.outside_params.get("fr_hz", rig_of(cfg.system).mount_hz),
                              cfg.outside_params.get("zeta", 0.1), periodic=not from_rest)
     t = np.arange(n_rec) / cfg.fs_hz
     tq = t + (rs if from_rest else 0.0)
@@ -284,25 +224,22 @@ def _add_noise(cfg: SynthConfig, sig: dict, rng: np.random.Generator, signals) -
 
 
 def run_table(cfg: SynthConfig) -> pd.DataFrame:
-    """runs.csv rows: every frequency x every level of the rig's second control (indenter: Table 1 forcing
-    amplitude, interpolated; static force = pneumatic force of the pressure, §1)."""
+    """runs.csv rows: every frequency x every level of the rig's second control (the level itself, or the
+    rig's ``forcing(frequency, level)``, e.g. a table of forcing amplitudes and a pneumatic static force)."""
     cfg = cfg.resolved()
-    rig = RIGS[cfg.system]
+    rig = rig_of(cfg.system)
     rows = []
     tag = cfg.system.split("-")[-1][:5]
     for j, lev in enumerate(cfg.levels):
         for i, f in enumerate(cfg.frequencies_hz):
             row = {"run_id": f"{tag}-{f:g}hz-{j + 1}", "system": cfg.system, "frequency_hz": float(f)}
-            if cfg.system.startswith("indenter"):
-                from sim.models.indenter import TABLE1, pneumatic_force
-
-                fs_known = np.array(sorted(TABLE1))
-                row.update(amplitude_n=float(np.interp(f, fs_known, [TABLE1[k] for k in fs_known])),
-                           static_force_n=pneumatic_force(lev, 0.05), gap_m=1e-3)
-                row["run_id"] = f"{tag}-{f:g}hz-{lev:g}bar"
-            else:
-                row.update(rig.fixed)
+            if rig.forcing is not None:
+                row.update(rig.forcing(float(f), float(lev)))
+            row.update(rig.fixed)
+            if rig.forcing is None:
                 row[rig.level_name] = float(lev)
+            if rig.level_tag:
+                row["run_id"] = f"{tag}-{f:g}hz-{lev:g}{rig.level_tag}"
             row["duration_s"] = cfg.cycles / float(f)
             if rig.preset:
                 row["preset"] = rig.preset
@@ -346,7 +283,7 @@ def synthesize(cfg: SynthConfig, progress: bool = False) -> tuple[Dataset, dict]
     workers = cfg.n_threads or os.cpu_count() or 1
     from sim.registry import warm
 
-    warm(_hertz_model() if cfg.outside == "contact_hertz" else cfg.system)
+    warm(_hertz_model(cfg.system) if cfg.outside == "contact_hertz" else cfg.system)
     with ThreadPoolExecutor(max_workers=workers) as pool:
         it = pool.map(lambda row: _simulate_run(cfg, truth, row, known[row["run_id"]]), rows)
         results = list(tqdm(it, total=len(rows), desc="synth", disable=not progress, unit="run"))

@@ -67,6 +67,79 @@ MAP_KINDS = ("pattern", "rop")
 """Kinds of parameter maps: Peterka-style impact-pattern maps, or ROP maps."""
 
 
+SYNTH_SIGNALS = ("accel_m_s2", "force_n", "disp_m", "progression_m")
+"""Signals a synthetic rig (``SynthRig.signals``) can record (MODELS.md §7)."""
+
+
+@dataclass(frozen=True)
+class SynthRig:
+    """How ``vibro synth`` records this model's rig by default (MODELS.md §7): every frequency [Hz] x every
+    level of a second control, at a DAQ rate ``fs_hz`` [Hz] over ``cycles`` forcing cycles (need not be whole).
+
+    ``level_name`` is the second control: a parameter set to each level, or, with ``forcing``, a rig quantity
+    (e.g. pressure in bar) that ``forcing(frequency_hz, level) -> {parameter: value}`` turns into the run's
+    forcing (e.g. the indenter's Table 1 amplitude and pneumatic static force); ``level_tag`` then ends the
+    run ids with the level and this unit instead of the level's index.  ``fixed`` are controls held in every
+    run, ``preset`` the parameter set of the rig, ``record_start_s`` [s] the record starts after a start from
+    rest cycled over the runs (None: steady state), ``summary_runs`` runs logged as summaries only,
+    ``drop_signal_every`` every n-th run loses its second channel (0: none).  ``effect_strengths``: effect ->
+    {parameter: value} of a clearly visible strength of every §6 effect of the model (``--effect NAME``).
+    ``mount_hz`` [Hz]: resonance of the outside-physics accelerometer mount, inside the diagnosed harmonics.
+    ``hertz_model``: the model that simulates the outside-physics elastic Hertz contact in place of this
+    model's linear contact (its power law at kl = ku = kh, nl = nu = 1.5), None if the rig has none."""
+
+    frequencies_hz: tuple[float, ...]
+    level_name: str
+    levels: tuple[float, ...]
+    fixed: dict[str, float]
+    fs_hz: float
+    cycles: float
+    effect_strengths: dict[str, dict[str, float]]
+    mount_hz: float
+    preset: str | None = None
+    signals: tuple[str, ...] = ("accel_m_s2", "force_n", "disp_m")
+    record_start_s: tuple[float, ...] | None = None
+    summary_runs: int = 0
+    drop_signal_every: int = 0
+    forcing: Callable[[float, float], dict[str, float]] | None = None
+    level_tag: str = ""
+    hertz_model: str | None = None
+
+    def check(self, spec: "ModelSpec") -> None:
+        """ValueError naming the field unless every name is a parameter / effect / preset of ``spec``."""
+        where = f"model '{spec.name}' synth rig"
+        names = set(spec.param_names)
+        if not self.frequencies_hz or not all(f > 0 for f in self.frequencies_hz):
+            raise ValueError(f"{where}: frequencies_hz must be > 0, got {self.frequencies_hz!r}")
+        if not self.levels:
+            raise ValueError(f"{where}: levels must not be empty")
+        if not spec.calibratable:
+            raise ValueError(f"{where}: the model has no calibratable parameters to perturb")
+        if self.forcing is None and self.level_name not in names:
+            raise ValueError(f"{where}: level_name '{self.level_name}' is not a parameter (or give forcing)")
+        forced = self.forcing(self.frequencies_hz[0], self.levels[0]) if self.forcing is not None else {}
+        for n in list(self.fixed) + list(forced):
+            if n not in names:
+                raise ValueError(f"{where}: fixed/forcing control '{n}' is not a parameter")
+        if self.preset is not None and self.preset not in spec.presets:
+            raise ValueError(f"{where}: unknown preset '{self.preset}'")
+        if not self.signals or not set(self.signals) <= set(SYNTH_SIGNALS):
+            raise ValueError(f"{where}: signals {self.signals!r} must be among {SYNTH_SIGNALS}")
+        for n, v in (("fs_hz", self.fs_hz), ("mount_hz", self.mount_hz)):
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{where}: {n} must be > 0, got {v!r}")
+        if not self.cycles >= 2.5:
+            raise ValueError(f"{where}: cycles must be >= 2.5, got {self.cycles!r}")
+        if any(x < 0 for x in self.record_start_s or ()) or self.summary_runs < 0 or self.drop_signal_every < 0:
+            raise ValueError(f"{where}: record_start_s, summary_runs and drop_signal_every must be >= 0")
+        if set(self.effect_strengths) != set(spec.effects):
+            raise ValueError(f"{where}: effect_strengths must give exactly the effects {sorted(spec.effects)}, "
+                             f"got {sorted(self.effect_strengths)}")
+        for eff, vals in self.effect_strengths.items():
+            if tuple(vals) != spec.effects[eff] or not all(v > 0 for v in vals.values()):
+                raise ValueError(f"{where}: effect_strengths['{eff}'] must give {spec.effects[eff]} > 0, got {vals!r}")
+
+
 @dataclass(frozen=True)
 class ModelSpec:
     """Everything the generic driver needs to know about one model.
@@ -108,6 +181,7 @@ class ModelSpec:
     diagnose_fit: dict[str, int] = field(default_factory=lambda: {"candidate_starts": 1, "max_nfev": 10})
     # diagnosis fit effort: random starts per candidate, least-squares iterations (DIAGNOSE_FIT_KEYS)
     exact: str | None = None   # module of an exact propagator of the model's phases (sim/exact/), if any
+    synth: SynthRig | None = None   # how `vibro synth` records the model's rig (None: no synthetic rig)
 
     def __post_init__(self):
         """A table checks itself: fills effect bounds from the shared §6 table (sim.models.effects) where the
@@ -150,6 +224,8 @@ class ModelSpec:
                 isinstance(v, int) and v >= 1 for v in self.diagnose_fit.values()):
             raise ValueError(f"{where}: diagnose_fit must give integers >= 1 for exactly {DIAGNOSE_FIT_KEYS}, "
                              f"got {self.diagnose_fit!r}")
+        if self.synth is not None:
+            self.synth.check(self)
 
     @property
     def param_names(self) -> tuple[str, ...]:

@@ -28,7 +28,7 @@ import math
 import numpy as np
 from numba import njit
 
-from sim.models.base import FitBound, ModelSpec, Param
+from sim.models.base import SynthRig, FitBound, ModelSpec, Param
 
 # parameter vector layout
 (M1, M2, M3, K1, K2, K3, C1, C2, C3, PR, GAP, FS, F0, FREQ, GAMMA,
@@ -310,6 +310,16 @@ PRESETS = {
 # clear of the runaway Fs >= Pr and of the near-threshold region where ROP shoots up.
 LAB_SPACE = {"frequency_hz": (100.0, 450.0), "amplitude_n": (1800.0, 2700.0), "static_force_n": (600.0, 1800.0)}
 
+# `vibro synth`'s lab drilling rig (lab preset, MODELS.md §2): 8 frequencies across the RED resonance x two
+# weights on bit; a 25.6 kHz DAQ logs 28.3-cycle stretches at different times (depths) after spud-in (blunting
+# never settles); two runs were logged as summaries only (ROP, peak WOB force, ...) and every 5th run lost its
+# force channel.  Effects at EFFECT_VISIBLE; the mount resonance at 1.2 kHz, inside diagnose_max_harmonic_hz.
+SYNTH = SynthRig(frequencies_hz=(150.0, 190.0, 230.0, 270.0, 310.0, 350.0, 390.0, 430.0),
+                 level_name="static_force_n", levels=(900.0, 1500.0), fixed={"amplitude_n": 2250.0, "gap_m": 0.0},
+                 fs_hz=25600.0, cycles=28.3, effect_strengths=EFFECT_VISIBLE, mount_hz=1200.0, preset="lab",
+                 signals=("accel_m_s2", "force_n", "progression_m"), record_start_s=(0.15, 0.3, 0.45, 0.6),
+                 summary_runs=2, drop_signal_every=5)
+
 SPEC = ModelSpec(
     name="drill",
     description="three-mass vibro-impact drilling with a drifting rock slider (MODELS.md §2)",
@@ -349,4 +359,5 @@ SPEC = ModelSpec(
     map_relative_to={"amplitude_n": "Pr", "static_force_n": "Pr"},
     progress_force_floor=lambda v: float(v["Pr"]) if "Pr" in v else None,   # MODELS.md §2: Pc must reach Pr
     exact="sim.exact.drill",
+    synth=SYNTH,
 )

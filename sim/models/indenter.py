@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
-from sim.models.base import FitBound, ModelSpec, Param
+from sim.models.base import FitBound, ModelSpec, Param, SynthRig
 
 (M1, M2, M3, K2, C2, K3, C3, PM, GAP, FP, FA, FREQ, VEPS, K1, C1, KL, KU, NL, NU,
  TAU, BETA, ALPHA, MU, GAMMA, KAPPA, FC) = range(26)
@@ -302,7 +302,7 @@ def _sensor_lowpass(res):
 
 
 def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effects: dict, progression: str,
-          calibratable: tuple[FitBound, ...], map_kind: str) -> ModelSpec:
+          calibratable: tuple[FitBound, ...], map_kind: str, synth: SynthRig) -> ModelSpec:
     return ModelSpec(
         name=name,
         description=f"indenter rig, {name.split('-')[1]} sample (MODELS.md §1)",
@@ -329,6 +329,7 @@ def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effe
         # starts at the default base (issue 7): 2 starts, 15 iterations
         diagnose_max_harmonic_hz=1000.0,
         diagnose_fit={"candidate_starts": 2, "max_nfev": 15},
+        synth=synth,
     )
 
 
@@ -345,13 +346,41 @@ _SAND_FIT = (FitBound("kl", 5e5, 5e7, "N/m"), FitBound("ku", 1e6, 2e8, "N/m"), F
 MAP_RANGES = {"frequency_hz": (30.0, 100.0), "amplitude_n": (100.0, 900.0), "static_force_n": (50.0, 400.0)}
 """Default map axes: seed 000 Table 1 frequencies and amplitudes, static forces of the pneumatic cylinder."""
 
+def synth_forcing(frequency_hz: float, pressure_bar: float) -> dict[str, float]:
+    """The rig's forcing at a run of `vibro synth`: Table 1 amplitude [N] (interpolated in frequency [Hz]) and
+    the pneumatic static force [N] of the pressure [bar] on the 50 mm piston (MODELS.md §1)."""
+    fs_known = np.array(sorted(TABLE1))
+    return {"amplitude_n": float(np.interp(frequency_hz, fs_known, [TABLE1[k] for k in fs_known])),
+            "static_force_n": pneumatic_force(pressure_bar, 0.05)}
+
+
+# `vibro synth`'s indenter rig: the Table 1 frequencies x pressures 1 and 1.5 bar, gap 1 mm, 20 kHz DAQ.  Effect
+# strengths visibly change the response (order 10 % on the acceleration harmonics) without changing the impact
+# regime everywhere; the mount resonance 450 Hz is inside diagnose_max_harmonic_hz.
+_SYNTH_EFFECTS = {
+    "shaker_coil": {"tau": 1.0e-3, "beta": 600.0},
+    "rate_stiffening": {"alpha": 3.0},
+    "guide_friction": {"mu": 40.0},
+    "tip_blunting": {"gamma": 0.05},
+    "suspension_hardening": {"kappa": 3.0e5},
+    "sensor_lowpass": {"fc": 350.0},
+}
+
+
+def _synth(effects: dict, hertz_model: str | None) -> SynthRig:
+    return SynthRig(frequencies_hz=tuple(float(f) for f in TABLE1), level_name="pressure_bar", levels=(1.0, 1.5),
+                    fixed={"gap_m": 1e-3}, fs_hz=20000.0, cycles=40.0,
+                    effect_strengths={e: _SYNTH_EFFECTS[e] for e in effects}, mount_hz=450.0,
+                    forcing=synth_forcing, level_tag="bar", hertz_model=hertz_model)
+
+
 SPECS = {
     "indenter-metal": _spec("indenter-metal", (metal_rhs, metal_guards, metal_on_event, metal_observe, metal_bounded),
                             (), ("x1", "v1", "x2", "v2"), _PRESETS, _COMMON_EFFECTS, "none (metal does not progress)",
-                            _METAL_FIT, "pattern"),
+                            _METAL_FIT, "pattern", _synth(_COMMON_EFFECTS, "indenter-sandstone")),
     "indenter-sandstone": _spec("indenter-sandstone",
                                 (sand_rhs, sand_guards, sand_on_event, sand_observe, sand_bounded),
                                 ("xp", "xf"), ("x1-xp", "v1", "x2-xp", "v2"), _PRESETS,
                                 {**_COMMON_EFFECTS, "tip_blunting": ("gamma",)}, "xp (crater floor)",
-                                _SAND_FIT, "rop"),
+                                _SAND_FIT, "rop", _synth({**_COMMON_EFFECTS, "tip_blunting": ("gamma",)}, None)),
 }

@@ -27,7 +27,7 @@ import numpy as np
 from numba import njit
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
-from sim.models.base import FitBound, ModelSpec, Param
+from sim.models.base import SynthRig, FitBound, ModelSpec, Param
 
 # parameter vector layout
 MASS, LEN, A0, KI, CI, ZETA, GAP, FREQ, GRAV, MCART, ALPHA = range(11)
@@ -172,4 +172,9 @@ SPEC = ModelSpec(
     # impact-pattern maps over the seed's ranges (seed 001 Figs. 13-14: 1-10 Hz, gaps up to 3 mm)
     map_kind="pattern",
     map_ranges={"frequency_hz": (1.0, 10.0), "gap_m": (0.0, 3.0e-3), "amplitude_m": (0.2e-3, 1.5e-3)},
+    # `vibro synth` (seed 001): around the z = 1/1 and 1/2 resonances, gaps 0 and 1 mm, 10 kHz DAQ; contact rate
+    # ~0.3 m/s, so alpha 1 s/m is +30 % contact stiffness; mount resonance 40 Hz, inside the diagnosed harmonics
+    synth=SynthRig(frequencies_hz=(2.5, 3.0, 3.5, 3.75, 4.5, 5.5, 6.5, 7.25), level_name="gap_m", levels=(0.0, 1.0e-3),
+                   fixed={"amplitude_m": 0.89e-3}, fs_hz=10000.0, cycles=12.4,
+                   effect_strengths={"rate_stiffening": {"alpha": 1.0}}, mount_hz=40.0),
 )

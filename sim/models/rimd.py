@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
-from sim.models.base import FitBound, ModelSpec, Param
+from sim.models.base import SynthRig, FitBound, ModelSpec, Param
 
 M1, K1, C1, M2, K2, C2, KI, LAM, NI, F0, GAP, FREQ, ALPHA, KAPPA = range(14)
 IX1, IV1, IX2, IV2, IW = range(5)
@@ -162,4 +162,10 @@ SPEC = ModelSpec(
     # impact-pattern maps over the seed's ranges (seed 002 Table 3: gaps 0-3 mm)
     map_kind="pattern",
     map_ranges={"frequency_hz": (3.0, 12.0), "gap_m": (0.0, 3.0e-3), "amplitude_n": (0.25, 2.0)},
+    # `vibro synth` (seed 002): across the first impact resonance at gap 0, two forcing levels, 10 kHz DAQ; impact
+    # velocity ~0.1 m/s: alpha 2 s/m is +20 %; beam amplitude ~2 mm: kappa x1^2 ~ 0.4; mount resonance 60 Hz
+    synth=SynthRig(frequencies_hz=(5.0, 6.0, 6.5, 7.0, 7.5, 8.0, 9.0, 10.0), level_name="amplitude_n", levels=(0.5, 1.0),
+                   fixed={"gap_m": 0.0}, fs_hz=10000.0, cycles=16.3,
+                   effect_strengths={"rate_stiffening": {"alpha": 2.0}, "suspension_hardening": {"kappa": 1.0e5}},
+                   mount_hz=60.0),
 )
