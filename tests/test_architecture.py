@@ -11,6 +11,7 @@ and the graph between packages has no cycle.
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -120,3 +121,51 @@ def test_the_check_sees_a_violation(tmp_path):
         elif isinstance(node, ast.Import):
             ast_mods |= {a.name for a in node.names}
     assert {"pipeline.cli", "surrogate.bundle"} <= ast_mods and p.exists()
+
+
+# --- no module outside sim/models names a model (issue 11: ModelSpec owns everything about a model) -------------
+TEXT_KEYWORDS = ("help", "epilog", "description", "usage")
+"""argparse keyword texts: they may name models as examples for the user."""
+TEXT_NAMES = re.compile(r"^(EPILOG|DESCRIPTION|HELP|USAGE)(_\w+)?$|^\w+_(EPILOG|DESCRIPTION|HELP)$")
+"""Module-level CLI help texts (``EPILOG = \"\"\"...\"\"\"``) passed to argparse."""
+NAMED_TODAY = {
+    ("pipeline/cli/synth.py", "indenter-metal"): "the --system default of `vibro synth`",
+    ("pipeline/cli/args.py", "give a MODEL (e.g. drill; 'vibro models' lists them) or --rig FILE"): "an example in an error",
+}
+"""The few literals that name a model today, each with why; a new one fails the test."""
+
+
+def model_name_literals(path: Path, names: tuple[str, ...]) -> list[tuple[int, str]]:
+    """(line, text) of every string constant in ``path`` that names a model, except docstrings, bare string
+    statements, argparse help/epilog/description/usage texts and module-level help-text constants."""
+    pat = re.compile(r"(?<![\w-])(" + "|".join(map(re.escape, names)) + r")(?![\w-])")
+    tree = ast.parse(path.read_text(), str(path))
+    skip: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant):      # docstrings, bare strings
+            skip.add(id(node.value))
+        elif isinstance(node, ast.keyword) and node.arg in TEXT_KEYWORDS:
+            skip |= {id(n) for n in ast.walk(node.value)}
+        elif isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and TEXT_NAMES.match(t.id)
+                                                  for t in node.targets):
+            skip |= {id(n) for n in ast.walk(node.value)}
+    return [(n.lineno, n.value) for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, str)
+            and id(n) not in skip and pat.search(n.value)]
+
+
+def test_no_model_name_outside_the_models():
+    import sim
+
+    names = sim.model_names()
+    found = {(str(f.relative_to(ROOT)), text): line for top in ("pipeline", "surrogate")
+             for f in sorted((ROOT / top).rglob("*.py")) for line, text in model_name_literals(f, names)}
+    new = sorted(f"{f}:{line}: {text[:70]!r}" for (f, text), line in found.items() if (f, text) not in NAMED_TODAY)
+    assert new == [], "model names outside sim/models (put the knowledge in the model's ModelSpec):\n" + "\n".join(new)
+
+
+def test_the_model_name_scan_sees_a_literal(tmp_path):
+    """The scan finds a model name in code but not in a docstring, a help text or a longer word."""
+    src = tmp_path / "x.py"
+    src.write_text('"""drill"""\nEPILOG = "drill"\ndef f(p):\n    """drill"""\n    p.add_argument("--m", help="drill")\n'
+                   '    if p == "drill":\n        return "drilling", "indenter-metals"\n')
+    assert model_name_literals(src, ("drill", "indenter-metal")) == [(6, "drill")]
