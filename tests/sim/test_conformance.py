@@ -53,6 +53,28 @@ def test_conformance_spec_consistency(spec):
     assert floor is None or floor > 0
 
 
+def test_conformance_spec_synth_rig(spec):
+    """`vibro synth`'s rig (ModelSpec.synth) resolves at every default run, and its check rejects a broken rig."""
+    import dataclasses
+
+    rig = spec.synth
+    if rig is None:
+        pytest.skip(f"{spec.name} has no synthetic rig")
+    for f in rig.frequencies_hz:
+        for lev in rig.levels:
+            controls = dict(rig.forcing(f, lev)) if rig.forcing else {rig.level_name: lev}
+            spec.resolve(rig.preset, frequency_hz=f, **controls, **rig.fixed)
+    if rig.hertz_model is not None:
+        assert {"kl", "ku", "nl", "nu"} <= set(sim.get_model(rig.hertz_model).param_names)
+    broken = [dataclasses.replace(rig, level_name="no_such_control", forcing=None),
+              dataclasses.replace(rig, fixed={**rig.fixed, "no_such_param": 1.0}),
+              dataclasses.replace(rig, effect_strengths={}) if spec.effects else None,
+              dataclasses.replace(rig, signals=("strain",))]
+    for bad in [b for b in broken if b is not None]:
+        with pytest.raises(ValueError, match=f"model '{spec.name}' synth rig"):
+            dataclasses.replace(spec, synth=bad)
+
+
 def test_conformance_defaults_simulate(spec):
     r = sim.simulate(spec.name, settings=SHORT)
     assert r.status in STATUSES and r.status != "failed", r.labels.get("reason")
