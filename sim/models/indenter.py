@@ -370,7 +370,7 @@ _SYNTH_EFFECTS = {
 def _synth(effects: dict, hertz_model: str | None) -> SynthRig:
     return SynthRig(frequencies_hz=tuple(float(f) for f in TABLE1), level_name="pressure_bar", levels=(1.0, 1.5),
                     fixed={"gap_m": 1e-3}, fs_hz=20000.0, cycles=40.0,
-                    effect_strengths={e: _SYNTH_EFFECTS[e] for e in effects}, mount_hz=450.0,
+                    effect_strengths={e: v for e, v in _SYNTH_EFFECTS.items() if e in effects}, mount_hz=450.0,
                     forcing=synth_forcing, level_tag="bar", hertz_model=hertz_model)
 
 
