@@ -8,7 +8,7 @@ from pipeline.cli.args import add_quiet, add_workers, check_workers
 from pipeline.core.errors import UserError
 
 EPILOG = """\
-systems: indenter-metal, indenter-sandstone, drill, pendulum, rimd.  Each has rig defaults (pipeline/datasets/synth.py RIGS):
+systems: indenter-metal, indenter-sandstone, drill, pendulum, rimd.  Each has rig defaults (the ModelSpec.synth field in sim/models/):
   drill: preset lab, 8 frequencies 150-430 Hz x static force 900 / 1500 N, 25.6 kHz DAQ, 28.3-cycle records logged
   0.15-0.6 s after the start from rest (record_start_s), two summary-only runs, every 5th run without force_n.
 effects (MODELS.md §6): shaker_coil (tau, beta), rate_stiffening (alpha), guide_friction (mu), tip_blunting (gamma),
