@@ -4,7 +4,7 @@ lazy import inside a function counts as well.
 sim            imports nothing of the project
 pipeline.core  imports sim at most
 surrogate      imports sim and pipeline.core at most (the library never imports the application)
-workflows      pipeline.datasets / optimise / diagnosis / maps / report / tracking never import pipeline.cli
+workflows      pipeline.datasets / optimise / diagnosis / maps / report / tracking / training never import pipeline.cli
 pipeline.cli   imported by nobody but itself (the console entry ``vibro = pipeline.cli:main``)
 and the graph between packages has no cycle.
 """
@@ -68,7 +68,7 @@ def graph() -> dict[str, set[str]]:
 
 G = graph()
 WORKFLOWS = ("pipeline.datasets", "pipeline.optimise", "pipeline.diagnosis", "pipeline.maps", "pipeline.report",
-             "pipeline.tracking")
+             "pipeline.tracking", "pipeline.training")
 ALLOWED = {
     "sim": set(),
     "pipeline.core": {"sim"},

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_settings, check_workers, count, finite,
@@ -118,7 +117,6 @@ def resolve_kind(model: str, kind: str, has_y: bool) -> str:
 
 def run(args) -> int:
     import sim
-    from tqdm import tqdm
 
     from pipeline.cli.args import MAX_POINTS
 
@@ -126,7 +124,7 @@ def run(args) -> int:
         raise UserError(f"--nx x --ny = {args.nx * args.ny} points, more than the bound {MAX_POINTS}")
 
     from pipeline.maps import compute as M
-    from pipeline.maps import plot as P
+    from pipeline.maps.workflow import MapConfig, run_map
     from pipeline import tracking
 
     args.x, xr = _axis(args.x, args.x_range, "--x")
@@ -148,54 +146,26 @@ def run(args) -> int:
     if args.y:
         ys = M.axis_values(args.model, args.y, yr[0], yr[1], args.ny, args.log_y, base)
     out = Path(args.out or f"maps/{args.model}_{kind}_{args.x}" + (f"_{args.y}" if args.y else ""))
-    png, pq = out.with_name(out.name + ".png"), out.with_name(out.name + ".parquet")
     # validate the fixed parameters and settings before anything runs
     spec.resolve(args.preset, **{**fixed, args.x: float(xs[0]), **({args.y: float(ys[0])} if args.y else {})})
     sim.api.make_settings(spec, settings)
     params = {"model": args.model, "kind": kind, "x": args.x, "x_lo": xs[0], "x_hi": xs[-1], "nx": xs.size,
               "y": args.y or "", "ny": 0 if ys is None else ys.size, "color": color, "preset": args.preset or "", "rig": args.rig or "",
               **{f"set.{k}": v for k, v in fixed.items()}, **{f"setting.{k}": v for k, v in (settings or {}).items()}}
-    title_fixed = ", ".join(f"{k}={v:g}" for k, v in fixed.items())
-    t0 = time.perf_counter()
+    cfg = MapConfig(model=args.model, kind=kind, x=args.x, xs=xs, out=out, y=args.y, ys=ys, color=color,
+                    direction=args.direction, preset=args.preset, fixed=fixed, settings=settings,
+                    threads=args.threads)
     with tracking.run("map", params, enabled=not args.no_mlflow) as mlflow:
-        if kind == "bifurcation":
-            n = xs.size * (2 if args.direction == "both" else 1)
-            with tqdm(total=n, desc=f"{args.model} {args.x} sweep", unit="pt", disable=args.quiet) as bar:
-                pts, strobe = M.bifurcation(args.model, args.x, xs, args.direction, args.preset, fixed, settings,
-                                            progress=bar.update)
-            strobe_pq = out.with_name(out.name + ".strobe.parquet")
-            M.write_parquet(pts, pq)
-            M.write_parquet(strobe, strobe_pq)
-            P.plot_bifurcation(pts, strobe, args.x, png,
-                               title=f"{args.model} bifurcation diagram ({args.direction}) {title_fixed}")
-            table, files = pts, [png, pq, strobe_pq]
-        else:
-            with tqdm(total=xs.size * ys.size, desc=f"{args.model} {kind} map", unit="cell",
-                      disable=args.quiet) as bar:
-                table = M.grid_map(args.model, args.x, xs, args.y, ys, args.preset, fixed, settings,
-                                   n_threads=args.threads, progress=bar.update)
-            M.write_parquet(table, pq)
-            title = f"{args.model} {kind} map {title_fixed}"
-            if kind == "peterka":
-                P.plot_peterka(table, args.x, args.y, png, color=color, title=title)
-            else:
-                if kind == "label" or "rop_region" not in table:
-                    table = table.assign(rop_region=[M.ROP_OK if s in ("ok", "no_contact", "not_settled") else
-                                                     (M.ROP_RUNAWAY if s == "runaway" else M.ROP_FAILED)
-                                                     for s in table["status"]])
-                P.plot_rop(table, args.x, args.y, png, color=color, title=title)
-            files = [png, pq]
-        wall = time.perf_counter() - t0
-        counts = table["pattern_name"].value_counts().to_dict()
+        res = run_map(cfg, progress=not args.quiet)
         if mlflow is not None:
-            mlflow.log_metric("wall_s", wall)
-            mlflow.log_metric("n_points", len(table))
-            for name, c in counts.items():
+            mlflow.log_metric("wall_s", res.wall_s)
+            mlflow.log_metric("n_points", len(res.table))
+            for name, c in res.counts.items():
                 mlflow.log_metric(f"n_{name.replace(' ', '_').replace('=', '').replace('/', '_')}", c)
-            for f in files:
+            for f in res.files:
                 mlflow.log_artifact(str(f))
-    print(f"{len(table)} points in {wall:.1f} s; impact patterns: "
-          + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
-    for f in files:
+    print(f"{len(res.table)} points in {res.wall_s:.1f} s; impact patterns: "
+          + ", ".join(f"{k} {v}" for k, v in sorted(res.counts.items())))
+    for f in res.files:
         print(f"wrote {f}")
     return 0

@@ -2,8 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import os
-import shutil
 import tempfile
 from pathlib import Path
 
@@ -141,45 +139,14 @@ def spec_from_args(args):
     return spec, scheduler, workers
 
 
-def _local(scheduler: str | None, workers: int | None):
-    from pipeline.datasets.runner import LocalBackend
-
-    return LocalBackend(workers)
-
-
-def _dask(scheduler: str, workers: int | None):
-    from pipeline.datasets.dask_backend import DaskBackend
-
-    return DaskBackend(scheduler)
-
-
-BACKENDS = {"local": _local, "dask": _dask}
-"""Backend kind -> factory(scheduler, workers); a --scheduler address selects 'dask'."""
-
-
-def make_backend(scheduler: str | None, workers: int | None):
-    """The sweep backend for the command line's --scheduler / --workers."""
-    return BACKENDS["dask" if scheduler else "local"](scheduler, workers)
-
-
 def run(args) -> int:
     from pipeline import tracking
     from pipeline.core.files import atomic_write_json
-    from pipeline.datasets.runner import run_sweep
-    from pipeline.datasets.spec import design_points, validate_points
-    from pipeline.datasets.store import load_dataset
+    from pipeline.datasets.workflow import SweepJob, plan_lines, run_sweep_job
 
     spec, scheduler, workers = spec_from_args(args)
     if args.dry_run:
-        pts = design_points(spec)
-        validate_points(spec, pts)
-        print(f"sweep plan: model {spec.model}, preset {spec.preset}, design {spec.design}, {spec.n_points} points "
-              f"in {spec.n_chunks} chunks of {spec.chunk_size}, seed {spec.seed}, fingerprint {spec.fingerprint[:12]}")
-        for name, r in spec.vary.items():
-            print(f"  vary {name}: {r.low:g} .. {r.high:g} ({r.scale})")
-        for name, v in spec.fixed.items():
-            print(f"  fixed {name} = {v:g}")
-        print(f"  -> {args.out} (nothing written: --dry-run)")
+        print("\n".join(plan_lines(spec, args.out)))
         return 0
     params = {"model": spec.model, "preset": spec.preset, "rig": args.rig or "", "design": spec.design, "n_points": spec.n_points,
               "seed": spec.seed, "chunk_size": spec.chunk_size, "fingerprint": spec.fingerprint,
@@ -187,32 +154,20 @@ def run(args) -> int:
               **{f"vary.{k}": f"{r.low:g}:{r.high:g}:{r.scale}" for k, r in spec.vary.items()},
               **{f"fixed.{k}": v for k, v in spec.fixed.items()},
               **{f"settings.{k}": v for k, v in spec.settings.items()}}
-    with tracking.run("sweep", params, enabled=not args.no_mlflow) as mlflow:
-        summary = run_sweep(spec, args.out, backend=make_backend(scheduler, workers),
-                            progress=not args.quiet,
-                            overwrite=args.overwrite)
+    with tracking.run("sweep", params, enabled=not args.no_mlflow) as mlflow, \
+            tempfile.TemporaryDirectory(prefix="vibro-sweep-") as tmpdir:
+        plot = Path(args.plot) if args.plot else (Path(tmpdir) / "sweep_overview.png" if mlflow is not None else None)
+        job = SweepJob(spec=spec, out=Path(args.out), scheduler=scheduler, workers=workers,
+                       overwrite=args.overwrite, plot=plot)
+        res = run_sweep_job(job, progress=not args.quiet)
+        summary = res.summary
         print("\n".join(summary.lines()))
         if args.metrics:
             Path(args.metrics).parent.mkdir(parents=True, exist_ok=True)
             atomic_write_json(Path(args.metrics), summary.metrics())
-        plot_path = args.plot
-        if plot_path or mlflow is not None:
-            from pipeline.datasets.plot import plot_sweep
-
-            names = list(spec.vary)
-            if len(names) >= 2:
-                df = load_dataset(args.out)
-                tmpdir = None
-                if not plot_path:
-                    tmpdir = tempfile.mkdtemp(prefix="vibro-sweep-")
-                    plot_path = os.path.join(tmpdir, "sweep_overview.png")
-                plot_sweep(df, names[0], names[1], plot_path,
-                           title=f"{spec.model} ({spec.preset or 'defaults'}): {spec.n_points} {spec.design} points")
-                if mlflow is not None:
-                    mlflow.log_artifact(plot_path)
-                if tmpdir:
-                    shutil.rmtree(tmpdir, ignore_errors=True)
         if mlflow is not None:
+            if res.plot is not None:
+                mlflow.log_artifact(str(res.plot))
             m = summary.metrics()
             mlflow.log_metrics({"n_points": m["n_points"], "computed": m["computed"], "reused": m["reused"],
                                 "wall_time_s": m["wall_time_s"], "sims_per_s": m["sims_per_s"] or 0.0,

@@ -89,94 +89,43 @@ def _config(args):
     return TrainConfig.from_dict(d)
 
 
-def _simulator(model: str, preset, meta: dict, rig=None):
-    """table of inputs -> labelled frame, with the sweep's fixed parameters and settings (with ``rig``: the
-    rig's preset, parameters and effects instead of the sweep's preset and fixed parameters)."""
-    import sim
-
-    fixed = meta.get("fixed") or {}
-    settings = meta.get("settings") or None
-    if rig is not None:
-        preset, fixed = rig.preset, rig.overrides()
-
-    def run(table):
-        for k, v in fixed.items():
-            if k not in table.columns:
-                table[k] = v
-        return sim.simulate_batch(model, table, preset=preset, settings=settings)
-
-    return run
-
-
 def run(args) -> int:
     import json
 
     from pipeline import tracking
-    from pipeline.core.files import atomic_write_parquet, atomic_write_text
-    from pipeline.core.outdir import check_out, prepare_out
+    from pipeline.core.files import atomic_write_text
     from pipeline.core.jsonable import dump_json
-    from pipeline.datasets.store import load_with_metadata
-    from surrogate import adaptive as adaptive_mod
-    from surrogate import data, mlflow_model, report
-    from surrogate.train import split_frame, train_bundle
+    from pipeline.core.outdir import check_out, prepare_out
+    from pipeline.training.workflow import load_training_data, run_training
+    from surrogate import mlflow_model
 
     cfg = _config(args)
-    df, meta = load_with_metadata(args.dataset)
-    df = data.check_frame(df, f"dataset '{args.dataset}'")
-    model = meta.get("model") or args.model
-    if not model:
-        raise UserError(f"dataset '{args.dataset}' has no metadata.json naming its model: pass --model")
-    if args.model and meta.get("model") and args.model != meta["model"]:
-        raise UserError(f"--model {args.model} but dataset '{args.dataset}' was simulated with model '{meta['model']}'")
-    preset = meta.get("preset")
+    inputs_arg = [s.strip() for s in args.inputs.split(",")] if args.inputs else None
+    data = load_training_data(args.dataset, args.model, inputs_arg)
     if args.rig and not cfg.adaptive.enabled:
         raise UserError(f"--rig {args.rig} is used by --adaptive (the only part of training that simulates)")
-    rig = load_rig(args.rig, model)
-    inputs_arg = [s.strip() for s in args.inputs.split(",")] if args.inputs else None
-    inputs, ranges = data.infer_inputs(df, meta, inputs_arg)
-    fp = meta.get("fingerprint") or data.fingerprint_frame(df)
+    rig = load_rig(args.rig, data.model)
     out = Path(args.out)
     check_out(out, inputs=[args.dataset, args.params, args.metrics], overwrite=args.overwrite, marker="train")
-    params = {"dataset": str(args.dataset), "model": model, "preset": preset, "fingerprint": fp,
-              "inputs": ",".join(inputs), "n_points": len(df),
+    params = {"dataset": str(args.dataset), "model": data.model, "preset": data.preset, "fingerprint": data.fingerprint,
+              "inputs": ",".join(data.inputs), "n_points": len(data.df),
               **{f"train.{k}": v for k, v in cfg.to_dict().items()}}
     with prepare_out(out, inputs=[args.dataset, args.params, args.metrics], overwrite=args.overwrite,
                      marker="train") as tmp, tracking.run("train", params, enabled=not args.no_mlflow) as mlflow:
-        bundle = train_bundle(df, inputs, ranges, model, preset, cfg, scale=data.scales(meta, inputs),
-                              fingerprint=fp, progress=not args.quiet, fixed=meta.get("fixed"),
-                              settings=meta.get("settings"))
-        train, test = split_frame(df, cfg)
-        ad = None
-        if cfg.adaptive.enabled:
-            from threadpoolctl import threadpool_limits
-
-            with threadpool_limits(cfg.threads):
-                ad = adaptive_mod.run(bundle, train, test, cfg, _simulator(model, preset, meta, rig), progress=not args.quiet)
-            design = ad.pop("design")
-            atomic_write_parquet(tmp / "adaptive_design.parquet", design)
-            bundle.report["adaptive"] = ad
-        bundle.save(tmp)
-        figs = report.figures(bundle, test, tmp, ad)
-        flat = report.flat_metrics(bundle.report)
+        res = run_training(data, cfg, tmp, rig=rig, progress=not args.quiet)
+        bundle = res.bundle
         if args.metrics:
             m = Path(args.metrics)
             m.parent.mkdir(parents=True, exist_ok=True)
-            headline = {"held_out": bundle.report["held_out"], "goals_met": bundle.report["goals_met"],
-                        "goals_notes": bundle.report.get("goals_notes", {}),
-                        "constant_targets": bundle.report.get("constant_targets", {}),
-                        "transforms": {t: i.get("transform_choice") for t, i in
-                                       bundle.report["selection"]["targets"].items() if i.get("transform_choice")},
-                        "simulations_needed": bundle.report["simulations_needed"], "n_train": bundle.report["n_train"],
-                        "n_test": bundle.report["n_test"], "adaptive_savings": (ad or {}).get("savings")}
-            atomic_write_text(m, dump_json(headline) + "\n")
+            atomic_write_text(m, dump_json(res.headline) + "\n")
         if mlflow is not None:
-            mlflow.log_metrics(flat)
-            for path in figs.values():
+            mlflow.log_metrics(res.flat_metrics)
+            for path in res.figures.values():
                 mlflow.log_artifact(path, artifact_path="figures")
             mlflow.log_text(json.dumps(json.loads(dump_json(bundle.report)), indent=2), "report.json")
-            mlflow_model.log(mlflow, bundle, tmp, df)
+            mlflow_model.log(mlflow, bundle, tmp, data.df)
             run_id = mlflow.active_run().info.run_id
-    _print_summary(bundle, out, ad)
+    _print_summary(bundle, out, res.adaptive)
     if mlflow is not None:
         print(f"MLflow run {run_id}  (pipeline.tracking.load_bundle('{run_id}'))")
     return 0

@@ -62,10 +62,9 @@ def run(args) -> int:
     from pipeline import tracking
     from pipeline.cli.args import parse_assignments
     from pipeline.core.jsonable import dump_json
-    from pipeline.optimise import plots
+    from pipeline.core.files import atomic_write_text
     from pipeline.optimise.constraints import Constraints
-    from pipeline.optimise.verify import append_feedback, read_points, summarise
-    from pipeline.core.files import atomic_write_text, atomic_write_with
+    from pipeline.optimise.verify import VerifyConfig, read_points, run_verify
     from pipeline.core.outdir import check_out, prepare_out
     from pipeline.tracking import load_bundle
 
@@ -106,60 +105,21 @@ def run(args) -> int:
     check_out(out, inputs=sources, overwrite=args.overwrite, marker="verify")
     params = {"points": args.points, "surrogate": args.surrogate, "model": model, "preset": preset,
               "inputs": ",".join(inputs), "rel_tol": args.rel_tol, **cons.to_dict()}
+    cfg = VerifyConfig(points=points, source=args.points, model=model, preset=preset, inputs=inputs,
+                       constraints=cons, rel_tol=args.rel_tol, bundle=bundle, fixed=fixed, settings=settings,
+                       n_threads=args.n_threads, feedback=args.feedback)
     with prepare_out(out, inputs=sources, overwrite=args.overwrite, marker="verify") as tmp, \
             tracking.run("verify", params, enabled=not args.no_mlflow) as mlflow:
-        table, simres = _verify_in_chunks(points, model, preset, inputs, cons, args.rel_tol, bundle=bundle,
-                                          fixed=fixed, settings=settings, n_threads=args.n_threads,
-                                          source=args.points, progress=not args.quiet)
-        summary = summarise(table)
-        atomic_write_with(tmp / "verified.csv", lambda f: table.to_csv(f, index=False))
-        fig = plots.plot_verification(table, tmp / "verification.png", f"verify: {Path(args.points).name}")
-        if args.feedback:
-            summary["feedback_rows"] = append_feedback(simres, args.feedback, source="verify",
-                                                       study=Path(args.points).name,
-                                                       wrong=table["surrogate_wrong"].tolist(), inputs=inputs)
-        atomic_write_text(tmp / "summary.json", dump_json(summary))
+        res = run_verify(cfg, tmp, progress=not args.quiet)
+        summary = res.summary
         if args.metrics:
             atomic_write_text(Path(args.metrics), dump_json(summary))
         if mlflow is not None:
             mlflow.log_metrics({k: float(v) for k, v in summary.items() if isinstance(v, (int, float))})
-            for f in (fig, str(tmp / "verified.csv"), str(tmp / "summary.json")):
+            for f in (res.figure, str(res.table_path), str(res.summary_path)):
                 mlflow.log_artifact(f)
     print(f"verified {summary['n_points']} point(s): surrogate wrong at {summary['n_surrogate_wrong']}, "
           f"median ROP error {summary['rop_rel_error_median']}, statuses {summary['status_sim_counts']}")
     print(f"table: {out / 'verified.csv'}")
     return 0
 
-
-CHUNK = 32
-"""Points re-simulated per call (the progress bar's step)."""
-
-
-def _verify_in_chunks(points, model, preset, inputs, cons, rel_tol, bundle, fixed, settings, n_threads, source,
-                      progress: bool):
-    """``verify_points`` over chunks of ``points`` with a progress bar on stderr; same result as one call
-    (every point is verified on its own)."""
-    import sys
-
-    import numpy as np
-    import pandas as pd
-    from tqdm import tqdm
-
-    from pipeline.optimise.verify import verify_points
-
-    for c in inputs:                      # row numbers of the whole file in the error, not of a chunk
-        if c in points.columns:
-            col = pd.to_numeric(points[c], errors="coerce").to_numpy(dtype=float)
-            bad = np.flatnonzero(~np.isfinite(col))
-            if bad.size:
-                raise UserError(f"{source}: row {int(bad[0])} column '{c}': {points[c].iloc[bad[0]]!r} "
-                                "is not a finite number")
-    tables, sims = [], []
-    with tqdm(total=len(points), desc="verify (simulate)", unit="pt", disable=not progress, file=sys.stderr) as bar:
-        for i in range(0, max(len(points), 1), CHUNK):
-            t, r = verify_points(points.iloc[i:i + CHUNK], model, preset, inputs, cons, rel_tol, bundle=bundle,
-                                 fixed=fixed, settings=settings, n_threads=n_threads, source=source)
-            tables.append(t)
-            sims.append(r)
-            bar.update(len(t))
-    return pd.concat(tables, ignore_index=True), pd.concat(sims, ignore_index=True)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 import os
 from datetime import datetime, timezone
 from pathlib import Path
@@ -223,3 +224,84 @@ def summarise(table: pd.DataFrame) -> dict:
             "rop_interval_coverage": float(cov.astype(bool).mean()) if len(cov) else None,
             "feasibility_agreement": float((table["feasible_pred"] == table["feasible_sim"]).mean()),
             "status_sim_counts": {str(k): int(v) for k, v in table["status_sim"].value_counts().items()}}
+
+
+CHUNK = 32
+"""Points re-simulated per call (the progress bar's step)."""
+
+
+def verify_in_chunks(points: pd.DataFrame, model: str, preset: str | None, inputs: list[str], constraints: Constraints,
+                     rel_tol: float, bundle=None, fixed: dict | None = None, settings=None, n_threads=None,
+                     source: str = "points file", progress: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """``verify_points`` over chunks of ``points`` with a progress bar on stderr; same result as one call
+    (every point is verified on its own)."""
+    import sys
+
+    from tqdm import tqdm
+
+    for c in inputs:                      # row numbers of the whole file in the error, not of a chunk
+        if c in points.columns:
+            col = pd.to_numeric(points[c], errors="coerce").to_numpy(dtype=float)
+            bad = np.flatnonzero(~np.isfinite(col))
+            if bad.size:
+                raise UserError(f"{source}: row {int(bad[0])} column '{c}': {points[c].iloc[bad[0]]!r} "
+                                "is not a finite number")
+    tables, sims = [], []
+    with tqdm(total=len(points), desc="verify (simulate)", unit="pt", disable=not progress, file=sys.stderr) as bar:
+        for i in range(0, max(len(points), 1), CHUNK):
+            t, r = verify_points(points.iloc[i:i + CHUNK], model, preset, inputs, constraints, rel_tol, bundle=bundle,
+                                 fixed=fixed, settings=settings, n_threads=n_threads, source=source)
+            tables.append(t)
+            sims.append(r)
+            bar.update(len(t))
+    return pd.concat(tables, ignore_index=True), pd.concat(sims, ignore_index=True)
+
+
+@dataclass(frozen=True)
+class VerifyConfig:
+    """What ``run_verify`` re-simulates: the points (already read), where they came from, the model and how
+    predictions are made (``bundle`` or the file's own columns)."""
+    points: pd.DataFrame
+    source: str                      # the points file (messages, feedback study name, figure title)
+    model: str
+    preset: str | None
+    inputs: list[str]
+    constraints: Constraints
+    rel_tol: float = 0.1             # ROP relative error marking a wrong prediction [-]
+    bundle: object | None = None     # surrogate bundle predicting the points, else the file's columns
+    fixed: dict = field(default_factory=dict)
+    settings: object | None = None
+    n_threads: int | None = None
+    feedback: str | None = None      # parquet file the simulated points are appended to
+
+
+@dataclass(frozen=True)
+class VerifyResult:
+    """The comparison table, the simulator rows, the summary metrics and the files written."""
+    table: pd.DataFrame
+    simres: pd.DataFrame
+    summary: dict
+    table_path: Path                 # verified.csv
+    summary_path: Path               # summary.json
+    figure: str                      # verification.png
+
+
+def run_verify(cfg: VerifyConfig, out_dir: str | os.PathLike, progress: bool = True) -> VerifyResult:
+    """Re-simulate ``cfg.points``, write verified.csv, verification.png and summary.json under ``out_dir``,
+    append the simulated points to ``cfg.feedback`` (its row count goes into the summary)."""
+    from pipeline.core.files import atomic_write_text, atomic_write_with
+    from pipeline.core.jsonable import dump_json
+    from pipeline.optimise import plots
+
+    out = Path(out_dir)
+    table, simres = verify_in_chunks(cfg.points, cfg.model, cfg.preset, cfg.inputs, cfg.constraints, cfg.rel_tol,
+                                     bundle=cfg.bundle, fixed=cfg.fixed, settings=cfg.settings,
+                                     n_threads=cfg.n_threads, source=cfg.source, progress=progress)
+    summary = summarise(table)
+    atomic_write_with(out / "verified.csv", lambda f: table.to_csv(f, index=False))
+    fig = plots.plot_verification(table, out / "verification.png", f"verify: {Path(cfg.source).name}")
+    if cfg.feedback:
+        summary["feedback_rows"] = append_feedback(simres, cfg.feedback, source="verify", study=Path(cfg.source).name,
+                                                   wrong=table["surrogate_wrong"].tolist(), inputs=cfg.inputs)
+    atomic_write_text(out / "summary.json", dump_json(summary))
+    return VerifyResult(table, simres, summary, out / "verified.csv", out / "summary.json", fig)

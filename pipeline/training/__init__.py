@@ -1,0 +1,1 @@
+"""Training workflow: a sweep dataset -> a surrogate bundle (and the adaptive-sampling study), for ``vibro train``."""
