@@ -100,3 +100,12 @@ def atomic_write_figure(path: str | os.PathLike, fig, dpi: int = 110, close: boo
             import matplotlib.pyplot as plt
 
             plt.close(fig)
+
+
+def duplicate_csv_column(path: str | os.PathLike) -> str | None:
+    """The first column name a CSV file's header repeats, or None (pandas would silently rename it 'x.1')."""
+    import csv
+
+    with open(path, newline="", errors="replace") as fh:
+        header = [c.strip() for c in next(csv.reader(fh), [])]
+    return next((c for c in header if header.count(c) > 1), None)

@@ -13,7 +13,6 @@ directory next to the target and renames it into place).
 """
 from __future__ import annotations
 
-import csv
 
 import os
 import re
@@ -24,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
-from pipeline.core.files import atomic_directory
+from pipeline.core.files import atomic_directory, duplicate_csv_column
 
 RUN_COLUMNS = ("run_id", "system", "frequency_hz", "gap_m", "duration_s")
 """Required for every run.  The amplitude and static-force columns are required for the runs whose
@@ -75,11 +74,9 @@ def _read_csv(path: Path, label: str) -> pd.DataFrame:
     except (pd.errors.ParserError, UnicodeDecodeError) as e:
         raise UserError(f"{label}: not a readable CSV file ({str(e).splitlines()[0]})") from None
     df.columns = [str(c).strip() for c in df.columns]
-    with open(path, newline="", errors="replace") as fh:     # pandas renames a repeated column 'x' to 'x.1'
-        header = [c.strip() for c in next(csv.reader(fh), [])]
-    dup = [c for c in header if header.count(c) > 1]
+    dup = duplicate_csv_column(path)
     if dup:
-        raise UserError(f"{label}: column '{dup[0]}' appears more than once")
+        raise UserError(f"{label}: column '{dup}' appears more than once")
     return df
 
 

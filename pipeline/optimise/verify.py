@@ -161,13 +161,11 @@ def read_points(path: str | os.PathLike) -> pd.DataFrame:
     if df.empty:
         raise UserError(f"points file {p}: no rows")
     if p.suffix.lower() not in (".parquet", ".pq"):
-        import csv
+        from pipeline.core.files import duplicate_csv_column
 
-        with open(p, newline="", errors="replace") as fh:       # pandas renames a repeated column 'x' to 'x.1'
-            header = [c.strip() for c in next(csv.reader(fh), [])]
-        dup = [c for c in header if header.count(c) > 1]
+        dup = duplicate_csv_column(p)
         if dup:
-            raise UserError(f"points file {p}: column '{dup[0]}' appears more than once")
+            raise UserError(f"points file {p}: column '{dup}' appears more than once")
     return df
 
 
