@@ -42,11 +42,15 @@ EXPERIMENT_KIND = "custom_model_development"
 """MLflow 3's experiment kind for classic ML (the UI's 'Models' tab instead of GenAI 'Agent versions')."""
 
 
-@functools.lru_cache(maxsize=None)
 def git_commit(root: str | None = None) -> str:
     """HEAD of the git repository at ``root`` (default: the project root), ``+dirty`` if tracked files changed;
     ``unknown`` outside a repository or without git."""
-    cwd = root or str(project_root())
+    return _git_commit_at(str(Path(root or project_root()).resolve()))
+
+
+@functools.lru_cache(maxsize=None)
+def _git_commit_at(cwd: str) -> str:
+    """git_commit for one resolved folder, cached per folder (``$VIBRO_HOME`` may point elsewhere later)."""
     try:
         head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True, text=True, timeout=10)
         if head.returncode != 0:

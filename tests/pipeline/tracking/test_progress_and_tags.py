@@ -50,6 +50,7 @@ def test_answer_line_has_point_rop_power_and_report():
 
 
 def test_run_names_and_tags(monkeypatch):
+    monkeypatch.delenv("VIBRO_HOME", raising=False)
     assert runs.run_name("optimise", "rop") == "optimise-rop" and runs.run_name("train") == "train"
     monkeypatch.setenv("DVC_EXP_NAME", "tidal-bass")
     tags = runs.run_tags()
@@ -58,6 +59,16 @@ def test_run_names_and_tags(monkeypatch):
     assert tags["git_commit"].split("+")[0] == (head or "unknown")
     monkeypatch.delenv("DVC_EXP_NAME")
     assert runs.run_tags()["dvc_exp"] == "workspace"
+
+
+def test_git_commit_follows_the_project_root(tmp_path, monkeypatch):
+    """A run under another $VIBRO_HOME (outside any repository) must not fix the commit every later run sees
+    (CI failure of 81ec9aa: an earlier test's VIBRO_HOME cached 'unknown' for the whole worker)."""
+    monkeypatch.setenv("VIBRO_HOME", str(tmp_path))
+    assert runs.git_commit() == "unknown"
+    monkeypatch.delenv("VIBRO_HOME")
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout.strip()
+    assert runs.git_commit().split("+")[0] == (head or "unknown")
 
 
 def test_every_run_is_named_and_tagged_and_the_experiment_is_classic_ml(tmp_path, monkeypatch):
