@@ -57,7 +57,7 @@ def _digest(model_module: str, exact: str | None = None) -> str:
              _SIM_DIR / "_kernel_template.py"]
     for name in (model_module, exact):
         if name is not None:
-            files.append(Path(sys.modules[name].__file__))
+            files.append(Path(importlib.import_module(name).__file__))   # not yet imported in a fresh worker
     for f in files:
         h.update(f.read_bytes())
     return h.hexdigest()[:16]
