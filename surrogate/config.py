@@ -34,7 +34,9 @@ class TrainConfig:
     transforms: dict[str, str] = field(default_factory=dict)          # target -> auto | log | identity
     domains: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_DOMAINS))
     max_gp_points: int = 600
-    threads: int = 1            # BLAS/OpenMP threads while fitting (the machine is shared)
+    threads: int = 1            # BLAS/OpenMP threads per fitting process (the machine is shared)
+    workers: int | None = None  # processes fitting CV folds and learning-curve sizes at once (None: all cores);
+    #                             the result does not depend on it
     interval: float = 0.9
     learning_curve: list[float] = field(default_factory=lambda: [0.1, 0.2, 0.35, 0.5, 0.75, 1.0])
     goals: dict[str, float] = field(default_factory=lambda: {"rop_m_s_r2": 0.95, "peak_force_n_r2": 0.97,
@@ -64,6 +66,8 @@ class TrainConfig:
     def validate(self) -> None:
         if not 0.05 <= self.test_fraction <= 0.5:
             raise UserError(f"train.test_fraction must be in [0.05, 0.5], got {self.test_fraction}")
+        if self.workers is not None and not (isinstance(self.workers, int) and self.workers >= 1):
+            raise UserError(f"train.workers must be a whole number >= 1 or null (all cores), got {self.workers!r}")
         if self.cv_folds < 2:
             raise UserError(f"train.cv_folds must be >= 2, got {self.cv_folds}")
         if not 0.5 < self.interval < 1:

@@ -8,6 +8,7 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+from joblib import Parallel, delayed
 from sklearn.dummy import DummyClassifier
 from sklearn.model_selection import KFold, StratifiedKFold
 
@@ -40,29 +41,51 @@ def _predict(est, X, want_std: bool):
     return est.predict(X), None
 
 
+def _cv_regressor(name: str, X: np.ndarray, z: np.ndarray, tr: np.ndarray, te: np.ndarray, seed: int,
+                  max_gp_points: int):
+    """One fold of one regressor candidate: (held-out predictions, GP std or None), or why it failed."""
+    est = candidates.regressor(name, seed, max_gp_points)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            est.fit(X[tr], z[tr])
+        return _predict(est, X[te], True)
+    except (ValueError, np.linalg.LinAlgError) as e:
+        return f"{type(e).__name__}: {e}"
+
+
+def parallel(n_jobs: int | None, **kwargs) -> Parallel:
+    """joblib processes for independent fits (``n_jobs`` None: all cores; 1: in this process).  Results do not
+    depend on ``n_jobs``: every fit is seeded and returned in submission order."""
+    return Parallel(n_jobs=n_jobs if n_jobs else -1, **kwargs)
+
+
 def select_regressor(names: list[str], X: np.ndarray, z: np.ndarray, tf: TargetTransform, folds: int, seed: int,
-                     max_gp_points: int) -> RegSelection:
+                     max_gp_points: int, n_jobs: int | None = 1) -> RegSelection:
     """CV every candidate on (X, z=transformed target); pick the lowest RMSE in transformed units (the
-    models' own loss: for log targets original-unit RMSE is ruled by a few points of the heavy tail)."""
+    models' own loss: for log targets original-unit RMSE is ruled by a few points of the heavy tail).
+    The candidates' folds run in ``n_jobs`` processes."""
     kf = KFold(n_splits=min(folds, len(z)), shuffle=True, random_state=seed)
+    splits = list(kf.split(X))
     y = tf.inverse(z)
+    jobs = [(name, tr, te) for name in names for tr, te in splits]
+    results = parallel(n_jobs)(delayed(_cv_regressor)(name, X, z, tr, te, seed, max_gp_points)
+                               for name, tr, te in jobs)
     best = None
     scores, scores_orig, errors, oofs = {}, {}, {}, {}
     for name in names:
         oof = np.empty_like(z)
         std = np.full_like(z, np.nan)
-        try:
-            for tr, te in kf.split(X):
-                est = candidates.regressor(name, seed, max_gp_points)
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    est.fit(X[tr], z[tr])
-                pred, s = _predict(est, X[te], True)
-                oof[te] = pred
-                if s is not None:
-                    std[te] = s
-        except (ValueError, np.linalg.LinAlgError) as e:
-            errors[name] = f"{type(e).__name__}: {e}"
+        for (jname, _, te), res in zip(jobs, results):
+            if jname != name or name in errors:
+                continue
+            if isinstance(res, str):
+                errors[name] = res
+                continue
+            oof[te] = res[0]
+            if res[1] is not None:
+                std[te] = res[1]
+        if name in errors:
             continue
         rmse = float(np.sqrt(np.mean((oof - z) ** 2)))
         if not np.isfinite(rmse):
@@ -79,8 +102,19 @@ def select_regressor(names: list[str], X: np.ndarray, z: np.ndarray, tf: TargetT
     return RegSelection(best, oofs[best][0], oofs[best][1], scores, scores_orig, errors)
 
 
-def select_classifier(names: list[str], X: np.ndarray, labels: np.ndarray, folds: int, seed: int) -> ClsSelection:
-    """CV every candidate; pick the highest accuracy.  One class only -> a constant classifier."""
+def _cv_classifier(name: str, X: np.ndarray, labels: np.ndarray, tr: np.ndarray, te: np.ndarray, seed: int):
+    """One fold of one classifier candidate: (its classes, held-out probabilities), or why it failed."""
+    try:
+        est = fit_classifier(name, X[tr], labels[tr], seed)
+        return list(est.classes_), est.predict_proba(X[te])
+    except ValueError as e:
+        return f"{type(e).__name__}: {e}"
+
+
+def select_classifier(names: list[str], X: np.ndarray, labels: np.ndarray, folds: int, seed: int,
+                      n_jobs: int | None = 1) -> ClsSelection:
+    """CV every candidate (folds in ``n_jobs`` processes); pick the highest accuracy.  One class only -> a
+    constant classifier."""
     classes = sorted(set(labels))
     if len(classes) == 1:
         proba = np.ones((len(labels), 1))
@@ -89,17 +123,20 @@ def select_classifier(names: list[str], X: np.ndarray, labels: np.ndarray, folds
     k = min(folds, len(labels))
     splitter = (StratifiedKFold(k, shuffle=True, random_state=seed) if counts.min() >= k
                 else KFold(k, shuffle=True, random_state=seed))
+    jobs = [(name, tr, te) for name in names for tr, te in splitter.split(X, labels)]
+    results = parallel(n_jobs)(delayed(_cv_classifier)(name, X, labels, tr, te, seed) for name, tr, te in jobs)
     best, scores, errors, oofs = None, {}, {}, {}
     for name in names:
         proba = np.zeros((len(labels), len(classes)))
-        try:
-            for tr, te in splitter.split(X, labels):
-                est = fit_classifier(name, X[tr], labels[tr], seed)
-                p = est.predict_proba(X[te])
-                for j, c in enumerate(est.classes_):
-                    proba[te, classes.index(c)] = p[:, j]
-        except ValueError as e:
-            errors[name] = f"{type(e).__name__}: {e}"
+        for (jname, _, te), res in zip(jobs, results):
+            if jname != name or name in errors:
+                continue
+            if isinstance(res, str):
+                errors[name] = res
+                continue
+            for j, c in enumerate(res[0]):
+                proba[te, classes.index(c)] = res[1][:, j]
+        if name in errors:
             continue
         acc = float(np.mean(np.array(classes)[proba.argmax(1)] == labels))
         scores[name] = acc

@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 from sklearn.model_selection import train_test_split
+from joblib import delayed
 from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
@@ -71,7 +72,8 @@ def choose_transform(t: str, Xs: np.ndarray, y: np.ndarray, cfg: TrainConfig) ->
     rmse = {}
     for kind in ("log", "identity"):
         tf = TargetTransform(kind)
-        sel = selection.select_regressor([name], Xs, tf.forward(y), tf, cfg.cv_folds, cfg.seed, cfg.max_gp_points)
+        sel = selection.select_regressor([name], Xs, tf.forward(y), tf, cfg.cv_folds, cfg.seed, cfg.max_gp_points,
+                                         cfg.workers)
         rmse[kind] = sel.scores_original[name]
     chosen = min(rmse, key=rmse.get)
     how.update({"cv_candidate": name, "cv_rmse": rmse, "chosen": chosen})
@@ -94,7 +96,7 @@ def _fit_target(t: str, Xs: np.ndarray, y: np.ndarray, cfg: TrainConfig, progres
         return _constant_target(t, y, cfg)
     tf, how = choose_transform(t, Xs, y, cfg)
     z = tf.forward(y)
-    sel = selection.select_regressor(cfg.regressors, Xs, z, tf, cfg.cv_folds, cfg.seed, cfg.max_gp_points)
+    sel = selection.select_regressor(cfg.regressors, Xs, z, tf, cfg.cv_folds, cfg.seed, cfg.max_gp_points, cfg.workers)
     est = selection.fit_regressor(sel.name, Xs, z, cfg.seed, cfg.max_gp_points)
     iv = ConformalInterval.calibrate(z, sel.oof, sel.oof_std, cfg.interval)
     info = {"model": sel.name, "transform": tf.kind, "transform_choice": how, "cv_rmse_transformed": sel.scores,
@@ -134,7 +136,7 @@ def fit(df: pd.DataFrame, inputs: list[str], ranges: dict, scale: dict, model: s
     regs: dict[str, TargetModel] = {}
     for step in bar:
         if step is None:
-            cs = selection.select_classifier(cfg.classifiers, Xs, regimes, cfg.cv_folds, cfg.seed)
+            cs = selection.select_classifier(cfg.classifiers, Xs, regimes, cfg.cv_folds, cfg.seed, cfg.workers)
             clf = selection.fit_classifier(cs.name, Xs, regimes, cfg.seed)
             info["classifier"] = {"model": cs.name, "cv_accuracy": cs.scores, "cv_skipped": cs.errors,
                                   "classes": cs.classes}
@@ -175,23 +177,26 @@ def refit_same(bundle: Bundle, df: pd.DataFrame, cfg: TrainConfig) -> Bundle:
                   bundle.settings)
 
 
+def _curve_point(bundle: Bundle, train: pd.DataFrame, test: pd.DataFrame, cfg: TrainConfig, n: int) -> dict:
+    b = refit_same(bundle, train.iloc[:n], cfg)
+    ev = evaluate(b, test)
+    row = {"n_train": n, "accuracy": ev["classification"]["accuracy"]}
+    for t, m in ev["targets"].items():
+        row[f"{t}_r2"] = m.get("r2")
+        row[f"{t}_rmse"] = m.get("rmse")
+    return row
+
+
 def learning_curve(bundle: Bundle, train: pd.DataFrame, test: pd.DataFrame, cfg: TrainConfig,
                    progress: bool = False) -> list[dict]:
     """Held-out error of the selected model types against the number of training simulations.
 
-    Subsets are prefixes of the training split in point order (a Sobol design's prefix stays space-filling)."""
-    rows = []
-    sizes = sorted({max(MIN_POINTS * 2, int(round(f * len(train)))) for f in cfg.learning_curve})
-    for n in tqdm(sizes, desc="learning curve", disable=not progress, leave=False):
-        n = min(n, len(train))
-        b = refit_same(bundle, train.iloc[:n], cfg)
-        ev = evaluate(b, test)
-        row = {"n_train": n, "accuracy": ev["classification"]["accuracy"]}
-        for t, m in ev["targets"].items():
-            row[f"{t}_r2"] = m.get("r2")
-            row[f"{t}_rmse"] = m.get("rmse")
-        rows.append(row)
-    return rows
+    Subsets are prefixes of the training split in point order (a Sobol design's prefix stays space-filling);
+    the sizes are fitted in ``cfg.workers`` processes."""
+    sizes = sorted({min(len(train), max(MIN_POINTS * 2, int(round(f * len(train))))) for f in cfg.learning_curve})
+    jobs = (delayed(_curve_point)(bundle, train, test, cfg, n) for n in sizes)
+    return list(tqdm(selection.parallel(cfg.workers, return_as="generator")(jobs), total=len(sizes),
+                     desc="learning curve", disable=not progress, leave=False))
 
 
 def needed(curve: list[dict], key: str, goal: float) -> int | None:

@@ -18,6 +18,7 @@ EPILOG = """what it writes (in --out):
 examples:
   vibro train data/sweep --out models/surrogate --params params.yaml --metrics metrics/train.json
   vibro train data/sweep --regressors gbt,mlp --no-mlflow          # quick: no Gaussian process
+  vibro train data/sweep --workers 1                                # one process (same result, slower)
   vibro train data/sweep --adaptive --budget 768 --batch 64         # + adaptive sampling vs space-filling
   vibro train data/my-rig --adaptive --rig my-rig.yaml               # adaptive sampling simulates your rig
   vibro train points.parquet --model drill --inputs frequency_hz,amplitude_n
@@ -25,7 +26,7 @@ examples:
 params.yaml section 'train' (all optional; flags override): test_fraction 0.2, cv_folds 5, seed 0,
   targets [rop_m_s, peak_force_n, impacts_per_cycle, specific_energy_j_m], regressors [gp, gbt, mlp] (also krr),
   classifiers [gbt, mlp, trees], transforms {target: auto|log|identity}, domains {target: progressing|settled|all},
-  max_gp_points 600, threads 1, interval 0.9, learning_curve [0.1, 0.2, 0.35, 0.5, 0.75, 1.0],
+  max_gp_points 600, workers null (all cores), threads 1 (BLAS per process), interval 0.9, learning_curve [0.1, 0.2, 0.35, 0.5, 0.75, 1.0],
   goals {rop_m_s_r2 0.95, peak_force_n_r2 0.97, accuracy 0.97, coverage_low 0.85, coverage_high 0.95},
   adaptive {enabled false, initial 128, batch 64, budget 768, pool 4096, boundary_weight 0.5, ensemble 5}"""
 
@@ -53,7 +54,8 @@ def add_parser(sub) -> None:
     p.add_argument("--cv-folds", type=A.count(2, 100), help="cross-validation folds for model selection (default 5)")
     p.add_argument("--seed", type=A.seed, help="seed of the split, the models and the adaptive design (default 0)")
     p.add_argument("--max-gp-points", type=A.count(1, 100_000), help="Gaussian-process training subsample (default 600)")
-    add_workers(p, dest="threads", help="BLAS/OpenMP threads while fitting (default 1)")
+    add_workers(p, help="processes fitting the cross-validation folds and learning-curve sizes at once "
+                        "(default: all cores; the result does not depend on it)")
     p.add_argument("--adaptive", action="store_true",
                    help="also run adaptive sampling (calls the simulator) and compare it with the space-filling "
                         "design at equal numbers of simulations")
@@ -73,7 +75,7 @@ def _config(args):
     from pipeline.core.params import read_section
 
     d = read_section(args.params, "train")
-    for key in ("test_fraction", "cv_folds", "seed", "max_gp_points", "threads"):
+    for key in ("test_fraction", "cv_folds", "seed", "max_gp_points", "workers"):
         if getattr(args, key) is not None:
             d[key] = getattr(args, key)
     for key in ("regressors", "classifiers"):

@@ -135,6 +135,24 @@ def test_selection_keeps_every_candidate_score_and_picks_the_lowest():
     assert np.sqrt(np.mean((sel.oof - z) ** 2)) == pytest.approx(sel.scores[sel.name])
 
 
+def test_result_does_not_depend_on_the_number_of_fitting_processes():
+    """CV folds and learning-curve sizes fitted in 2 processes give the very bundle and report of 1 process."""
+    from surrogate.selection import select_classifier
+
+    df = synthetic(200, seed=2)
+    cfg = {**FAST, "learning_curve": [0.5, 1.0]}
+    a = train_bundle(df, list(RANGES), RANGES, "drill", None, {**cfg, "workers": 1})
+    b = train_bundle(df, list(RANGES), RANGES, "drill", None, {**cfg, "workers": 2})
+    X = synthetic(20, seed=9)[list(RANGES)]
+    pd.testing.assert_frame_equal(a.predict(X), b.predict(X))
+    assert a.report["selection"] == b.report["selection"]
+    assert a.report["learning_curve"] == b.report["learning_curve"] and len(a.report["learning_curve"]) == 2
+    Xs = df[list(RANGES)].to_numpy() / np.array([400.0, 3000.0])
+    labels = np.where(Xs[:, 0] > 0.5, "a", "b")
+    one, two = (select_classifier(["gbt", "trees"], Xs, labels, 3, 0, n_jobs=n) for n in (1, 2))
+    assert one.scores == two.scores and np.array_equal(one.oof_proba, two.oof_proba)
+
+
 def test_same_seed_same_bundle():
     df = synthetic(200, seed=2)
     a = train_bundle(df, list(RANGES), RANGES, "drill", None, {**FAST, "learning_curve": []})
