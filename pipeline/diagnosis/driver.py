@@ -20,7 +20,16 @@ SUMMARY_NOTE = ("summary data: the measurement sd is assumed (summary.csv '<feat
 
 def diagnose(ds, out: str | os.PathLike, cfg: DiagnoseConfig, log=print, progress=None) -> dict:
     """Diagnose ``ds`` into directory ``out`` (report.json, report.md, PNG figures, and the corrected rig:
-    rig.yaml, or rig-<system>.yaml per system of a several-system dataset); returns the report."""
+    rig.yaml, or rig-<system>.yaml per system of a several-system dataset); returns the report.
+    BLAS runs one thread meanwhile: the simulations run in threads of their own, and OpenBLAS threads beside
+    them spin for the cores (its least-squares feature fits took ~40x longer)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(1):
+        return _diagnose(ds, out, cfg, log, progress)
+
+
+def _diagnose(ds, out: str | os.PathLike, cfg: DiagnoseConfig, log=print, progress=None) -> dict:
     t0 = time.time()
     out = Path(out)
     targets = build_targets(ds, cfg)

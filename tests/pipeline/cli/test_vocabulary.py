@@ -20,7 +20,7 @@ ALIASES = {
                            ("--quiet", "--no-progress", "quiet", True)]),
     "map": (["drill", "--x", "frequency_hz"], [("--workers", "--threads", "threads", 2),
                                                ("--quiet", "--no-progress", "quiet", True)]),
-    "train": (["data"], [("--workers", "--threads", "threads", 2), ("--quiet", "--no-progress", "quiet", True)]),
+    "train": (["data"], [("--workers", "--threads", "workers", 2), ("--quiet", "--no-progress", "quiet", True)]),
     "diagnose": (["data", "--out", "o"], [("--setting", "--set", "sets", ["max_nfev=3"]),
                                           ("--workers", "--threads", "threads", 2)]),
     "synth": (["--out", "o"], [("--workers", "--threads", "threads", 2)]),
