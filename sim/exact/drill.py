@@ -46,6 +46,8 @@ NT = 32            # Taylor terms
 RHO_H = 2.0        # bound on (spectral radius estimate) x grid step
 # rows of the per-phase workspace block (each row has NZ entries) after A, Φ, M
 R_G0, R_G1, R_G0A, R_G1A, R_F, R_FA, R_D, R_DA, R_INFO = range(9)
+VB = 3 * NZ + 9    # first of NZ rows holding row i's non-zeros of A, packed (columns in gk[ph, i, 1:])
+INV = 1.0 / np.arange(1.0, 2 * NT + 1.0)   # 1 / (n + 1): the integral of θ^n over [0, 1]
 
 
 def exact_applies(values: dict, effects: dict) -> bool:
@@ -154,21 +156,33 @@ def _rho(p):
 
 @njit(cache=True, nogil=True)
 def make_workspace(p, period, s, ny):
-    """Per-run tables: for each phase, A, Φ = exp(A h), M (W increment zᵀMz over h) and the rows; the grid
-    step h = period / n_grid is stored in wk[0, 3 NZ + R_INFO, 1] and n_grid in [.., 2]."""
+    """Per-run tables: for each phase, A, Φ = exp(A h), M (W increment zᵀMz over h), the rows and A's non-zeros
+    packed by row (values wk[ph, VB + i, :n], columns gk[ph, i, 1:n + 1], n = gk[ph, i, 0]: A is about 1/4 full,
+    so a series term costs a quarter of a dense product); the grid step h = period / n_grid is stored in
+    wk[0, 3 NZ + R_INFO, 1] and n_grid in [.., 2]."""
     n_grid = max(16, int(math.ceil(_rho(p) * period / RHO_H)))
     h = period / n_grid
-    wk = np.zeros((3, 3 * NZ + 9, NZ))
+    wk = np.zeros((3, 4 * NZ + 9, NZ))
+    gk = np.zeros((3, NZ, NZ + 1), dtype=np.int64)
     P = np.empty((NZ, NZ))
     Q = np.empty((NZ, NZ))
     U = np.zeros((NT, NZ))     # row IC of (hA)^k/k!
     V = np.zeros((NT, NZ))     # row IV1 of (hA)^k/k!
+    Wv = np.zeros((NT, NZ))    # Σ_k V[k] / (j + k + 1)
     for ph in range(3):
         A = wk[ph, 0:NZ]
         Phi = wk[ph, NZ:2 * NZ]
         M = wk[ph, 2 * NZ:3 * NZ]
         _matrix(p, ph, A)
         _rows(p, ph, A, wk[ph, 3 * NZ:3 * NZ + 9])
+        for i in range(NZ):
+            n = 0
+            for j in range(NZ):
+                if A[i, j] != 0.0:
+                    wk[ph, VB + i, n] = A[i, j]
+                    gk[ph, i, 1 + n] = j
+                    n += 1
+            gk[ph, i, 0] = n
         P[:, :] = 0.0
         for i in range(NZ):
             P[i, i] = 1.0
@@ -176,11 +190,12 @@ def make_workspace(p, period, s, ny):
         U[0, :] = P[IC]
         V[0, :] = P[IV1]
         for k in range(1, NT):
+            # (hA)^k/k! = A · (hA)^(k-1)/(k-1)! · h/k, with A's packed rows
             for i in range(NZ):
                 for j in range(NZ):
                     acc = 0.0
-                    for m in range(NZ):
-                        acc += P[i, m] * A[m, j]
+                    for q in range(gk[ph, i, 0]):
+                        acc += wk[ph, VB + i, q] * P[gk[ph, i, 1 + q], j]
                     Q[i, j] = acc * h / k
             P[:, :] = Q
             for i in range(NZ):
@@ -188,18 +203,21 @@ def make_workspace(p, period, s, ny):
                     Phi[i, j] += P[i, j]
             U[k, :] = P[IC]
             V[k, :] = P[IV1]
-        M[:, :] = 0.0
+        # M[a, b] = F0 h Σ_j Σ_k U[j, a] V[k, b] / (j + k + 1), the inner sum first (NT² NZ + NT NZ² products)
         for j in range(NT):
-            for k in range(NT):
-                w = p[F0] * h / (j + k + 1)
-                for a in range(NZ):
-                    ua = U[j, a] * w
-                    if ua != 0.0:
-                        for b in range(NZ):
-                            M[a, b] += ua * V[k, b]
+            for b in range(NZ):
+                acc = 0.0
+                for k in range(NT):
+                    acc += V[k, b] * INV[j + k]
+                Wv[j, b] = acc
+        for a in range(NZ):
+            for b in range(NZ):
+                acc = 0.0
+                for j in range(NT):
+                    acc += U[j, a] * Wv[j, b]
+                M[a, b] = p[F0] * h * acc
     wk[0, 3 * NZ + R_INFO, 1] = h
     wk[0, 3 * NZ + R_INFO, 2] = n_grid
-    gk = np.zeros((1, 1))          # unused: integrate_cycles keeps its scratch contiguous
     return wk, gk
 
 
@@ -221,24 +239,26 @@ def _dot(r, z):
 
 
 @njit(cache=True)
-def _series(wk, ph, z, L, C, typ):
-    """C[k] = (L A)^k z / k!, k < NT (A = wk[ph, :NZ]); the tail is cut (set to 0) once two successive terms are below
-    1e-17 of the first in the norm scaled by the typical state magnitudes ``typ``."""
+def _series(wk, gk, ph, z, L, C, ityp):
+    """C[k] = (L A)^k z / k!, k < NT (A = phase ph's packed rows wk[ph, VB:], gk[ph]); the tail is cut (set to 0)
+    once two successive terms are below 1e-17 of the first in the norm scaled by the inverse typical state
+    magnitudes ``ityp``."""
     C[0, :] = z
     n0 = 0.0
     for i in range(NZ):
-        n0 += abs(z[i]) / typ[i]
+        n0 += abs(z[i]) * ityp[i]
     small = 0
     k = 1
     while k < NT:
         nk = 0.0
+        f = L / k
         for i in range(NZ):
             acc = 0.0
-            for m in range(NZ):
-                acc += wk[ph, i, m] * C[k - 1, m]
-            v = acc * L / k
+            for q in range(gk[ph, i, 0]):
+                acc += wk[ph, VB + i, q] * C[k - 1, gk[ph, i, 1 + q]]
+            v = acc * f
             C[k, i] = v
-            nk += abs(v) / typ[i]
+            nk += abs(v) * ityp[i]
         k += 1
         if nk <= 1e-17 * n0:
             small += 1
@@ -339,17 +359,19 @@ def _eval_state(C, th, z, nt):
 
 @njit(cache=True)
 def _work(C, th, L, f0, nt, pw):
-    """F0 ∫ c v1 dτ over [0, θ L] from the series coefficients (pw: scratch of 2 NT + 1)."""
-    acc = 0.0
-    pw[0] = 1.0
-    for k in range(1, 2 * nt + 1):
-        pw[k] = pw[k - 1] * th
+    """F0 ∫ c v1 dτ over [0, θ L] from the series coefficients: the product polynomial q_n = Σ_{j+k=n} c_j v_k
+    integrated term by term (Horner in θ; pw: scratch of 2 NT + 1)."""
+    for n in range(2 * nt - 1):
+        pw[n] = 0.0
     for j in range(nt):
         cj = C[j, IC]
         if cj != 0.0:
             for k in range(nt):
-                acc += cj * C[k, IV1] * pw[j + k + 1] / (j + k + 1)
-    return f0 * L * acc
+                pw[j + k] += cj * C[k, IV1]
+    acc = 0.0
+    for n in range(2 * nt - 2, -1, -1):
+        acc = acc * th + pw[n] * INV[n]
+    return f0 * L * th * acc
 
 
 @njit(cache=True)
@@ -394,9 +416,9 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
     w = y[IW]
     t = t0
     # rounding band of each guard: 1e-12 of the typical size of its terms (typical state = atol / rtol)
-    typ = np.ones(NZ)
+    ityp = np.ones(NZ)
     for i in range(NY - 1):
-        typ[i] = atol[i] / s[S_RTOL]
+        ityp[i] = s[S_RTOL] / atol[i]
     eta = np.zeros((3, 2))
     for q in range(3):
         Rq = wk[q, 3 * NZ:3 * NZ + 9]
@@ -466,7 +488,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                     k_ev = -1
                 else:
                     R = wk[ph, rr:rr + 9]
-                    nt = _series(wk, ph, zz, L, C, typ)
+                    nt = _series(wk, gk, ph, zz, L, C, ityp)
                     th_end = 1.0
                     k_ev = -1
                     for gi in range(ng):
