@@ -168,7 +168,7 @@ def make_workspace(p, period, s, ny):
     Q = np.empty((NZ, NZ))
     U = np.zeros((NT, NZ))     # row IC of (hA)^k/k!
     V = np.zeros((NT, NZ))     # row IV1 of (hA)^k/k!
-    Wv = np.zeros((NT, NZ))    # Σ_k V[k] / (j + k + 1)
+    Wv = np.zeros((NT, 1))     # Σ_j U[j, a] / (j + k + 1)
     for ph in range(3):
         A = wk[ph, 0:NZ]
         Phi = wk[ph, NZ:2 * NZ]
@@ -203,18 +203,19 @@ def make_workspace(p, period, s, ny):
                     Phi[i, j] += P[i, j]
             U[k, :] = P[IC]
             V[k, :] = P[IV1]
-        # M[a, b] = F0 h Σ_j Σ_k U[j, a] V[k, b] / (j + k + 1), the inner sum first (NT² NZ + NT NZ² products)
-        for j in range(NT):
+        # M[a, b] = F0 h Σ_j Σ_k U[j, a] V[k, b] / (j + k + 1).  Row IC of A has its only entry in column IS
+        # and row IS in IC, so U[j] (and M's rows) vanish outside a = IC, IS: X[k, a] = Σ_j U[j, a] / (j + k + 1)
+        M[:, :] = 0.0
+        for a in (IC, IS):
+            for k in range(NT):
+                acc = 0.0
+                for j in range(NT):
+                    acc += U[j, a] * INV[j + k]
+                Wv[k, 0] = acc
             for b in range(NZ):
                 acc = 0.0
                 for k in range(NT):
-                    acc += V[k, b] * INV[j + k]
-                Wv[j, b] = acc
-        for a in range(NZ):
-            for b in range(NZ):
-                acc = 0.0
-                for j in range(NT):
-                    acc += U[j, a] * Wv[j, b]
+                    acc += Wv[k, 0] * V[k, b]
                 M[a, b] = p[F0] * h * acc
     wk[0, 3 * NZ + R_INFO, 1] = h
     wk[0, 3 * NZ + R_INFO, 2] = n_grid
@@ -478,7 +479,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                             need = True
                 if not need:
                     dw = 0.0
-                    for i in range(NZ):
+                    for i in (IC, IS):       # M's only non-zero rows (make_workspace)
                         a_ = 0.0
                         for m in range(NZ):
                             a_ += wk[ph, 2 * NZ + i, m] * zz[m]
