@@ -310,6 +310,30 @@ def _d2eval(a, th, nt):
     return v
 
 
+@njit(cache=True, inline="always")
+def _fd(a, th, deriv, nt):
+    """(p, p') at θ of the polynomial a (deriv: of its derivative: (p', p'')) in one pass: the same operations
+    as _peval/_dpeval/_d2eval, two independent Horner chains side by side."""
+    if deriv:
+        v = (nt - 1) * a[nt - 1]
+        d = 0.0
+        for k in range(nt - 1, 1, -1):
+            d = d * th + k * (k - 1) * a[k]
+            if k <= nt - 2:
+                v = v * th + k * a[k]
+        if nt >= 3:
+            v = v * th + a[1]
+        return v, d
+    v = a[nt - 1]
+    d = (nt - 1) * a[nt - 1]
+    for k in range(nt - 2, 0, -1):
+        v = v * th + a[k]
+        d = d * th + k * a[k]
+    if nt >= 2:
+        v = v * th + a[0]
+    return v, d
+
+
 @njit(cache=True)
 def _root(a, lo, hi, deriv, nt):
     """Root in [lo, hi] of the polynomial a (deriv: of its derivative), which is ≤ 0 at one end and > 0
@@ -320,14 +344,13 @@ def _root(a, lo, hi, deriv, nt):
     pos_hi = fhi > 0.0
     x = lo if abs(flo) < abs(fhi) else hi
     for _ in range(100):
-        fx = _f(a, x, deriv, nt)
+        fx, d = _fd(a, x, deriv, nt)
         if (fx > 0.0) == pos_hi:
             hi = x
         else:
             lo = x
         if hi - lo <= 4e-16 * max(1.0, abs(hi)) or (hi - lo <= 0.0) or fx == 0.0:
             break
-        d = _d2eval(a, x, nt) if deriv else _dpeval(a, x, nt)
         xn = x - fx / d if d != 0.0 else 0.5 * (lo + hi)
         if not (min(lo, hi) < xn < max(lo, hi)):
             xn = 0.5 * (lo + hi)
@@ -413,6 +436,8 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
     pw = np.empty(2 * NT + 1)
     nbd = strobe.shape[1]
     bvec = np.empty(nbd)
+    gz = np.zeros(6)    # at the step's start: guards 0, 1 (minus eta), their derivatives, D' and F'
+    g1 = np.zeros(6)    # the same at the step's end
     ph = ph_arr[0]
     w = y[IW]
     t = t0
@@ -442,6 +467,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
             bmin[cyc, j] = bvec[j]
             bmax[cyc, j] = bvec[j]
         n_ev = 0
+        ok = False      # gz holds the guard rows at zz (zz's forcing states were just reset from the clock)
         t_end = tc + period
         t_cur = tc
         # steps of h (one matrix-vector product each), restarted at every switch; the cycle's last
@@ -465,17 +491,32 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 # point above zero possible), or an interior maximum of force/deceleration while recording
                 need = not full
                 if full:
+                    # guard values/derivatives (and the monitored rows' derivatives) at the step's start are
+                    # the previous full step's end values (gz, carried while ok); compute them only when not
+                    if not ok:
+                        for gi in range(ng):
+                            gz[gi] = _rdot(wk, ph, rr + R_G0 + gi, zz) - eta[ph, gi]
+                            gz[2 + gi] = _rdot(wk, ph, rr + R_G0A + gi, zz)
+                        if record:
+                            gz[4] = _rdot(wk, ph, rr + R_DA, zz)
+                            gz[5] = _rdot(wk, ph, rr + R_FA, zz)
                     for gi in range(ng):
-                        ga = _rdot(wk, ph, rr + R_G0 + gi, zz) - eta[ph, gi]
-                        gb = _rdot(wk, ph, rr + R_G0 + gi, z1) - eta[ph, gi]
+                        g1[gi] = _rdot(wk, ph, rr + R_G0 + gi, z1) - eta[ph, gi]
+                        g1[2 + gi] = _rdot(wk, ph, rr + R_G0A + gi, z1)
+                    if record:
+                        g1[4] = _rdot(wk, ph, rr + R_DA, z1)
+                        g1[5] = _rdot(wk, ph, rr + R_FA, z1)
+                    for gi in range(ng):
+                        ga = gz[gi]
+                        gb = g1[gi]
                         if (ga < 0.0 and gb >= 0.0) or (ga <= 0.0 and gb > 0.0):
                             need = True
-                        elif _rdot(wk, ph, rr + R_G0A + gi, zz) > 0.0 and _rdot(wk, ph, rr + R_G0A + gi, z1) < 0.0:
+                        elif gz[2 + gi] > 0.0 and g1[2 + gi] < 0.0:
                             need = True
                     if record and not need:
-                        if _rdot(wk, ph, rr + R_DA, zz) > 0.0 and _rdot(wk, ph, rr + R_DA, z1) <= 0.0:
+                        if gz[4] > 0.0 and g1[4] <= 0.0:
                             need = True
-                        if ph > 0 and _rdot(wk, ph, rr + R_FA, zz) > 0.0 and _rdot(wk, ph, rr + R_FA, z1) <= 0.0:
+                        if ph > 0 and gz[5] > 0.0 and g1[5] <= 0.0:
                             need = True
                 if not need:
                     dw = 0.0
@@ -487,7 +528,11 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                     w += dw
                     th_end = 1.0
                     k_ev = -1
+                    for i in range(6):
+                        gz[i] = g1[i]
+                    ok = True
                 else:
+                    ok = False
                     R = wk[ph, rr:rr + 9]
                     nt = _series(wk, gk, ph, zz, L, C, ityp)
                     th_end = 1.0
