@@ -166,13 +166,12 @@ def make_workspace(p, period, s, ny):
     gk = np.zeros((3, NZ, NZ + 1), dtype=np.int64)
     P = np.empty((NZ, NZ))
     Q = np.empty((NZ, NZ))
+    S = np.empty((NZ, NZ))     # Φ being summed
     U = np.zeros((NT, NZ))     # row IC of (hA)^k/k!
     V = np.zeros((NT, NZ))     # row IV1 of (hA)^k/k!
     Wv = np.zeros((NT, 1))     # Σ_j U[j, a] / (j + k + 1)
     for ph in range(3):
         A = wk[ph, 0:NZ]
-        Phi = wk[ph, NZ:2 * NZ]
-        M = wk[ph, 2 * NZ:3 * NZ]
         _matrix(p, ph, A)
         _rows(p, ph, A, wk[ph, 3 * NZ:3 * NZ + 9])
         for i in range(NZ):
@@ -183,29 +182,39 @@ def make_workspace(p, period, s, ny):
                     gk[ph, i, 1 + n] = j
                     n += 1
             gk[ph, i, 0] = n
-        P[:, :] = 0.0
+        # Φ = Σ_k (hA)^k/k!, (hA)^k/k! = A · (hA)^(k-1)/(k-1)! · h/k with A's packed rows, row by row as a sum
+        # of scaled rows (contiguous, no array views: this loop is most of the per-run set-up)
         for i in range(NZ):
+            for j in range(NZ):
+                P[i, j] = 0.0
+                S[i, j] = 0.0
             P[i, i] = 1.0
-        Phi[:, :] = P
-        U[0, :] = P[IC]
-        V[0, :] = P[IV1]
+            S[i, i] = 1.0
+        for j in range(NZ):
+            U[0, j] = P[IC, j]
+            V[0, j] = P[IV1, j]
         for k in range(1, NT):
-            # (hA)^k/k! = A · (hA)^(k-1)/(k-1)! · h/k, with A's packed rows
+            f = h / k
             for i in range(NZ):
                 for j in range(NZ):
-                    acc = 0.0
-                    for q in range(gk[ph, i, 0]):
-                        acc += wk[ph, VB + i, q] * P[gk[ph, i, 1 + q], j]
-                    Q[i, j] = acc * h / k
-            P[:, :] = Q
+                    Q[i, j] = 0.0
+                for q in range(gk[ph, i, 0]):
+                    v = wk[ph, VB + i, q] * f
+                    c = gk[ph, i, 1 + q]
+                    for j in range(NZ):
+                        Q[i, j] += v * P[c, j]
+            P, Q = Q, P
             for i in range(NZ):
                 for j in range(NZ):
-                    Phi[i, j] += P[i, j]
-            U[k, :] = P[IC]
-            V[k, :] = P[IV1]
+                    S[i, j] += P[i, j]
+            for j in range(NZ):
+                U[k, j] = P[IC, j]
+                V[k, j] = P[IV1, j]
+        for i in range(NZ):
+            for j in range(NZ):
+                wk[ph, NZ + i, j] = S[i, j]
         # M[a, b] = F0 h Σ_j Σ_k U[j, a] V[k, b] / (j + k + 1).  Row IC of A has its only entry in column IS
         # and row IS in IC, so U[j] (and M's rows) vanish outside a = IC, IS: X[k, a] = Σ_j U[j, a] / (j + k + 1)
-        M[:, :] = 0.0
         for a in (IC, IS):
             for k in range(NT):
                 acc = 0.0
@@ -216,7 +225,7 @@ def make_workspace(p, period, s, ny):
                 acc = 0.0
                 for k in range(NT):
                     acc += Wv[k, 0] * V[k, b]
-                M[a, b] = p[F0] * h * acc
+                wk[ph, 2 * NZ + a, b] = p[F0] * h * acc
     wk[0, 3 * NZ + R_INFO, 1] = h
     wk[0, 3 * NZ + R_INFO, 2] = n_grid
     return wk, gk
