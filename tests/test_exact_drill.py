@@ -92,3 +92,33 @@ def test_batch_uses_the_same_path_as_simulate():
         one = sim.simulate("drill", preset="lab", settings={"window": 8}, **row).labels
         assert df.loc[i, "rop_m_s"] == one["rop_m_s"]
         assert df.loc[i, "n_steps"] == one["n_steps"]
+
+
+def test_workspace_structure_the_fast_paths_rely_on():
+    # make_workspace keeps only rows IC, IS of M and integrate_cycles sums only those: that holds because row IC
+    # of every A_ph has its only entry in column IS and row IS in IC (the forcing oscillator, MODELS.md §2)
+    import numpy as np
+
+    from sim.exact import drill as ex
+
+    spec = sim.get_model("drill")
+    for gamma in (0.0, 0.5):
+        values = spec.resolve("lab", gamma=gamma)
+        p = spec.vector(values)
+        period = 1.0 / values["frequency_hz"]
+        wk, gk = ex.make_workspace(p, period, np.zeros(32), ex.NY)
+        for ph in range(3):
+            A = wk[ph, :ex.NZ]
+            assert set(np.flatnonzero(A[ex.IC])) == {ex.IS} and set(np.flatnonzero(A[ex.IS])) == {ex.IC}
+            # packed rows reproduce A exactly
+            B = np.zeros_like(A)
+            for i in range(ex.NZ):
+                n = gk[ph, i, 0]
+                B[i, gk[ph, i, 1:n + 1]] = wk[ph, ex.VB + i, :n]
+            assert np.array_equal(A, B)
+            # Φ = exp(A h): Φ(h) applied to the forcing states is the rotation by Ω h
+            h = wk[0, 3 * ex.NZ + ex.R_INFO, 1]
+            om_h = 2 * np.pi * values["frequency_hz"] * h
+            Phi = wk[ph, ex.NZ:2 * ex.NZ]
+            assert Phi[ex.IC, ex.IC] == pytest.approx(np.cos(om_h), abs=1e-15)
+            assert Phi[ex.IS, ex.IC] == pytest.approx(np.sin(om_h), abs=1e-15)

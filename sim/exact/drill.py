@@ -9,7 +9,13 @@ linear in z: their values and time derivatives at both ends of a step tell wheth
 interior maximum can lie inside (a sign change, or a derivative turning from + to −); only then the step
 is expanded as the same Taylor series, θ ↦ Σ_k (hA)^k z θ^k / k! (cut where the terms fall below 1e-17),
 and the root or the maximum is found on that polynomial to machine precision (safeguarded Newton).  The work W (Ẇ = F0 c v1, bilinear) is a quadratic form zᵀ M z
-per full step and the product of the two polynomials integrated term by term on partial steps.
+per full step (M has only the rows c, s) and the product of the two polynomials integrated term by term on
+partial steps.
+
+Cost (lab point, 60 + 16 cycles: ~22 steps and ~5 series expansions per cycle): the expansions dominate, so
+A's non-zeros (about a quarter of A) are packed by row and each series term is a sparse product; guard values
+at a full step's start are carried over from the previous step's end; Φ, M and the packed rows are built once
+per run (make_workspace, a few tens of µs).
 
 Handles tip_blunting (γ: Pr depends linearly on xb).  ``exact_applies`` says when the path is exact.
 Drop-in replacement of ``integrate_cycles``/``make_workspace`` of ``sim/_kernel_template.py`` (see
@@ -46,6 +52,8 @@ NT = 32            # Taylor terms
 RHO_H = 2.0        # bound on (spectral radius estimate) x grid step
 # rows of the per-phase workspace block (each row has NZ entries) after A, Φ, M
 R_G0, R_G1, R_G0A, R_G1A, R_F, R_FA, R_D, R_DA, R_INFO = range(9)
+VB = 3 * NZ + 9    # first of NZ rows holding row i's non-zeros of A, packed (columns in gk[ph, i, 1:])
+INV = 1.0 / np.arange(1.0, 2 * NT + 1.0)   # 1 / (n + 1): the integral of θ^n over [0, 1]
 
 
 def exact_applies(values: dict, effects: dict) -> bool:
@@ -154,52 +162,78 @@ def _rho(p):
 
 @njit(cache=True, nogil=True)
 def make_workspace(p, period, s, ny):
-    """Per-run tables: for each phase, A, Φ = exp(A h), M (W increment zᵀMz over h) and the rows; the grid
-    step h = period / n_grid is stored in wk[0, 3 NZ + R_INFO, 1] and n_grid in [.., 2]."""
+    """Per-run tables: for each phase, A, Φ = exp(A h), M (W increment zᵀMz over h), the rows and A's non-zeros
+    packed by row (values wk[ph, VB + i, :n], columns gk[ph, i, 1:n + 1], n = gk[ph, i, 0]: A is about 1/4 full,
+    so a series term costs a quarter of a dense product); the grid step h = period / n_grid is stored in
+    wk[0, 3 NZ + R_INFO, 1] and n_grid in [.., 2]."""
     n_grid = max(16, int(math.ceil(_rho(p) * period / RHO_H)))
     h = period / n_grid
-    wk = np.zeros((3, 3 * NZ + 9, NZ))
+    wk = np.zeros((3, 4 * NZ + 9, NZ))
+    gk = np.zeros((3, NZ, NZ + 1), dtype=np.int64)
     P = np.empty((NZ, NZ))
     Q = np.empty((NZ, NZ))
+    S = np.empty((NZ, NZ))     # Φ being summed
     U = np.zeros((NT, NZ))     # row IC of (hA)^k/k!
     V = np.zeros((NT, NZ))     # row IV1 of (hA)^k/k!
+    Wv = np.zeros((NT, 1))     # Σ_j U[j, a] / (j + k + 1)
     for ph in range(3):
         A = wk[ph, 0:NZ]
-        Phi = wk[ph, NZ:2 * NZ]
-        M = wk[ph, 2 * NZ:3 * NZ]
         _matrix(p, ph, A)
         _rows(p, ph, A, wk[ph, 3 * NZ:3 * NZ + 9])
-        P[:, :] = 0.0
         for i in range(NZ):
+            n = 0
+            for j in range(NZ):
+                if A[i, j] != 0.0:
+                    wk[ph, VB + i, n] = A[i, j]
+                    gk[ph, i, 1 + n] = j
+                    n += 1
+            gk[ph, i, 0] = n
+        # Φ = Σ_k (hA)^k/k!, (hA)^k/k! = A · (hA)^(k-1)/(k-1)! · h/k with A's packed rows, row by row as a sum
+        # of scaled rows (contiguous, no array views: this loop is most of the per-run set-up)
+        for i in range(NZ):
+            for j in range(NZ):
+                P[i, j] = 0.0
+                S[i, j] = 0.0
             P[i, i] = 1.0
-        Phi[:, :] = P
-        U[0, :] = P[IC]
-        V[0, :] = P[IV1]
+            S[i, i] = 1.0
+        for j in range(NZ):
+            U[0, j] = P[IC, j]
+            V[0, j] = P[IV1, j]
         for k in range(1, NT):
+            f = h / k
             for i in range(NZ):
                 for j in range(NZ):
-                    acc = 0.0
-                    for m in range(NZ):
-                        acc += P[i, m] * A[m, j]
-                    Q[i, j] = acc * h / k
-            P[:, :] = Q
+                    Q[i, j] = 0.0
+                for q in range(gk[ph, i, 0]):
+                    v = wk[ph, VB + i, q] * f
+                    c = gk[ph, i, 1 + q]
+                    for j in range(NZ):
+                        Q[i, j] += v * P[c, j]
+            P, Q = Q, P
             for i in range(NZ):
                 for j in range(NZ):
-                    Phi[i, j] += P[i, j]
-            U[k, :] = P[IC]
-            V[k, :] = P[IV1]
-        M[:, :] = 0.0
-        for j in range(NT):
+                    S[i, j] += P[i, j]
+            for j in range(NZ):
+                U[k, j] = P[IC, j]
+                V[k, j] = P[IV1, j]
+        for i in range(NZ):
+            for j in range(NZ):
+                wk[ph, NZ + i, j] = S[i, j]
+        # M[a, b] = F0 h Σ_j Σ_k U[j, a] V[k, b] / (j + k + 1).  Row IC of A has its only entry in column IS
+        # and row IS in IC, so U[j] (and M's rows) vanish outside a = IC, IS: X[k, a] = Σ_j U[j, a] / (j + k + 1)
+        for a in (IC, IS):
             for k in range(NT):
-                w = p[F0] * h / (j + k + 1)
-                for a in range(NZ):
-                    ua = U[j, a] * w
-                    if ua != 0.0:
-                        for b in range(NZ):
-                            M[a, b] += ua * V[k, b]
+                acc = 0.0
+                for j in range(NT):
+                    acc += U[j, a] * INV[j + k]
+                Wv[k, 0] = acc
+            for b in range(NZ):
+                acc = 0.0
+                for k in range(NT):
+                    acc += Wv[k, 0] * V[k, b]
+                wk[ph, 2 * NZ + a, b] = p[F0] * h * acc
     wk[0, 3 * NZ + R_INFO, 1] = h
     wk[0, 3 * NZ + R_INFO, 2] = n_grid
-    gk = np.zeros((1, 1))          # unused: integrate_cycles keeps its scratch contiguous
     return wk, gk
 
 
@@ -221,24 +255,26 @@ def _dot(r, z):
 
 
 @njit(cache=True)
-def _series(wk, ph, z, L, C, typ):
-    """C[k] = (L A)^k z / k!, k < NT (A = wk[ph, :NZ]); the tail is cut (set to 0) once two successive terms are below
-    1e-17 of the first in the norm scaled by the typical state magnitudes ``typ``."""
+def _series(wk, gk, ph, z, L, C, ityp):
+    """C[k] = (L A)^k z / k!, k < NT (A = phase ph's packed rows wk[ph, VB:], gk[ph]); the tail is cut (set to 0)
+    once two successive terms are below 1e-17 of the first in the norm scaled by the inverse typical state
+    magnitudes ``ityp``."""
     C[0, :] = z
     n0 = 0.0
     for i in range(NZ):
-        n0 += abs(z[i]) / typ[i]
+        n0 += abs(z[i]) * ityp[i]
     small = 0
     k = 1
     while k < NT:
         nk = 0.0
+        f = L / k
         for i in range(NZ):
             acc = 0.0
-            for m in range(NZ):
-                acc += wk[ph, i, m] * C[k - 1, m]
-            v = acc * L / k
+            for q in range(gk[ph, i, 0]):
+                acc += wk[ph, VB + i, q] * C[k - 1, gk[ph, i, 1 + q]]
+            v = acc * f
             C[k, i] = v
-            nk += abs(v) / typ[i]
+            nk += abs(v) * ityp[i]
         k += 1
         if nk <= 1e-17 * n0:
             small += 1
@@ -289,6 +325,30 @@ def _d2eval(a, th, nt):
     return v
 
 
+@njit(cache=True, inline="always")
+def _fd(a, th, deriv, nt):
+    """(p, p') at θ of the polynomial a (deriv: of its derivative: (p', p'')) in one pass: the same operations
+    as _peval/_dpeval/_d2eval, two independent Horner chains side by side."""
+    if deriv:
+        v = (nt - 1) * a[nt - 1]
+        d = 0.0
+        for k in range(nt - 1, 1, -1):
+            d = d * th + k * (k - 1) * a[k]
+            if k <= nt - 2:
+                v = v * th + k * a[k]
+        if nt >= 3:
+            v = v * th + a[1]
+        return v, d
+    v = a[nt - 1]
+    d = (nt - 1) * a[nt - 1]
+    for k in range(nt - 2, 0, -1):
+        v = v * th + a[k]
+        d = d * th + k * a[k]
+    if nt >= 2:
+        v = v * th + a[0]
+    return v, d
+
+
 @njit(cache=True)
 def _root(a, lo, hi, deriv, nt):
     """Root in [lo, hi] of the polynomial a (deriv: of its derivative), which is ≤ 0 at one end and > 0
@@ -299,14 +359,13 @@ def _root(a, lo, hi, deriv, nt):
     pos_hi = fhi > 0.0
     x = lo if abs(flo) < abs(fhi) else hi
     for _ in range(100):
-        fx = _f(a, x, deriv, nt)
+        fx, d = _fd(a, x, deriv, nt)
         if (fx > 0.0) == pos_hi:
             hi = x
         else:
             lo = x
         if hi - lo <= 4e-16 * max(1.0, abs(hi)) or (hi - lo <= 0.0) or fx == 0.0:
             break
-        d = _d2eval(a, x, nt) if deriv else _dpeval(a, x, nt)
         xn = x - fx / d if d != 0.0 else 0.5 * (lo + hi)
         if not (min(lo, hi) < xn < max(lo, hi)):
             xn = 0.5 * (lo + hi)
@@ -339,17 +398,19 @@ def _eval_state(C, th, z, nt):
 
 @njit(cache=True)
 def _work(C, th, L, f0, nt, pw):
-    """F0 ∫ c v1 dτ over [0, θ L] from the series coefficients (pw: scratch of 2 NT + 1)."""
-    acc = 0.0
-    pw[0] = 1.0
-    for k in range(1, 2 * nt + 1):
-        pw[k] = pw[k - 1] * th
+    """F0 ∫ c v1 dτ over [0, θ L] from the series coefficients: the product polynomial q_n = Σ_{j+k=n} c_j v_k
+    integrated term by term (Horner in θ; pw: scratch of 2 NT + 1)."""
+    for n in range(2 * nt - 1):
+        pw[n] = 0.0
     for j in range(nt):
         cj = C[j, IC]
         if cj != 0.0:
             for k in range(nt):
-                acc += cj * C[k, IV1] * pw[j + k + 1] / (j + k + 1)
-    return f0 * L * acc
+                pw[j + k] += cj * C[k, IV1]
+    acc = 0.0
+    for n in range(2 * nt - 2, -1, -1):
+        acc = acc * th + pw[n] * INV[n]
+    return f0 * L * th * acc
 
 
 @njit(cache=True)
@@ -390,13 +451,15 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
     pw = np.empty(2 * NT + 1)
     nbd = strobe.shape[1]
     bvec = np.empty(nbd)
+    gz = np.zeros(6)    # at the step's start: guards 0, 1 (minus eta), their derivatives, D' and F'
+    g1 = np.zeros(6)    # the same at the step's end
     ph = ph_arr[0]
     w = y[IW]
     t = t0
     # rounding band of each guard: 1e-12 of the typical size of its terms (typical state = atol / rtol)
-    typ = np.ones(NZ)
+    ityp = np.ones(NZ)
     for i in range(NY - 1):
-        typ[i] = atol[i] / s[S_RTOL]
+        ityp[i] = s[S_RTOL] / atol[i]
     eta = np.zeros((3, 2))
     for q in range(3):
         Rq = wk[q, 3 * NZ:3 * NZ + 9]
@@ -419,6 +482,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
             bmin[cyc, j] = bvec[j]
             bmax[cyc, j] = bvec[j]
         n_ev = 0
+        ok = False      # gz holds the guard rows at zz (zz's forcing states were just reset from the clock)
         t_end = tc + period
         t_cur = tc
         # steps of h (one matrix-vector product each), restarted at every switch; the cycle's last
@@ -442,21 +506,36 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 # point above zero possible), or an interior maximum of force/deceleration while recording
                 need = not full
                 if full:
+                    # guard values/derivatives (and the monitored rows' derivatives) at the step's start are
+                    # the previous full step's end values (gz, carried while ok); compute them only when not
+                    if not ok:
+                        for gi in range(ng):
+                            gz[gi] = _rdot(wk, ph, rr + R_G0 + gi, zz) - eta[ph, gi]
+                            gz[2 + gi] = _rdot(wk, ph, rr + R_G0A + gi, zz)
+                        if record:
+                            gz[4] = _rdot(wk, ph, rr + R_DA, zz)
+                            gz[5] = _rdot(wk, ph, rr + R_FA, zz)
                     for gi in range(ng):
-                        ga = _rdot(wk, ph, rr + R_G0 + gi, zz) - eta[ph, gi]
-                        gb = _rdot(wk, ph, rr + R_G0 + gi, z1) - eta[ph, gi]
+                        g1[gi] = _rdot(wk, ph, rr + R_G0 + gi, z1) - eta[ph, gi]
+                        g1[2 + gi] = _rdot(wk, ph, rr + R_G0A + gi, z1)
+                    if record:
+                        g1[4] = _rdot(wk, ph, rr + R_DA, z1)
+                        g1[5] = _rdot(wk, ph, rr + R_FA, z1)
+                    for gi in range(ng):
+                        ga = gz[gi]
+                        gb = g1[gi]
                         if (ga < 0.0 and gb >= 0.0) or (ga <= 0.0 and gb > 0.0):
                             need = True
-                        elif _rdot(wk, ph, rr + R_G0A + gi, zz) > 0.0 and _rdot(wk, ph, rr + R_G0A + gi, z1) < 0.0:
+                        elif gz[2 + gi] > 0.0 and g1[2 + gi] < 0.0:
                             need = True
                     if record and not need:
-                        if _rdot(wk, ph, rr + R_DA, zz) > 0.0 and _rdot(wk, ph, rr + R_DA, z1) <= 0.0:
+                        if gz[4] > 0.0 and g1[4] <= 0.0:
                             need = True
-                        if ph > 0 and _rdot(wk, ph, rr + R_FA, zz) > 0.0 and _rdot(wk, ph, rr + R_FA, z1) <= 0.0:
+                        if ph > 0 and gz[5] > 0.0 and g1[5] <= 0.0:
                             need = True
                 if not need:
                     dw = 0.0
-                    for i in range(NZ):
+                    for i in (IC, IS):       # M's only non-zero rows (make_workspace)
                         a_ = 0.0
                         for m in range(NZ):
                             a_ += wk[ph, 2 * NZ + i, m] * zz[m]
@@ -464,9 +543,13 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                     w += dw
                     th_end = 1.0
                     k_ev = -1
+                    for i in range(6):
+                        gz[i] = g1[i]
+                    ok = True
                 else:
+                    ok = False
                     R = wk[ph, rr:rr + 9]
-                    nt = _series(wk, ph, zz, L, C, typ)
+                    nt = _series(wk, gk, ph, zz, L, C, ityp)
                     th_end = 1.0
                     k_ev = -1
                     for gi in range(ng):
