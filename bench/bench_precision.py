@@ -16,9 +16,10 @@ peers: scipy RK45 / DOP853 in a plain ``solve_ivp`` loop as a user writes it (``
 ``pysolve_ivp`` (``bench/peers_cyrk.py``) and heyoka.py (``bench/peers_heyoka.py``, tol 1e-6 ... 1e-11);
 on the other models scipy RK45 (rtol 1e-6, 1e-8) and DOP853 (rtol 1e-8) through the reference harness (no
 plain-loop peer written for them).  A full run also measures 1- vs 2-worker scaling of ``simulate_batch``
-and of ``vibro sweep`` (:mod:`bench.scaling`).  Writes ``results/precision.json`` (``--quick``:
+and of ``vibro sweep`` (:mod:`bench.scaling`), and the CPU of one warm ``vibro simulate drill --preset lab`` and of
+``vibro --help`` (:mod:`bench.startup`).  Writes ``results/precision.json`` (``--quick``:
 ``precision_quick.json``) and the table ``results/precision.md`` (summary per error level, the x10 line,
-every method, the scaling); a full run (or ``--write-readme``) copies that table into the marked blocks of
+every method, the scaling, the start-up); a full run (or ``--write-readme``) copies that table into the marked blocks of
 README.md and bench/README.md, so the figures quoted there are always this run's.
 
 Run: ``python -m bench.bench_precision [--quick] [--models drill,...] [--scaling] [--write-readme]``.  Not a test: nothing asserts a timing.
@@ -246,6 +247,12 @@ def table(res: dict) -> str:
         lines += ["", f"**Two-core scaling** ({sc.get('reps_note', '')}; load average {sc['load_avg_before'][0]:.1f} "
                   f"before, {sc['load_avg_after'][0]:.1f} after; sweep CPU includes the interpreter start and the "
                   f"kernel load, its points/s is the sweep's own sims/s):", "", scaling_table(sc).rstrip("\n")]
+    if res.get("startup"):
+        from bench.startup import table as startup_table
+        st = res["startup"]
+        lines += ["", f"**Start-up** (`bench/startup.py`: one command in a fresh interpreter, warm kernel cache; medians of "
+                  f"{st['reps']} interleaved runs, process CPU = user + sys; load average {st['load_avg_before'][0]:.1f} "
+                  f"before, {st['load_avg_after'][0]:.1f} after):", "", startup_table(st).rstrip("\n")]
     return "\n".join(lines) + "\n"
 
 
@@ -282,6 +289,9 @@ def main(quick: bool = False, write_readme: bool | None = None, models: tuple[st
     res["quick"] = quick
     if scaling or (scaling is None and not quick):
         res["scaling"] = run_scaling(quick)
+        from bench.startup import startup
+
+        res["startup"] = startup(reps=2 if quick else 5)
     res["summary"] = summary(res)
     res["exact_vs_dopri5"] = exact_vs_dopri5(res)
     out_dir = Path(out_dir) if out_dir else RESULTS

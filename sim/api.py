@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import math
 import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -312,6 +311,8 @@ def simulate_batch(model: str, table, preset: str | None = None, settings: Setti
         for i in range(len(rows)):
             work(i)
     else:
+        from concurrent.futures import ThreadPoolExecutor
+
         with ThreadPoolExecutor(max_workers=workers) as pool:
             list(pool.map(work, range(len(rows))))
     labels = [_labels_from_vector(out[i], msgs[i]) for i in range(len(rows))]

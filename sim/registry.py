@@ -2,8 +2,12 @@
 from __future__ import annotations
 
 import importlib
+from typing import TYPE_CHECKING
 
-from sim.models.base import ModelSpec, ParameterError
+from sim.errors import ParameterError
+
+if TYPE_CHECKING:                  # the models (numpy, numba) are imported on the first get_model
+    from sim.models.base import ModelSpec
 
 _MODULES = {
     "drill": "sim.models.drill",

@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-from sim.models.base import ParameterError
+from sim.errors import ParameterError
 from sim.registry import get_model, model_names
 
 RIG_KEYS = ("model", "preset", "parameters", "effects", "uncertainty", "source")

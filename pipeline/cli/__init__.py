@@ -41,6 +41,19 @@ def version() -> str:
         return m.group(1) if m else "unknown"
 
 
+class _VersionAction(argparse.Action):
+    """``--version``: prints ``vibro VERSION`` and exits, reading the version only when asked
+    (importlib.metadata costs ~20 ms of every start-up otherwise)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                 help="show program's version number and exit"):
+        super().__init__(option_strings=option_strings, dest=dest, default=default, nargs=0, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"vibro {version()}", flush=True)
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="vibro",
@@ -50,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "(specification: MODELS.md).",
         epilog="Run 'vibro SUBCOMMAND --help' for the options of each subcommand.")
     parser.add_argument("--debug", action="store_true", help="show Python tracebacks on errors")
-    parser.add_argument("--version", action="version", version=f"vibro {version()}")
+    parser.add_argument("--version", action=_VersionAction)
     sub = parser.add_subparsers(dest="command", metavar="SUBCOMMAND")
     for name in SUBCOMMANDS:
         try:

@@ -1,5 +1,5 @@
 """Errors that are the user's to fix: reported as one line by the CLI, never as a traceback."""
-from sim.models.base import ParameterError
+from sim.errors import ParameterError
 
 
 class UserError(ValueError):

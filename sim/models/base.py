@@ -7,9 +7,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-
-class ParameterError(ValueError):
-    """Bad parameter name or value (message names the parameter)."""
+from sim.errors import ParameterError  # noqa: F401  (re-exported: the models and sim.api raise it from here)
 
 
 @dataclass(frozen=True)

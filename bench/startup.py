@@ -1,0 +1,91 @@
+"""Start-up cost of the command line (issue 16 item 3): process CPU seconds of one warm ``vibro simulate drill
+--preset lab`` (kernel cache warm: a warm-up run loads or compiles it first), of ``vibro --help`` and of
+``vibro simulate --help``.
+
+Each command runs as ``python -m pipeline.cli ...`` in a fresh subprocess (what ``bin/vibro`` and the ``vibro``
+entry point run), interleaved (A B C A B C ...); CPU = user + sys of the child (``RUSAGE_CHILDREN``), wall
+around ``subprocess.run``; medians.  ``PYTHONDONTWRITEBYTECODE`` is removed from the child's environment so the
+project's modules load from their ``.pyc`` like in a normal install (with it every run recompiles them,
+~0.1 s).  Used by :mod:`bench.bench_precision` (a full run puts the rows in its generated table);
+``python -m bench.startup [--reps N] [--root DIR]`` prints them (``--root``: another checkout, e.g. to compare
+with an older commit; the kernel cache is this checkout's unless ``VIBRO_KERNEL_DIR`` is set).
+Not a test: nothing asserts a timing.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+COMMANDS: dict[str, tuple[str, ...]] = {
+    "vibro simulate drill --preset lab": ("simulate", "drill", "--preset", "lab"),
+    "vibro --help": ("--help",),
+    "vibro simulate --help": ("simulate", "--help"),
+}
+"""Label -> arguments of ``python -m pipeline.cli``."""
+
+
+def _env(root: Path) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPATH"] = os.pathsep.join([str(root), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    env.setdefault("VIBRO_KERNEL_DIR", str(ROOT / ".numba_cache"))
+    return env
+
+
+def run_once(args: tuple[str, ...], root: Path = ROOT) -> tuple[float, float]:
+    """(CPU s, wall s) of one ``python -m pipeline.cli *args`` subprocess; RuntimeError if it fails."""
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "pipeline.cli", *args], cwd=root, env=_env(root),
+                          capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode != 0:
+        raise RuntimeError(f"python -m pipeline.cli {' '.join(args)} failed: {proc.stderr.strip().splitlines()[-1:]}")
+    return (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime), wall
+
+
+def startup(reps: int = 5, root: Path = ROOT) -> dict:
+    """Medians of ``reps`` interleaved runs of every command of :data:`COMMANDS` after one warm-up run each."""
+    root = Path(root)
+    load0 = os.getloadavg()
+    for args in COMMANDS.values():
+        run_once(args, root)                     # warm-up: kernel cache, .pyc files
+    runs: dict[str, list[tuple[float, float]]] = {k: [] for k in COMMANDS}
+    for _ in range(reps):
+        for label, args in COMMANDS.items():
+            runs[label].append(run_once(args, root))
+    rows = [{"command": label, "cpu_s": statistics.median(c for c, _ in r), "wall_s": statistics.median(w for _, w in r),
+             "cpu_all": [c for c, _ in r]} for label, r in runs.items()]
+    return {"what": "process CPU of one warm command (fresh interpreter, warm kernel cache)", "reps": reps,
+            "root": str(root), "rows": rows, "load_avg_before": list(load0), "load_avg_after": list(os.getloadavg())}
+
+
+def table(res: dict) -> str:
+    """Markdown rows of :func:`startup`'s result."""
+    lines = ["| command (fresh process, warm kernel cache) | CPU s | wall s |", "|---|---|---|"]
+    lines += [f"| `{r['command']}` | {r['cpu_s']:.2f} | {r['wall_s']:.2f} |" for r in res["rows"]]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(prog="python -m bench.startup", description=__doc__.splitlines()[0])
+    ap.add_argument("--reps", type=int, default=5, help="interleaved repetitions (default 5)")
+    ap.add_argument("--root", type=Path, default=ROOT, help="checkout whose pipeline.cli runs (default: this one)")
+    a = ap.parse_args(argv)
+    res = startup(a.reps, a.root)
+    print(f"medians of {a.reps} interleaved runs; load average {res['load_avg_before'][0]:.1f} before, "
+          f"{res['load_avg_after'][0]:.1f} after")
+    print(table(res), end="")
+    return res
+
+
+if __name__ == "__main__":
+    main()
