@@ -60,6 +60,15 @@ def parallel(n_jobs: int | None, **kwargs) -> Parallel:
     return Parallel(n_jobs=n_jobs if n_jobs else -1, **kwargs)
 
 
+def release_workers() -> None:
+    """Stop joblib's reusable worker processes (so their CPU time is accounted to this process's children)."""
+    from joblib.externals.loky import reusable_executor
+
+    ex = getattr(reusable_executor, "_executor", None)
+    if ex is not None:
+        ex.shutdown(wait=True)
+
+
 def select_regressor(names: list[str], X: np.ndarray, z: np.ndarray, tf: TargetTransform, folds: int, seed: int,
                      max_gp_points: int, n_jobs: int | None = 1) -> RegSelection:
     """CV every candidate on (X, z=transformed target); pick the lowest RMSE in transformed units (the

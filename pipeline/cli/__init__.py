@@ -82,8 +82,9 @@ def _done(args, wall: float) -> None:
         return
     import resource
 
-    ru = resource.getrusage(resource.RUSAGE_SELF)
-    print(f"vibro {args.command}: done in {wall:.0f} s wall, {ru.ru_utime + ru.ru_stime:.0f} s CPU",
+    cpu = sum(r.ru_utime + r.ru_stime for r in (resource.getrusage(resource.RUSAGE_SELF),
+                                                  resource.getrusage(resource.RUSAGE_CHILDREN)))  # + finished workers
+    print(f"vibro {args.command}: done in {wall:.0f} s wall, {cpu:.0f} s CPU",
           file=sys.stderr, flush=True)
 
 

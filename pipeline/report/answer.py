@@ -45,7 +45,7 @@ def answer_line(summary: dict, report_path: str | Path | None = None) -> str | N
         text += f" -> verified ROP {rop * 1e3:.2f} mm/s"
     power = _find(rec, POWER_KEYS)
     if power is not None:
-        text += f", power {power * 1e-3:.2f} kW"
+        text += f", power {power * 1e-3:.2f} kW" if power >= 1e3 else f", power {power:.1f} W"   # lab rig: ~18 W
     if report_path:
         text += f"; report: {report_path}"
     return text

@@ -81,6 +81,7 @@ def run_training(data: TrainingData, cfg, out_dir: str | Path, rig=None, progres
     from surrogate import adaptive as adaptive_mod
     from surrogate import data as sdata
     from surrogate import report
+    from surrogate.selection import release_workers
     from surrogate.train import split_frame, train_bundle
 
     out = Path(out_dir)
@@ -88,6 +89,7 @@ def run_training(data: TrainingData, cfg, out_dir: str | Path, rig=None, progres
     bundle = train_bundle(data.df, data.inputs, data.ranges, data.model, data.preset, cfg,
                           scale=sdata.scales(meta, data.inputs), fingerprint=data.fingerprint, progress=progress,
                           fixed=meta.get("fixed"), settings=meta.get("settings"))
+    release_workers()       # the fitting processes' CPU counts in the command's "done in" line
     train, test = split_frame(data.df, cfg)
     ad = None
     if cfg.adaptive.enabled:

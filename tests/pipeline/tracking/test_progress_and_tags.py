@@ -44,6 +44,8 @@ def test_answer_line_has_point_rop_power_and_report():
     line = answer_line(summary, "results/report/report.html")
     assert line == ("Answer: f = 262 Hz, F0 = 2.70 kN, Fs = 1.79 kN -> verified ROP 8.03 mm/s, power 1.23 kW; "
                     "report: results/report/report.html")
+    summary["optimise"]["recommended"]["power_w_sim"] = 17.9      # the lab rig's answer: W, not "0.02 kW"
+    assert answer_line(summary).endswith("power 17.9 W")
     del summary["optimise"]["recommended"]["power_w_sim"]
     assert "power" not in answer_line(summary)
     assert answer_line({}) is None
