@@ -69,13 +69,16 @@ def test_concurrent_creation_of_a_new_store(tmp_path):
 
 def _kill_after(db: Path, n_seen: int, sig: int, seed: int = 0, n: int = 24) -> None:
     """Start a worker and send ``sig`` while it evaluates a batch, once ``n_seen`` trials are complete (the
-    worker announces each evaluation and then sleeps 1 s, so the signal lands with trials in flight)."""
-    p = _spawn(db, n, seed, 1.0)
+    worker announces each evaluation and then sleeps 2 s, so the signal lands with trials in flight)."""
+    p = _spawn(db, n, seed, 2.0)
     assert p.stdout.readline().strip() == "opened", p.stderr.read()    # never read a store being created
-    for line in p.stdout:
+    ready = False     # the store is read between evaluations, so the signal follows an "evaluating" line at once
+    for line in p.stdout:   # (reading it after that line took > 1 s on a loaded CI machine: nothing was in flight)
         assert p.poll() is None, p.stderr.read()
-        if line.strip() == "evaluating" and sum(t.state == TS.COMPLETE for t in _trials(db)) >= n_seen:
-            break
+        if line.strip() == "evaluating":
+            if ready:
+                break
+            ready = sum(t.state == TS.COMPLETE for t in _trials(db)) >= n_seen
     else:
         raise AssertionError(f"worker ended before {n_seen} trials: {p.stderr.read()}")
     p.send_signal(sig)
