@@ -60,6 +60,18 @@ def parallel(n_jobs: int | None, **kwargs) -> Parallel:
     return Parallel(n_jobs=n_jobs if n_jobs else -1, **kwargs)
 
 
+def _folds_of(name: str, jobs: list, results: list, errors: dict):
+    """(held-out indices, result) of candidate ``name``'s folds, stopping at its first failed fold (recorded in
+    ``errors``)."""
+    for (jname, _, te), res in zip(jobs, results):
+        if jname != name:
+            continue
+        if isinstance(res, str):
+            errors[name] = res
+            return
+        yield te, res
+
+
 def release_workers() -> None:
     """Stop joblib's reusable worker processes (so their CPU time is accounted to this process's children)."""
     from joblib.externals.loky import reusable_executor
@@ -85,12 +97,7 @@ def select_regressor(names: list[str], X: np.ndarray, z: np.ndarray, tf: TargetT
     for name in names:
         oof = np.empty_like(z)
         std = np.full_like(z, np.nan)
-        for (jname, _, te), res in zip(jobs, results):
-            if jname != name or name in errors:
-                continue
-            if isinstance(res, str):
-                errors[name] = res
-                continue
+        for te, res in _folds_of(name, jobs, results, errors):
             oof[te] = res[0]
             if res[1] is not None:
                 std[te] = res[1]
@@ -137,12 +144,7 @@ def select_classifier(names: list[str], X: np.ndarray, labels: np.ndarray, folds
     best, scores, errors, oofs = None, {}, {}, {}
     for name in names:
         proba = np.zeros((len(labels), len(classes)))
-        for (jname, _, te), res in zip(jobs, results):
-            if jname != name or name in errors:
-                continue
-            if isinstance(res, str):
-                errors[name] = res
-                continue
+        for te, res in _folds_of(name, jobs, results, errors):
             for j, c in enumerate(res[0]):
                 proba[te, classes.index(c)] = res[1][:, j]
         if name in errors:
