@@ -311,5 +311,8 @@ if __name__ == "__main__":
     ap.add_argument("--scaling", action="store_true", default=None, help="also run the 1-/2-worker scaling (default for a full run)")
     ap.add_argument("--write-readme", action="store_true", default=None,
                     help="copy the table into README.md and bench/README.md (default for a full run)")
+    ap.add_argument("--no-write-readme", dest="write_readme", action="store_false",
+                    help="leave the README tables alone (e.g. a --models subset)")
+    ap.add_argument("--out-dir", type=Path, help="where precision.json/.md go (default bench/results)")
     a = ap.parse_args()
-    main(a.quick, a.write_readme, tuple(m for m in a.models.split(",") if m) or None, a.scaling)
+    main(a.quick, a.write_readme, tuple(m for m in a.models.split(",") if m) or None, a.scaling, out_dir=a.out_dir)
