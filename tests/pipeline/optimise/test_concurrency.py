@@ -26,10 +26,17 @@ def _trials(db: Path):
     return st.get_trials(deepcopy=False)
 
 
+def _as_from_a_terminal() -> None:
+    """In the child: Ctrl-C delivered and handled as in a shell (the pytest worker may have SIGINT blocked or ignored
+    by a library it ran earlier, and a child inherits both; the full suite failed the Ctrl-C case that way)."""
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _spawn(db: Path, n: int, seed: int, delay: float, *extra: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "tests.pipeline.optimise.concurrency_worker", str(db), str(n), str(seed), str(delay),
                              *extra], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "PYTHONPATH": str(REPO)})
+                            env={**os.environ, "PYTHONPATH": str(REPO)}, preexec_fn=_as_from_a_terminal)
 
 
 def _complete_params(db: Path) -> list[tuple]:
@@ -69,8 +76,8 @@ def test_concurrent_creation_of_a_new_store(tmp_path):
 
 def _kill_after(db: Path, n_seen: int, sig: int, seed: int = 0, n: int = 24) -> None:
     """Start a worker and send ``sig`` while it evaluates a batch, once ``n_seen`` trials are complete (the
-    worker announces each evaluation and then sleeps 2 s, so the signal lands with trials in flight)."""
-    p = _spawn(db, n, seed, 2.0)
+    worker announces each evaluation and then sleeps 3 s, so the signal lands with trials in flight)."""
+    p = _spawn(db, n, seed, 3.0)
     assert p.stdout.readline().strip() == "opened", p.stderr.read()    # never read a store being created
     ready = False     # the store is read between evaluations, so the signal follows an "evaluating" line at once
     for line in p.stdout:   # (reading it after that line took > 1 s on a loaded CI machine: nothing was in flight)
