@@ -24,13 +24,14 @@ def test_announced_once_when_no_cache_and_silent_with_one(tmp_path, monkeypatch,
 def test_exact_kernel_announced_in_a_fresh_process(tmp_path):
     """A fresh worker process announces the drill's exact kernel before anything imported ``sim.exact.drill``
     (make run failed at diagnose@drill-rig with KeyError 'sim.exact.drill' from the kernel's source hash)."""
+    import os
     import subprocess
     import sys
 
     code = ("import sys, sim; from sim import compile_notice; "
             "assert 'sim.exact.drill' not in sys.modules; "
             "print(compile_notice.announce_compile(sim.get_model('drill'), 'sim.exact.drill'))")
-    env = {**__import__("os").environ, "VIBRO_KERNEL_DIR": str(tmp_path)}
+    env = {**os.environ, "VIBRO_KERNEL_DIR": str(tmp_path)}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "True" and "compiling the drill kernel" in out.stderr
