@@ -66,3 +66,29 @@ def test_against_reference(case):
 def test_against_reference_slow(case):
     _, model, overrides, transient, window = case
     _compare(model, overrides, transient, window)
+
+
+# Window maxima to the integration tolerance (issue 16 item 2).  At rtol 1e-10 the simulator's peak force and
+# peak deceleration must agree with the reference at rtol 1e-12 (whose own error is below 1e-10) to 1e-7.
+# Before the per-step peak refinement, indenter-metal at 60 Hz (MODELS.md Table 1 point) stayed 1.5e-6 low in
+# peak_decel_g at every rtol: the maximum lay inside a step whose three samples were below the running maximum,
+# or just before a step start, where it was looked for by extrapolating the next step's interpolant.
+# Measured at the time of writing: metal 60 Hz 4e-10, metal 30 Hz 1e-9, sandstone 5e-9, pendulum 7e-9, RIMD 6e-9.
+PEAK_CASES = [
+    ("indenter-metal", "table1-60hz"),
+    ("indenter-metal", "table1-30hz"),
+    ("indenter-sandstone", "table1-60hz"),
+    ("pendulum", "seed-001"),
+    ("rimd", "seed-002"),
+]
+
+
+@pytest.mark.parametrize("model,preset", PEAK_CASES, ids=[f"{m}-{p}" for m, p in PEAK_CASES])
+def test_window_maxima_to_the_integration_tolerance(model, preset):
+    n, w = 40, 10
+    params = {k: v for k, v in sim.get_model(model).resolve(preset).items() if k not in ("P", "D")}
+    ref = reference_run(model, params, n, w, method="DOP853", rtol=1e-12)
+    got = sim.simulate(model, preset=preset,
+                       settings={"min_transient": n, "max_transient": n, "window": w, "rtol": 1e-10}).labels
+    for label in ("peak_force_n", "mean_peak_force_n", "peak_decel_g"):
+        assert got[label] == pytest.approx(ref[label], rel=1e-7), label
