@@ -12,6 +12,8 @@ resolves errors down to ~1e-12.
 
 Methods: the simulator's DOPRI5 kernel (``method="dopri5"``) at rtol 1e-6 ... 1e-11 (drill also 1e-12, for
 the x10 target at 1e-10 label error); the exact propagator (``method="exact"``, drill only); on the drill the
+DOPRI5 kernel of the day issue 16 was filed (commit 33a799c, ``bench/baseline.py``: unpacked from git and run
+in a worker process, interleaved like the rest; rtol 1e-8, 1e-10, 1e-11, 1e-12), the "today" of the x10 target; on the drill the
 peers: scipy RK45 / DOP853 in a plain ``solve_ivp`` loop as a user writes it (``bench/peers_scipy.py``), CyRK
 ``pysolve_ivp`` (``bench/peers_cyrk.py``) and heyoka.py (``bench/peers_heyoka.py``, tol 1e-6 ... 1e-11);
 on the other models scipy RK45 (rtol 1e-6, 1e-8) and DOP853 (rtol 1e-8) through the reference harness (no
@@ -54,9 +56,22 @@ RTOLS = (1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11)
 SCIPY = (("RK45", 1e-6), ("RK45", 1e-8), ("DOP853", 1e-8))   # (method, rtol) through the reference harness
 SCIPY_PLAIN = (("RK45", 1e-6), ("RK45", 1e-8), ("DOP853", 1e-8), ("DOP853", 1e-10))   # drill: plain solve_ivp loop
 CYRK = (("RK45", 1e-6), ("RK45", 1e-8), ("DOP853", 1e-8), ("DOP853", 1e-10))          # drill: CyRK pysolve_ivp
+BASELINE = "baseline"      # method-name prefix of the old kernel (bench/baseline.py); neither simulator nor peer
+BASELINE_RTOLS = (1e-8, 1e-10, 1e-11, 1e-12)
 TARGETS = (1e-6, 1e-8, 1e-10)   # label-error levels of the summary (fastest simulator method vs fastest peer)
 REF_FLOOR = 1e-9          # the reference's own accuracy (DOP853 rtol 1e-10)
 START, END = "<!-- bench-table:start -->", "<!-- bench-table:end -->"
+
+
+_WORKER = []
+
+
+def _baseline_worker():
+    """One worker process of the old tree per benchmark run (started on first use)."""
+    if not _WORKER:
+        from bench.baseline import BaselineWorker
+        _WORKER.append(BaselineWorker())
+    return _WORKER[0]
 
 
 def _methods(model: str, preset, n: int, w: int, quick: bool) -> dict:
@@ -80,6 +95,14 @@ def _methods(model: str, preset, n: int, w: int, quick: bool) -> dict:
                     model, params, n, w, method=meth, rtol=r, event_subdivisions=1))
         return out
     p = drill_values(params)
+    try:   # issue 16's "today": the DOPRI5 kernel of the commit the issue measured, in a worker process
+        from bench.baseline import COMMIT
+        worker = _baseline_worker()
+        for r in ((1e-12,) if quick else BASELINE_RTOLS):
+            out[f"{BASELINE} dopri5 rtol {r:.0e} ({COMMIT})"] = (
+                lambda r=r: worker.run(model, preset, {**fixed, "rtol": r}))
+    except Exception as e:  # noqa: BLE001 -- no git history (e.g. an sdist): reported, not fatal
+        out[BASELINE] = f"unavailable ({type(e).__name__}: {e})"
     from bench import peers_scipy
     for meth, r in (SCIPY_PLAIN[:1] if quick else SCIPY_PLAIN):
         out[f"scipy {meth} rtol {r:.0e}"] = lambda meth=meth, r=r: peers_scipy.run_point(p, n, w, meth, r)
@@ -115,7 +138,7 @@ def run(quick: bool, log=print, models: tuple[str, ...] | None = None, reps: int
         ref = reference_run(model, params, n, w, method="DOP853", rtol=1e-10)
         meths = _methods(model, preset, n, w, quick)
         callables = {k: v for k, v in meths.items() if callable(v)}
-        for fn in callables.values():          # warm-up: kernel load, LLVM build
+        for fn in callables.values():          # warm-up: kernel load, LLVM build (the baseline's compile)
             fn()
         cpu = {k: [] for k in callables}
         wall = {k: [] for k in callables}
@@ -124,9 +147,13 @@ def run(quick: bool, log=print, models: tuple[str, ...] | None = None, reps: int
         for _ in range(reps):                  # interleaved: A B C A B C ...
             for k, fn in callables.items():
                 c0, t0 = time.process_time(), time.perf_counter()
-                last[k] = fn()
-                wall[k].append(time.perf_counter() - t0)
-                cpu[k].append(time.process_time() - c0)
+                got = fn()
+                w_, c_ = time.perf_counter() - t0, time.process_time() - c0
+                if isinstance(got, tuple):     # timed by its own process (the baseline worker)
+                    got, c_, w_ = got
+                last[k] = got
+                wall[k].append(w_)
+                cpu[k].append(c_)
         load1 = os.getloadavg()
         rows = []
         exact = last.get("sim exact")
@@ -147,14 +174,15 @@ def run(quick: bool, log=print, models: tuple[str, ...] | None = None, reps: int
 
 def effective_error(pt: dict, row: dict) -> float:
     """The error a method is ranked by: on a point with the exact propagator, the distance to it (resolves
-    errors to ~1e-12); the exact row itself gets its distance to the tightest DOPRI5 row (an upper bound
-    unless both share an error); elsewhere the error against the reference, floored at its accuracy."""
+    errors to ~1e-12); the exact row itself gets its distance to the closest DOPRI5 row, the old kernel's
+    included (an upper bound unless both share an error); elsewhere the error against the reference, floored
+    at its accuracy."""
     by = {r["method"]: r for r in pt["rows"]}
     if "sim exact" in by:
         if row["method"] == "sim exact":
-            tight = [r for r in pt["rows"] if r["method"].startswith("sim dopri5")]
-            tight = min(tight, key=lambda r: float(r["method"].split()[-1])) if tight else None
-            return tight["error_vs_exact"] if tight else row["label_error"]
+            near = [r["error_vs_exact"] for r in pt["rows"]
+                    if r["method"].startswith(("sim dopri5", BASELINE)) and r["error_vs_exact"] is not None]
+            return min(near) if near else row["label_error"]
         return row["error_vs_exact"]
     return max(row["label_error"], REF_FLOOR)
 
@@ -169,7 +197,8 @@ def summary(res: dict) -> list[dict]:
                 continue                      # the reference cannot resolve that level
             ok = [r for r in pt["rows"] if math.isfinite(effective_error(pt, r)) and effective_error(pt, r) <= tgt]
             sim_ = min((r for r in ok if r["method"].startswith("sim ")), key=lambda r: r["cpu_s"], default=None)
-            peer = min((r for r in ok if not r["method"].startswith("sim ")), key=lambda r: r["cpu_s"], default=None)
+            peer = min((r for r in ok if not r["method"].startswith(("sim ", BASELINE))), key=lambda r: r["cpu_s"],
+                       default=None)
             out.append({"model": pt["model"], "point": pt["point"], "target": tgt,
                         "sim": sim_ and sim_["method"], "sim_cpu_s": sim_ and sim_["cpu_s"],
                         "peer": peer and peer["method"], "peer_cpu_s": peer and peer["cpu_s"],
@@ -177,21 +206,31 @@ def summary(res: dict) -> list[dict]:
     return out
 
 
+def _loosest(rows: list[dict], prefix: str, target: float) -> dict | None:
+    """The row of ``prefix`` at the loosest rtol whose labels are within ``target`` of the exact ones."""
+    ok = [r for r in rows if r["method"].startswith(prefix) and r["error_vs_exact"] is not None
+          and r["error_vs_exact"] <= target]
+    return max(ok, key=lambda r: float(r["method"].split("rtol ")[1].split()[0]), default=None)
+
+
 def exact_vs_dopri5(res: dict, target: float = 1e-10) -> list[dict]:
-    """Issue 16's ×10 target: the exact propagator against the DOPRI5 kernel at the loosest rtol whose labels
-    are within ``target`` of the exact ones (the current lean kernel: faster than the old one, so the ratio
-    is a lower bound of the gain over the old kernel)."""
+    """Issue 16's ×10 target: the exact propagator against the DOPRI5 kernel of the day the issue was filed
+    (``baseline``, bench/baseline.py) and against the current DOPRI5 kernel, each at the loosest rtol whose
+    labels are within ``target`` of the exact ones."""
     out = []
     for pt in res["points"]:
         by = {r["method"]: r for r in pt["rows"]}
         if "sim exact" not in by:
             continue
-        dop = [r for r in pt["rows"] if r["method"].startswith("sim dopri5") and r["error_vs_exact"] <= target]
-        d = max(dop, key=lambda r: float(r["method"].split()[-1]), default=None)
-        out.append({"model": pt["model"], "point": pt["point"], "exact_cpu_s": by["sim exact"]["cpu_s"],
+        ex = by["sim exact"]["cpu_s"]
+        d = _loosest(pt["rows"], "sim dopri5", target)
+        b = _loosest(pt["rows"], BASELINE, target)
+        out.append({"model": pt["model"], "point": pt["point"], "exact_cpu_s": ex,
                     "dopri5": d and d["method"], "dopri5_cpu_s": d and d["cpu_s"],
-                    "dopri5_error_vs_exact": d and d["error_vs_exact"],
-                    "ratio": (d["cpu_s"] / by["sim exact"]["cpu_s"]) if d else None})
+                    "dopri5_error_vs_exact": d and d["error_vs_exact"], "ratio": (d["cpu_s"] / ex) if d else None,
+                    "baseline": b and b["method"], "baseline_cpu_s": b and b["cpu_s"],
+                    "baseline_error_vs_exact": b and b["error_vs_exact"],
+                    "ratio_vs_baseline": (b["cpu_s"] / ex) if b else None})
     return out
 
 
@@ -222,12 +261,14 @@ def table(res: dict) -> str:
         ratio = f"{s['peer_over_sim']:.1f}" if s["peer_over_sim"] else "-"
         lines.append(f"| {s['model']} | {s['point']} | {s['target']:.0e} | {sim_} | {peer} | {ratio} |")
     for x in exact_vs_dopri5(res):
+        base = (f"the kernel of the day the issue was filed needs {x['baseline']} (error vs exact "
+                f"{x['baseline_error_vs_exact']:.1e}) = {x['baseline_cpu_s'] * 1e3:.2f} ms: **×{x['ratio_vs_baseline']:.1f}**"
+                if x.get("baseline") else "the kernel of the day the issue was filed was not run or reached no 1e-10")
+        cur = (f"the current DOPRI5 kernel needs {x['dopri5']} (error vs exact {x['dopri5_error_vs_exact']:.1e}) "
+               f"= {x['dopri5_cpu_s'] * 1e3:.2f} ms: ×{x['ratio']:.1f}"
+               if x["dopri5"] else "no current DOPRI5 rtol in the run reaches 1e-10")
         lines += ["", f"**×10 target, {x['model']} `{x['point']}` at 1e-10 label error**: exact propagator "
-                  f"{x['exact_cpu_s'] * 1e3:.2f} ms CPU; "
-                  + (f"the current DOPRI5 kernel needs {x['dopri5']} (error vs exact {x['dopri5_error_vs_exact']:.1e}) "
-                     f"= {x['dopri5_cpu_s'] * 1e3:.2f} ms: ×{x['ratio']:.1f}. The old kernel is not kept; the lean "
-                     f"DOPRI5 kernel measured here is faster than it, so ×{x['ratio']:.1f} is a lower bound of the gain."
-                     if x["dopri5"] else "no DOPRI5 rtol in the run reaches 1e-10.")]
+                  f"{x['exact_cpu_s'] * 1e3:.2f} ms CPU; {base}; {cur}."]
     lines += ["", "**Every method** (scipy rows on the drill: a plain `solve_ivp` loop, `bench/peers_scipy.py`; on the "
               "other models: the reference harness `tests/reference_solutions.py` with solve_ivp's step-end event "
               "check, which restarts every cycle):", "",
@@ -292,6 +333,8 @@ def main(quick: bool = False, write_readme: bool | None = None, models: tuple[st
         from bench.startup import startup
 
         res["startup"] = startup(reps=2 if quick else 5)
+    if _WORKER:
+        _WORKER.pop().close()
     res["summary"] = summary(res)
     res["exact_vs_dopri5"] = exact_vs_dopri5(res)
     out_dir = Path(out_dir) if out_dir else RESULTS

@@ -60,3 +60,45 @@ def test_table_is_generated_and_written_between_the_markers_only(quick_result, t
     text = (tmp_path / "README.md").read_text()
     assert text == f"{before}{bp.START}\n{md}{bp.END}{after}"
     assert "old figures" not in text
+
+
+def _row(method, cpu_ms, err_x):
+    return {"method": method, "cpu_s": cpu_ms * 1e-3, "wall_s": cpu_ms * 1e-3, "cpu_all": [cpu_ms * 1e-3],
+            "label_error": max(err_x, 1e-9) if err_x is not None else 1e-9, "error_vs_exact": err_x}
+
+
+def test_old_kernel_is_the_x10_reference_and_neither_simulator_nor_peer():
+    # a drill point as the full run lays it out; the old kernel (bench/baseline.py) is the fastest row reaching
+    # 1e-8 here, yet it must not be reported as the simulator or as a peer
+    rows = [_row("sim exact", 1.0, None), _row("sim dopri5 rtol 1e-10", 6.0, 2e-9),
+            _row("sim dopri5 rtol 1e-12", 10.0, 4e-11), _row("baseline dopri5 rtol 1e-08 (33a799c)", 0.5, 1e-8),
+            _row("baseline dopri5 rtol 1e-11 (33a799c)", 12.0, 9e-11),
+            _row("baseline dopri5 rtol 1e-12 (33a799c)", 20.0, 3e-11), _row("heyoka tol 1e-10", 3.0, 5e-11)]
+    res = {"points": [{"model": "drill", "point": "lab", "rows": rows, "load_avg_before": [0.0], "load_avg_after": [0.0],
+                       "unavailable": {}}]}
+    for s in bp.summary(res):
+        assert not s["sim"].startswith(bp.BASELINE) and not (s["peer"] or "").startswith(bp.BASELINE)
+    assert bp.effective_error(res["points"][0], rows[0]) == 3e-11     # the closest tight numerical row
+    (x,) = bp.exact_vs_dopri5(res)
+    # loosest rtol reaching 1e-10: the old kernel's 1e-11 (9e-11), the current kernel's 1e-12 (4e-11)
+    assert x["baseline"] == "baseline dopri5 rtol 1e-11 (33a799c)" and x["ratio_vs_baseline"] == pytest.approx(12.0)
+    assert x["dopri5"] == "sim dopri5 rtol 1e-12" and x["ratio"] == pytest.approx(10.0)
+    assert "×12.0" in bp.table({**res, "machine": {"load_avg_at_start": [0.0]}, "repetitions": 1})
+
+
+@pytest.mark.slow
+def test_old_kernel_worker_runs_the_commit_issue_16_measured():
+    # compiles the old drill kernel once (about a minute); its labels agree with today's DOPRI5 kernel
+    import sim
+    from bench.baseline import BaselineWorker
+
+    settings = {"min_transient": 20, "max_transient": 20, "window": 4, "rtol": 1e-10}
+    w = BaselineWorker()
+    try:
+        labels, cpu_s, wall_s = w.run("drill", "lab", settings)
+    finally:
+        w.close()
+    now = sim.simulate("drill", preset="lab", settings={**settings, "method": "dopri5"}).labels
+    assert cpu_s > 0 and wall_s > 0
+    assert labels["rop_m_s"] == pytest.approx(now["rop_m_s"], rel=1e-7)
+    assert labels["peak_force_n"] == pytest.approx(now["peak_force_n"], rel=1e-7)
