@@ -13,7 +13,8 @@ resolves errors down to ~1e-12.
 Methods: the simulator's DOPRI5 kernel (``method="dopri5"``) at rtol 1e-6 ... 1e-11 (drill also 1e-12, for
 the x10 target at 1e-10 label error); the exact propagator (``method="exact"``, drill only); on the drill the
 DOPRI5 kernel of the day issue 16 was filed (commit 33a799c, ``bench/baseline.py``: unpacked from git and run
-in a worker process, interleaved like the rest; rtol 1e-8, 1e-10, 1e-11, 1e-12), the "today" of the x10 target; on the drill the
+in a worker process, interleaved like the rest; drill rtol 1e-8, 1e-10, 1e-11, 1e-12, the "today" of the x10
+target; every other model at the default rtol 1e-8, for item 2's lean-kernel ratio); on the drill the
 peers: scipy RK45 / DOP853 in a plain ``solve_ivp`` loop as a user writes it (``bench/peers_scipy.py``), CyRK
 ``pysolve_ivp`` (``bench/peers_cyrk.py``) and heyoka.py (``bench/peers_heyoka.py``, tol 1e-6 ... 1e-11);
 on the other models scipy RK45 (rtol 1e-6, 1e-8) and DOP853 (rtol 1e-8) through the reference harness (no
@@ -57,7 +58,8 @@ SCIPY = (("RK45", 1e-6), ("RK45", 1e-8), ("DOP853", 1e-8))   # (method, rtol) th
 SCIPY_PLAIN = (("RK45", 1e-6), ("RK45", 1e-8), ("DOP853", 1e-8), ("DOP853", 1e-10))   # drill: plain solve_ivp loop
 CYRK = (("RK45", 1e-6), ("RK45", 1e-8), ("DOP853", 1e-8), ("DOP853", 1e-10))          # drill: CyRK pysolve_ivp
 BASELINE = "baseline"      # method-name prefix of the old kernel (bench/baseline.py); neither simulator nor peer
-BASELINE_RTOLS = (1e-8, 1e-10, 1e-11, 1e-12)
+BASELINE_RTOLS = (1e-8, 1e-10, 1e-11, 1e-12)   # drill; the other models: DEFAULT_RTOL only
+DEFAULT_RTOL = 1e-8        # the simulator's default tolerance (item 2's "x2 on every model at the default tolerance")
 TARGETS = (1e-6, 1e-8, 1e-10)   # label-error levels of the summary (fastest simulator method vs fastest peer)
 REF_FLOOR = 1e-9          # the reference's own accuracy (DOP853 rtol 1e-10)
 START, END = "<!-- bench-table:start -->", "<!-- bench-table:end -->"
@@ -88,6 +90,17 @@ def _methods(model: str, preset, n: int, w: int, quick: bool) -> dict:
     if sim.get_model(model).exact is not None:
         out["sim exact"] = lambda: sim.simulate(model, preset=preset, settings={**fixed, "method": "exact"}).labels
     params = {k: v for k, v in sim.get_model(model).resolve(preset).items() if k not in ("P", "D")}
+    try:   # issue 16's "today": the DOPRI5 kernel of the commit the issue measured, in a worker process
+        from bench.baseline import COMMIT
+        rtols_old = BASELINE_RTOLS if model == "drill" else (DEFAULT_RTOL,)
+        if quick:                                           # --quick: only the x10 line's row
+            rtols_old = (1e-12,) if model == "drill" else ()
+        worker = _baseline_worker() if rtols_old else None
+        for r in rtols_old:
+            out[f"{BASELINE} dopri5 rtol {r:.0e} ({COMMIT})"] = (
+                lambda r=r: worker.run(model, preset, {**fixed, "rtol": r}))
+    except Exception as e:  # noqa: BLE001 -- no git history (e.g. an sdist): reported, not fatal
+        out[BASELINE] = f"unavailable ({type(e).__name__}: {e})"
     if model != "drill":
         if not quick:   # no plain-loop peer for these models: scipy through the reference harness
             for meth, r in SCIPY:
@@ -95,14 +108,6 @@ def _methods(model: str, preset, n: int, w: int, quick: bool) -> dict:
                     model, params, n, w, method=meth, rtol=r, event_subdivisions=1))
         return out
     p = drill_values(params)
-    try:   # issue 16's "today": the DOPRI5 kernel of the commit the issue measured, in a worker process
-        from bench.baseline import COMMIT
-        worker = _baseline_worker()
-        for r in ((1e-12,) if quick else BASELINE_RTOLS):
-            out[f"{BASELINE} dopri5 rtol {r:.0e} ({COMMIT})"] = (
-                lambda r=r: worker.run(model, preset, {**fixed, "rtol": r}))
-    except Exception as e:  # noqa: BLE001 -- no git history (e.g. an sdist): reported, not fatal
-        out[BASELINE] = f"unavailable ({type(e).__name__}: {e})"
     from bench import peers_scipy
     for meth, r in (SCIPY_PLAIN[:1] if quick else SCIPY_PLAIN):
         out[f"scipy {meth} rtol {r:.0e}"] = lambda meth=meth, r=r: peers_scipy.run_point(p, n, w, meth, r)
@@ -213,6 +218,21 @@ def _loosest(rows: list[dict], prefix: str, target: float) -> dict | None:
     return max(ok, key=lambda r: float(r["method"].split("rtol ")[1].split()[0]), default=None)
 
 
+def lean_vs_old(res: dict) -> list[dict]:
+    """Issue 16 item 2: per point, the current DOPRI5 kernel against the old one (33a799c), both at the default
+    rtol, with their label errors (vs the exact propagator on the drill, else vs the reference)."""
+    out = []
+    for pt in res["points"]:
+        by = {r["method"]: r for r in pt["rows"]}
+        new = by.get(f"sim dopri5 rtol {DEFAULT_RTOL:.0e}")
+        old = next((r for k, r in by.items() if k.startswith(f"{BASELINE} dopri5 rtol {DEFAULT_RTOL:.0e}")), None)
+        if new and old:
+            err = (lambda r: r["error_vs_exact"] if r.get("error_vs_exact") is not None else r["label_error"])
+            out.append({"model": pt["model"], "point": pt["point"], "old_cpu_s": old["cpu_s"], "new_cpu_s": new["cpu_s"],
+                        "ratio": old["cpu_s"] / new["cpu_s"], "old_error": err(old), "new_error": err(new)})
+    return out
+
+
 def exact_vs_dopri5(res: dict, target: float = 1e-10) -> list[dict]:
     """Issue 16's ×10 target: the exact propagator against the DOPRI5 kernel of the day the issue was filed
     (``baseline``, bench/baseline.py) and against the current DOPRI5 kernel, each at the loosest rtol whose
@@ -269,6 +289,15 @@ def table(res: dict) -> str:
                if x["dopri5"] else "no current DOPRI5 rtol in the run reaches 1e-10")
         lines += ["", f"**×10 target, {x['model']} `{x['point']}` at 1e-10 label error**: exact propagator "
                   f"{x['exact_cpu_s'] * 1e3:.2f} ms CPU; {base}; {cur}."]
+    lean = lean_vs_old(res)
+    if lean:
+        lines += ["", f"**Lean kernel (item 2), rtol {DEFAULT_RTOL:.0e} (the default)**: the DOPRI5 kernel of the day the "
+                  "issue was filed (`bench/baseline.py`) against the current one, CPU ms and label error (drill: vs the "
+                  "exact propagator):", "", "| model | point | old kernel | current kernel | old / current |",
+                  "|---|---|---|---|---|"]
+        for x in lean:
+            lines.append(f"| {x['model']} | {x['point']} | {x['old_cpu_s'] * 1e3:.2f} ({_fmt_err(x['old_error'])}) | "
+                         f"{x['new_cpu_s'] * 1e3:.2f} ({_fmt_err(x['new_error'])}) | ×{x['ratio']:.2f} |")
     lines += ["", "**Every method** (scipy rows on the drill: a plain `solve_ivp` loop, `bench/peers_scipy.py`; on the "
               "other models: the reference harness `tests/reference_solutions.py` with solve_ivp's step-end event "
               "check, which restarts every cycle):", "",
@@ -337,6 +366,7 @@ def main(quick: bool = False, write_readme: bool | None = None, models: tuple[st
         _WORKER.pop().close()
     res["summary"] = summary(res)
     res["exact_vs_dopri5"] = exact_vs_dopri5(res)
+    res["lean_vs_old"] = lean_vs_old(res)
     out_dir = Path(out_dir) if out_dir else RESULTS
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / ("precision_quick.json" if quick else "precision.json")).write_text(json.dumps(res, indent=1))

@@ -70,7 +70,7 @@ def _row(method, cpu_ms, err_x):
 def test_old_kernel_is_the_x10_reference_and_neither_simulator_nor_peer():
     # a drill point as the full run lays it out; the old kernel (bench/baseline.py) is the fastest row reaching
     # 1e-8 here, yet it must not be reported as the simulator or as a peer
-    rows = [_row("sim exact", 1.0, None), _row("sim dopri5 rtol 1e-10", 6.0, 2e-9),
+    rows = [_row("sim exact", 1.0, None), _row("sim dopri5 rtol 1e-08", 0.25, 1.2e-7), _row("sim dopri5 rtol 1e-10", 6.0, 2e-9),
             _row("sim dopri5 rtol 1e-12", 10.0, 4e-11), _row("baseline dopri5 rtol 1e-08 (33a799c)", 0.5, 1e-8),
             _row("baseline dopri5 rtol 1e-11 (33a799c)", 12.0, 9e-11),
             _row("baseline dopri5 rtol 1e-12 (33a799c)", 20.0, 3e-11), _row("heyoka tol 1e-10", 3.0, 5e-11)]
@@ -83,6 +83,8 @@ def test_old_kernel_is_the_x10_reference_and_neither_simulator_nor_peer():
     # loosest rtol reaching 1e-10: the old kernel's 1e-11 (9e-11), the current kernel's 1e-12 (4e-11)
     assert x["baseline"] == "baseline dopri5 rtol 1e-11 (33a799c)" and x["ratio_vs_baseline"] == pytest.approx(12.0)
     assert x["dopri5"] == "sim dopri5 rtol 1e-12" and x["ratio"] == pytest.approx(10.0)
+    (lean,) = bp.lean_vs_old(res)      # item 2: old / current kernel at the default rtol 1e-8
+    assert lean["ratio"] == pytest.approx(2.0) and lean["old_error"] == 1e-8 and lean["new_error"] == 1.2e-7
     assert "×12.0" in bp.table({**res, "machine": {"load_avg_at_start": [0.0]}, "repetitions": 1})
 
 
