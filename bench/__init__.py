@@ -16,7 +16,8 @@ G_ACC = 9.81
 DRILL_PARAMS = ("M1", "M2", "M3", "K1", "K2", "K3", "C1", "C2", "C3", "Pr",
                 "gap_m", "static_force_n", "amplitude_n", "frequency_hz")
 EFFECT_PARAMS = ("gamma", "tau", "beta", "alpha", "mu", "kappa")   # §6 effects of the drill (sim/models/drill.py)
-ETA_X = 1e-13          # hysteresis on the position switching function [m] (as the reference)
+ETA_X = 1e-15          # hysteresis on the position switching function [m] (as the reference); 1e-13 delayed every
+#                        contact by ETA_X / v1 and biased the lab ROP by 1.4e-8 (the damper's force jumps at contact)
 
 
 def drill_values(params: dict) -> dict:

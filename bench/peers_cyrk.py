@@ -24,10 +24,9 @@ import math
 import numpy as np
 from numba import njit
 
-from bench import G_ACC, drill_a1, drill_classify
+from bench import ETA_X, G_ACC, drill_a1, drill_classify
 
 # parameter vector: M1 M2 M3 K1 K2 K3 C1 C2 C3 Pr F0 Fs Om
-ETA_X = 1e-13
 
 
 def _pvec(p: dict) -> np.ndarray:

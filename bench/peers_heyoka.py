@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from bench import G_ACC, drill_classify
+from bench import ETA_X, G_ACC, drill_classify
 
 # runtime parameter layout
 (P_M1, P_M2, P_M3, P_K1, P_K2, P_K3, P_C1, P_C2, P_C3, P_PR, P_F0, P_FS, P_OM,
@@ -36,7 +36,6 @@ COOLDOWN_S = 1e-9      # [s] terminal-event cooldown: heyoka's automatic one (co
 #                        tol >= 1e-8 swallowed the release event after II -> III (the bit never left the rock:
 #                        label error 0.94); 1 ns is far below any phase duration, and the hysteresis ETA_X / eP
 #                        keeps a surface from re-firing at the restart
-ETA_X = 1e-13
 
 
 def _pdict(pars) -> dict:

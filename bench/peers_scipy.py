@@ -18,9 +18,8 @@ import math
 
 import numpy as np
 
-from bench import G_ACC, drill_a1, drill_classify
+from bench import ETA_X, G_ACC, drill_a1, drill_classify
 
-ETA_X = 1e-13
 
 
 def _model(p: dict):

@@ -37,7 +37,7 @@ def add_parser(sub) -> None:
         description="Learn the simulator's response from a sweep dataset (directory of part-*.parquet + "
                     "metadata.json, or one .parquet file): a regime classifier (progressing, no_progress, "
                     "runaway, not_settled, failed) and, per target, a regressor inside its regime with a "
-                    "split-conformal 90 %% prediction interval.  Candidates (Gaussian process, gradient-boosted "
+                    "split-conformal 90 % prediction interval.  Candidates (Gaussian process, gradient-boosted "
                     "trees, neural network, kernel ridge) are selected by K-fold cross-validation on the training "
                     "split; a held-out split (never trained on) gives the report.  Logged to MLflow (params, "
                     "metrics, figures, the model with its signature).",

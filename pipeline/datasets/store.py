@@ -271,14 +271,20 @@ def load_dataset(path: str | os.PathLike, allow_partial: bool = False) -> pd.Dat
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(2, "no such sweep dataset", str(path))
-    if path.is_file():
+    if path.is_file():     # e.g. a simulate_batch table saved by hand: no point_id is fine, file order is kept
         df = _read_table(path).to_pandas()
+        if "point_id" not in df.columns:
+            return df
         return df.sort_values("point_id", kind="stable").reset_index(drop=True)
     meta = _read_meta(path)
     parts = sorted(path.glob(PART_GLOB))
     if not parts:
         raise UserError(f"{path}: no {PART_GLOB} files (not a sweep dataset, or nothing computed yet)")
-    table = pa.concat_tables([_read_table(p) for p in parts])
+    tables = [_read_table(p) for p in parts]
+    for p, t in zip(parts, tables):
+        if "point_id" not in t.column_names:
+            raise UserError(f"{p}: no 'point_id' column (not a part written by 'vibro sweep')")
+    table = pa.concat_tables(tables)
     df = table.to_pandas().sort_values("point_id", kind="stable").reset_index(drop=True)
     if df["point_id"].duplicated().any():
         raise UserError(f"{path}: duplicate point_id values (files from different runs mixed by hand?)")

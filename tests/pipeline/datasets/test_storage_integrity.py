@@ -185,3 +185,20 @@ def test_overwrite_refuses_files_the_sweep_did_not_write(tmp_path):
     user_part.unlink()
     s = run_sweep(spec, out, progress=False, overwrite=True)      # only its own files: replaced
     assert s.computed == 2
+
+
+# ------------------------------------------------------------------------------------- foreign files
+def test_single_parquet_without_point_id_loads_in_file_order(tmp_path):
+    # e.g. a simulate_batch table saved by hand (README: `vibro train` takes "one .parquet file"); this
+    # used to end in "internal error: KeyError: 'point_id'"
+    df = pd.DataFrame({"frequency_hz": [300.0, 100.0, 200.0], "rop_m_s": [1e-3, 2e-3, 3e-3]})
+    f = tmp_path / "batch.parquet"
+    df.to_parquet(f)
+    got = load_dataset(f)
+    assert got["frequency_hz"].tolist() == [300.0, 100.0, 200.0]
+
+
+def test_dataset_part_without_point_id_is_a_user_error(tmp_path):
+    pd.DataFrame({"frequency_hz": [100.0]}).to_parquet(tmp_path / "part-00000.parquet")
+    with pytest.raises(UserError, match=r"part-00000.parquet: no 'point_id' column"):
+        load_dataset(tmp_path, allow_partial=True)
