@@ -25,7 +25,7 @@ and of ``vibro sweep`` (:mod:`bench.scaling`), and the CPU of one warm ``vibro s
 every method, the scaling, the start-up); a full run (or ``--write-readme``) copies that table into the marked blocks of
 README.md and bench/README.md, so the figures quoted there are always this run's.
 
-Run: ``python -m bench.bench_precision [--quick] [--models drill,...] [--scaling] [--write-readme]``.  Not a test: nothing asserts a timing.
+Run: ``python -m bench.bench_precision [--quick] [--models drill,...] [--scaling] [--write-readme] [--reps N]``.  Not a test: nothing asserts a timing.
 """
 from __future__ import annotations
 
@@ -352,10 +352,10 @@ def run_scaling(quick: bool) -> dict:
 
 
 def main(quick: bool = False, write_readme: bool | None = None, models: tuple[str, ...] | None = None,
-         scaling: bool | None = None, out_dir: Path | None = None) -> dict:
+         scaling: bool | None = None, out_dir: Path | None = None, reps: int = 3) -> dict:
     """Run, save to ``out_dir`` (default bench/results), and (by default for a full run, as under
     ``make bench``) rewrite the README tables.  ``scaling`` defaults to on for a full run."""
-    res = run(quick, models=models)
+    res = run(quick, models=models, reps=reps)
     res["quick"] = quick
     if scaling or (scaling is None and not quick):
         res["scaling"] = run_scaling(quick)
@@ -387,5 +387,9 @@ if __name__ == "__main__":
     ap.add_argument("--no-write-readme", dest="write_readme", action="store_false",
                     help="leave the README tables alone (e.g. a --models subset)")
     ap.add_argument("--out-dir", type=Path, help="where precision.json/.md go (default bench/results)")
+    ap.add_argument("--reps", type=int, default=3, help="interleaved repetitions per method (default 3; medians)")
     a = ap.parse_args()
-    main(a.quick, a.write_readme, tuple(m for m in a.models.split(",") if m) or None, a.scaling, out_dir=a.out_dir)
+    if a.reps < 1:
+        ap.error("--reps must be at least 1")
+    main(a.quick, a.write_readme, tuple(m for m in a.models.split(",") if m) or None, a.scaling, out_dir=a.out_dir,
+         reps=a.reps)
