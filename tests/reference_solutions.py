@@ -24,8 +24,8 @@ Method
   error this introduces is eta / |dg/dt| (~1e-14 s), far below any contact duration.  It is not harmless at
   the 1e-8 level: where a contact force jumps at the onset (the drill's damper C1 v1) a contact delayed by
   eta / v1 transfers a little less momentum, and with eta = 1e-13 m the drill `lab` ROP came out 1.41e-8
-  high (1.44e-9 at 1e-14 m, 1.7e-10 at 1e-15 m: linear in eta), the only disagreement with the simulator's
-  exact propagator.  Hence 1e-15 m (atol of positions at rtol 1e-12; round-off of a mm-scale position ~1e-19).
+  high (1.44e-9 at 1e-14 m, 1.7e-10 at 1e-15 m: linear in eta; ``python -m bench.reference_hysteresis``),
+  the only disagreement with the simulator's exact propagator.  Hence 1e-15 m (atol of positions at rtol 1e-12; round-off of a mm-scale position ~1e-19).
 * Integration runs cycle by cycle in *local* cycle time tau in [0, T) (all forcings are T-periodic), which
   keeps the time resolution of event location at ~1e-16*T however long the run; every cycle boundary is
   a segment end, giving exact stroboscopic samples.
