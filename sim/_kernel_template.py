@@ -64,7 +64,7 @@ def _track(acc, obs, in_contact):
 def _peak_on(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, a, b, which):
     """Max over θ in [a, b] of the contact force (which = OBS_FORCE) or of the deceleration
     (which = OBS_ACCEL: −accel) on the step's interpolant: Brent's method (parabolic steps with a golden
-    section fallback, Numerical Recipes §10.3) to 1e-5 of [a, b], typically 6-10 evaluations."""
+    section fallback, Numerical Recipes §10.3) to 1e-5 of [a, b]."""
     cg = 0.3819660112501051
     tol1 = 1e-5 * (b - a)
     tol2 = 2.0 * tol1
