@@ -63,7 +63,7 @@ class BaselineWorker:
         src = checkout(commit)
         env = {**os.environ, "VIBRO_KERNEL_DIR": str(src / ".numba_cache"), "PYTHONPATH": str(src)}
         self._p = subprocess.Popen([sys.executable, "-c", _WORKER, str(src)], stdin=subprocess.PIPE,
-                                   stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env,
+                                   stdout=subprocess.PIPE, text=True, env=env,   # stderr: its compile notices
                                    cwd=str(src))
 
     def run(self, model: str, preset: str | None, settings: dict) -> tuple[dict, float, float]:

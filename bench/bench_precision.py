@@ -138,42 +138,46 @@ def run(quick: bool, log=print, models: tuple[str, ...] | None = None, reps: int
         points = [pt for pt in POINTS if pt[0] in models]
         points = [pt for i, pt in enumerate(points) if not quick or i == 0]
     res = {"machine": machine_info(), "repetitions": reps, "points": []}
-    for model, pid, preset, n, w in points:
-        params = {k: v for k, v in sim.get_model(model).resolve(preset).items() if k not in ("P", "D")}
-        ref = reference_run(model, params, n, w, method="DOP853", rtol=1e-10)
-        meths = _methods(model, preset, n, w, quick)
-        callables = {k: v for k, v in meths.items() if callable(v)}
-        for fn in callables.values():          # warm-up: kernel load, LLVM build (the baseline's compile)
-            fn()
-        cpu = {k: [] for k in callables}
-        wall = {k: [] for k in callables}
-        last = {}
-        load0 = os.getloadavg()
-        for _ in range(reps):                  # interleaved: A B C A B C ...
-            for k, fn in callables.items():
-                c0, t0 = time.process_time(), time.perf_counter()
-                got = fn()
-                w_, c_ = time.perf_counter() - t0, time.process_time() - c0
-                if isinstance(got, tuple):     # timed by its own process (the baseline worker)
-                    got, c_, w_ = got
-                last[k] = got
-                wall[k].append(w_)
-                cpu[k].append(c_)
-        load1 = os.getloadavg()
-        rows = []
-        exact = last.get("sim exact")
-        for k in callables:
-            err = label_error(last[k], ref, model)
-            # below the reference's own ~1e-9 only the exact propagator can tell errors apart
-            err_x = label_error(last[k], exact, model) if exact is not None and k != "sim exact" else None
-            rows.append({"method": k, "cpu_s": statistics.median(cpu[k]), "wall_s": statistics.median(wall[k]),
-                         "cpu_all": cpu[k], "label_error": err, "error_vs_exact": err_x})
-            log(f"{model:18s} {pid:12s} {k:30s} cpu {rows[-1]['cpu_s'] * 1e3:9.2f} ms  "
-                f"wall {rows[-1]['wall_s'] * 1e3:9.2f} ms  err {err:.2e}"
-                + (f"  vs exact {err_x:.2e}" if err_x is not None else ""))
-        res["points"].append({"model": model, "point": pid, "transient": n, "window": w, "rows": rows,
-                              "load_avg_before": list(load0), "load_avg_after": list(load1),
-                              "unavailable": {k: v for k, v in meths.items() if not callable(v)}})
+    try:
+        for model, pid, preset, n, w in points:
+            params = {k: v for k, v in sim.get_model(model).resolve(preset).items() if k not in ("P", "D")}
+            ref = reference_run(model, params, n, w, method="DOP853", rtol=1e-10)
+            meths = _methods(model, preset, n, w, quick)
+            callables = {k: v for k, v in meths.items() if callable(v)}
+            for fn in callables.values():          # warm-up: kernel load, LLVM build (the baseline's compile)
+                fn()
+            cpu = {k: [] for k in callables}
+            wall = {k: [] for k in callables}
+            last = {}
+            load0 = os.getloadavg()
+            for _ in range(reps):                  # interleaved: A B C A B C ...
+                for k, fn in callables.items():
+                    c0, t0 = time.process_time(), time.perf_counter()
+                    got = fn()
+                    w_, c_ = time.perf_counter() - t0, time.process_time() - c0
+                    if isinstance(got, tuple):     # timed by its own process (the baseline worker)
+                        got, c_, w_ = got
+                    last[k] = got
+                    wall[k].append(w_)
+                    cpu[k].append(c_)
+            load1 = os.getloadavg()
+            rows = []
+            exact = last.get("sim exact")
+            for k in callables:
+                err = label_error(last[k], ref, model)
+                # below the reference's own ~1e-9 only the exact propagator can tell errors apart
+                err_x = label_error(last[k], exact, model) if exact is not None and k != "sim exact" else None
+                rows.append({"method": k, "cpu_s": statistics.median(cpu[k]), "wall_s": statistics.median(wall[k]),
+                             "cpu_all": cpu[k], "label_error": err, "error_vs_exact": err_x})
+                log(f"{model:18s} {pid:12s} {k:30s} cpu {rows[-1]['cpu_s'] * 1e3:9.2f} ms  "
+                    f"wall {rows[-1]['wall_s'] * 1e3:9.2f} ms  err {err:.2e}"
+                    + (f"  vs exact {err_x:.2e}" if err_x is not None else ""))
+            res["points"].append({"model": model, "point": pid, "transient": n, "window": w, "rows": rows,
+                                  "load_avg_before": list(load0), "load_avg_after": list(load1),
+                                  "unavailable": {k: v for k, v in meths.items() if not callable(v)}})
+    finally:                                   # the old kernel's worker lives for this run only
+        if _WORKER:
+            _WORKER.pop().close()
     return res
 
 
@@ -227,9 +231,9 @@ def lean_vs_old(res: dict) -> list[dict]:
         new = by.get(f"sim dopri5 rtol {DEFAULT_RTOL:.0e}")
         old = next((r for k, r in by.items() if k.startswith(f"{BASELINE} dopri5 rtol {DEFAULT_RTOL:.0e}")), None)
         if new and old:
-            err = (lambda r: r["error_vs_exact"] if r.get("error_vs_exact") is not None else r["label_error"])
             out.append({"model": pt["model"], "point": pt["point"], "old_cpu_s": old["cpu_s"], "new_cpu_s": new["cpu_s"],
-                        "ratio": old["cpu_s"] / new["cpu_s"], "old_error": err(old), "new_error": err(new)})
+                        "ratio": old["cpu_s"] / new["cpu_s"], "old_error": effective_error(pt, old),
+                        "new_error": effective_error(pt, new)})
     return out
 
 
@@ -363,8 +367,6 @@ def main(quick: bool = False, write_readme: bool | None = None, models: tuple[st
         from bench.startup import startup
 
         res["startup"] = startup(reps=2 if quick else 5)
-    if _WORKER:
-        _WORKER.pop().close()
     res["summary"] = summary(res)
     res["exact_vs_dopri5"] = exact_vs_dopri5(res)
     res["lean_vs_old"] = lean_vs_old(res)

@@ -21,7 +21,6 @@ import numpy as np
 from bench import ETA_X, G_ACC, drill_a1, drill_classify
 
 
-
 def _model(p: dict):
     """The right-hand side, the per-phase terminal events and the window extremum events of point ``p``."""
     M1, M2, M3 = p["M1"], p["M2"], p["M3"]

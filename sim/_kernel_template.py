@@ -359,11 +359,9 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 d_end = -obs[OBS_ACCEL]
                 bd = _step_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th_ev,
                                d_prev, d_mid, d_end, acc[4], OBS_ACCEL)
-                bf = -np.inf
                 if in_c:
                     bf = _step_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th_ev,
                                    f_prev, f_mid, f_end, acc[5], OBS_FORCE)
-                if in_c:
                     if bf > acc[0]:
                         acc[0] = bf
                     if bf > acc[5]:
