@@ -1,5 +1,6 @@
 """Start-up cost of the command line (issue 16 item 3): process CPU seconds of one warm ``vibro simulate drill
---preset lab`` (kernel cache warm: a warm-up run loads or compiles it first), of ``vibro --help`` and of
+--preset lab`` (kernel cache warm: ``vibro compile drill`` and a warm-up run build or load it first) with the
+ahead-of-time kernel and, for comparison, with numba's JIT cache (``VIBRO_NO_AOT=1``), of ``vibro --help`` and of
 ``vibro simulate --help``.
 
 Each command runs as ``python -m pipeline.cli ...`` in a fresh subprocess (what ``bin/vibro`` and the ``vibro``
@@ -24,26 +25,30 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 
-COMMANDS: dict[str, tuple[str, ...]] = {
-    "vibro simulate drill --preset lab": ("simulate", "drill", "--preset", "lab"),
-    "vibro --help": ("--help",),
-    "vibro simulate --help": ("simulate", "--help"),
+_SIM = ("simulate", "drill", "--preset", "lab")
+COMMANDS: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
+    "vibro simulate drill --preset lab": (_SIM, {}),
+    "VIBRO_NO_AOT=1 vibro simulate drill --preset lab": (_SIM, {"VIBRO_NO_AOT": "1"}),
+    "vibro --help": (("--help",), {}),
+    "vibro simulate --help": (("simulate", "--help"), {}),
 }
-"""Label -> arguments of ``python -m pipeline.cli``."""
+"""Label -> (arguments of ``python -m pipeline.cli``, extra environment).  The first row loads the ahead-of-time
+kernel (``vibro compile``, sim/aot.py); the second ignores it and loads numba's JIT cache instead."""
 
 
-def _env(root: Path) -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+def _env(root: Path, extra: dict[str, str] | None = None) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONDONTWRITEBYTECODE", "VIBRO_NO_AOT")}
     env["PYTHONPATH"] = os.pathsep.join([str(root), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     env.setdefault("VIBRO_KERNEL_DIR", str(ROOT / ".numba_cache"))
+    env.update(extra or {})
     return env
 
 
-def run_once(args: tuple[str, ...], root: Path = ROOT) -> tuple[float, float]:
+def run_once(args: tuple[str, ...], root: Path = ROOT, extra_env: dict[str, str] | None = None) -> tuple[float, float]:
     """(CPU s, wall s) of one ``python -m pipeline.cli *args`` subprocess; RuntimeError if it fails."""
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "pipeline.cli", *args], cwd=root, env=_env(root),
+    proc = subprocess.run([sys.executable, "-m", "pipeline.cli", *args], cwd=root, env=_env(root, extra_env),
                           capture_output=True, text=True)
     wall = time.perf_counter() - t0
     r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -56,12 +61,14 @@ def startup(reps: int = 5, root: Path = ROOT) -> dict:
     """Medians of ``reps`` interleaved runs of every command of :data:`COMMANDS` after one warm-up run each."""
     root = Path(root)
     load0 = os.getloadavg()
-    for args in COMMANDS.values():
-        run_once(args, root)                     # warm-up: kernel cache, .pyc files
+    if (root / "pipeline" / "cli" / "compile.py").exists():
+        run_once(("compile", "drill", "--quiet"), root)      # the AOT kernels, if missing (about 70 s)
+    for args, extra in COMMANDS.values():
+        run_once(args, root, extra)              # warm-up: kernel cache, .pyc files
     runs: dict[str, list[tuple[float, float]]] = {k: [] for k in COMMANDS}
     for _ in range(reps):
-        for label, args in COMMANDS.items():
-            runs[label].append(run_once(args, root))
+        for label, (args, extra) in COMMANDS.items():
+            runs[label].append(run_once(args, root, extra))
     rows = [{"command": label, "cpu_s": statistics.median(c for c, _ in r), "wall_s": statistics.median(w for _, w in r),
              "cpu_all": [c for c, _ in r]} for label, r in runs.items()]
     return {"what": "process CPU of one warm command (fresh interpreter, warm kernel cache)", "reps": reps,

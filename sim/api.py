@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -191,6 +192,16 @@ def _prepare(spec: ModelSpec, values: dict[str, float], rtol: float):
     return p, y0, z0, int(ph0), period, rtol * np.asarray(spec.atol(p), dtype=np.float64)
 
 
+def _main_thread_aot(spec: ModelSpec, exact: str | None):
+    """The ahead-of-time kernel (sim.aot: no numba import), if built for the current sources and called on the
+    main thread (it holds the GIL; threads keep the GIL-free JIT kernel).  Same labels, bit for bit."""
+    if threading.current_thread() is not threading.main_thread() or os.environ.get("VIBRO_NO_AOT"):
+        return None
+    from sim import aot
+
+    return aot.load(spec.funcs, exact)
+
+
 def _check_state(spec: ModelSpec, state) -> tuple[np.ndarray, np.ndarray, int]:
     try:
         y, z, ph = state
@@ -240,8 +251,10 @@ def simulate(model: str, preset: str | None = None, settings: Settings | dict | 
         y0, z0, ph0 = _check_state(spec, initial_state)
     y, z, ph = y0.copy(), z0.copy(), np.array([ph0], dtype=np.int64)
     exact = _exact_module(spec, values, st, history)
-    announce_compile(spec, exact)
-    run_one = kernels(spec.funcs, spec.n_bounded, exact)
+    run_one = _main_thread_aot(spec, exact)
+    if run_one is None:
+        announce_compile(spec, exact)
+        run_one = kernels(spec.funcs, spec.n_bounded, exact)
     v = run_one(p, y, z, ph, period, s, atol, ht, hy, ho, hp)
     labels = _labels_from_vector(v, msg)
     hist = None

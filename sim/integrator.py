@@ -36,7 +36,7 @@ Phase 0 always means "no contact"; every phase > 0 is a contact phase.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 # ----------------------------------------------------------------------------- DOPRI5 tableau
 C2, C3, C4, C5 = 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0

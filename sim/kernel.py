@@ -8,7 +8,7 @@ non-periodic response can be judged steady (half-window statistics agree, ``_rel
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import MAX_PERIOD, rows_repeat, span_ranges
 

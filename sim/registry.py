@@ -38,6 +38,11 @@ def get_model(name: str) -> ModelSpec:
     return mod.SPEC
 
 
+def kernel_variants(spec: ModelSpec) -> tuple[str | None, ...]:
+    """The kernels of a model: None for the numerical integrator, then its exact propagator's module, if any."""
+    return (None, spec.exact) if spec.exact else (None,)
+
+
 def warm(name: str) -> None:
     """Load/compile ``name``'s kernel in the calling thread before worker threads use it
     (sim.compiled.kernels is not thread-safe on its first call)."""
@@ -45,6 +50,6 @@ def warm(name: str) -> None:
     from sim.compiled import kernels
 
     spec = get_model(name)
-    for exact in (None, spec.exact) if spec.exact else (None,):
+    for exact in kernel_variants(spec):
         announce_compile(spec, exact)
         kernels(spec.funcs, spec.n_bounded, exact)

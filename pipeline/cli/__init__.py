@@ -22,7 +22,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 from pipeline.core.errors import USER_ERRORS  # noqa: E402
 
 SUBCOMMANDS = ("simulate", "sweep", "train", "optimise", "verify", "diagnose", "synth", "map", "report", "models",
-               "compare")
+               "compare", "compile")
 
 
 def version() -> str:

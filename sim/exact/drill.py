@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import REASON_TOO_MANY_STEPS, S_MAX_STEPS_PER_CYCLE, S_RTOL, STATUS_FAILED
 from sim.models.drill import (C1, C2, C3, F0, FREQ, FS, GAMMA, GAP, IV1, IV2, IV3, IW, IX1, IX2, IX3, IXB,

@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from sim.jit import interpreted, njit  # numba is imported on first use (sim/jit.py)
 
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
 
@@ -168,7 +168,7 @@ def _initial(p: np.ndarray):
     y = np.zeros(NY)
     y[IXT] = p[GAP]
     y[IXB] = p[GAP]
-    ph = int(classify(y, p, 1)) if p[GAP] <= 0.0 else 0
+    ph = int(interpreted(classify)(y, p, 1)) if p[GAP] <= 0.0 else 0     # interpreted: no numba import
     return y, np.zeros(1), ph
 
 

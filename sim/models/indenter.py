@@ -16,7 +16,7 @@ import math
 from dataclasses import replace
 
 import numpy as np
-from numba import njit
+from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import FitBound, ModelSpec, Param, SynthRig

@@ -70,8 +70,8 @@ def _row(method, cpu_ms, err_x):
 def test_old_kernel_is_the_x10_reference_and_neither_simulator_nor_peer():
     # a drill point as the full run lays it out; the old kernel (bench/baseline.py) is the fastest row reaching
     # 1e-8 here, yet it must not be reported as the simulator or as a peer
-    rows = [_row("sim exact", 1.0, None), _row("sim dopri5 rtol 1e-08", 0.25, 1.2e-7), _row("sim dopri5 rtol 1e-10", 6.0, 2e-9),
-            _row("sim dopri5 rtol 1e-12", 10.0, 4e-11), _row("baseline dopri5 rtol 1e-08 (33a799c)", 0.5, 1e-8),
+    rows = [_row("sim exact", 1.0, None), _row("sim dopri5 rtol 1e-07", 0.25, 1.2e-7), _row("sim dopri5 rtol 1e-10", 6.0, 2e-9),
+            _row("sim dopri5 rtol 1e-12", 10.0, 4e-11), _row("baseline dopri5 rtol 1e-07 (33a799c)", 0.5, 1e-8),
             _row("baseline dopri5 rtol 1e-11 (33a799c)", 12.0, 9e-11),
             _row("baseline dopri5 rtol 1e-12 (33a799c)", 20.0, 3e-11), _row("heyoka tol 1e-10", 3.0, 5e-11)]
     res = {"points": [{"model": "drill", "point": "lab", "rows": rows, "load_avg_before": [0.0], "load_avg_after": [0.0],
@@ -83,9 +83,17 @@ def test_old_kernel_is_the_x10_reference_and_neither_simulator_nor_peer():
     # loosest rtol reaching 1e-10: the old kernel's 1e-11 (9e-11), the current kernel's 1e-12 (4e-11)
     assert x["baseline"] == "baseline dopri5 rtol 1e-11 (33a799c)" and x["ratio_vs_baseline"] == pytest.approx(12.0)
     assert x["dopri5"] == "sim dopri5 rtol 1e-12" and x["ratio"] == pytest.approx(10.0)
-    (lean,) = bp.lean_vs_old(res)      # item 2: old / current kernel at the default rtol 1e-8
+    (lean,) = bp.lean_vs_old(res)      # item 2: old / current kernel at the default rtol 1e-7
     assert lean["ratio"] == pytest.approx(2.0) and lean["old_error"] == 1e-8 and lean["new_error"] == 1.2e-7
     assert "×12.0" in bp.table({**res, "machine": {"load_avg_at_start": [0.0]}, "repetitions": 1})
+
+
+def test_lean_kernel_ratio_is_taken_at_the_simulators_default_rtol():
+    """Item 2 reads "at the default tolerance": the benchmark's DEFAULT_RTOL is sim.Settings' (it said 1e-8 while the
+    default was 1e-7)."""
+    import sim
+
+    assert bp.DEFAULT_RTOL == sim.Settings().rtol and bp.DEFAULT_RTOL in bp.BASELINE_RTOLS
 
 
 @pytest.mark.slow
