@@ -31,7 +31,7 @@ from typing import Callable
 RUN_POINT_SIGNATURE = ("f8[::1](f8[::1], f8[::1], f8[::1], i8[::1], f8, f8[::1], f8[::1], "
                        "f8[::1], f8[:, ::1], f8[:, ::1], i8[::1])")
 _SUFFIX = importlib.machinery.EXTENSION_SUFFIXES[0]
-_LOADED: dict[Path, Callable | None] = {}
+_LOADED: dict[tuple, Callable | None] = {}     # (funcs, exact) -> run_point or None
 
 
 def module_path(funcs: tuple, exact: str | None = None) -> Path:
@@ -44,15 +44,19 @@ def module_path(funcs: tuple, exact: str | None = None) -> Path:
 
 
 def load(funcs: tuple, exact: str | None = None) -> Callable | None:
-    """The AOT ``run_point`` of this kernel, or None when it has not been built for the current sources."""
-    path = module_path(funcs, exact)
-    if path not in _LOADED:
-        _LOADED[path] = _import(path) if path.exists() else None
-    return _LOADED[path]
+    """The AOT ``run_point`` of this kernel, or None when it has not been built for the current sources.
+
+    Looked up once per kernel and process (hashing the sources costs ~0.5 ms, as much as a drill simulation):
+    like numba's own cache, a process does not see sources edited or modules built after its first call."""
+    key = (funcs, exact)
+    if key not in _LOADED:
+        path = module_path(funcs, exact)
+        _LOADED[key] = _import(path) if path.exists() else None
+    return _LOADED[key]
 
 
 def _import(path: Path) -> Callable | None:
-    """Import the extension module at ``path`` (cached by path in ``_LOADED``, not registered in sys.modules)."""
+    """Import the extension module at ``path`` (not registered in sys.modules: ``load`` keeps it)."""
     try:
         spec = importlib.util.spec_from_file_location(path.name[: -len(_SUFFIX)], path)
         module = importlib.util.module_from_spec(spec)
@@ -91,5 +95,5 @@ def build(funcs: tuple, n_bounded: int, exact: str | None = None) -> Path:
             staged = path.with_name(f".{path.name}.{os.getpid()}.tmp")
             shutil.copyfile(built, staged)
             os.replace(staged, path)
-    _LOADED.pop(path, None)
+    _LOADED.pop((funcs, exact), None)
     return path

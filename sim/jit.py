@@ -86,7 +86,13 @@ def interpreted(func: LazyDispatcher | Callable) -> Callable:
 
     Same IEEE double arithmetic in the same order as the compiled code (no fastmath anywhere in sim/), hence the
     same result; far slower, so never for the integration itself."""
-    return _interpreted(getattr(func, "py_func", func), {})
+    fn = getattr(func, "py_func", func)
+    if fn not in _INTERPRETED:
+        _INTERPRETED[fn] = _interpreted(fn, {})
+    return _INTERPRETED[fn]
+
+
+_INTERPRETED: dict[Callable, Callable] = {}
 
 
 def _interpreted(fn: Callable, memo: dict) -> Callable:
