@@ -48,6 +48,9 @@ SETTINGS_BOUNDS: dict[str, tuple[bool, float, float, bool]] = {
     "samples_per_cycle": (True, 2, 100_000, True),
 }
 
+TEXT_SETTINGS = ("method",)
+"""sim.Settings fields whose value is a word: ``method`` = auto | exact | dopri5 (sim.api.METHODS)."""
+
 
 def number(value, what: str, *, integer: bool = False, lo: float | None = None, hi: float | None = None,
            lo_open: bool = False) -> float | int:
@@ -114,7 +117,7 @@ def parse_assignments(items: list[str] | None, what: str = "--set") -> dict[str,
         name = name.strip()
         if not name:
             raise UserError(f"{what} '{item}' has no parameter name")
-        out[name] = number(raw.strip(), f"{what} {name}")
+        out[name] = raw.strip() if name in TEXT_SETTINGS and what == "--setting" else number(raw.strip(), f"{what} {name}")
     return out
 
 
@@ -207,8 +210,15 @@ def check_settings(values: dict | None, what: str = "--setting") -> dict | None:
         raise UserError(f"{what}: expected a mapping of setting name to value, got {type(values).__name__}")
     out = {}
     for name, v in values.items():
+        if name in TEXT_SETTINGS:
+            from sim.api import METHODS     # the choices live with the simulator (numpy: imported only here)
+
+            if v not in METHODS:
+                raise UserError(f"{what} {name}: must be one of {', '.join(METHODS)}, got {v!r}")
+            out[name] = v
+            continue
         if name not in SETTINGS_BOUNDS:
-            raise UserError(f"{what} '{name}' is unknown (known: {', '.join(SETTINGS_BOUNDS)})")
+            raise UserError(f"{what} '{name}' is unknown (known: {', '.join((*SETTINGS_BOUNDS, *TEXT_SETTINGS))})")
         integer, lo, hi, lo_incl = SETTINGS_BOUNDS[name]
         out[name] = number(v, f"{what} {name}", integer=integer, lo=lo, hi=hi, lo_open=not lo_incl)
     if out.get("max_transient", math.inf) < out.get("min_transient", 0):

@@ -20,6 +20,7 @@ def add_parser(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  vibro simulate drill --preset lab --set frequency_hz=120 --set amplitude_n=800\n"
                "  vibro simulate indenter-metal --preset table1-60hz --json\n"
+               "  vibro simulate drill --preset lab --setting method=dopri5 --setting rtol=1e-10   # the integrator\n"
                "  vibro simulate indenter-sandstone --set frequency_hz=80 --set amplitude_n=650 --plot out.png\n"
                "  vibro simulate --rig my-rig.yaml --set frequency_hz=250   # your own rig (README.md 'Rig files')\n"
                "  vibro models            # lists models, presets and every parameter with its default and unit")
@@ -29,8 +30,9 @@ def add_parser(sub) -> None:
     add_rig(p)
     add_set(p)
     p.add_argument("--setting", dest="settings", action="append", metavar="NAME=VALUE",
-                   help="numerical setting (repeatable): rtol, min_transient, max_transient, window, period_tol, "
-                        "settle_tol, event_tol, max_step_frac, stat_tol, samples_per_cycle")
+                   help="simulator setting (repeatable): rtol, min_transient, max_transient, window, period_tol, "
+                        "settle_tol, event_tol, max_step_frac, stat_tol, samples_per_cycle, and method = auto | exact "
+                        "| dopri5 (auto: the drill's exact propagator where it applies, else the DOPRI5 integrator)")
     p.add_argument("--json", action="store_true", help="print one JSON object whose keys are the label names")
     p.add_argument("--plot", metavar="FILE.png",
                    help="save time histories of the impacting mass and contact force over the recorded cycles, "

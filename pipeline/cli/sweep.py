@@ -65,7 +65,8 @@ def add_parser(sub) -> None:
     p.add_argument("--n-points", type=A.n_points, help="number of points (> 0)")
     p.add_argument("--seed", type=A.seed, help="seed of the design (same seed -> same dataset)")
     p.add_argument("--setting", dest="settings", action="append", metavar="NAME=VALUE",
-                   help="simulation setting (repeatable), e.g. --setting window=16; part of the spec")
+                   help="simulation setting (repeatable), e.g. --setting window=16 or --setting method=dopri5; "
+                        "part of the spec")
     p.add_argument("--chunk-size", type=A.n_points, help="points per chunk file (default 64); keep it when resuming")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the chunks on an existing Dask distributed cluster (tcp://host:port), or on a "

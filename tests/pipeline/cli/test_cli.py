@@ -27,6 +27,20 @@ def test_simulate_json_has_every_label(capsys):
     assert json.loads(capsys.readouterr().out)["specific_energy_j_m"] == "inf"
 
 
+def test_setting_method_picks_the_integrator(capsys):
+    """--setting method=dopri5 runs the numerical integrator on the drill (its step count follows rtol), auto the
+    exact propagator; both agree on the labels to the integrator's accuracy."""
+    base = ["simulate", "drill", "--preset", "lab", "--json"]
+    runs = {}
+    for key, extra in (("tight", ["method=dopri5", "rtol=1e-10"]), ("loose", ["method=dopri5", "rtol=1e-6"]),
+                       ("auto", [])):
+        assert main(base + [a for x in extra for a in ("--setting", x)]) == 0
+        runs[key] = json.loads(capsys.readouterr().out)
+    assert runs["tight"]["n_steps"] > 2 * runs["loose"]["n_steps"]
+    assert runs["auto"]["n_steps"] not in (runs["tight"]["n_steps"], runs["loose"]["n_steps"])
+    assert runs["tight"]["rop_m_s"] == pytest.approx(runs["auto"]["rop_m_s"], rel=1e-7)
+
+
 def test_simulate_plot(tmp_path, capsys):
     png = tmp_path / "plot.png"
     assert main(["simulate", "indenter-sandstone", "--preset", "table1-80hz", "--plot", str(png)]) == 0
@@ -43,6 +57,9 @@ def test_simulate_plot(tmp_path, capsys):
     (["simulate", "drill", "--set", "K1=nan"], "--set K1: must be finite"),
     (["simulate", "drill", "--set", "zz=1"], "unknown parameter 'zz'"),
     (["simulate", "drill", "--preset", "bad"], "unknown preset 'bad'"),
+    (["simulate", "drill", "--setting", "method=rk4"], "--setting method: must be one of auto, exact, dopri5"),
+    (["simulate", "pendulum", "--setting", "method=exact"], "model 'pendulum' has no exact propagator"),
+    (["compile", "nope"], "unknown model 'nope'"),
 ])
 def test_bad_input_is_one_line_error(args, needle):
     p = run_cli(*args)
