@@ -1,14 +1,15 @@
 """Ahead-of-time compiled kernels: a ``vibro simulate`` that never imports numba.
 
-A process that loads a numba kernel from numba's on-disk cache still pays about 0.6 s of CPU for
+A process that loads a numba kernel from numba's on-disk cache still pays about a second of CPU for
 numba and its CPU target (type registries, scipy.linalg for the BLAS check) before the first
 simulation.  :func:`build` compiles a model's kernels (the numerical one and, where the model has
 one, the exact propagator) once with ``numba.pycc`` into CPython extension modules beside the JIT
 cache; :func:`load` imports such a module in about a millisecond, with numpy as its only
 dependency (numba's runtime is linked in statically).
 
-Each module's name carries the hash of the kernel's sources (:func:`sim.compiled.kernel_path`), so
-a change to the integrator or a model leaves the old module unused rather than stale: ``simulate``
+Each module's name carries the hash of the kernel's sources (:func:`sim.compiled.kernel_path`) and of this
+CPU's model and instruction-set flags, so a change to the integrator or a model, or a cache folder shared with
+another machine, leaves the old module unused rather than stale or illegal: ``simulate``
 then falls back to the JIT kernel until ``vibro compile`` rebuilds.  The AOT module is compiled
 from the same generated source as the JIT kernel, for this machine's CPU (``target_cpu = "host"``),
 and gives bit-identical labels (``tests/sim/test_aot.py``).  It holds the GIL while it runs, so
@@ -20,9 +21,11 @@ import hashlib
 import importlib.machinery
 import importlib.util
 import os
+import platform
 import shutil
 import tempfile
 import warnings
+from functools import lru_cache
 from pathlib import Path
 from typing import Callable
 
@@ -30,6 +33,7 @@ from typing import Callable
 # (sim/_kernel_template.py); every array C-contiguous, as sim.api allocates them
 RUN_POINT_SIGNATURE = ("f8[::1](f8[::1], f8[::1], f8[::1], i8[::1], f8, f8[::1], f8[::1], "
                        "f8[::1], f8[:, ::1], f8[:, ::1], i8[::1])")
+TARGET_CPU = "host"        # compiled for this machine's CPU, like numba's JIT
 _SUFFIX = importlib.machinery.EXTENSION_SUFFIXES[0]
 _LOADED: dict[tuple, Callable | None] = {}     # (funcs, exact) -> run_point or None
 
@@ -39,8 +43,20 @@ def module_path(funcs: tuple, exact: str | None = None) -> Path:
     from sim.compiled import kernel_path
 
     jit_path = kernel_path(funcs, exact)
-    own = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:8]       # this file: the exported signature
+    # how it is exported, and for which CPU: a folder shared between machines never serves a module built for another
+    own = hashlib.sha256(f"{RUN_POINT_SIGNATURE}|{TARGET_CPU}|{_cpu_fingerprint()}".encode()).hexdigest()[:8]
     return jit_path.with_name(f"{jit_path.stem.replace('vibro_kernel_', 'vibro_aot_', 1)}_{own}{_SUFFIX}")
+
+
+@lru_cache(maxsize=1)
+def _cpu_fingerprint() -> str:
+    """This CPU's model and instruction-set flags (Linux: /proc/cpuinfo), else the platform's processor string."""
+    try:
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
+    except OSError:
+        return f"{platform.machine()}|{platform.processor()}"
+    keep = [ln for ln in lines if ln.startswith(("model name", "flags", "Features", "CPU part"))]
+    return "|".join(dict.fromkeys(keep))      # the first core's lines (every core repeats them)
 
 
 def load(funcs: tuple, exact: str | None = None) -> Callable | None:
@@ -87,7 +103,7 @@ def build(funcs: tuple, n_bounded: int, exact: str | None = None) -> Path:
         with tempfile.TemporaryDirectory(dir=path.parent, prefix=".aot-build-") as tmp:
             cc = CC(name)
             cc.output_dir = tmp
-            cc.target_cpu = "host"
+            cc.target_cpu = TARGET_CPU
             cc.verbose = False
             cc.export("run_point", RUN_POINT_SIGNATURE)(run_point.py_func)
             cc.compile()

@@ -1,6 +1,6 @@
 """``njit`` that defers importing numba until a function is compiled or called.
 
-Importing numba and its CPU target costs about 0.6 s of CPU; a ``vibro simulate`` served by an
+Importing numba and its CPU target costs about a second of CPU (bench/startup.py); a ``vibro simulate`` served by an
 ahead-of-time kernel (:mod:`sim.aot`) needs none of it, yet it imports the model modules for
 their parameters and presets.  The model, integrator and exact-propagator modules therefore
 decorate with this ``njit``: it returns a :class:`LazyDispatcher` that holds the Python function

@@ -13,7 +13,7 @@ def add_parser(sub) -> None:
         description="Compile each model's simulation kernels (the numerical integrator and, for the drill, the exact "
                     "propagator) into CPython extension modules with numba.pycc.  'vibro simulate' and "
                     "sim.simulate() on the main thread then load them in about a millisecond instead of importing "
-                    "numba (about 0.6 s of CPU per process); the labels are bit-identical to the JIT kernel's.  "
+                    "numba (about 1 s of CPU per process); the labels are bit-identical to the JIT kernel's.  "
                     "Modules are named by the hash of the kernel's sources and kept beside numba's cache "
                     "($VIBRO_KERNEL_DIR, else .numba_cache/ in the repository, else ~/.cache/vibro); after a change "
                     "to sim/ the old modules go unused and simulate falls back to the JIT kernel until this is rerun.  "

@@ -14,7 +14,7 @@ def add_parser(sub) -> None:
                     "rop_m_s, peak_force_n, mean_peak_force_n, impacts_per_cycle, period, peak_decel_g, "
                     "energy_per_cycle_j, specific_energy_j_m, status, reason).  Runs on the ahead-of-time "
                     "compiled kernel built by 'vibro compile' (run by 'make install'; about 0.2 s of CPU in all) "
-                    "and, when that is missing or older than the sources, on numba's JIT kernel (about 0.6 s more "
+                    "and, when that is missing or older than the sources, on numba's JIT kernel (about 1 s more "
                     "to load; 30-70 s to compile the first time); both give the same labels bit for bit.  "
                     "VIBRO_NO_AOT=1 forces the JIT kernel.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
