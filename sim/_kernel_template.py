@@ -8,11 +8,14 @@ on disk and release the GIL.
 """
 # ruff: noqa: F821  (rhs, guards, on_event, observe, bounded, N_BOUNDED are bound by sim.compiled)
 import numpy as np
-from numba import njit
 
 from sim.integrator import *  # noqa: F401,F403  constants and helpers
 from sim.integrator import _crossed, _dense, _error_norm
 from sim.kernel import N_ACC, _rel_close, settled_period
+
+# after the star import, which re-exports sim.jit's lazy njit: this module is imported only to compile the kernel,
+# so its own functions are numba's dispatchers directly
+from numba import njit  # noqa: E402
 
 
 @njit(cache=True, nogil=True)
