@@ -170,3 +170,31 @@ def test_interpreted_gives_the_compiled_result_bit_for_bit():
         drill.rhs(t, y, z, ph, p, d2)
         np.testing.assert_array_equal(d1, d2)
     assert drill.rhs._dispatcher is not None and interpreted(drill.rhs) is not drill.rhs.py_func
+
+
+def test_vibro_compile_reports_each_kernel_once_and_a_failure_in_one_line(monkeypatch, capsys, kernel_dir):
+    """The CLI's plumbing, with the compiler replaced: every distinct kernel built once (indenter-metal and -sandstone
+    have their own), a failure named in one line and no traceback; the real build is tested above."""
+    from pipeline.cli import main
+
+    built = []
+
+    def fake_build(funcs, n_bounded, exact=None):
+        built.append((funcs[0].py_func.__module__, funcs[0].py_func.__name__, exact))
+        return aot.module_path(funcs, exact)
+
+    monkeypatch.setattr(aot, "build", fake_build)
+    assert main(["compile", "--workers", "1"]) == 0
+    err = capsys.readouterr().err
+    assert len(built) == len(set(built)) == 6 and ("sim.models.drill", "rhs", "sim.exact.drill") in built
+    assert err.count("vibro compile: ") == 6 and "indenter-sandstone (numerical integrator)" in err
+
+    def broken(funcs, n_bounded, exact=None):
+        raise RuntimeError("no C compiler")
+
+    monkeypatch.setattr(aot, "build", broken)
+    assert main(["compile", "pendulum", "--workers", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["vibro compile: error: ahead-of-time compilation of the pendulum (numerical integrator) kernel "
+                   "failed (RuntimeError: no C compiler); simulate keeps using the JIT kernel"]
+    assert main(["compile", "--workers", "0"]) == 2 and "--workers must be >= 1" in capsys.readouterr().err
