@@ -52,15 +52,17 @@ def run(args) -> int:
             if (spec.funcs, exact) not in seen:     # indenter-metal and -sandstone share one kernel
                 seen.add((spec.funcs, exact))
                 jobs.append((n, exact, args.jit))
-    workers = min(args.workers or os.cpu_count() or 1, len(jobs))
+    todo = [j for j in jobs if args.jit or not _built(*j[:2])]      # up-to-date modules: no worker started
+    results = [(_label(n, e), str(_module(n, e)), None, None) for n, e, _ in jobs if (n, e, args.jit) not in todo]
+    workers = min(args.workers or os.cpu_count() or 1, max(len(todo), 1))
     if workers == 1:
-        results = [compile_kernel(*job) for job in jobs]
+        results += [compile_kernel(*job) for job in todo]
     else:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
         with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-            results = list(pool.map(compile_kernel, *zip(*jobs)))
+            results += list(pool.map(compile_kernel, *zip(*todo)))
     failed = [r for r in results if r[2] is not None]
     if not args.quiet:
         for label, path, err, seconds in results:
@@ -74,6 +76,20 @@ def run(args) -> int:
     return 0
 
 
+def _label(model: str, exact: str | None) -> str:
+    return f"{model} ({'exact propagator' if exact else 'numerical integrator'})"
+
+
+def _module(model: str, exact: str | None):
+    from sim import aot, get_model
+
+    return aot.module_path(get_model(model).funcs, exact)
+
+
+def _built(model: str, exact: str | None) -> bool:
+    return _module(model, exact).exists()
+
+
 def compile_kernel(model: str, exact: str | None, jit: bool) -> tuple[str, str, str | None, float | None]:
     """Build one kernel's AOT module (and with ``jit`` its numba cache): (label, path, error or None,
     seconds or None when it was already built).  Runs in a worker process."""
@@ -81,7 +97,7 @@ def compile_kernel(model: str, exact: str | None, jit: bool) -> tuple[str, str, 
     from sim.compiled import kernels
 
     spec = get_model(model)
-    label = f"{model} ({'exact propagator' if exact else 'numerical integrator'})"
+    label = _label(model, exact)
     t0 = time.perf_counter()
     existed = aot.module_path(spec.funcs, exact).exists()
     try:
