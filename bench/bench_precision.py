@@ -362,12 +362,11 @@ def sim_kernel_kind(models) -> str:
     """Which kernel ``sim.simulate`` ran on (the benchmark calls it on the main thread): the ahead-of-time modules
     when every model's are built for the current sources (``vibro compile``), else numba's JIT kernels."""
     import sim
-    from sim import aot
+    from sim.api import _main_thread_aot       # the rule sim.simulate applies (VIBRO_NO_AOT, built modules)
     from sim.registry import kernel_variants
 
     specs = [sim.get_model(m) for m in set(models)]
-    built = all(aot.load(s.funcs, e) is not None for s in specs for e in kernel_variants(s))
-    if os.environ.get("VIBRO_NO_AOT") or not built:
+    if not all(_main_thread_aot(s, e) is not None for s in specs for e in kernel_variants(s)):
         return "numba JIT kernels"
     return "ahead-of-time kernels (vibro compile; bit-identical to the JIT kernels)"
 

@@ -22,7 +22,6 @@ import importlib.machinery
 import importlib.util
 import os
 import platform
-import shutil
 import tempfile
 import warnings
 from functools import lru_cache
@@ -107,9 +106,6 @@ def build(funcs: tuple, n_bounded: int, exact: str | None = None) -> Path:
             cc.verbose = False
             cc.export("run_point", RUN_POINT_SIGNATURE)(run_point.py_func)
             cc.compile()
-            built = Path(tmp) / cc.output_file
-            staged = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-            shutil.copyfile(built, staged)
-            os.replace(staged, path)
+            os.replace(Path(tmp) / cc.output_file, path)     # tmp is beside path: one atomic rename
     _LOADED.pop((funcs, exact), None)
     return path

@@ -107,8 +107,9 @@ def count(lo: int = 1, hi: int = MAX_POINTS) -> Callable[[str], int]:
     return arg_type(integer=True, lo=lo, hi=hi)
 
 
-def parse_assignments(items: list[str] | None, what: str = "--set") -> dict[str, float]:
-    """Parse ``["k1=1e7", "gap_m=0.001"]`` into finite floats; a clear error names the bad item."""
+def parse_assignments(items: list[str] | None, what: str = "--set", words: tuple[str, ...] = ()) -> dict[str, float]:
+    """Parse ``["k1=1e7", "gap_m=0.001"]`` into finite floats (the names in ``words`` keep their text); a clear
+    error names the bad item."""
     out: dict[str, float] = {}
     for item in items or []:
         if "=" not in item:
@@ -117,8 +118,13 @@ def parse_assignments(items: list[str] | None, what: str = "--set") -> dict[str,
         name = name.strip()
         if not name:
             raise UserError(f"{what} '{item}' has no parameter name")
-        out[name] = raw.strip() if name in TEXT_SETTINGS and what == "--setting" else number(raw.strip(), f"{what} {name}")
+        out[name] = raw.strip() if name in words else number(raw.strip(), f"{what} {name}")
     return out
+
+
+def parse_settings(items: list[str] | None) -> dict | None:
+    """The simulator's ``--setting NAME=VALUE`` items, parsed and checked (:func:`check_settings`)."""
+    return check_settings(parse_assignments(items, "--setting", words=TEXT_SETTINGS))
 
 
 def parse_ranges(items: list[str] | None, what: str = "--vary") -> dict[str, tuple[float, float]]:

@@ -21,8 +21,8 @@ def add_parser(sub) -> None:
                     "modules.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
-               "  vibro compile                 # every model: about 5 min of CPU the first time, on all cores\n"
-               "  vibro compile drill           # the drill's two kernels (about 70 s)\n"
+               "  vibro compile                 # every model: about 6 min of CPU the first time (3.5 min on 2 cores)\n"
+               "  vibro compile drill           # the drill's two kernels (about 2 min of CPU)\n"
                "  vibro compile --workers 1\n"
                "  vibro compile --jit           # also fill numba's JIT cache (threads: sweeps, batches, diagnosis)")
     p.add_argument("models", nargs="*", metavar="MODEL", help="models to compile (default: all)")
@@ -36,7 +36,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from pipeline.core.errors import UserError
-    from sim import get_model, model_names
+    from sim import aot, get_model, model_names
     from sim.registry import kernel_variants
 
     names = args.models or list(model_names())
@@ -45,15 +45,18 @@ def run(args) -> int:
             raise UserError(f"unknown model '{n}'; known models: {', '.join(model_names())}")
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
-    jobs, seen = [], set()
+    results, todo, seen = [], [], set()
     for n in names:
         spec = get_model(n)
         for exact in kernel_variants(spec):
-            if (spec.funcs, exact) not in seen:     # indenter-metal and -sandstone share one kernel
-                seen.add((spec.funcs, exact))
-                jobs.append((n, exact, args.jit))
-    todo = [j for j in jobs if args.jit or not _built(*j[:2])]      # up-to-date modules: no worker started
-    results = [(_label(n, e), str(_module(n, e)), None, None) for n, e, _ in jobs if (n, e, args.jit) not in todo]
+            if (spec.funcs, exact) in seen:
+                continue
+            seen.add((spec.funcs, exact))
+            path = aot.module_path(spec.funcs, exact)
+            if path.exists() and not args.jit:      # up to date: reported without starting a worker
+                results.append((_label(n, exact), str(path), None, None))
+            else:
+                todo.append((n, exact, args.jit))
     workers = min(args.workers or os.cpu_count() or 1, max(len(todo), 1))
     if workers == 1:
         results += [compile_kernel(*job) for job in todo]
@@ -78,16 +81,6 @@ def run(args) -> int:
 
 def _label(model: str, exact: str | None) -> str:
     return f"{model} ({'exact propagator' if exact else 'numerical integrator'})"
-
-
-def _module(model: str, exact: str | None):
-    from sim import aot, get_model
-
-    return aot.module_path(get_model(model).funcs, exact)
-
-
-def _built(model: str, exact: str | None) -> bool:
-    return _module(model, exact).exists()
 
 
 def compile_kernel(model: str, exact: str | None, jit: bool) -> tuple[str, str, str | None, float | None]:

@@ -4,8 +4,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_settings, check_workers, count, finite,
-                               model_and_overrides, parse_assignments)
+from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_workers, count, finite,
+                               model_and_overrides, parse_assignments, parse_settings)
 from pipeline.core.errors import UserError
 
 KINDS = ("auto", "peterka", "rop", "label", "bifurcation")
@@ -81,7 +81,7 @@ def add_parser(sub) -> None:
 
 
 def _settings(items):
-    s = check_settings(parse_assignments(items, "--setting")) or None
+    s = parse_settings(items) or None
     return s
 
 

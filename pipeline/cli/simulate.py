@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from pipeline.cli.args import add_rig, add_set, check_settings, model_and_overrides, parse_assignments
+from pipeline.cli.args import add_rig, add_set, model_and_overrides, parse_assignments, parse_settings
 from pipeline.core.jsonable import dump_json
 
 
@@ -44,7 +44,7 @@ def run(args) -> int:
     from sim import simulate
 
     model, preset, params = model_and_overrides(args.model, args.preset, args.rig, parse_assignments(args.sets))
-    settings = check_settings(parse_assignments(args.settings, "--setting")) or None
+    settings = parse_settings(args.settings) or None
     res = simulate(model, preset=preset, settings=settings, history=bool(args.plot), **params)
     if args.json:
         print(dump_json(res.labels))

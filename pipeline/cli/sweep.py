@@ -6,7 +6,8 @@ import tempfile
 from pathlib import Path
 
 from pipeline.cli import args as A
-from pipeline.cli.args import add_quiet, add_rig, add_set, add_workers, check_settings, load_rig, number, parse_assignments
+from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_settings, load_rig, number, parse_assignments,
+                               parse_settings)
 from pipeline.core.errors import UserError
 
 EPILOG = """\
@@ -134,7 +135,7 @@ def spec_from_args(args):
     if args.vary:
         raw["vary"] = _parse_vary(args.vary)
     if args.settings:
-        raw["settings"] = {**(raw.get("settings") or {}), **check_settings(parse_assignments(args.settings, "--setting"))}
+        raw["settings"] = {**(raw.get("settings") or {}), **parse_settings(args.settings)}
     spec = make_spec(raw, model=None if rig else args.model, preset=None if rig else args.preset, design=args.design, n_points=args.n_points,
                      seed=args.seed, chunk_size=args.chunk_size)
     return spec, scheduler, workers
