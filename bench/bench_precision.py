@@ -3,7 +3,9 @@
 For each point (one per model, plus the drill's ``lab``) and each method, the same fixed transient and
 window are run (settings min_transient = max_transient = N, window = W) and timed by interleaved
 repetitions (method A, B, C, A, B, C, ...: a drift of the shared machine's speed hits every method
-alike); the medians of process CPU time and of wall time are kept, with the load average before and after.
+alike; a method under 0.1 s is timed right after an untimed call of itself, so every method is timed with warm
+caches, ``HOT_BELOW_S``), on one CPU (``pin_to_one_cpu``: the old kernel's worker process shares it, so no method gains from the
+faster core); the medians of process CPU time and of wall time are kept, with the load average before and after.
 Label error = max relative error over rop_m_s (drill, sandstone), peak_force_n, impacts_per_cycle and
 peak_decel_g against the independent reference (tests/reference_solutions.py, DOP853 rtol 1e-10 -- so
 errors below ~1e-9 are the reference's own and are reported as "<= 1e-9"); on the drill also against the
@@ -62,6 +64,10 @@ DEFAULT_RTOL = 1e-7        # sim.Settings().rtol, the default tolerance (item 2'
                            # tolerance"); tests/bench/test_bench_quick.py checks the two agree
 BASELINE_RTOLS = (DEFAULT_RTOL, 1e-8, 1e-10, 1e-11, 1e-12)   # drill; the other models: DEFAULT_RTOL only
 TARGETS = (1e-6, 1e-8, 1e-10)   # label-error levels of the summary (fastest simulator method vs fastest peer)
+HOT_BELOW_S = 0.1         # methods faster than this are timed right after an untimed call of themselves: in the
+                          # interleaved loop the old kernel's worker process otherwise starts every call with caches
+                          # the methods before it (seconds of scipy) evicted, while the simulator's rtol rows follow
+                          # each other with warm ones
 REF_FLOOR = 1e-9          # the reference's own accuracy (DOP853 rtol 1e-10)
 START, END = "<!-- bench-table:start -->", "<!-- bench-table:end -->"
 
@@ -129,8 +135,25 @@ def _methods(model: str, preset, n: int, w: int, quick: bool) -> dict:
     return out
 
 
+def pin_to_one_cpu() -> tuple[set | None, int | None]:
+    """Pin this process to one CPU (the last it may use) for the timed loop; returns (previous affinity, CPU).
+
+    The old kernel runs in a worker process (``bench/baseline.py``), which inherits the pin.  Unpinned, the worker
+    and this process land on different cores of the shared 2-core machine, whose speeds differ from moment to
+    moment by up to 2x: on 2026-11-23 an unpinned run put the old kernel at x1.5-1.8 the current one's CPU where the
+    same pair pinned to one core, interleaved call by call, gave x0.9-1.2.  (None, None) where the platform has no
+    ``sched_setaffinity``."""
+    if not hasattr(os, "sched_setaffinity"):
+        return None, None
+    before = os.sched_getaffinity(0)
+    cpu = max(before)
+    os.sched_setaffinity(0, {cpu})
+    return before, cpu
+
+
 def run(quick: bool, log=print, models: tuple[str, ...] | None = None, reps: int = 3) -> dict:
-    """Time every method at every point (``models``: only these models' points); returns the result dict."""
+    """Time every method at every point (``models``: only these models' points), pinned to one CPU with the old
+    kernel's worker (``pin_to_one_cpu``); returns the result dict."""
     import sim
     from tests.reference_solutions import reference_run
 
@@ -139,20 +162,27 @@ def run(quick: bool, log=print, models: tuple[str, ...] | None = None, reps: int
         points = [pt for pt in POINTS if pt[0] in models]
         points = [pt for i, pt in enumerate(points) if not quick or i == 0]
     res = {"machine": machine_info(), "repetitions": reps, "points": []}
+    affinity, res["machine"]["pinned_cpu"] = pin_to_one_cpu()
     try:
         for model, pid, preset, n, w in points:
             params = {k: v for k, v in sim.get_model(model).resolve(preset).items() if k not in ("P", "D")}
             ref = reference_run(model, params, n, w, method="DOP853", rtol=1e-10)
             meths = _methods(model, preset, n, w, quick)
             callables = {k: v for k, v in meths.items() if callable(v)}
-            for fn in callables.values():          # warm-up: kernel load, LLVM build (the baseline's compile)
+            hot = {}
+            for k, fn in callables.items():        # warm-up: kernel load, LLVM build (the baseline's compile)
                 fn()
+                c0 = time.process_time()
+                fn()
+                hot[k] = time.process_time() - c0 < HOT_BELOW_S
             cpu = {k: [] for k in callables}
             wall = {k: [] for k in callables}
             last = {}
             load0 = os.getloadavg()
             for _ in range(reps):                  # interleaved: A B C A B C ...
                 for k, fn in callables.items():
+                    if hot[k]:                     # same cache state for every method: each timed call follows one
+                        fn()                       # untimed call of itself (see HOT_BELOW_S)
                     c0, t0 = time.process_time(), time.perf_counter()
                     got = fn()
                     w_, c_ = time.perf_counter() - t0, time.process_time() - c0
@@ -179,6 +209,8 @@ def run(quick: bool, log=print, models: tuple[str, ...] | None = None, reps: int
     finally:                                   # the old kernel's worker lives for this run only
         if _WORKER:
             _WORKER.pop().close()
+        if affinity is not None:               # the scaling runs that follow need both cores
+            os.sched_setaffinity(0, affinity)
     return res
 
 
@@ -273,7 +305,11 @@ def table(res: dict) -> str:
     flags = (" --quick" if res.get("quick") else "") + (f" --reps {res['repetitions']}" if res["repetitions"] != 3 else "")
     lines = [f"Generated by `python -m bench.bench_precision{flags}` "
              f"on {m.get('cpu', '?')} ({m.get('cpus')} cores), {res['repetitions']} interleaved repetitions, "
-             f"medians of process CPU and wall time; simulator on {m.get('sim_kernel', 'numba JIT kernels')}; "
+             f"medians of process CPU and wall time (methods under {HOT_BELOW_S:g} s timed right after an untimed call "
+             f"of themselves), "
+             + (f"every method pinned to CPU {m['pinned_cpu']} (the old kernel's worker process too); "
+                if m.get("pinned_cpu") is not None else "unpinned; ")
+             + f"simulator on {m.get('sim_kernel', 'numba JIT kernels')}; "
              f"load average {m['load_avg_at_start'][0]:.1f} at the start, "
              f"{min(loads, default=0):.1f}-{max(loads, default=0):.1f} during the points.  "
              f"Label error vs DOP853 rtol 1e-10 (its own accuracy ~{REF_FLOOR:.0e}); on the drill also vs the "

@@ -64,7 +64,7 @@ def _body(t, y, p, fr, dy):
     dphi2 = y[IV2] - y[IV3]
     fem = _fem(t, y, p)
     spring = p[K2] * phi1 * (1.0 + p[KAPPA] * phi1 * phi1)
-    guide = p[MU] * _sgn(dphi1, p[VEPS])
+    guide = p[MU] * _sgn(dphi1, p[VEPS]) if p[MU] != 0.0 else 0.0     # no tanh call while the effect is off
     inner = p[C2] * dphi1 + spring + guide
     dy[IX1] = y[IV1]
     dy[IV1] = (fem - inner - fr) / p[M1]
@@ -133,15 +133,21 @@ def _blunt(z, p):
 
 
 @njit(cache=True, inline="always")
+def _power(x, n):
+    """x ** n without a pow call for the linear law n = 1 (the default; the same value, bit for bit)."""
+    return x if n == 1.0 else x ** n
+
+
+@njit(cache=True, inline="always")
 def _load_force(y, z, p):
     phi3 = max(y[IX1] - p[GAP] - z[IXP], 0.0)
-    return p[KL] * _blunt(z, p) * _stiff_factor(y[IV1], p) * phi3 ** p[NL]
+    return p[KL] * _blunt(z, p) * _stiff_factor(y[IV1], p) * _power(phi3, p[NL])
 
 
 @njit(cache=True, inline="always")
 def _unload_force(y, z, p):
     phi4 = max(y[IX1] - p[GAP] - z[IXF], 0.0)
-    return p[KU] * _blunt(z, p) * _stiff_factor(y[IV1], p) * phi4 ** p[NU]
+    return p[KU] * _blunt(z, p) * _stiff_factor(y[IV1], p) * _power(phi4, p[NU])
 
 
 @njit(cache=True, inline="always")
@@ -158,7 +164,7 @@ def _xp_unloading(y, z, p):
     """Crater floor that keeps the loading branch through the current (depth, force) point."""
     f = _unload_force(y, z, p)
     kl = p[KL] * _blunt(z, p) * _stiff_factor(y[IV1], p)
-    return y[IX1] - p[GAP] - (f / kl) ** (1.0 / p[NL])
+    return y[IX1] - p[GAP] - _power(f / kl, 1.0 / p[NL])
 
 
 @njit(cache=True)
@@ -188,7 +194,7 @@ def sand_on_event(t, y, z, ph, p, k):
         if k == 0:   # reversal: fix the end point of the unloading branch
             f = _load_force(y, z, p)
             ku = p[KU] * _blunt(z, p) * _stiff_factor(y[IV1], p)
-            z[IXF] = y[IX1] - p[GAP] - (f / ku) ** (1.0 / p[NU])
+            z[IXF] = y[IX1] - p[GAP] - _power(f / ku, 1.0 / p[NU])
             return 2
         return 0
     if k == 0:       # fully unloaded: the crater floor has moved to xf

@@ -36,61 +36,67 @@ NY = 3
 N_BOUNDED = 2
 
 
-@njit(cache=True, inline="always")
-def _delta(y, p):
-    """Penetration δ = l sin θ − gap [m] and its rate δ̇ = l θ̇ cos θ [m/s]."""
-    return p[LEN] * math.sin(y[ITH]) - p[GAP], p[LEN] * y[IOM] * math.cos(y[ITH])
+# sin θ, cos θ and sin Ωt are libm calls, the largest cost of this model's evaluations: each is computed once per
+# evaluation and passed on
 
 
 @njit(cache=True, inline="always")
-def _force_expr(y, p):
+def _delta(y, p, s, c):
+    """Penetration δ = l sin θ − gap [m] and its rate δ̇ = l θ̇ cos θ [m/s] (s, c = sin θ, cos θ)."""
+    return p[LEN] * s - p[GAP], p[LEN] * y[IOM] * c
+
+
+@njit(cache=True, inline="always")
+def _force_expr(y, p, s, c):
     """Spring–dashpot force expression ki (1 + α max(δ̇,0)) δ + ci δ̇ [N] (unclamped)."""
-    d, dd = _delta(y, p)
+    d, dd = _delta(y, p, s, c)
     return p[KI] * (1.0 + p[ALPHA] * max(dd, 0.0)) * d + p[CI] * dd
 
 
 @njit(cache=True, inline="always")
-def _thdd(t, y, p, fi):
+def _thdd(y, p, fi, s, c, sin_wt):
     om = 2.0 * math.pi * p[FREQ]
-    th = y[ITH]
-    c = math.cos(th)
     w0 = math.sqrt(p[GRAV] / p[LEN])
-    return (p[A0] * om * om / p[LEN] * c * math.sin(om * t) - p[GRAV] / p[LEN] * math.sin(th)
+    return (p[A0] * om * om / p[LEN] * c * sin_wt - p[GRAV] / p[LEN] * s
             - 2.0 * p[ZETA] * w0 * y[IOM] - fi * c / (p[MASS] * p[LEN]))
 
 
 @njit(cache=True)
 def rhs(t, y, z, ph, p, dy):
-    fi = _force_expr(y, p) if ph > 0 else 0.0
+    s, c = math.sin(y[ITH]), math.cos(y[ITH])
+    fi = _force_expr(y, p, s, c) if ph > 0 else 0.0
     om = 2.0 * math.pi * p[FREQ]
+    sin_wt = math.sin(om * t)
     dy[ITH] = y[IOM]
-    dy[IOM] = _thdd(t, y, p, fi)
-    dy[IW] = p[MASS] * p[LEN] * p[A0] * om * om * math.sin(om * t) * math.cos(y[ITH]) * y[IOM]
+    dy[IOM] = _thdd(y, p, fi, s, c, sin_wt)
+    dy[IW] = p[MASS] * p[LEN] * p[A0] * om * om * sin_wt * c * y[IOM]
 
 
 @njit(cache=True)
 def guards(t, y, z, ph, p, g):
-    d, _ = _delta(y, p)
-    two_indicator_guard(g, d, _force_expr(y, p) / p[KI], ph)
+    s, c = math.sin(y[ITH]), math.cos(y[ITH])
+    d, _ = _delta(y, p, s, c)
+    two_indicator_guard(g, d, _force_expr(y, p, s, c) / p[KI], ph)
 
 
 @njit(cache=True)
 def on_event(t, y, z, ph, p, k):
-    d, _ = _delta(y, p)
-    return two_indicator_phase(d, _force_expr(y, p))
+    s, c = math.sin(y[ITH]), math.cos(y[ITH])
+    d, _ = _delta(y, p, s, c)
+    return two_indicator_phase(d, _force_expr(y, p, s, c))
 
 
 @njit(cache=True)
 def observe(t, y, z, ph, p, obs, dy):
     rhs(t, y, z, ph, p, dy)
     om = 2.0 * math.pi * p[FREQ]
-    th = y[ITH]
-    s, c = math.sin(th), math.cos(th)
-    obs[0] = max(_force_expr(y, p), 0.0) if ph > 0 else 0.0
-    obs[1] = p[LEN] * (dy[IOM] * c - y[IOM] * y[IOM] * s) - p[A0] * om * om * math.sin(om * t)
-    obs[2] = p[LEN] * s + p[A0] * math.sin(om * t)
+    s, c = math.sin(y[ITH]), math.cos(y[ITH])
+    sin_wt, cos_wt = math.sin(om * t), math.cos(om * t)
+    obs[0] = max(_force_expr(y, p, s, c), 0.0) if ph > 0 else 0.0
+    obs[1] = p[LEN] * (dy[IOM] * c - y[IOM] * y[IOM] * s) - p[A0] * om * om * sin_wt
+    obs[2] = p[LEN] * s + p[A0] * sin_wt
     obs[3] = 0.0
-    obs[4] = p[LEN] * y[IOM] * c + p[A0] * om * math.cos(om * t)
+    obs[4] = p[LEN] * y[IOM] * c + p[A0] * om * cos_wt
 
 
 @njit(cache=True)

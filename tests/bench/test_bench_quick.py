@@ -88,6 +88,30 @@ def test_old_kernel_is_the_x10_reference_and_neither_simulator_nor_peer():
     assert "×12.0" in bp.table({**res, "machine": {"load_avg_at_start": [0.0]}, "repetitions": 1})
 
 
+@pytest.mark.skipif(not hasattr(__import__("os"), "sched_setaffinity"), reason="no CPU affinity on this platform")
+def test_timed_loop_runs_on_one_cpu_and_gives_the_cores_back(quick_result, monkeypatch):
+    """The old kernel's worker and this process share one CPU while timed (an unpinned run put them on cores of
+    different speed: x1.5-1.8 where pinned gave x0.9-1.2); the affinity is restored for the scaling runs after."""
+    import os
+
+    res, _ = quick_result
+    before = os.sched_getaffinity(0)
+    assert res["machine"]["pinned_cpu"] in before
+    assert os.sched_getaffinity(0) == before           # restored after the quick run above
+    assert f"pinned to CPU {res['machine']['pinned_cpu']}" in bp.table(res)
+    seen = []
+    real = bp.pin_to_one_cpu
+
+    def spy():
+        out = real()
+        seen.append(os.sched_getaffinity(0))
+        return out
+    monkeypatch.setattr(bp, "pin_to_one_cpu", spy)
+    monkeypatch.setattr(bp, "POINTS", [])               # no point: only the pin and its release
+    bp.run(quick=True, models=("none",))
+    assert seen and len(seen[0]) == 1 and os.sched_getaffinity(0) == before
+
+
 def test_lean_kernel_ratio_is_taken_at_the_simulators_default_rtol():
     """Item 2 reads "at the default tolerance": the benchmark's DEFAULT_RTOL is sim.Settings' (it said 1e-8 while the
     default was 1e-7)."""
