@@ -90,8 +90,8 @@ def test_old_kernel_is_the_x10_reference_and_neither_simulator_nor_peer():
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "sched_setaffinity"), reason="no CPU affinity on this platform")
 def test_timed_loop_runs_on_one_cpu_and_gives_the_cores_back(quick_result, monkeypatch):
-    """The old kernel's worker and this process share one CPU while timed (an unpinned run put them on cores of
-    different speed: x1.5-1.8 where pinned gave x0.9-1.2); the affinity is restored for the scaling runs after."""
+    """The old kernel's worker and this process share one CPU while timed (unpinned they can sit on cores whose
+    speeds differ at the same moment); the affinity is restored for the scaling runs after."""
     import os
 
     res, _ = quick_result
