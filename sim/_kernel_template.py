@@ -1,27 +1,34 @@
 """Template of the per-model kernel: pasted by sim.compiled after binding the model's functions.
 
 Not imported directly.  The generated module defines, before this text, the model's
-numba functions as globals ``rhs, guards, on_event, observe, bounded`` and the count
-``N_BOUNDED`` (see the model interface in sim.integrator).  Binding them as globals,
+numba functions as globals ``rhs, guards, on_event, observe, bounded``, the counts ``N_BOUNDED``
+and ``N_GUARDS`` and the tuple ``GUARD_STATES`` (see the model interface in sim.integrator).  Binding them as globals,
 rather than passing them as arguments, is what lets numba cache the compiled kernel
 on disk and release the GIL.
 """
-# ruff: noqa: F821  (rhs, guards, on_event, observe, bounded, N_BOUNDED are bound by sim.compiled)
+# ruff: noqa: F821  (rhs, guards, on_event, observe, bounded, N_BOUNDED, N_GUARDS, GUARD_STATES: bound by sim.compiled)
 import numpy as np
 
 from sim.integrator import *  # noqa: F401,F403  constants and helpers
-from sim.integrator import _crossed, _dense, _error_norm
+from sim.integrator import _crossed, _dense, _dense_some
 from sim.kernel import N_ACC, _rel_close, settled_period
 
 # after the star import, which re-exports sim.jit's lazy njit: this module is imported only to compile the kernel,
 # so its own functions are numba's dispatchers directly
 from numba import njit  # noqa: E402
 
+# IEEE division (x/0 -> inf or nan, caught by the step's finiteness check) instead of Python's ZeroDivisionError:
+# the same quotients, bit for bit, without a zero test and exception exit after every division, which split the
+# step loop into blocks that numba's reference-count pruning cannot see across (an NRT_incref/NRT_decref pair per
+# array and block on every step, 6 % of a sandstone or RIMD run)
+ERRORS = "numpy"
 
-@njit(cache=True, nogil=True)
+
+@njit(cache=True, nogil=True, error_model=ERRORS)
 def _locate(t, h, y, z, ph, p, r1, r2, r3, r4, r5, yd, gbuf, i, a, b, fa, fb, ev_tol):
     """Illinois (modified regula falsi) root of guard i on the dense output, bisection every
-    third iteration.  Returns the right bracket (on the crossed side) within ev_tol seconds."""
+    third iteration.  Returns the right bracket (on the crossed side) within ev_tol seconds.  Only the states
+    the guards read are interpolated (yd's other entries are stale)."""
     side = 0
     it = 0
     while (b - a) * h > ev_tol and it < 200:
@@ -32,7 +39,7 @@ def _locate(t, h, y, z, ph, p, r1, r2, r3, r4, r5, yd, gbuf, i, a, b, fa, fb, ev
             c = (a * fb - b * fa) / (fb - fa)
             if not (c > a and c < b):
                 c = 0.5 * (a + b)
-        _dense(r1, r2, r3, r4, r5, c, yd)
+        _dense_some(r1, r2, r3, r4, r5, c, yd, GUARD_STATES)
         guards(t + c * h, yd, z, ph, p, gbuf)
         fc = gbuf[i]
         if _crossed(fa, fc):
@@ -50,7 +57,7 @@ def _locate(t, h, y, z, ph, p, r1, r2, r3, r4, r5, yd, gbuf, i, a, b, fa, fb, ev
     return b
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model=ERRORS, inline="always")
 def _track(acc, obs, in_contact):
     """Update the window maxima with one observation (force counts only in contact)."""
     if in_contact:
@@ -63,7 +70,7 @@ def _track(acc, obs, in_contact):
         acc[4] = -obs[OBS_ACCEL]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model=ERRORS)
 def _peak_on(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, a, b, which):
     """Max over θ in [a, b] of the contact force (which = OBS_FORCE) or of the deceleration
     (which = OBS_ACCEL: −accel) on the step's interpolant: Brent's method (parabolic steps with a golden
@@ -135,25 +142,26 @@ def _peak_on(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, a, b, which):
     return -fx
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model=ERRORS, inline="always")
 def _objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th, which):
     _dense(r1, r2, r3, r4, r5, th, yd)
     observe(t + th * h, yd, z, ph, p, obs, dyd)
     return obs[OBS_FORCE] if which == OBS_FORCE else -obs[OBS_ACCEL]
 
 
-@njit(cache=True, nogil=True)
-def _step_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th_ev, v0, vm, v1, run, which):
-    """Maximum over one accepted (sub-)step θ ∈ [0, th_ev] of the force (which = OBS_FORCE) or the
-    deceleration (OBS_ACCEL), given its samples at the start v0, middle vm and end v1.
+@njit(cache=True, nogil=True, error_model=ERRORS, inline="always")
+def _may_reach(v0, vm, v1, run):
+    """Whether one accepted (sub-)step θ ∈ [0, th_ev], given its samples of the force or the deceleration at the
+    start v0, middle vm and end v1, can reach ``run`` (the running window maximum): the sample maximum or, when
+    the samples bend down, the vertex of their parabola plus a margin.  Scalars only, inlined: most steps end
+    here, with no call (a call costs numba a reference count per array argument).
 
-    Only a step whose maximum can reach ``run`` (the running window maximum) is refined: the sample
-    maximum or, when the samples bend down, the vertex of their parabola plus a margin.  The refinement
-    (``_peak_on``) works on the step's interpolant over the part that holds the maximum:
-    best in the middle -> [0, th_ev]; best at the start -> [0, th_ev/2] if the value rises just after the
+    Only such a step is refined (``_step_max``), on the step's interpolant over the part that holds the maximum
+    (``_peak_on``): best in the middle -> [0, th_ev]; best at the start -> [0, th_ev/2] if the value rises just after the
     start, else nothing (the start is it); best at the end -> [th_ev/2, th_ev]
     if the value falls just before the end, else nothing (the quantity is still rising: its maximum lies in
-    the next step, which finds it as its start's half, or at a switch, where the end value is it).
+    the next step, which finds it as its start's half, or at a switch, where the end value is it); equal
+    samples at θ = 0, 1/4, 1/2, 3/4 and 1 of th_ev -> nothing (a plateau: its value is the maximum).
     The peak is therefore found to the interpolant's accuracy, never extrapolated across a step boundary.
     """
     best = max(v0, vm, v1)
@@ -167,9 +175,20 @@ def _step_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th_ev, v0, vm, v
         # the parabola misses the higher-order terms of a coarse step (on indenter-metal at rtol 1e-8 by
         # 5e-6 of the peak, 2e-3 of |c|); a margin of |c| / 2 refines every step near a bent-down maximum
         est -= 0.5 * c
-    if est < run:
-        return best
+    return est >= run
+
+
+@njit(cache=True, nogil=True, error_model=ERRORS)
+def _step_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th_ev, v0, vm, v1, which):
+    """The step's maximum where ``_may_reach`` (its docstring) says it can reach the running maximum."""
+    best = max(v0, vm, v1)
     hm = 0.5 * th_ev
+    if v0 == vm and vm == v1:
+        # three equal samples: a plateau, e.g. the drill's force Pr through phase III.  Brent's method would
+        # spend ~25 observations finding its constant maximum on every step; two more samples confirm it
+        if (_objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, 0.5 * hm, which) == v0
+                and _objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, 1.5 * hm, which) == v0):
+            return best
     if vm >= v0 and vm >= v1:
         return max(best, _peak_on(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, 0.0, th_ev, which))
     if v0 >= v1:
@@ -181,7 +200,7 @@ def _step_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th_ev, v0, vm, v
     return best
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model=ERRORS)
 def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                      atol, record, strobe, bmin, bmax,
                      acc, hist_t, hist_y, hist_obs, hist_ph, hist_dt, counters, wk, gk):
@@ -196,18 +215,18 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
         acc[7] -1 while the contact open at the window start lasts, then its max (-2: none)
     and, when hist_dt > 0, uniform samples are written to hist_* (index counters[2]).
     counters: [steps, events, hist_index, status, reason].
-    wk (17, ny) and gk (5, max(8, N_BOUNDED)) are scratch space (``_workspace``).
+    wk (17, ny) and gk (5, max(N_GUARDS, N_OBS, N_BOUNDED)) are scratch space (``_workspace``).
     Returns the end time.
     """
     ny = y.shape[0]
-    ng = 8
+    ng = N_GUARDS
     rtol = s[S_RTOL]
     # views of the run's workspace (allocated once per run_point, not per call)
     k1 = wk[0]; k2 = wk[1]; k3 = wk[2]; k4 = wk[3]; k5 = wk[4]; k6 = wk[5]; k7 = wk[6]
-    ytmp = wk[7]; y1 = wk[8]; err = wk[9]
+    ytmp = wk[7]; y1 = wk[8]           # wk[9]: unused
     r1 = wk[10]; r2 = wk[11]; r3 = wk[12]; r4 = wk[13]; r5 = wk[14]
     yd = wk[15]; dyd = wk[16]
-    g0 = gk[0]; g1 = gk[1]; gm = gk[2]
+    g0 = gk[0, :ng]; g1 = gk[1, :ng]; gm = gk[2, :ng]     # the model's N_GUARDS guards, no more
     obs = gk[3, :N_OBS]
     nbd = strobe.shape[1]
     bvec = gk[4, :nbd]
@@ -267,9 +286,14 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
             for i in range(ny):
                 y1[i] = y[i] + h * (A71 * k1[i] + A73 * k3[i] + A74 * k4[i] + A75 * k5[i] + A76 * k6[i])
             rhs(t + h, y1, z, ph, p, k7)
+            # RMS of the error estimate scaled by atol + rtol max(|y|, |y1|) (written out: an inlined helper taking
+            # arrays costs numba a reference-count increment and decrement per array on every step)
+            sq = 0.0
             for i in range(ny):
-                err[i] = h * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i])
-            en = _error_norm(y, y1, err, atol, rtol)
+                e = h * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i])
+                e = e / (atol[i] + rtol * max(abs(y[i]), abs(y1[i])))
+                sq += e * e
+            en = np.sqrt(sq / ny)
             if not np.isfinite(en):
                 h *= 0.1
                 if h < 1e-14 * period:
@@ -301,7 +325,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
             for q in range(4):
                 if q < 3:
                     th = 0.25 * (q + 1)
-                    _dense(r1, r2, r3, r4, r5, th, yd)
+                    _dense_some(r1, r2, r3, r4, r5, th, yd, GUARD_STATES)   # the guards' states only
                     guards(t + th * h, yd, z, ph, p, gm)
                 else:
                     th = 1.0
@@ -320,9 +344,9 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 prev_th = th
             if k_ev >= 0:
                 # refine every guard that crossed in [th_lo, th_hi]; take the earliest root
-                _dense(r1, r2, r3, r4, r5, th_lo, yd)
+                _dense_some(r1, r2, r3, r4, r5, th_lo, yd, GUARD_STATES)
                 guards(t + th_lo * h, yd, z, ph, p, g0)
-                _dense(r1, r2, r3, r4, r5, th_hi, yd)
+                _dense_some(r1, r2, r3, r4, r5, th_hi, yd, GUARD_STATES)
                 guards(t + th_hi * h, yd, z, ph, p, gm)
                 th_ev = th_hi
                 best_k = -1
@@ -360,11 +384,15 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 observe(t_new, y1, z, ph, p, obs, dyd)
                 f_end = obs[OBS_FORCE]
                 d_end = -obs[OBS_ACCEL]
-                bd = _step_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th_ev,
-                               d_prev, d_mid, d_end, acc[4], OBS_ACCEL)
+                bd = max(d_prev, d_mid, d_end)
+                if _may_reach(d_prev, d_mid, d_end, acc[4]):
+                    bd = _step_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th_ev,
+                                   d_prev, d_mid, d_end, OBS_ACCEL)
                 if in_c:
-                    bf = _step_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th_ev,
-                                   f_prev, f_mid, f_end, acc[5], OBS_FORCE)
+                    bf = max(f_prev, f_mid, f_end)
+                    if _may_reach(f_prev, f_mid, f_end, acc[5]):
+                        bf = _step_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th_ev,
+                                       f_prev, f_mid, f_end, OBS_FORCE)
                     if bf > acc[0]:
                         acc[0] = bf
                     if bf > acc[5]:
@@ -443,20 +471,20 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
 
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model=ERRORS)
 def make_workspace(p, period, s, ny):
     """Scratch arrays of ``integrate_cycles``, allocated once per run (an exact propagator that replaces
     integrate_cycles replaces this too, see sim.compiled)."""
-    return np.empty((17, ny)), np.empty((5, max(8, N_BOUNDED)))
+    return np.empty((17, ny)), np.empty((5, max(N_GUARDS, N_OBS, N_BOUNDED)))
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model=ERRORS)
 def _progress(t, y, z, ph, p, obs, dy):
     observe(t, y, z, ph, p, obs, dy)
     return obs[OBS_PROGRESS]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model=ERRORS)
 def _record_counters(labels, counters):
     """Copy step/event counts into the labels; True (and status failed) if integration failed."""
     labels[L_STEPS] = counters[0]
@@ -468,7 +496,7 @@ def _record_counters(labels, counters):
     return False
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model=ERRORS)
 def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph):
     """Simulate one point from the initial state (y, z, ph_io[0]) and return the label vector.
 

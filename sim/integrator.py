@@ -25,11 +25,15 @@ state itself.  Time never steps over a switch.
 Model interface (all numba-jitted functions, passed as first-class arguments)::
 
     rhs(t, y, z, ph, p, dy)            -> None   fill dy = f(t, y) on branch ph
-    guards(t, y, z, ph, p, g)          -> None   fill g (inactive guards: -1.0)
+    guards(t, y, z, ph, p, g)          -> None   fill g, of length N_GUARDS (inactive guards: -1.0)
     on_event(t, y, z, ph, p, k)        -> int    apply switch k (may edit y, z), return new phase
     observe(t, y, z, ph, p, obs, dy)   -> None   obs = [contact force, accel, disp, progression, velocity]
     bounded(t, y, z, ph, p, b)         -> None   coordinates that stay bounded in steady state
 
+The model's module also defines ``N_GUARDS``, the most guards any of its phases has: the kernel checks
+exactly that many after every step, and ``GUARD_STATES``, the indices of the states the guards read: the
+kernel interpolates only those where it looks for a switch inside a step (``tests/sim/test_conformance.py``
+checks no phase writes more guards or reads other states).
 ``z`` holds discrete states that change only at switches (e.g. crater floor).
 Phase 0 always means "no contact"; every phase > 0 is a contact phase.
 """
@@ -64,14 +68,11 @@ def _dense(r1, r2, r3, r4, r5, th, out):
 
 
 @njit(cache=True, inline="always")
-def _error_norm(y0, y1, err, atol, rtol):
-    s = 0.0
-    n = y0.shape[0]
-    for i in range(n):
-        sc = atol[i] + rtol * max(abs(y0[i]), abs(y1[i]))
-        e = err[i] / sc
-        s += e * e
-    return np.sqrt(s / n)
+def _dense_some(r1, r2, r3, r4, r5, th, out, idx):
+    """``_dense`` for the components ``idx`` only (a tuple of indices): the same value, bit for bit, for each."""
+    th1 = 1.0 - th
+    for i in idx:
+        out[i] = r1[i] + th * (r2[i] + th1 * (r3[i] + th * (r4[i] + th1 * r5[i])))
 
 
 @njit(cache=True, inline="always")

@@ -75,6 +75,39 @@ def test_conformance_spec_synth_rig(spec):
             dataclasses.replace(spec, synth=bad)
 
 
+def test_conformance_guards_fill_n_guards_from_guard_states(spec):
+    """``guards`` writes every entry of a vector of length N_GUARDS (its module's constant) and no more, and reads
+    no state outside GUARD_STATES, in every phase.  The kernel checks exactly N_GUARDS guards after each step (a
+    phase writing a further guard would write past its vector: numba checks no bounds; one leaving an entry unset
+    would read stale memory) and interpolates only the GUARD_STATES inside a step (a guard reading another state
+    would see a stale value: here a NaN, which spreads into the guard)."""
+    import sys
+
+    from sim.api import _prepare
+    from sim.jit import interpreted
+
+    module = sys.modules[spec.funcs[1].py_func.__module__]
+    n = module.N_GUARDS
+    assert isinstance(n, int) and n >= 1
+    p, y, z, _, period, _ = _prepare(spec, spec.resolve(), 1e-7)
+    guards = interpreted(spec.funcs[1])
+    rng = np.random.default_rng(0)
+    read = list(module.GUARD_STATES)
+    assert read and all(0 <= i < len(y) for i in read)
+    others = [i for i in range(len(y)) if i not in read]
+    for ph in range(4):                       # every phase of every model (drill and sandstone: 0-2), and one more
+        for _ in range(3):
+            yy = y + 1e-4 * rng.standard_normal(y.shape)
+            g = np.full(n, np.nan)
+            guards(0.3 * period, yy, z.copy(), ph, p, g)      # interpreted: a write past n raises IndexError
+            assert np.all(np.isfinite(g)), (ph, g)
+            stale = yy.copy()
+            stale[others] = np.nan
+            g_stale = np.full(n, np.nan)
+            guards(0.3 * period, stale, z.copy(), ph, p, g_stale)
+            assert np.array_equal(g_stale, g), (ph, g, g_stale)
+
+
 def test_conformance_defaults_simulate(spec):
     r = sim.simulate(spec.name, settings=SHORT)
     assert r.status in STATUSES and r.status != "failed", r.labels.get("reason")
