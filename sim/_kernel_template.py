@@ -157,8 +157,8 @@ def _may_reach(v0, vm, v1, run):
     here, with no call (a call costs numba a reference count per array argument).
 
     Only such a step is refined (``_step_max``), on the step's interpolant over the part that holds the maximum
-    (``_peak_on``): best in the middle -> [0, th_ev]; best at the start -> [0, th_ev/2] if the value rises just after the
-    start, else nothing (the start is it); best at the end -> [th_ev/2, th_ev]
+    (``_peak_on``): best in the middle -> [0, th_ev]; best at the start -> [0, th_ev/2] if the value rises just
+    after the start, else nothing (the start is it); best at the end -> [th_ev/2, th_ev]
     if the value falls just before the end, else nothing (the quantity is still rising: its maximum lies in
     the next step, which finds it as its start's half, or at a switch, where the end value is it); equal
     samples at θ = 0, 1/4, 1/2, 3/4 and 1 of th_ev -> nothing (a plateau: its value is the maximum).

@@ -38,8 +38,9 @@ NP = 21
 IX1, IV1, IX2, IV2, IX3, IV3, IXT, IXB, IFH, IW = range(10)
 NY = 10
 N_BOUNDED = 8
-N_GUARDS = 2     # length of the guard vector `guards` fills (phase II has two: release and threshold); the kernel checks no more
-GUARD_STATES = (IX1, IV1, IXT, IXB)     # the states the guards read (x1, v1, xt, xb): the kernel interpolates only these
+# the kernel checks N_GUARDS guards, as many as `guards` fills (phase II has two: release and threshold)
+N_GUARDS = 2
+GUARD_STATES = (IX1, IV1, IXT, IXB)     # the states the guards read (x1, v1, xt, xb): the only ones interpolated for them
 
 
 @njit(cache=True, inline="always")

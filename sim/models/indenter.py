@@ -27,8 +27,9 @@ IX1, IV1, IX2, IV2, IX3, IV3, IFEM, IW = range(8)
 NY = 8
 IXP, IXF = 0, 1
 N_BOUNDED = 4
-N_GUARDS = 2     # length of the guard vector `guards` fills (sandstone loading and unloading have two; metal one); the kernel checks no more
-GUARD_STATES = (IX1, IV1)     # the states the guards read (x1, v1): the kernel interpolates only these
+# the kernel checks N_GUARDS guards, as many as `guards` fills (sandstone loading and unloading have two; metal one)
+N_GUARDS = 2
+GUARD_STATES = (IX1, IV1)     # the states the guards read (x1, v1): the only ones interpolated for them
 
 
 def air_damping(fa_n: float, f_hz: float) -> float:

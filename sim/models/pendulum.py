@@ -34,8 +34,9 @@ MASS, LEN, A0, KI, CI, ZETA, GAP, FREQ, GRAV, MCART, ALPHA = range(11)
 ITH, IOM, IW = range(3)
 NY = 3
 N_BOUNDED = 2
-N_GUARDS = 1     # length of the guard vector `guards` fills (the two-indicator contact); the kernel checks no more
-GUARD_STATES = (ITH, IOM)     # the states the guards read (θ, θ̇): the kernel interpolates only these
+# the kernel checks N_GUARDS guards, as many as `guards` fills (the two-indicator contact)
+N_GUARDS = 1
+GUARD_STATES = (ITH, IOM)     # the states the guards read (θ, θ̇): the only ones interpolated for them
 
 
 # sin θ, cos θ and sin Ωt are libm calls, the largest cost of this model's evaluations: each is computed once per

@@ -30,8 +30,9 @@ M1, K1, C1, M2, K2, C2, KI, LAM, NI, F0, GAP, FREQ, ALPHA, KAPPA = range(14)
 IX1, IV1, IX2, IV2, IW = range(5)
 NY = 5
 N_BOUNDED = 4
-N_GUARDS = 1     # length of the guard vector `guards` fills (the two-indicator contact); the kernel checks no more
-GUARD_STATES = (IX2, IV2)     # the states the guards read (x2, ẋ2): the kernel interpolates only these
+# the kernel checks N_GUARDS guards, as many as `guards` fills (the two-indicator contact)
+N_GUARDS = 1
+GUARD_STATES = (IX2, IV2)     # the states the guards read (x2, ẋ2): the only ones interpolated for them
 LS = 1e-3   # length scale [m] turning the dimensionless indicator 1 + λi ẋ2 into a guard in metres
 
 
