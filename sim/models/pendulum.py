@@ -64,15 +64,21 @@ def _thdd(y, p, fi, s, c, sin_wt):
             - 2.0 * p[ZETA] * w0 * y[IOM] - fi * c / (p[MASS] * p[LEN]))
 
 
-@njit(cache=True)
-def rhs(t, y, z, ph, p, dy):
-    s, c = math.sin(y[ITH]), math.cos(y[ITH])
+@njit(cache=True, inline="always")
+def _rhs_at(y, ph, p, dy, s, c, sin_wt):
+    """Fill dy given s, c = sin θ, cos θ and sin Ωt; returns the contact force expression fi [N] (0 out of contact)."""
     fi = _force_expr(y, p, s, c) if ph > 0 else 0.0
     om = 2.0 * math.pi * p[FREQ]
-    sin_wt = math.sin(om * t)
     dy[ITH] = y[IOM]
     dy[IOM] = _thdd(y, p, fi, s, c, sin_wt)
     dy[IW] = p[MASS] * p[LEN] * p[A0] * om * om * sin_wt * c * y[IOM]
+    return fi
+
+
+@njit(cache=True)
+def rhs(t, y, z, ph, p, dy):
+    om = 2.0 * math.pi * p[FREQ]
+    _rhs_at(y, ph, p, dy, math.sin(y[ITH]), math.cos(y[ITH]), math.sin(om * t))
 
 
 @njit(cache=True)
@@ -91,15 +97,15 @@ def on_event(t, y, z, ph, p, k):
 
 @njit(cache=True)
 def observe(t, y, z, ph, p, obs, dy):
-    rhs(t, y, z, ph, p, dy)
     om = 2.0 * math.pi * p[FREQ]
     s, c = math.sin(y[ITH]), math.cos(y[ITH])
-    sin_wt, cos_wt = math.sin(om * t), math.cos(om * t)
-    obs[0] = max(_force_expr(y, p, s, c), 0.0) if ph > 0 else 0.0
+    sin_wt = math.sin(om * t)
+    fi = _rhs_at(y, ph, p, dy, s, c, sin_wt)      # rhs, with the sines and cosines computed here once
+    obs[0] = max(fi, 0.0) if ph > 0 else 0.0
     obs[1] = p[LEN] * (dy[IOM] * c - y[IOM] * y[IOM] * s) - p[A0] * om * om * sin_wt
     obs[2] = p[LEN] * s + p[A0] * sin_wt
     obs[3] = 0.0
-    obs[4] = p[LEN] * y[IOM] * c + p[A0] * om * cos_wt
+    obs[4] = p[LEN] * y[IOM] * c + p[A0] * om * math.cos(om * t)
 
 
 @njit(cache=True)
