@@ -215,7 +215,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
         acc[7] -1 while the contact open at the window start lasts, then its max (-2: none)
     and, when hist_dt > 0, uniform samples are written to hist_* (index counters[2]).
     counters: [steps, events, hist_index, status, reason].
-    wk (17, ny) and gk (5, max(N_GUARDS, N_OBS, N_BOUNDED)) are scratch space (``_workspace``).
+    wk (16, ny) and gk (5, max(N_GUARDS, N_OBS, N_BOUNDED)) are scratch space (``_workspace``).
     Returns the end time.
     """
     ny = y.shape[0]
@@ -223,9 +223,9 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
     rtol = s[S_RTOL]
     # views of the run's workspace (allocated once per run_point, not per call)
     k1 = wk[0]; k2 = wk[1]; k3 = wk[2]; k4 = wk[3]; k5 = wk[4]; k6 = wk[5]; k7 = wk[6]
-    ytmp = wk[7]; y1 = wk[8]           # wk[9]: unused
-    r1 = wk[10]; r2 = wk[11]; r3 = wk[12]; r4 = wk[13]; r5 = wk[14]
-    yd = wk[15]; dyd = wk[16]
+    ytmp = wk[7]; y1 = wk[8]
+    r1 = wk[9]; r2 = wk[10]; r3 = wk[11]; r4 = wk[12]; r5 = wk[13]
+    yd = wk[14]; dyd = wk[15]
     g0 = gk[0, :ng]; g1 = gk[1, :ng]; gm = gk[2, :ng]     # the model's N_GUARDS guards, no more
     obs = gk[3, :N_OBS]
     nbd = strobe.shape[1]
@@ -475,7 +475,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
 def make_workspace(p, period, s, ny):
     """Scratch arrays of ``integrate_cycles``, allocated once per run (an exact propagator that replaces
     integrate_cycles replaces this too, see sim.compiled)."""
-    return np.empty((17, ny)), np.empty((5, max(N_GUARDS, N_OBS, N_BOUNDED)))
+    return np.empty((16, ny)), np.empty((5, max(N_GUARDS, N_OBS, N_BOUNDED)))
 
 
 @njit(cache=True, nogil=True, error_model=ERRORS)
