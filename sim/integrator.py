@@ -61,18 +61,18 @@ from sim.layout import MAX_PERIOD
 
 
 @njit(cache=True, inline="always")
-def _dense(r1, r2, r3, r4, r5, th, out):
+def _dense_some(r1, r2, r3, r4, r5, th, out, idx):
+    """Hairer's continuous extension of DOPRI5 at θ = th ∈ [0, 1] of the step, for the components ``idx`` only
+    (a tuple of indices, or a range): ``out[i] = r1 + θ(r2 + (1-θ)(r3 + θ(r4 + (1-θ) r5)))``."""
     th1 = 1.0 - th
-    for i in range(out.shape[0]):
+    for i in idx:
         out[i] = r1[i] + th * (r2[i] + th1 * (r3[i] + th * (r4[i] + th1 * r5[i])))
 
 
 @njit(cache=True, inline="always")
-def _dense_some(r1, r2, r3, r4, r5, th, out, idx):
-    """``_dense`` for the components ``idx`` only (a tuple of indices): the same value, bit for bit, for each."""
-    th1 = 1.0 - th
-    for i in idx:
-        out[i] = r1[i] + th * (r2[i] + th1 * (r3[i] + th * (r4[i] + th1 * r5[i])))
+def _dense(r1, r2, r3, r4, r5, th, out):
+    """The continuous extension at θ = th for every component (``_dense_some`` over all of them)."""
+    _dense_some(r1, r2, r3, r4, r5, th, out, range(out.shape[0]))
 
 
 @njit(cache=True, inline="always")
