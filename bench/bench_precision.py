@@ -198,7 +198,8 @@ def run(quick: bool, log=print, models: tuple[str, ...] | None = None, reps: int
                 # below the reference's own ~1e-9 only the exact propagator can tell errors apart
                 err_x = label_error(last[k], exact, model) if exact is not None and k != "sim exact" else None
                 rows.append({"method": k, "cpu_s": statistics.median(cpu[k]), "wall_s": statistics.median(wall[k]),
-                             "cpu_all": cpu[k], "label_error": err, "error_vs_exact": err_x})
+                             "cpu_all": cpu[k], "label_error": err, "error_vs_exact": err_x,
+                             "n_steps": last[k].get("n_steps")})      # accepted steps (the kernels' label; peers: None)
                 log(f"{model:18s} {pid:12s} {k:30s} cpu {rows[-1]['cpu_s'] * 1e3:9.2f} ms  "
                     f"wall {rows[-1]['wall_s'] * 1e3:9.2f} ms  err {err:.2e}"
                     + (f"  vs exact {err_x:.2e}" if err_x is not None else ""))
@@ -265,7 +266,8 @@ def lean_vs_old(res: dict) -> list[dict]:
         if new and old:
             out.append({"model": pt["model"], "point": pt["point"], "old_cpu_s": old["cpu_s"], "new_cpu_s": new["cpu_s"],
                         "ratio": old["cpu_s"] / new["cpu_s"], "old_error": effective_error(pt, old),
-                        "new_error": effective_error(pt, new)})
+                        "new_error": effective_error(pt, new), "old_steps": old.get("n_steps"),
+                        "new_steps": new.get("n_steps")})
     return out
 
 
@@ -335,11 +337,13 @@ def table(res: dict) -> str:
     if lean:
         lines += ["", f"**Lean kernel (item 2), rtol {DEFAULT_RTOL:.0e} (the default)**: the DOPRI5 kernel of the day the "
                   "issue was filed (`bench/baseline.py`) against the current one, CPU ms and label error (drill: vs the "
-                  "exact propagator):", "", "| model | point | old kernel | current kernel | old / current |",
-                  "|---|---|---|---|---|"]
+                  "exact propagator) and accepted steps (`n_steps`):", "",
+                  "| model | point | old kernel | current kernel | old / current | steps old / current |",
+                  "|---|---|---|---|---|---|"]
         for x in lean:
+            steps = f"{x.get('old_steps')} / {x.get('new_steps')}" if x.get("old_steps") is not None else "n/a"
             lines.append(f"| {x['model']} | {x['point']} | {x['old_cpu_s'] * 1e3:.2f} ({_fmt_err(x['old_error'])}) | "
-                         f"{x['new_cpu_s'] * 1e3:.2f} ({_fmt_err(x['new_error'])}) | ×{x['ratio']:.2f} |")
+                         f"{x['new_cpu_s'] * 1e3:.2f} ({_fmt_err(x['new_error'])}) | ×{x['ratio']:.2f} | {steps} |")
     lines += ["", "**Every method** (scipy rows on the drill: a plain `solve_ivp` loop, `bench/peers_scipy.py`; on the "
               "other models: the reference harness `tests/reference_solutions.py` with solve_ivp's step-end event "
               "check, which restarts every cycle):", "",
@@ -409,11 +413,14 @@ def sim_kernel_kind(models) -> str:
 def main(quick: bool = False, write_readme: bool | None = None, models: tuple[str, ...] | None = None,
          scaling: bool | None = None, out_dir: Path | None = None, reps: int = 3) -> dict:
     """Run, save to ``out_dir`` (default bench/results), and (by default for a full run, as under
-    ``make bench``) rewrite the README tables.  ``scaling`` defaults to on for a full run."""
+    ``make bench``) rewrite the README tables.  ``scaling`` defaults to on for a full run.  A ``models`` subset
+    is saved as ``precision_subset.json/.md`` and, unless asked, neither measures the scaling nor touches the
+    READMEs: the full run's figures stay where they are quoted."""
+    full = not quick and not models
     res = run(quick, models=models, reps=reps)
     res["quick"] = quick
     res["machine"]["sim_kernel"] = sim_kernel_kind(p["model"] for p in res["points"])
-    if scaling or (scaling is None and not quick):
+    if scaling or (scaling is None and full):
         res["scaling"] = run_scaling(quick)
         from bench.startup import startup
 
@@ -423,10 +430,11 @@ def main(quick: bool = False, write_readme: bool | None = None, models: tuple[st
     res["lean_vs_old"] = lean_vs_old(res)
     out_dir = Path(out_dir) if out_dir else RESULTS
     out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / ("precision_quick.json" if quick else "precision.json")).write_text(json.dumps(res, indent=1))
+    stem = "precision_quick" if quick else ("precision" if full else "precision_subset")
+    (out_dir / f"{stem}.json").write_text(json.dumps(res, indent=1))
     md = table(res)
-    (out_dir / ("precision_quick.md" if quick else "precision.md")).write_text(md)
-    if write_readme or (write_readme is None and not quick):
+    (out_dir / f"{stem}.md").write_text(md)
+    if write_readme or (write_readme is None and full):
         print("table written into", ", ".join(write_readmes(md)) or "no file (markers missing)")
     return res
 
@@ -434,8 +442,9 @@ def main(quick: bool = False, write_readme: bool | None = None, models: tuple[st
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="two points, three rtols, fewer peers, no scaling (development)")
-    ap.add_argument("--models", default="", help="comma-separated models to run (default: all points)")
-    ap.add_argument("--scaling", action="store_true", default=None, help="also run the 1-/2-worker scaling (default for a full run)")
+    ap.add_argument("--models", default="", help="comma-separated models to run (default: all points); a subset is "
+                    "saved as results/precision_subset.json/.md and leaves the READMEs alone unless --write-readme")
+    ap.add_argument("--scaling", action="store_true", default=None, help="also run the 1-/2-worker scaling (default for a full run, not for --quick or --models)")
     ap.add_argument("--write-readme", action="store_true", default=None,
                     help="copy the table into README.md and bench/README.md (default for a full run)")
     ap.add_argument("--no-write-readme", dest="write_readme", action="store_false",

@@ -56,6 +56,23 @@ D1, D3, D4, D5, D6, D7 = (-12715105075.0 / 11282082432.0, 87487479700.0 / 327004
                           -10690763975.0 / 1880347072.0, 701980252875.0 / 199316789632.0,
                           -1453857185.0 / 822651844.0, 69997945.0 / 29380423.0)
 
+
+def dopri5_tableau() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The tableau above as arrays ``(A, b, c, e)``: A (7×7), the 5th-order weights b (FSAL: A's last row), the
+    nodes c and the error weights e = b − b̂.  For analysis and tests (the stability function in
+    ``bench/step_budget.py``, the order conditions in ``tests/sim/test_tableau.py``); the kernel uses the constants."""
+    a = np.zeros((7, 7))
+    a[1, 0] = A21
+    a[2, :2] = A31, A32
+    a[3, :3] = A41, A42, A43
+    a[4, :4] = A51, A52, A53, A54
+    a[5, :5] = A61, A62, A63, A64, A65
+    a[6, :6] = A71, 0.0, A73, A74, A75, A76
+    c = np.array([0.0, C2, C3, C4, C5, 1.0, 1.0])
+    e = np.array([E1, 0.0, E3, E4, E5, E6, E7])
+    return a, a[6].copy(), c, e
+
+
 from sim.layout import *  # noqa: F401,F403  (layouts re-exported for the kernel template)
 from sim.layout import MAX_PERIOD
 

@@ -10,16 +10,7 @@ import pytest
 
 from sim import integrator as I
 
-C = np.array([0.0, I.C2, I.C3, I.C4, I.C5, 1.0, 1.0])
-A = np.zeros((7, 7))
-A[1, 0] = I.A21
-A[2, :2] = I.A31, I.A32
-A[3, :3] = I.A41, I.A42, I.A43
-A[4, :4] = I.A51, I.A52, I.A53, I.A54
-A[5, :5] = I.A61, I.A62, I.A63, I.A64, I.A65
-A[6, :6] = I.A71, 0.0, I.A73, I.A74, I.A75, I.A76
-B = A[6].copy()                                   # FSAL: the last stage row is the 5th-order solution
-E = np.array([I.E1, 0.0, I.E3, I.E4, I.E5, I.E6, I.E7])
+A, B, C, E = I.dopri5_tableau()                   # the constants as arrays; B = A's last row (FSAL)
 
 
 def test_row_sums_equal_nodes():
