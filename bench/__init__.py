@@ -2,8 +2,9 @@
 
 Each ``bench/bench_*.py`` module has a ``main(quick)`` (or ``main()``) and writes ``bench/results/<name>.json``.
 This package also holds the small pure-Python pieces of the drill model (MODELS.md §2) that the peer
-implementations (:mod:`bench.peers_heyoka`, :mod:`bench.peers_cyrk`) share: the phase classification
-at the start of a segment and the switching hysteresis, both as in ``tests/reference_solutions.py``.
+implementations (:mod:`bench.peers_heyoka`, :mod:`bench.peers_cyrk`, :mod:`bench.peers_scipy`) share: the phase
+classification at the start of a segment and the switching hysteresis, both as in ``tests/reference_solutions.py``,
+and the segment loop of the peers that integrate one contact segment per solver call (:func:`segment_loop`).
 """
 from __future__ import annotations
 
@@ -52,3 +53,60 @@ def drill_classify(p: dict, t: float, y) -> int:
     if P >= -eP:
         return 1 if K1 * y[1] + C1 * drill_a1(p, t, y, 0.0) > 0.0 else 0
     return 0
+
+
+def segment_loop(p: dict, transient: int, window: int, solve, name: str, max_segments: int = 1_000_000) -> dict:
+    """The drill labels of a peer that integrates one contact segment at a time (the plain scipy loop and CyRK).
+
+    ``solve(t, t_stop, y, ph, rec)`` integrates from ``t`` towards ``t_stop`` on phase ``ph`` with that phase's
+    terminal switching events (and, when ``rec``, the non-terminal events of the window maxima) and returns
+    ``(t, y, terminal, maxima)``: where it stopped, whether a switching surface stopped it, and the (t, y) of the
+    window-maximum events.  This loop classifies the state at every segment start (MODELS.md §2), counts contact
+    onsets and keeps the window maxima; it starts at rest with the surface and slider at the gap."""
+    import numpy as np
+
+    T = 1.0 / p["frequency_hz"]
+    G = p["gap_m"]
+    y = np.array([0, 0, 0, 0, 0, 0, G, G, 0.0])
+    t = 0.0
+    t_win, t_end = transient * T, (transient + window) * T
+    onsets = 0
+    peakf = decel = 0.0
+    xb0 = W0 = None
+
+    def note(t, y, ph):
+        nonlocal peakf, decel
+        pc = (p["K1"] * (y[0] - y[7]) + p["C1"] * y[1]) if ph == 1 else (p["Pr"] if ph == 2 else 0.0)
+        peakf = max(peakf, pc)
+        decel = max(decel, -drill_a1(p, t, y, pc))
+
+    ph = drill_classify(p, t, y)
+    if ph:
+        y[6] = y[0]
+    for _ in range(max_segments):
+        rec = t >= t_win
+        if rec and xb0 is None:
+            xb0, W0 = y[7], y[8]
+            note(t, y, ph)
+        t_stop = t_end if rec else t_win
+        if t >= t_stop * (1 - 1e-15):
+            break
+        t, y, terminal, maxima = solve(t, t_stop, y, ph, rec)
+        for te, ye in maxima:
+            note(te, ye, ph)
+        if terminal:
+            if rec:
+                note(t, y, ph)
+            new = drill_classify(p, t, y)
+            if new:
+                y[6] = y[0]
+            if rec and ph == 0 and new != 0:
+                onsets += 1
+            ph = new
+            if rec:
+                note(t, y, ph)
+    else:
+        raise RuntimeError(f"{name}: too many segments")
+    note(t, y, ph)
+    return {"rop_m_s": (y[7] - xb0) / (window * T), "peak_force_n": peakf, "impacts_per_cycle": onsets / window,
+            "peak_decel_g": decel / G_ACC, "energy_per_cycle_j": (y[8] - W0) / window}

@@ -24,7 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
-from bench import ETA_X, G_ACC, drill_a1, drill_classify
+from bench import ETA_X, segment_loop
 
 # parameter vector: M1 M2 M3 K1 K2 K3 C1 C2 C3 Pr F0 Fs Om
 
@@ -146,61 +146,18 @@ def run_point(p: dict, transient: int, window: int, method: str = "RK45", rtol: 
     Om = q[12]
     fsc = max(abs(p["amplitude_n"]), abs(p["static_force_n"]), p["Pr"], 1.0)
     atol = rtol * 1e-3 * np.array([1, Om, 1, Om, 1, Om, 1, 1, fsc])
-    G = p["gap_m"]
-    y = np.array([0, 0, 0, 0, 0, 0, G, G, 0.0])
-    t = 0.0
-    t_win, t_end = transient * T, (transient + window) * T
-    onsets = 0
-    peakf = decel = 0.0
-    xb0 = W0 = None
 
-    def note(t, y, ph):
-        nonlocal peakf, decel
-        pc = (p["K1"] * (y[0] - y[7]) + p["C1"] * y[1]) if ph == 1 else (p["Pr"] if ph == 2 else 0.0)
-        peakf = max(peakf, pc)
-        decel = max(decel, -drill_a1(p, t, y, pc))
-
-    ph = drill_classify(p, t, y)
-    if ph:
-        y[6] = y[0]
-    for _ in range(max_segments):
-        rec = t >= t_win
-        if rec and xb0 is None:
-            xb0, W0 = y[7], y[8]
-            note(t, y, ph)
-        t_stop = t_end if rec else t_win
-        if t >= t_stop * (1 - 1e-15):
-            break
+    def solve(t, t_stop, y, ph, rec):
         evs = _SWITCH[ph] + ([_FMAX, _DMAX] if rec and ph == 1 else [_DMAX] if rec else [])
         sol = pysolve_ivp(diffeq, (t, t_stop), y, method=method, events=evs, args=(q, ph), rtol=rtol, atol=atol,
                           max_step=max_step_frac * T, pass_dy_as_arg=True)
         if not sol.success:
             raise RuntimeError(f"CyRK failed: {sol.message}")
-        if rec:
-            nsw = len(_SWITCH[ph])
-            for k in range(nsw, len(evs)):
-                te, ye = sol.t_events[k], sol.y_events[k]
-                for j in range(te.size):
-                    note(te[j], ye[:9, j], ph)
+        maxima = [(sol.t_events[k][j], sol.y_events[k][:9, j]) for k in range(len(_SWITCH[ph]), len(evs))
+                  for j in range(sol.t_events[k].size)] if rec else []
         if sol.event_terminated:
             k = sol.event_terminate_index
-            t = float(sol.t_events[k][-1])
-            y = np.array(sol.y_events[k][:9, -1])
-            if rec:
-                note(t, y, ph)
-            new = drill_classify(p, t, y)
-            if new:
-                y[6] = y[0]
-            if rec and ph == 0 and new != 0:
-                onsets += 1
-            ph = new
-            if rec:
-                note(t, y, ph)
-        else:
-            t = float(sol.t[-1])
-            y = np.array(sol.y[:9, -1])
-    else:
-        raise RuntimeError("CyRK peer: too many segments")
-    note(t, y, ph)
-    return {"rop_m_s": (y[7] - xb0) / (window * T), "peak_force_n": peakf, "impacts_per_cycle": onsets / window,
-            "peak_decel_g": decel / G_ACC, "energy_per_cycle_j": (y[8] - W0) / window}
+            return float(sol.t_events[k][-1]), np.array(sol.y_events[k][:9, -1]), True, maxima
+        return float(sol.t[-1]), np.array(sol.y[:9, -1]), False, maxima
+
+    return segment_loop(p, transient, window, solve, "CyRK peer", max_segments)

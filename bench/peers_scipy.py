@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from bench import ETA_X, G_ACC, drill_a1, drill_classify
+from bench import ETA_X, segment_loop
 
 
 def _model(p: dict):
@@ -77,58 +77,19 @@ def run_point(p: dict, transient: int, window: int, method: str = "RK45", rtol: 
     Om = 2.0 * math.pi * p["frequency_hz"]
     fsc = max(abs(p["amplitude_n"]), abs(p["static_force_n"]), p["Pr"], 1.0)
     atol = rtol * 1e-3 * np.array([1, Om, 1, Om, 1, Om, 1, 1, fsc])
-    G = p["gap_m"]
-    y = np.array([0, 0, 0, 0, 0, 0, G, G, 0.0])
-    t = 0.0
-    t_win, t_end = transient * T, (transient + window) * T
-    onsets = 0
-    peakf = decel = 0.0
-    xb0 = W0 = None
 
-    def note(t, y, ph):
-        nonlocal peakf, decel
-        pc = (p["K1"] * (y[0] - y[7]) + p["C1"] * y[1]) if ph == 1 else (p["Pr"] if ph == 2 else 0.0)
-        peakf = max(peakf, pc)
-        decel = max(decel, -drill_a1(p, t, y, pc))
-
-    ph = drill_classify(p, t, y)
-    if ph:
-        y[6] = y[0]
-    for _ in range(max_segments):
-        rec = t >= t_win
-        if rec and xb0 is None:
-            xb0, W0 = y[7], y[8]
-            note(t, y, ph)
-        t_stop = t_end if rec else t_win
-        if t >= t_stop * (1 - 1e-15):
-            break
+    def solve(t, t_stop, y, ph, rec):
         evs = switch[ph] + ([fmax, dmax] if rec and ph == 1 else [dmax] if rec else [])
         sol = solve_ivp(rhs, (t, t_stop), y, method=method, events=evs, args=(ph,), rtol=rtol, atol=atol,
                         max_step=max_step_frac * T)
         if sol.status < 0:
             raise RuntimeError(f"solve_ivp failed: {sol.message}")
-        if rec:
-            for k in range(len(switch[ph]), len(evs)):
-                for te, ye in zip(sol.t_events[k], sol.y_events[k]):
-                    note(te, ye, ph)
+        maxima = [(te, ye) for k in range(len(switch[ph]), len(evs))
+                  for te, ye in zip(sol.t_events[k], sol.y_events[k])] if rec else []
         if sol.status == 1:            # a terminal event: the switching surface solve_ivp stopped on
             k = min((i for i in range(len(switch[ph])) if sol.t_events[i].size),
                     key=lambda i: abs(sol.t_events[i][-1] - sol.t[-1]))
-            t, y = float(sol.t_events[k][-1]), np.array(sol.y_events[k][-1])
-            if rec:
-                note(t, y, ph)
-            new = drill_classify(p, t, y)
-            if new:
-                y[6] = y[0]
-            if rec and ph == 0 and new != 0:
-                onsets += 1
-            ph = new
-            if rec:
-                note(t, y, ph)
-        else:
-            t, y = float(sol.t[-1]), np.array(sol.y[:, -1])
-    else:
-        raise RuntimeError("scipy peer: too many segments")
-    note(t, y, ph)
-    return {"rop_m_s": (y[7] - xb0) / (window * T), "peak_force_n": peakf, "impacts_per_cycle": onsets / window,
-            "peak_decel_g": decel / G_ACC, "energy_per_cycle_j": (y[8] - W0) / window}
+            return float(sol.t_events[k][-1]), np.array(sol.y_events[k][-1]), True, maxima
+        return float(sol.t[-1]), np.array(sol.y[:, -1]), False, maxima
+
+    return segment_loop(p, transient, window, solve, "scipy peer", max_segments)
