@@ -16,6 +16,7 @@ import pandas as pd  # noqa: E402
 from matplotlib.colors import ListedColormap  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
+from pipeline.core import units  # noqa: E402
 from pipeline.core.files import atomic_write_figure  # noqa: E402
 from pipeline.maps import compute as M  # noqa: E402
 
@@ -26,26 +27,10 @@ REGION_COLORS = {M.ROP_NONE: "#d9d9d9", M.ROP_RUNAWAY: "#d62728", M.ROP_FAILED: 
 
 
 def _axis(name: str) -> tuple[float, str]:
-    """Display scale and label of a parameter axis (metres shown in mm)."""
-    if name.endswith("_m"):
-        return 1e3, f"{name[:-2]} [mm]"
-    if name.endswith("_hz"):
-        return 1.0, f"{name[:-3]} [Hz]"
-    if name.endswith("_n"):
-        return 1.0, f"{name[:-2]} [N]"
-    return 1.0, name
+    """Display scale and label of a parameter axis or a colour label, in engineering units (``pipeline.core.units``:
+    mm, kN, mm/s, ...)."""
+    return units.factor(name), units.label(name)
 
-
-def _label_axis(label: str) -> tuple[float, str]:
-    if label == "rop_m_s":
-        return 1e3, "ROP [mm/s]"
-    if label.endswith("_n"):
-        return 1.0, f"{label} [N]"
-    if label.endswith("_g"):
-        return 1.0, f"{label} [g]"
-    if label.endswith("_j"):
-        return 1.0, f"{label} [J]"
-    return 1.0, label
 
 
 def _edges(v: np.ndarray) -> np.ndarray:
@@ -98,7 +83,7 @@ def plot_peterka(df: pd.DataFrame, x: str, y: str, path, color: str = "peak_forc
     ax[0].set_xlabel(lx)
     ax[0].set_ylabel(ly)
     ax[0].set_title("impact pattern (z = impacts / forcing cycles)")
-    scale, clabel = _label_axis(color)
+    scale, clabel = _axis(color)
     val = _grid(df, color, nx, ny) * scale
     val = np.ma.masked_where((pat == M.NO_IMPACT) | ~np.isfinite(val), val)
     ax[1].set_facecolor(PATTERN_COLORS[M.NO_IMPACT])
@@ -123,7 +108,7 @@ def plot_rop(df: pd.DataFrame, x: str, y: str, path, color: str = "rop_m_s", tit
     flat = np.ma.masked_where(reg == M.ROP_OK, reg)
     cmap = ListedColormap([REGION_COLORS[c] for c in range(1, 5)])
     ax.pcolormesh(ex, ey, flat, cmap=cmap, vmin=0.5, vmax=4.5, shading="flat")
-    scale, clabel = _label_axis(color)
+    scale, clabel = _axis(color)
     val = _grid(df, color, nx, ny) * scale
     val = np.ma.masked_where((reg != M.ROP_OK) | ~np.isfinite(val), val)
     if val.count():
