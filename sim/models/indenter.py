@@ -83,9 +83,15 @@ def _body(t, y, p, fr, dy):
 
 
 @njit(cache=True, inline="always")
+def _stiff_at(alpha, v1):
+    """rate_stiffening: k -> k (1 + α max(δ̇, 0)), from scalars."""
+    return 1.0 + alpha * max(v1, 0.0)
+
+
+@njit(cache=True, inline="always")
 def _stiff_factor(v1, p):
-    """rate_stiffening: k -> k (1 + α max(δ̇, 0))."""
-    return 1.0 + p[ALPHA] * max(v1, 0.0)
+    """``_stiff_at`` with α from the parameter vector."""
+    return _stiff_at(p[ALPHA], v1)
 
 
 # ----------------------------------------------------------------------------- metal sample
@@ -130,9 +136,15 @@ def metal_bounded(t, y, z, ph, p, b):
 
 # ----------------------------------------------------------------------------- sandstone sample
 @njit(cache=True, inline="always")
+def _blunt_at(gamma, xp):
+    """tip_blunting: kl, ku -> (1 + γ xp / 1 mm), from scalars; xp is the crater floor at the current impact's start."""
+    return 1.0 + gamma * xp / 1e-3
+
+
+@njit(cache=True, inline="always")
 def _blunt(z, p):
-    """tip_blunting: kl, ku -> (1 + γ xp / 1 mm); uses the crater floor at the current impact's start."""
-    return 1.0 + p[GAMMA] * z[IXP] / 1e-3
+    """``_blunt_at`` of the crater floor z[IXP] and γ from the parameter vector."""
+    return _blunt_at(p[GAMMA], z[IXP])
 
 
 @njit(cache=True, inline="always")
@@ -142,21 +154,21 @@ def _power(x, n):
 
 
 @njit(cache=True, inline="always")
+def _branch_force(k, blunt, stiff, depth, n):
+    """k (1 + γ xp/1 mm)(1 + α max(ẋ1, 0)) max(depth, 0)^n [N] of one sandstone branch, from scalars."""
+    return k * blunt * stiff * _power(max(depth, 0.0), n)
+
+
+@njit(cache=True, inline="always")
 def _load_force(y, z, p):
-    phi3 = max(y[IX1] - p[GAP] - z[IXP], 0.0)
-    return p[KL] * _blunt(z, p) * _stiff_factor(y[IV1], p) * _power(phi3, p[NL])
+    """Loading branch [N] of the state ``y`` (penetration below the crater floor xp)."""
+    return _branch_force(p[KL], _blunt(z, p), _stiff_factor(y[IV1], p), y[IX1] - p[GAP] - z[IXP], p[NL])
 
 
 @njit(cache=True, inline="always")
 def _unload_force(y, z, p):
-    phi4 = max(y[IX1] - p[GAP] - z[IXF], 0.0)
-    return p[KU] * _blunt(z, p) * _stiff_factor(y[IV1], p) * _power(phi4, p[NU])
-
-
-@njit(cache=True, inline="always")
-def _branch_force(k, blunt, stiff, depth, n):
-    """k (1 + γ xp/1 mm)(1 + α max(ẋ1, 0)) max(depth, 0)^n [N] of one sandstone branch, from scalars."""
-    return k * blunt * stiff * _power(max(depth, 0.0), n)
+    """Unloading branch [N] of the state ``y`` (penetration below the unloading end point xf)."""
+    return _branch_force(p[KU], _blunt(z, p), _stiff_factor(y[IV1], p), y[IX1] - p[GAP] - z[IXF], p[NU])
 
 
 @njit(cache=True, inline="always")
@@ -169,8 +181,8 @@ def _sand_force(y, z, ph, p):
     if ph == 0:
         return 0.0
     d = y[IX1] - p[GAP]
-    blunt = 1.0 + p[GAMMA] * z[IXP] / 1e-3
-    stiff = 1.0 + p[ALPHA] * max(y[IV1], 0.0)
+    blunt = _blunt_at(p[GAMMA], z[IXP])
+    stiff = _stiff_at(p[ALPHA], y[IV1])
     if ph == 1:
         return _branch_force(p[KL], blunt, stiff, d - z[IXP], p[NL])
     if ph == 2:

@@ -89,10 +89,10 @@ def guards(t, y, z, ph, p, g):
         # δ = l sin θ − gap < 0 and the guard min(δ, ·) is negative.  l θ − gap [m] is then returned instead of the
         # exact guard (same sign, no sin/cos: most free-flight guard checks, 4 per step, cost no libm call; the
         # exact guard is evaluated from l θ ≥ gap on, where a crossing can be, so switches are found as before and
-        # located within event_tol; ×1.10 on a pendulum run, labels within 1.5e-10 of the exact-guard kernel's)
-        for i in range(g.shape[0]):
-            g[i] = -1.0
-        g[0] = p[LEN] * th - p[GAP]
+        # located within event_tol; ×1.10 on a pendulum run, labels within 1.5e-10 of the exact-guard kernel's).
+        # The bound stands for both indicators of the shared two-indicator guard
+        bound = p[LEN] * th - p[GAP]
+        two_indicator_guard(g, bound, bound, ph)
         return
     s, c = math.sin(th), math.cos(th)
     d, _ = _delta(y, p, s, c)
