@@ -21,6 +21,24 @@ ETA_X = 1e-15          # hysteresis on the position switching function [m] (as t
 #                        contact by ETA_X / v1 and biased the lab ROP by 1.4e-8 (the damper's force jumps at contact)
 
 
+def write_between_markers(root: Path, paths, start: str, end: str, text: str) -> list[str]:
+    """Replace what stands between the lines ``start`` and ``end`` of each file in ``paths`` (relative to ``root``)
+    that has both with ``text`` (a line break either side), atomically (``pipeline.core.files``); returns the
+    paths written.  How the benchmarks keep the tables the READMEs quote generated."""
+    from pipeline.core.files import atomic_write_text
+
+    done = []
+    for rel in paths:
+        path = Path(root) / rel
+        doc = path.read_text()
+        if start in doc and end in doc:
+            head, rest = doc.split(start, 1)
+            tail = rest.split(end, 1)[1]
+            atomic_write_text(path, f"{head}{start}\n{text.strip(chr(10))}\n{end}{tail}")
+            done.append(str(rel))
+    return done
+
+
 def drill_values(params: dict) -> dict:
     """The drill parameters a peer needs, as floats (``params`` = a complete resolved dict)."""
     on = [k for k in EFFECT_PARAMS if float(params.get(k, 0.0)) != 0.0]

@@ -44,7 +44,7 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from bench import RESULTS, drill_values  # noqa: E402
+from bench import RESULTS, drill_values, write_between_markers  # noqa: E402
 from bench.bench_sim import label_error, machine_info  # noqa: E402
 
 POINTS = [  # (model, point id, preset, transient N, window W)
@@ -374,15 +374,7 @@ def table(res: dict) -> str:
 
 def write_readmes(md: str) -> list[str]:
     """Replace the text between the bench-table markers in README.md and bench/README.md."""
-    done = []
-    for path in (ROOT / "README.md", ROOT / "bench" / "README.md"):
-        text = path.read_text()
-        if START in text and END in text:
-            a = text.index(START) + len(START)
-            b = text.index(END)
-            path.write_text(text[:a] + "\n" + md + text[b:])
-            done.append(str(path.relative_to(ROOT)))
-    return done
+    return write_between_markers(ROOT, ("README.md", "bench/README.md"), START, END, md)
 
 
 def run_scaling(quick: bool) -> dict:
