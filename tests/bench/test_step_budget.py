@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import sim
 from bench.step_budget import boundary_radius, stability_function
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -31,7 +32,7 @@ def test_stability_function_is_dopri5s_and_its_real_boundary():
 
 def test_watched_run_sees_the_kernels_steps_and_the_pendulums_cap():
     """The watched (interpreted) run accepts exactly the steps the kernel counts (the ``n_steps`` label); on the
-    pendulum, whose free flight runs at its step cap max_step_frac = 0.02 (sim/models/pendulum.py), phase 0 is
+    pendulum, whose free flight runs at its step cap (``max_step_frac`` of sim/models/pendulum.py), phase 0 is
     reported as limited by the cap; the compiled floor makes 6 right-hand-side calls per attempted step."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     run = subprocess.run([sys.executable, "-m", "bench.step_budget", "--models", "pendulum", "--reps", "2"],
@@ -43,7 +44,8 @@ def test_watched_run_sees_the_kernels_steps_and_the_pendulums_cap():
         r"\| pendulum \| default \| (\d) \| ([\d.]+) \| ([\d.]+) \| ([\d.e-]+) \| ([\d.e-]+) \| \S+ \| (\w+) \|",
         run.stdout)}
     assert set(rows) == {0, 1}
-    assert rows[0].group(6) == "cap" and abs(float(rows[0].group(4)) - 0.02) < 1e-9
+    cap = sim.get_model("pendulum").default_settings["max_step_frac"]
+    assert rows[0].group(6) == "cap" and abs(float(rows[0].group(4)) - cap) < 1e-9
     assert rows[1].group(6) == "accuracy"
     n_cycles = 40 + 10                                     # the pendulum point of bench.bench_precision.POINTS
     attempts = sum((float(m.group(2)) + float(m.group(3))) * n_cycles for m in rows.values())
