@@ -13,7 +13,8 @@ exact propagator (itself checked against the reference and DOPRI5 in tests/test_
 resolves errors down to ~1e-12.
 
 Methods: the simulator's DOPRI5 kernel (``method="dopri5"``) at rtol 1e-6 ... 1e-11 (drill also 1e-12, for
-the x10 target at 1e-10 label error); the exact propagator (``method="exact"``, drill only); on the drill the
+the x10 target at 1e-10 label error); the exact propagator (``method="exact"``: on the drill exact in every phase,
+one row; on the RIMD the hybrid of an exact free flight and DOPRI5 contact, a row per rtol); on the drill the
 DOPRI5 kernel of the day issue 16 was filed (commit 33a799c, ``bench/baseline.py``: unpacked from git and run
 in a worker process, interleaved like the rest; drill rtol 1e-7, 1e-8, 1e-10, 1e-11, 1e-12, the "today" of the x10
 target; every other model at the default rtol 1e-7, for item 2's lean-kernel ratio); on the drill the
@@ -85,6 +86,8 @@ def _baseline_worker():
 
 def _methods(model: str, preset, n: int, w: int, quick: bool) -> dict:
     """name -> zero-argument callable returning the labels dict (or a string: why the method is unavailable)."""
+    import importlib
+
     import sim
     from tests.reference_solutions import reference_run
 
@@ -94,8 +97,13 @@ def _methods(model: str, preset, n: int, w: int, quick: bool) -> dict:
     for r in rtols:
         out[f"sim dopri5 rtol {r:.0e}"] = (lambda r=r: sim.simulate(model, preset=preset,
                                                                    settings={**fixed, "rtol": r, "method": "dopri5"}).labels)
-    if sim.get_model(model).exact is not None:
+    spec = sim.get_model(model)
+    if spec.exact is not None and importlib.import_module(spec.exact).EVERY_PHASE:
         out["sim exact"] = lambda: sim.simulate(model, preset=preset, settings={**fixed, "method": "exact"}).labels
+    elif spec.exact is not None:    # a hybrid (exact free flight, numerical contact): its accuracy follows rtol
+        for r in rtols:
+            out[f"sim hybrid rtol {r:.0e}"] = (lambda r=r: sim.simulate(
+                model, preset=preset, settings={**fixed, "rtol": r, "method": "exact"}).labels)
     params = {k: v for k, v in sim.get_model(model).resolve(preset).items() if k not in ("P", "D")}
     try:   # issue 16's "today": the DOPRI5 kernel of the commit the issue measured, in a worker process
         from bench.baseline import COMMIT
@@ -257,17 +265,20 @@ def _loosest(rows: list[dict], prefix: str, target: float) -> dict | None:
 
 def lean_vs_old(res: dict) -> list[dict]:
     """Issue 16 item 2: per point, the current DOPRI5 kernel against the old one (33a799c), both at the default
-    rtol, with their label errors (vs the exact propagator on the drill, else vs the reference)."""
+    rtol, with their label errors (vs the exact propagator on the drill, else vs the reference); where the model has
+    a hybrid propagator (exact free flight, DOPRI5 contact: what ``simulate`` runs by default there) a second row
+    sets it against the same old kernel."""
     out = []
     for pt in res["points"]:
         by = {r["method"]: r for r in pt["rows"]}
-        new = by.get(f"sim dopri5 rtol {DEFAULT_RTOL:.0e}")
         old = next((r for k, r in by.items() if k.startswith(f"{BASELINE} dopri5 rtol {DEFAULT_RTOL:.0e}")), None)
-        if new and old:
-            out.append({"model": pt["model"], "point": pt["point"], "old_cpu_s": old["cpu_s"], "new_cpu_s": new["cpu_s"],
-                        "ratio": old["cpu_s"] / new["cpu_s"], "old_error": effective_error(pt, old),
-                        "new_error": effective_error(pt, new), "old_steps": old.get("n_steps"),
-                        "new_steps": new.get("n_steps")})
+        for kind in ("dopri5", "hybrid"):
+            new = by.get(f"sim {kind} rtol {DEFAULT_RTOL:.0e}")
+            if new and old:
+                out.append({"model": pt["model"], "point": pt["point"], "method": kind, "old_cpu_s": old["cpu_s"],
+                            "new_cpu_s": new["cpu_s"], "ratio": old["cpu_s"] / new["cpu_s"],
+                            "old_error": effective_error(pt, old), "new_error": effective_error(pt, new),
+                            "old_steps": old.get("n_steps"), "new_steps": new.get("n_steps")})
     return out
 
 
@@ -338,12 +349,13 @@ def table(res: dict) -> str:
         lines += ["", f"**Lean kernel (item 2), rtol {DEFAULT_RTOL:.0e} (the default)**: the DOPRI5 kernel of the day the "
                   "issue was filed (`bench/baseline.py`) against the current one, CPU ms and label error (drill: vs the "
                   "exact propagator) and accepted steps (`n_steps`):", "",
-                  "| model | point | old kernel | current kernel | old / current | steps old / current |",
-                  "|---|---|---|---|---|---|"]
+                  "| model | point | old kernel | current | current kernel | old / current | steps old / current |",
+                  "|---|---|---|---|---|---|---|"]
         for x in lean:
             steps = f"{x.get('old_steps')} / {x.get('new_steps')}" if x.get("old_steps") is not None else "n/a"
             lines.append(f"| {x['model']} | {x['point']} | {x['old_cpu_s'] * 1e3:.2f} ({_fmt_err(x['old_error'])}) | "
-                         f"{x['new_cpu_s'] * 1e3:.2f} ({_fmt_err(x['new_error'])}) | ×{x['ratio']:.2f} | {steps} |")
+                         f"{x.get('method', 'dopri5')} | {x['new_cpu_s'] * 1e3:.2f} ({_fmt_err(x['new_error'])}) | "
+                         f"×{x['ratio']:.2f} | {steps} |")
     lines += ["", "**Every method** (scipy rows on the drill: a plain `solve_ivp` loop, `bench/peers_scipy.py`; on the "
               "other models: the reference harness `tests/reference_solutions.py` with solve_ivp's step-end event "
               "check, which restarts every cycle):", "",

@@ -10,7 +10,7 @@ on disk and release the GIL.
 import numpy as np
 
 from sim.integrator import *  # noqa: F401,F403  constants and helpers
-from sim.integrator import _crossed, _dense, _dense_some
+from sim.integrator import _crossed, _dense, _dense_some, _track
 from sim.kernel import N_ACC, _rel_close, settled_period
 
 # after the star import, which re-exports sim.jit's lazy njit: this module is imported only to compile the kernel,
@@ -22,6 +22,17 @@ from numba import njit  # noqa: E402
 # step loop into blocks that numba's reference-count pruning cannot see across (an NRT_incref/NRT_decref pair per
 # array and block on every step, 6 % of a sandstone or RIMD run)
 ERRORS = "numpy"
+
+# Free-phase hook of a hybrid exact propagator (sim/exact/rimd.py, bound by sim.compiled in place of these two): while
+# the phase is 0, ``exact_free`` advances the state exactly to the next contact onset (switch and its bookkeeping
+# done) or to the cycle end, and the numerical steps resume in contact.  False here: numba prunes the branch.
+HYBRID = False
+
+
+@njit(cache=True, nogil=True, error_model=ERRORS)
+def exact_free(p, y, z, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc, counters, gk):
+    """Placeholder of the hook (never called while HYBRID is False); returns (time reached, phase)."""
+    return t_end, 0
 
 
 @njit(cache=True, nogil=True, error_model=ERRORS)
@@ -55,19 +66,6 @@ def _locate(t, h, y, z, ph, p, r1, r2, r3, r4, r5, yd, gbuf, i, a, b, fa, fb, ev
                 fb *= 0.5
             side = 1
     return b
-
-
-@njit(cache=True, nogil=True, error_model=ERRORS, inline="always")
-def _track(acc, obs, in_contact):
-    """Update the window maxima with one observation (force counts only in contact)."""
-    if in_contact:
-        f = obs[OBS_FORCE]
-        if f > acc[0]:
-            acc[0] = f
-        if f > acc[5]:
-            acc[5] = f
-    if -obs[OBS_ACCEL] > acc[4]:
-        acc[4] = -obs[OBS_ACCEL]
 
 
 @njit(cache=True, nogil=True, error_model=ERRORS)
@@ -261,6 +259,16 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 counters[4] = REASON_TOO_MANY_STEPS
                 ph_arr[0] = ph
                 return t
+            if HYBRID:
+                if ph == 0:
+                    t, ph = exact_free(p, y, z, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc, counters, gk)
+                    if ph != 0:         # a contact began: the numerical steps take over from the switch
+                        rhs(t, y, z, ph, p, k1)
+                        guards(t, y, z, ph, p, g0)
+                        f_prev = -np.inf
+                        d_prev = -np.inf
+                        fresh = True
+                    continue
             h = min(h, hmax, t_end - t)
             if h < 1e-14 * period:
                 counters[3] = STATUS_FAILED

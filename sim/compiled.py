@@ -76,6 +76,8 @@ def _digest(model_module: str, exact: str | None = None) -> str:
     for name in (model_module, exact):
         if name is not None:       # located without importing (a fresh worker may not have imported it yet)
             files.append(Path(importlib.util.find_spec(name).origin))
+    if exact is not None:          # and what the exact propagators share (sim/exact/taylor.py)
+        files += sorted(p for p in (_SIM_DIR / "exact").glob("*.py") if p not in files)
     for f in files:
         h.update(f.read_bytes())
     return h.hexdigest()[:16]
@@ -86,8 +88,10 @@ _LOCK = threading.Lock()
 
 def kernels(funcs: tuple, n_bounded: int, exact: str | None = None):
     """The compiled ``run_point`` of a model (thread-safe: the first call may come from many
-    threads of ``simulate_batch`` at once).  ``exact``: name of a module whose ``integrate_cycles`` and
-    ``make_workspace`` replace the numerical ones (an exact propagator, e.g. ``sim.exact.drill``)."""
+    threads of ``simulate_batch`` at once).  ``exact``: name of a module of an exact propagator (sim/exact/) whose
+    names ``REPLACES`` replace the template's: ``integrate_cycles`` and ``make_workspace`` for a model exact in every
+    phase (``sim.exact.drill``), or the free-phase hook ``HYBRID``, ``exact_free`` and ``make_workspace`` for one
+    whose free flight alone is linear (``sim.exact.rimd``)."""
     with _LOCK:
         return _kernels(funcs, n_bounded, exact)
 
@@ -109,15 +113,17 @@ def _kernels(funcs: tuple, n_bounded: int, exact: str | None = None):
     for f in funcs:
         if f.py_func.__module__ != mod_name:
             raise ValueError("all functions of a model must live in one module")
+    replaces = ()
     if exact is not None:
-        importlib.import_module(exact)
+        replaces = importlib.import_module(exact).REPLACES
     digest = _digest(mod_name, exact)
     path = kernel_path(funcs, exact, digest)
     text = _HEADER.format(digest=digest, mod=mod_name, rhs=names[0], guards=names[1], on_event=names[2],
                           observe=names[3], bounded=names[4], n_bounded=n_bounded)
     text += (_SIM_DIR / "_kernel_template.py").read_text()
     if exact is not None:
-        text += f"\n\n# the exact propagator replaces the numerical stepper\nfrom {exact} import integrate_cycles, make_workspace  # noqa: E402,F811\n"
+        text += (f"\n\n# the exact propagator replaces the numerical stepper, or a hook of it (its REPLACES)\n"
+                 f"from {exact} import {', '.join(replaces)}  # noqa: E402,F811\n")
     if not path.exists() or path.read_text() != text:
         fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
         with os.fdopen(fd, "w") as fh:

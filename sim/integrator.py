@@ -99,6 +99,20 @@ def _crossed(ga, gb):
 
 
 @njit(cache=True, inline="always")
+def _track(acc, obs, in_contact):
+    """Update the window maxima with one observation (force counts only in contact); acc: the kernel's window
+    accumulator (sim/_kernel_template.py ``integrate_cycles``)."""
+    if in_contact:
+        f = obs[OBS_FORCE]
+        if f > acc[0]:
+            acc[0] = f
+        if f > acc[5]:
+            acc[5] = f
+    if -obs[OBS_ACCEL] > acc[4]:
+        acc[4] = -obs[OBS_ACCEL]
+
+
+@njit(cache=True, inline="always")
 def two_indicator_guard(g, penetration, force_indicator, ph):
     """Guards of a contact that exists iff penetration ≥ 0 AND the force expression > 0 (MODELS.md
     §1a: both are switching surfaces, contact may resume while still penetrated).  One guard,

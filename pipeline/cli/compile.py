@@ -10,8 +10,8 @@ import time
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "compile", help="compile the models' kernels ahead of time, so 'vibro simulate' starts without numba",
-        description="Compile each model's simulation kernels (the numerical integrator and, for the drill, the exact "
-                    "propagator) into CPython extension modules with numba.pycc.  'vibro simulate' and "
+        description="Compile each model's simulation kernels (the numerical integrator and, for the drill and the RIMD, the "
+                    "exact propagator) into CPython extension modules with numba.pycc.  'vibro simulate' and "
                     "sim.simulate() on the main thread then load them in about a millisecond instead of importing "
                     "numba (about 1 s of CPU per process); the labels are bit-identical to the JIT kernel's.  "
                     "Modules are named by the hash of the kernel's sources and kept beside numba's cache "

@@ -31,6 +31,8 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.integrator import REASON_TOO_MANY_STEPS, S_MAX_STEPS_PER_CYCLE, S_RTOL, STATUS_FAILED
 from sim.models.drill import (C1, C2, C3, F0, FREQ, FS, GAMMA, GAP, IV1, IV2, IV3, IW, IX1, IX2, IX3, IXB,
                               IXT, K1, K2, K3, M1, M2, M3, NY, PR)
+from sim.exact import effects_handled
+from sim.exact.taylor import INV, NT, first_rise, poly_max, series, work_integral
 from sim.models.drill import bounded as _bounded_d
 from sim.models.drill import on_event as _on_event_d
 
@@ -41,6 +43,10 @@ on_event = njit(inline="always")(getattr(_on_event_d, "py_func", _on_event_d))
 if IW != NY - 1:
     raise ImportError("sim.exact.drill needs the work W as the drill's last state")
 
+REPLACES = ("integrate_cycles", "make_workspace")
+"""The kernel template's names this module replaces (sim.compiled): the whole stepper."""
+EVERY_PHASE = True
+"""Every phase of the drill is exact (no numerical steps)."""
 HANDLED_EFFECT_PARAMS = ("gamma",)
 """Effect parameters the exact path reproduces; any other non-zero effect parameter -> numerical path."""
 
@@ -48,21 +54,15 @@ IC = NY - 1        # cos Ωt
 IS = NY            # sin Ωt
 I1 = NY + 1        # constant 1
 NZ = NY + 2
-NT = 32            # Taylor terms
 RHO_H = 2.0        # bound on (spectral radius estimate) x grid step
 # rows of the per-phase workspace block (each row has NZ entries) after A, Φ, M
 R_G0, R_G1, R_G0A, R_G1A, R_F, R_FA, R_D, R_DA, R_INFO = range(9)
 VB = 3 * NZ + 9    # first of NZ rows holding row i's non-zeros of A, packed (columns in gk[ph, i, 1:])
-INV = 1.0 / np.arange(1.0, 2 * NT + 1.0)   # 1 / (n + 1): the integral of θ^n over [0, 1]
 
 
 def exact_applies(values: dict, effects: dict) -> bool:
     """True when every effect parameter the exact path does not handle is zero (or absent)."""
-    for names in effects.values():
-        for n in names:
-            if n not in HANDLED_EFFECT_PARAMS and float(values.get(n, 0.0) or 0.0) != 0.0:
-                return False
-    return True
+    return effects_handled(HANDLED_EFFECT_PARAMS, values, effects)
 
 
 @njit(cache=True)
@@ -246,6 +246,8 @@ def _rdot(wk, ph, row, z):
     return acc
 
 
+# the drill's own row polynomial and state evaluation (sim.exact.taylor's, with the component count a constant:
+# LLVM unrolls the NZ-long dot products, 2-3 % of a drill run against the shape-generic versions)
 @njit(cache=True, inline="always")
 def _dot(r, z):
     acc = 0.0
@@ -255,136 +257,11 @@ def _dot(r, z):
 
 
 @njit(cache=True)
-def _series(wk, gk, ph, z, L, C, ityp):
-    """C[k] = (L A)^k z / k!, k < NT (A = phase ph's packed rows wk[ph, VB:], gk[ph]); the tail is cut (set to 0)
-    once two successive terms are below 1e-17 of the first in the norm scaled by the inverse typical state
-    magnitudes ``ityp``."""
-    C[0, :] = z
-    n0 = 0.0
-    for i in range(NZ):
-        n0 += abs(z[i]) * ityp[i]
-    small = 0
-    k = 1
-    while k < NT:
-        nk = 0.0
-        f = L / k
-        for i in range(NZ):
-            acc = 0.0
-            for q in range(gk[ph, i, 0]):
-                acc += wk[ph, VB + i, q] * C[k - 1, gk[ph, i, 1 + q]]
-            v = acc * f
-            C[k, i] = v
-            nk += abs(v) * ityp[i]
-        k += 1
-        if nk <= 1e-17 * n0:
-            small += 1
-            if small == 2:
-                break
-        else:
-            small = 0
-    for j in range(k, NT):
-        for i in range(NZ):
-            C[j, i] = 0.0
-    return k
-
-
-@njit(cache=True)
 def _poly(r, C, a, nt):
     for k in range(nt):
         a[k] = _dot(r, C[k])
     for k in range(nt, NT):
         a[k] = 0.0
-
-
-@njit(cache=True, inline="always")
-def _peval(a, th, nt):
-    v = a[nt - 1]
-    for k in range(nt - 2, -1, -1):
-        v = v * th + a[k]
-    return v
-
-
-@njit(cache=True, inline="always")
-def _dpeval(a, th, nt):
-    v = (nt - 1) * a[nt - 1]
-    for k in range(nt - 2, 0, -1):
-        v = v * th + k * a[k]
-    return v
-
-
-@njit(cache=True, inline="always")
-def _f(a, x, deriv, nt):
-    return _dpeval(a, x, nt) if deriv else _peval(a, x, nt)
-
-
-@njit(cache=True, inline="always")
-def _d2eval(a, th, nt):
-    v = 0.0
-    for k in range(nt - 1, 1, -1):
-        v = v * th + k * (k - 1) * a[k]
-    return v
-
-
-@njit(cache=True, inline="always")
-def _fd(a, th, deriv, nt):
-    """(p, p') at θ of the polynomial a (deriv: of its derivative: (p', p'')) in one pass: the same operations
-    as _peval/_dpeval/_d2eval, two independent Horner chains side by side."""
-    if deriv:
-        v = (nt - 1) * a[nt - 1]
-        d = 0.0
-        for k in range(nt - 1, 1, -1):
-            d = d * th + k * (k - 1) * a[k]
-            if k <= nt - 2:
-                v = v * th + k * a[k]
-        if nt >= 3:
-            v = v * th + a[1]
-        return v, d
-    v = a[nt - 1]
-    d = (nt - 1) * a[nt - 1]
-    for k in range(nt - 2, 0, -1):
-        v = v * th + a[k]
-        d = d * th + k * a[k]
-    if nt >= 2:
-        v = v * th + a[0]
-    return v, d
-
-
-@njit(cache=True)
-def _root(a, lo, hi, deriv, nt):
-    """Root in [lo, hi] of the polynomial a (deriv: of its derivative), which is ≤ 0 at one end and > 0
-    at the other; safeguarded Newton (bisection when a step leaves the bracket) to machine precision.
-    Returns a point on the side of ``hi`` (the crossed side), within a few ulps of the root."""
-    flo = _f(a, lo, deriv, nt)
-    fhi = _f(a, hi, deriv, nt)
-    pos_hi = fhi > 0.0
-    x = lo if abs(flo) < abs(fhi) else hi
-    for _ in range(100):
-        fx, d = _fd(a, x, deriv, nt)
-        if (fx > 0.0) == pos_hi:
-            hi = x
-        else:
-            lo = x
-        if hi - lo <= 4e-16 * max(1.0, abs(hi)) or (hi - lo <= 0.0) or fx == 0.0:
-            break
-        xn = x - fx / d if d != 0.0 else 0.5 * (lo + hi)
-        if not (min(lo, hi) < xn < max(lo, hi)):
-            xn = 0.5 * (lo + hi)
-        if abs(xn - x) <= 1e-17 * max(1.0, abs(x)):
-            break
-        x = xn
-    # Newton may approach from the uncrossed side: step across in growing ulp-sized nudges
-    if hi - lo > 4e-16 * max(1.0, abs(hi)):
-        eps = 4e-16 * max(1.0, abs(lo))
-        for _ in range(60):
-            xx = lo + eps
-            if xx >= hi:
-                break
-            if (_f(a, xx, deriv, nt) > 0.0) == pos_hi:
-                hi = xx
-                break
-            lo = xx
-            eps *= 2.0
-    return hi
 
 
 @njit(cache=True)
@@ -397,33 +274,10 @@ def _eval_state(C, th, z, nt):
 
 
 @njit(cache=True)
-def _work(C, th, L, f0, nt, pw):
-    """F0 ∫ c v1 dτ over [0, θ L] from the series coefficients: the product polynomial q_n = Σ_{j+k=n} c_j v_k
-    integrated term by term (Horner in θ; pw: scratch of 2 NT + 1)."""
-    for n in range(2 * nt - 1):
-        pw[n] = 0.0
-    for j in range(nt):
-        cj = C[j, IC]
-        if cj != 0.0:
-            for k in range(nt):
-                pw[j + k] += cj * C[k, IV1]
-    acc = 0.0
-    for n in range(2 * nt - 2, -1, -1):
-        acc = acc * th + pw[n] * INV[n]
-    return f0 * L * th * acc
-
-
-@njit(cache=True)
 def _max_on(C, r, a, lo, hi, nt):
-    """Max over [lo, hi] of row r on the series: at the root of the derivative if it turns there."""
+    """Max over [lo, hi] of row r on the series (a: scratch for its polynomial)."""
     _poly(r, C, a, nt)
-    d_lo = _dpeval(a, lo, nt)
-    d_hi = _dpeval(a, hi, nt)
-    best = max(_peval(a, lo, nt), _peval(a, hi, nt))
-    if d_lo > 0.0 and d_hi <= 0.0:
-        th = _root(a, lo, hi, True, nt)
-        best = max(best, _peval(a, th, nt))
-    return best
+    return poly_max(a, lo, hi, nt)
 
 
 @njit(cache=True, inline="always")
@@ -549,7 +403,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 else:
                     ok = False
                     R = wk[ph, rr:rr + 9]
-                    nt = _series(wk, gk, ph, zz, L, C, ityp)
+                    nt = series(wk[ph, VB:VB + NZ], gk[ph], zz, L, C, ityp)
                     th_end = 1.0
                     k_ev = -1
                     for gi in range(ng):
@@ -559,20 +413,12 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                         # non-triggering side, as in the reference, and the new phase is chosen from a
                         # state clear of the surface (location error eta / |dg/dt| ~ 1e-15 s)
                         poly[0] -= eta[ph, gi]
-                        ga = poly[0]
-                        gb = _peval(poly, 1.0, nt)
-                        th_c = -1.0
-                        if (ga < 0.0 and gb >= 0.0) or (ga <= 0.0 and gb > 0.0):
-                            th_c = _root(poly, 0.0, 1.0, False, nt)
-                        elif _dpeval(poly, 0.0, nt) > 0.0 and _dpeval(poly, 1.0, nt) < 0.0:
-                            tm = _root(poly, 0.0, 1.0, True, nt)
-                            if _peval(poly, tm, nt) > 0.0 and ga <= 0.0:
-                                th_c = _root(poly, 0.0, tm, False, nt)
+                        th_c = first_rise(poly, nt)
                         if th_c >= 0.0 and th_c < th_end:
                             th_end = th_c
                             k_ev = gi
                     _eval_state(C, th_end, z1, nt)
-                    w += _work(C, th_end, L, f0, nt, pw)
+                    w += work_integral(C, th_end, L, f0, nt, pw, IC, IV1)
                     if record:
                         bd = _max_on(C, R[R_D], poly2, 0.0, th_end, nt)
                         if bd > acc[4]:

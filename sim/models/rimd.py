@@ -15,6 +15,8 @@ guard ``min(δ, 1 mm · (1 + λi ẋ2))`` (metres).  Contact can resume while δ
 
 Impacting mass: the hammer x2.  Work: W' = F0 sin(Ωt) ẋ1.  No progression (observed 0).
 Effects (MODELS.md §6): ``rate_stiffening`` α [s/m], ``suspension_hardening`` κ [1/m²] on the k2 spring.
+Off the stop (κ = 0) the equations are linear: ``sim/exact/rimd.py`` propagates the free flight exactly and leaves
+the contact to the DOPRI5 steps (``method`` "auto" and "exact"; "dopri5" integrates both phases numerically).
 """
 from __future__ import annotations
 
@@ -154,6 +156,8 @@ SPEC = ModelSpec(
     progression="none (the RIMD does not progress)",
     presets=PRESETS,
     default_settings=DEFAULT_SETTINGS,
+    # free flight linear (κ = 0): propagated exactly, contact numerically (sim/exact/rimd.py)
+    exact="sim.exact.rimd",
     # MODELS.md §6: the stop (ki, lambda_i) and the beam damping c1; one decade either side of the defaults.
     calibratable=(FitBound("ki", 9.25e3, 9.25e5, "N/m^ni"), FitBound("lambda_i", 0.8, 80.0, "s/m"),
                   FitBound("c1", 0.1269, 12.69, "N s/m")),

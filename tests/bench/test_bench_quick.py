@@ -136,3 +136,25 @@ def test_old_kernel_worker_runs_the_commit_issue_16_measured():
     assert cpu_s > 0 and wall_s > 0
     assert labels["rop_m_s"] == pytest.approx(now["rop_m_s"], rel=1e-7)
     assert labels["peak_force_n"] == pytest.approx(now["peak_force_n"], rel=1e-7)
+
+
+def test_a_hybrid_propagator_is_a_simulator_method_with_its_own_lean_row():
+    # a RIMD point as the full run lays it out: the hybrid (exact free flight, DOPRI5 contact) runs at every rtol,
+    # is ranked by its error against the reference like the DOPRI5 rows, and gets a lean-kernel row of its own
+    def row(method, cpu_ms, err):
+        return {"method": method, "cpu_s": cpu_ms * 1e-3, "wall_s": cpu_ms * 1e-3, "cpu_all": [cpu_ms * 1e-3],
+                "label_error": err, "error_vs_exact": None}
+
+    rows = [row("sim dopri5 rtol 1e-07", 1.8, 1.5e-6), row("sim hybrid rtol 1e-07", 1.2, 1.4e-5),
+            row("sim hybrid rtol 1e-09", 2.0, 3e-8), row("baseline dopri5 rtol 1e-07 (33a799c)", 2.7, 1e-5),
+            row("scipy DOP853 rtol 1e-08 (harness)", 600.0, 3e-7)]
+    res = {"points": [{"model": "rimd", "point": "default", "rows": rows, "load_avg_before": [0.0],
+                       "load_avg_after": [0.0], "unavailable": {}}]}
+    lean = bp.lean_vs_old(res)
+    assert [x["method"] for x in lean] == ["dopri5", "hybrid"]
+    assert lean[0]["ratio"] == pytest.approx(1.5) and lean[1]["ratio"] == pytest.approx(2.25)
+    assert lean[1]["new_error"] == 1.4e-5 and lean[1]["old_error"] == 1e-5
+    best = {s["target"]: s for s in bp.summary(res)}
+    assert best[1e-6]["sim"] == "sim hybrid rtol 1e-09" and best[1e-6]["peer"] == "scipy DOP853 rtol 1e-08 (harness)"
+    assert "| rimd | default | 2.70 (1.0e-05) | hybrid | 1.20 (1.4e-05) | ×2.25 |" in bp.table(
+        {**res, "machine": {"load_avg_at_start": [0.0]}, "repetitions": 1})

@@ -87,6 +87,14 @@ def test_drill_exact_aot_kernel_is_bit_identical_and_loads_without_numba(kernel_
     assert out[3] == "True" and out[:3] == [rop, decel, events]
 
 
+def test_rimd_hybrid_aot_kernel_is_bit_identical(kernel_dir):
+    """The RIMD's hybrid kernel (the template with sim/exact/rimd.py's free-phase hook) built ahead of time: labels
+    and final state of an impacting and a non-impacting point agree with its JIT kernel to the last bit."""
+    spec = sim.get_model("rimd")
+    aot.build(spec.funcs, spec.n_bounded, spec.exact)
+    _assert_bit_identical("rimd", spec.exact, (None, "gap-3mm"))
+
+
 def test_a_stale_or_missing_module_falls_back_to_the_jit_kernel(kernel_dir):
     spec = sim.get_model("drill")
     path = aot.module_path(spec.funcs, spec.exact)
@@ -186,8 +194,11 @@ def test_vibro_compile_reports_each_kernel_once_and_a_failure_in_one_line(monkey
     monkeypatch.setattr(aot, "build", fake_build)
     assert main(["compile", "--workers", "1"]) == 0
     err = capsys.readouterr().err
-    assert len(built) == len(set(built)) == 6 and ("sim.models.drill", "rhs", "sim.exact.drill") in built
-    assert err.count("vibro compile: ") == 6 and "indenter-sandstone (numerical integrator)" in err
+    # 5 models' numerical kernels (the indenters' are two) and the drill's and the RIMD's exact propagators
+    assert len(built) == len(set(built)) == 7 and ("sim.models.drill", "rhs", "sim.exact.drill") in built
+    assert ("sim.models.rimd", "rhs", "sim.exact.rimd") in built
+    assert err.count("vibro compile: ") == 7 and "indenter-sandstone (numerical integrator)" in err
+    assert "rimd (exact propagator)" in err
 
     def broken(funcs, n_bounded, exact=None):
         raise RuntimeError("no C compiler")

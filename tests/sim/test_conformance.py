@@ -149,3 +149,28 @@ def test_conformance_agrees_with_reference(spec):
     assert got["impacts_per_cycle"] == ref["impacts_per_cycle"]
     assert got["peak_force_n"] == pytest.approx(ref["peak_force_n"], rel=1e-2, abs=1e-9)
     assert got["rop_m_s"] == pytest.approx(ref["rop_m_s"], rel=1e-2, abs=1e-9)
+
+
+@pytest.mark.parametrize("model", [m for m in MODELS if sim.get_model(m).exact is not None])
+def test_conformance_exact_propagator_interface(model):
+    """A model's exact propagator (``spec.exact``, sim/exact/) names the template functions it replaces (the whole
+    stepper, or the free-phase hook), says whether every phase is exact, handles only the model's own effect
+    parameters, applies with every effect off, and agrees with the numerical path at a tight tolerance."""
+    import importlib
+
+    spec = sim.get_model(model)
+
+    mod = importlib.import_module(spec.exact)
+    whole = {"integrate_cycles", "make_workspace"}
+    hook = {"HYBRID", "exact_free", "make_workspace"}
+    assert set(mod.REPLACES) in (whole, hook)
+    assert mod.EVERY_PHASE == (set(mod.REPLACES) == whole)
+    effect_params = {n for names in spec.effects.values() for n in names}
+    assert set(mod.HANDLED_EFFECT_PARAMS) <= effect_params
+    assert mod.exact_applies({n: 0.0 for n in effect_params}, spec.effects)
+    st = {**SHORT, "rtol": 1e-11}
+    a = sim.simulate(spec.name, settings={**st, "method": "exact"}).labels
+    b = sim.simulate(spec.name, settings={**st, "method": "dopri5"}).labels
+    assert a["status"] == b["status"] and a["impacts_per_cycle"] == b["impacts_per_cycle"]
+    for k in ("rop_m_s", "peak_force_n", "peak_decel_g", "energy_per_cycle_j"):
+        assert a[k] == pytest.approx(b[k], rel=1e-7, abs=1e-15), k
