@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import sim
-from bench.step_budget import boundary_radius, stability_function
+from bench.step_budget import _lean_ratios, boundary_radius, stability_function
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -68,3 +68,17 @@ def test_bad_arguments_get_one_line(args, needle):
                          env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True, timeout=120)
     assert run.returncode != 0
     assert needle in run.stderr and "Traceback" not in run.stderr
+
+
+def test_the_floor_takes_the_dopri5_kernels_ratio_not_a_hybrids(tmp_path):
+    """The floor table sets the model's right-hand side against the DOPRI5 kernel's run, so it quotes that kernel's
+    lean-kernel ratio; a model with a hybrid propagator has a second lean row (bench_precision.lean_vs_old)."""
+    import json
+
+    rows = [{"model": "rimd", "point": "default", "method": "dopri5", "ratio": 1.5},
+            {"model": "rimd", "point": "default", "method": "hybrid", "ratio": 2.3},
+            {"model": "pendulum", "point": "default", "ratio": 2.1}]          # a run from before the method column
+    path = tmp_path / "precision.json"
+    path.write_text(json.dumps({"lean_vs_old": rows}))
+    assert _lean_ratios(path) == {("rimd", "default"): 1.5, ("pendulum", "default"): 2.1}
+    assert _lean_ratios(tmp_path / "missing.json") == {}
