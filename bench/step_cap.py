@@ -23,13 +23,19 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 YARDSTICK_RTOL = 1e-11
-KEYS = ("peak_force_n", "mean_peak_force_n", "peak_decel_g", "impacts_per_cycle", "energy_per_cycle_j", "power_w")
+KEYS = ("rop_m_s", "peak_force_n", "mean_peak_force_n", "peak_decel_g", "impacts_per_cycle", "energy_per_cycle_j", "power_w")
 # the seed's gaps (MODELS.md §3 table) over the seed's impact resonances (1.5-8.5 Hz), the seed's A0 and about twice it
 GRIDS = {"pendulum": {"gap_m": (0.0, 1.0e-3, 2.4e-3), "frequency_hz": tuple(np.arange(1.5, 8.51, 0.25)),
                       "amplitude_m": (0.89e-3, 2.0e-3)},
          # the seed's gaps (MODELS.md §4, seed Table 3) across its first impact resonances (5.5-8 Hz), F0 1 N and half
          "rimd": {"gap_m": (0.0, 1.0e-3, 3.0e-3), "frequency_hz": tuple(np.arange(4.0, 12.01, 0.5)),
                   "amplitude_n": (0.5, 1.0)}}
+# the drill's lab preset (its default pipeline point) around its RED resonance, forcing up to 0.9 Pr, static force
+# 0.3 and 0.6 Pr; the drill's DOPRI5 path (auto takes the exact propagator)
+GRIDS["drill"] = {"frequency_hz": tuple(np.arange(100.0, 401.0, 50.0)), "amplitude_n": (900.0, 1800.0, 2700.0),
+                  "static_force_n": (900.0, 1800.0)}
+PRESETS = {"drill": "lab"}
+FIXED = {"drill": {"method": "dopri5"}}
 DEFAULT_VALUES = {"max_step_frac": "0.02,0.025,0.03,0.035,0.04,0.05", "method": "dopri5,exact"}
 
 
@@ -64,8 +70,9 @@ def study(model: str, values: list, setting: str = "max_step_frac") -> list[dict
     import sim
 
     table = grid_table(model)
-    ref = sim.simulate_batch(model, table, settings={"rtol": YARDSTICK_RTOL, "method": "dopri5"})
-    runs = {c: sim.simulate_batch(model, table, settings={setting: c}) for c in values}
+    preset, fixed = PRESETS.get(model), FIXED.get(model, {})
+    ref = sim.simulate_batch(model, table, preset=preset, settings={"rtol": YARDSTICK_RTOL, "method": "dopri5"})
+    runs = {c: sim.simulate_batch(model, table, preset=preset, settings={**fixed, setting: c}) for c in values}
     keep = (ref["status"] == "ok") & ref["period"].notna() & (ref["period"] > 0)
     for df in runs.values():
         keep &= (df["status"] == "ok") & (df["period"] == ref["period"])
