@@ -39,6 +39,13 @@ def write_between_markers(root: Path, paths, start: str, end: str, text: str) ->
     return done
 
 
+def write_block(path: Path, start: str, end: str, text: str) -> None:
+    """``write_between_markers`` for one file that must have the markers: one line (SystemExit) if it has not."""
+    path = Path(path)
+    if not write_between_markers(path.parent, (path.name,), start, end, text):
+        raise SystemExit(f"{path}: no {start} ... {end} markers")
+
+
 def drill_values(params: dict) -> dict:
     """The drill parameters a peer needs, as floats (``params`` = a complete resolved dict)."""
     on = [k for k in EFFECT_PARAMS if float(params.get(k, 0.0)) != 0.0]

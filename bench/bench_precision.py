@@ -104,7 +104,7 @@ def _methods(model: str, preset, n: int, w: int, quick: bool) -> dict:
         for r in rtols:
             out[f"sim hybrid rtol {r:.0e}"] = (lambda r=r: sim.simulate(
                 model, preset=preset, settings={**fixed, "rtol": r, "method": "exact"}).labels)
-    params = {k: v for k, v in sim.get_model(model).resolve(preset).items() if k not in ("P", "D")}
+    params = {k: v for k, v in spec.resolve(preset).items() if k not in ("P", "D")}
     try:   # issue 16's "today": the DOPRI5 kernel of the commit the issue measured, in a worker process
         from bench.baseline import COMMIT
         rtols_old = BASELINE_RTOLS if model == "drill" else (DEFAULT_RTOL,)

@@ -213,14 +213,6 @@ def table(points: list[dict], command: str) -> str:
     return "\n".join(lines)
 
 
-def write_readme(text: str, path: Path = ROOT / "bench" / "README.md") -> None:
-    """Put ``text`` between the step-budget markers of ``path`` (bench/README.md)."""
-    from bench import write_between_markers
-
-    if not write_between_markers(path.parent, (path.name,), START, END, text):
-        raise SystemExit(f"{path}: no {START} ... {END} markers")
-
-
 def _overrides(items: list[str]) -> dict:
     out = {}
     for it in items:
@@ -402,7 +394,9 @@ def main(argv: list[str] | None = None) -> int:
                  "ratio is the last `bench_precision` run's lean-kernel row):\n\n" + floor_table(floors, _lean_ratios()))
     print(text)
     if a.write_readme:
-        write_readme(text)
+        from bench import write_block
+
+        write_block(ROOT / "bench" / "README.md", START, END, text)
     return 0
 
 

@@ -150,11 +150,9 @@ def main(argv: list[str] | None = None) -> int:
     table = render(a.model, study(a.model, values, a.setting), command, a.setting)
     print(table)
     if a.write_readme:
-        from bench import write_between_markers
+        from bench import write_block
 
-        start, end = markers(a.model, a.setting)
-        if not write_between_markers(ROOT / "bench", ("README.md",), start, end, table):
-            raise SystemExit(f"bench/README.md: no {start} ... {end} markers")
+        write_block(ROOT / "bench" / "README.md", *markers(a.model, a.setting), table)
     return 0
 
 

@@ -213,7 +213,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
         acc[7] -1 while the contact open at the window start lasts, then its max (-2: none)
     and, when hist_dt > 0, uniform samples are written to hist_* (index counters[2]).
     counters: [steps, events, hist_index, status, reason].
-    wk (16, ny) and gk (5, max(N_GUARDS, N_OBS, N_BOUNDED)) are scratch space (``_workspace``).
+    wk (WK_ROWS, ny) and gk (GK_ROWS, max(N_GUARDS, N_OBS, N_BOUNDED)) are scratch space (``make_workspace``).
     Returns the end time.
     """
     ny = y.shape[0]
@@ -483,7 +483,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
 def make_workspace(p, period, s, ny):
     """Scratch arrays of ``integrate_cycles``, allocated once per run (an exact propagator that replaces
     integrate_cycles replaces this too, see sim.compiled)."""
-    return np.empty((16, ny)), np.empty((5, max(N_GUARDS, N_OBS, N_BOUNDED)))
+    return np.empty((WK_ROWS, ny)), np.empty((GK_ROWS, max(N_GUARDS, N_OBS, N_BOUNDED)))
 
 
 @njit(cache=True, nogil=True, error_model=ERRORS)

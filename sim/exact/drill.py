@@ -32,7 +32,7 @@ from sim.integrator import REASON_TOO_MANY_STEPS, S_MAX_STEPS_PER_CYCLE, S_RTOL,
 from sim.models.drill import (C1, C2, C3, F0, FREQ, FS, GAMMA, GAP, IV1, IV2, IV3, IW, IX1, IX2, IX3, IXB,
                               IXT, K1, K2, K3, M1, M2, M3, NY, PR)
 from sim.exact import effects_handled
-from sim.exact.taylor import INV, NT, first_rise, poly_max, series, work_integral
+from sim.exact.taylor import NT, first_rise, flow_tables, pack_rows, poly_max, row_times, series, work_integral
 from sim.models.drill import bounded as _bounded_d
 from sim.models.drill import on_event as _on_event_d
 
@@ -142,11 +142,7 @@ def _rows(p, ph, A, R):
         R[R_INFO, 0] = 1.0
     R[R_D, :] = -A[IV1, :]
     for src, dst in ((R_G0, R_G0A), (R_G1, R_G1A), (R_F, R_FA), (R_D, R_DA)):
-        for j in range(NZ):
-            acc = 0.0
-            for i in range(NZ):
-                acc += R[src, i] * A[i, j]
-            R[dst, j] = acc
+        row_times(R[src], A, R[dst])
 
 
 @njit(cache=True)
@@ -170,68 +166,13 @@ def make_workspace(p, period, s, ny):
     h = period / n_grid
     wk = np.zeros((3, 4 * NZ + 9, NZ))
     gk = np.zeros((3, NZ, NZ + 1), dtype=np.int64)
-    P = np.empty((NZ, NZ))
-    Q = np.empty((NZ, NZ))
-    S = np.empty((NZ, NZ))     # Φ being summed
-    U = np.zeros((NT, NZ))     # row IC of (hA)^k/k!
-    V = np.zeros((NT, NZ))     # row IV1 of (hA)^k/k!
-    Wv = np.zeros((NT, 1))     # Σ_j U[j, a] / (j + k + 1)
     for ph in range(3):
         A = wk[ph, 0:NZ]
         _matrix(p, ph, A)
         _rows(p, ph, A, wk[ph, 3 * NZ:3 * NZ + 9])
-        for i in range(NZ):
-            n = 0
-            for j in range(NZ):
-                if A[i, j] != 0.0:
-                    wk[ph, VB + i, n] = A[i, j]
-                    gk[ph, i, 1 + n] = j
-                    n += 1
-            gk[ph, i, 0] = n
-        # Φ = Σ_k (hA)^k/k!, (hA)^k/k! = A · (hA)^(k-1)/(k-1)! · h/k with A's packed rows, row by row as a sum
-        # of scaled rows (contiguous, no array views: this loop is most of the per-run set-up)
-        for i in range(NZ):
-            for j in range(NZ):
-                P[i, j] = 0.0
-                S[i, j] = 0.0
-            P[i, i] = 1.0
-            S[i, i] = 1.0
-        for j in range(NZ):
-            U[0, j] = P[IC, j]
-            V[0, j] = P[IV1, j]
-        for k in range(1, NT):
-            f = h / k
-            for i in range(NZ):
-                for j in range(NZ):
-                    Q[i, j] = 0.0
-                for q in range(gk[ph, i, 0]):
-                    v = wk[ph, VB + i, q] * f
-                    c = gk[ph, i, 1 + q]
-                    for j in range(NZ):
-                        Q[i, j] += v * P[c, j]
-            P, Q = Q, P
-            for i in range(NZ):
-                for j in range(NZ):
-                    S[i, j] += P[i, j]
-            for j in range(NZ):
-                U[k, j] = P[IC, j]
-                V[k, j] = P[IV1, j]
-        for i in range(NZ):
-            for j in range(NZ):
-                wk[ph, NZ + i, j] = S[i, j]
-        # M[a, b] = F0 h Σ_j Σ_k U[j, a] V[k, b] / (j + k + 1).  Row IC of A has its only entry in column IS
-        # and row IS in IC, so U[j] (and M's rows) vanish outside a = IC, IS: X[k, a] = Σ_j U[j, a] / (j + k + 1)
-        for a in (IC, IS):
-            for k in range(NT):
-                acc = 0.0
-                for j in range(NT):
-                    acc += U[j, a] * INV[j + k]
-                Wv[k, 0] = acc
-            for b in range(NZ):
-                acc = 0.0
-                for k in range(NT):
-                    acc += Wv[k, 0] * V[k, b]
-                wk[ph, 2 * NZ + a, b] = p[F0] * h * acc
+        pack_rows(A, wk[ph, VB:VB + NZ], gk[ph])
+        # Φ and M (the work F0 ∫ c v1 over a full step: the drill's forcing is F0 cos Ωt on M1)
+        flow_tables(wk[ph, VB:VB + NZ], gk[ph], h, IC, IV1, IC, IS, p[F0], wk[ph, NZ:2 * NZ], wk[ph, 2 * NZ:3 * NZ])
     wk[0, 3 * NZ + R_INFO, 1] = h
     wk[0, 3 * NZ + R_INFO, 2] = n_grid
     return wk, gk

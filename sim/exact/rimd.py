@@ -21,9 +21,10 @@ import math
 import numpy as np
 
 from sim.exact import effects_handled
-from sim.exact.taylor import (INV, NT, dpeval, eval_state, first_rise, max_on, peval, root, row_poly, series,
-                               work_integral)
+from sim.exact.taylor import (NT, dpeval, eval_state, first_rise, flow_tables, max_on, pack_rows, peval, root,
+                               row_poly, row_times, series, work_integral)
 from sim.integrator import N_OBS, S_RTOL, _track
+from sim.layout import GK_ROWS, WK_ROWS
 from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.models.rimd import (C1, C2, F0, FREQ, GAP, IV1, IV2, IW, IX1, IX2, K1, K2, LAM, LS, M1, M2, N_BOUNDED,
                              N_GUARDS, NY)
@@ -52,8 +53,8 @@ IS = NY            # sin Ωt
 I1 = NY + 1        # constant 1
 NZ = NY + 2
 RHO_H = 2.0        # bound on (spectral radius estimate) x grid step
-# rows of the workspace ``gk`` after the template's 5: Φ = exp(A h), M, the monitored rows, an info row, A packed
-G_PHI = 5
+# rows of the workspace ``gk`` after the template's: Φ = exp(A h), M, the monitored rows, an info row, A packed
+G_PHI = GK_ROWS
 G_M = G_PHI + NZ
 G_R = G_M + NZ
 R_GD, R_GH, R_GDA, R_GHA, R_D, R_DA = range(6)   # guards δ and LS (1 + λi v2), their derivatives, deceleration, its
@@ -97,83 +98,32 @@ def _rho(p):
     return max(r1, r2, 2.0 * math.pi * p[FREQ])
 
 
-@njit(cache=True)
-def _matmul(A, P, out, f):
-    """out = f A P (square matrices)."""
-    n = A.shape[0]
-    for i in range(n):
-        for j in range(n):
-            acc = 0.0
-            for m in range(n):
-                acc += A[i, m] * P[m, j]
-            out[i, j] = f * acc
-
-
 @njit(cache=True, nogil=True)
 def make_workspace(p, period, s, ny):
-    """The template's scratch (wk, and gk's first 5 rows) and, in gk's further rows, Φ = exp(A h), M (W over a full
-    step = zᵀ M z, rows c and s only), the guard and deceleration rows with their time derivatives, and the grid step
+    """The template's scratch (wk, and gk's first GK_ROWS rows) and, in gk's further rows, Φ = exp(A h), M (W over a
+    full step = zᵀ M z, rows c and s only), the guard and deceleration rows with their time derivatives, the grid step
     h = period / n_grid in gk[G_INFO, 0] (n_grid in [.., 1]), and A's non-zeros packed by row (``taylor.series``)."""
     n_grid = max(16, int(math.ceil(_rho(p) * period / RHO_H)))
     h = period / n_grid
     gk = np.zeros((N_ROWS, max(NZ + 1, N_GUARDS, N_OBS, N_BOUNDED)))
     A = np.zeros((NZ, NZ))
     _matrix(p, A)
-    P = np.eye(NZ)            # (hA)^k / k!
-    Q = np.empty((NZ, NZ))
-    S = np.eye(NZ)            # Φ being summed
-    U = np.zeros((NT, NZ))    # row IS of (hA)^k / k!
-    V = np.zeros((NT, NZ))    # row IV1 of (hA)^k / k!
-    U[0] = P[IS]
-    V[0] = P[IV1]
-    for k in range(1, NT):    # loops, not @: a matrix product would make the kernel load BLAS (scipy) at start-up
-        _matmul(A, P, Q, h / k)
-        P, Q = Q, P
-        S += P
-        U[k] = P[IS]
-        V[k] = P[IV1]
-    for i in range(NZ):
-        n = 0
-        for j in range(NZ):
-            gk[G_PHI + i, j] = S[i, j]
-            if A[i, j] != 0.0:
-                gk[G_AV + i, n] = A[i, j]
-                gk[G_AC + i, 1 + n] = j
-                n += 1
-        gk[G_AC + i, 0] = n
-    # M[a, b] = F0 h Σ_j Σ_k U[j, a] V[k, b] / (j + k + 1); rows IC and IS of A only reach each other, so U vanishes
-    # outside a = IC, IS
-    for a in (IC, IS):
-        for b in range(NZ):
-            acc = 0.0
-            for j in range(NT):
-                for k in range(NT):
-                    acc += U[j, a] * V[k, b] * INV[j + k]
-            gk[G_M + a, b] = p[F0] * h * acc
-    gd = np.zeros(NZ)
-    gd[IX2] = 1.0
-    gd[I1] = -p[GAP]
-    gh = np.zeros(NZ)
-    gh[IV2] = LS * p[LAM]
-    gh[I1] = LS
-    dd = -A[IV2]
+    pack_rows(A, gk[G_AV:G_AV + NZ], gk[G_AC:G_AC + NZ])
+    # Φ and M (the work F0 ∫ s v1 over a full step: the RIMD's forcing is F0 sin Ωt on m1)
+    flow_tables(gk[G_AV:G_AV + NZ], gk[G_AC:G_AC + NZ], h, IS, IV1, IC, IS, p[F0], gk[G_PHI:G_PHI + NZ],
+                gk[G_M:G_M + NZ])
+    gk[G_R + R_GD, IX2] = 1.0                  # δ = x2 - gap
+    gk[G_R + R_GD, I1] = -p[GAP]
+    gk[G_R + R_GH, IV2] = LS * p[LAM]          # LS (1 + λi v2)
+    gk[G_R + R_GH, I1] = LS
     for j in range(NZ):
-        gk[G_R + R_GD, j] = gd[j]
-        gk[G_R + R_GH, j] = gh[j]
-        gk[G_R + R_D, j] = dd[j]
-        a_d = 0.0
-        a_h = 0.0
-        a_a = 0.0
-        for i in range(NZ):
-            a_d += gd[i] * A[i, j]
-            a_h += gh[i] * A[i, j]
-            a_a += dd[i] * A[i, j]
-        gk[G_R + R_GDA, j] = a_d
-        gk[G_R + R_GHA, j] = a_h
-        gk[G_R + R_DA, j] = a_a
+        gk[G_R + R_D, j] = -A[IV2, j]          # deceleration of the hammer: -v2'
+    row_times(gk[G_R + R_GD], A, gk[G_R + R_GDA])   # and each row's time derivative along the flow
+    row_times(gk[G_R + R_GH], A, gk[G_R + R_GHA])
+    row_times(gk[G_R + R_D], A, gk[G_R + R_DA])
     gk[G_INFO, 0] = h
     gk[G_INFO, 1] = n_grid
-    return np.empty((16, ny)), gk
+    return np.empty((WK_ROWS, ny)), gk
 
 
 @njit(cache=True, inline="always")

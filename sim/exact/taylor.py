@@ -19,6 +19,89 @@ INV = 1.0 / np.arange(1.0, 2 * NT + 1.0)
 
 
 @njit(cache=True)
+def pack_rows(A, vals, cols):
+    """A's non-zeros packed by row, as ``series`` and ``flow_tables`` read them: row i has ``cols[i, 0]`` of them,
+    values ``vals[i, :n]`` in columns ``cols[i, 1:n + 1]`` (``cols`` integer, or float holding integers)."""
+    for i in range(A.shape[0]):
+        n = 0
+        for j in range(A.shape[1]):
+            if A[i, j] != 0.0:
+                vals[i, n] = A[i, j]
+                cols[i, 1 + n] = j
+                n += 1
+        cols[i, 0] = n
+
+
+@njit(cache=True)
+def row_times(r, A, out):
+    """out = r A (a row of a linear quantity times A: its time derivative along ż = A z)."""
+    for j in range(A.shape[1]):
+        acc = 0.0
+        for i in range(A.shape[0]):
+            acc += r[i] * A[i, j]
+        out[j] = acc
+
+
+@njit(cache=True)
+def flow_tables(vals, cols, h, i_force, i_vel, i_c, i_s, f0, Phi, M):
+    """Φ = exp(h A) = Σ_k (hA)^k / k! (NT terms; A from its packed rows, ``pack_rows``) into Phi, and the work of a
+    harmonic force over one step, f0 ∫_0^h z[i_force] z[i_vel] dτ = zᵀ M z, into M's rows i_c and i_s.
+
+    z[i_force] is one of the forcing oscillator's states c = cos Ωt, s = sin Ωt (i_c, i_s), whose rows of A reach
+    only each other: so are the rows of (hA)^k, and M is zero outside rows i_c, i_s (left as they are).
+    M[a, b] = f0 h Σ_j Σ_k U[j, a] V[k, b] / (j + k + 1) with U, V the rows i_force, i_vel of (hA)^k / k!.
+    The series runs row by row as a sum of scaled rows of the previous term (contiguous scratch: this loop is most of
+    a run's set-up)."""
+    n = vals.shape[0]
+    P = np.empty((n, n))
+    Q = np.empty((n, n))
+    S = np.empty((n, n))     # Φ being summed
+    U = np.zeros((NT, n))
+    V = np.zeros((NT, n))
+    Wv = np.zeros(NT)        # Σ_j U[j, a] / (j + k + 1)
+    for i in range(n):
+        for j in range(n):
+            P[i, j] = 0.0
+            S[i, j] = 0.0
+        P[i, i] = 1.0
+        S[i, i] = 1.0
+    for j in range(n):
+        U[0, j] = P[i_force, j]
+        V[0, j] = P[i_vel, j]
+    for k in range(1, NT):
+        f = h / k
+        for i in range(n):
+            for j in range(n):
+                Q[i, j] = 0.0
+            for q in range(int(cols[i, 0])):
+                v = vals[i, q] * f
+                c = int(cols[i, 1 + q])
+                for j in range(n):
+                    Q[i, j] += v * P[c, j]
+        P, Q = Q, P
+        for i in range(n):
+            for j in range(n):
+                S[i, j] += P[i, j]
+        for j in range(n):
+            U[k, j] = P[i_force, j]
+            V[k, j] = P[i_vel, j]
+    for i in range(n):
+        for j in range(n):
+            Phi[i, j] = S[i, j]
+    for a in (i_c, i_s):
+        for k in range(NT):
+            acc = 0.0
+            for j in range(NT):
+                acc += U[j, a] * INV[j + k]
+            Wv[k] = acc
+        for b in range(n):
+            acc = 0.0
+            for k in range(NT):
+                acc += Wv[k] * V[k, b]
+            M[a, b] = f0 * h * acc
+
+
+@njit(cache=True)
 def series(vals, cols, z, L, C, ityp):
     """C[k] = (L A)^k z / k!, k < NT, with A's non-zeros packed by row: row i has ``cols[i, 0]`` of them, values
     ``vals[i, :n]`` in columns ``cols[i, 1:n + 1]`` (integers, or floats holding integers).  The tail is cut (set
