@@ -10,7 +10,7 @@ on disk and release the GIL.
 import numpy as np
 
 from sim.integrator import *  # noqa: F401,F403  constants and helpers
-from sim.integrator import _crossed, _dense, _dense_some, _track
+from sim.integrator import _crossed, _dense, _dense_some, _track, window_switch
 from sim.kernel import N_ACC, _rel_close, settled_period
 
 # after the star import, which re-exports sim.jit's lazy njit: this module is imported only to compile the kernel,
@@ -23,16 +23,23 @@ from numba import njit  # noqa: E402
 # array and block on every step, 6 % of a sandstone or RIMD run)
 ERRORS = "numpy"
 
-# Free-phase hook of a hybrid exact propagator (sim/exact/rimd.py, bound by sim.compiled in place of these two): while
-# the phase is 0, ``exact_free`` advances the state exactly to the next contact onset (switch and its bookkeeping
-# done) or to the cycle end, and the numerical steps resume in contact.  False here: numba prunes the branch.
+# Hook of a hybrid exact propagator (sim/exact/rimd.py, sim/exact/indenter.py; bound by sim.compiled in place of these
+# three): where ``exact_ok`` says so (the RIMD: in free flight; the indenter: while its seal friction is constant),
+# ``exact_free`` advances the state exactly to where the numerical steps must take over (a contact onset, a velocity
+# reversal) or to the cycle end, switches and their bookkeeping done.  False here: numba prunes the branch.
 HYBRID = False
 
 
 @njit(cache=True, nogil=True, error_model=ERRORS)
-def exact_free(p, y, z, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc, counters, gk):
+def exact_ok(t, y, z, ph, p):
+    """Placeholder of the hook (never called while HYBRID is False): whether the exact propagator takes over here."""
+    return False
+
+
+@njit(cache=True, nogil=True, error_model=ERRORS)
+def exact_free(p, y, z, ph, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc, counters, gk):
     """Placeholder of the hook (never called while HYBRID is False); returns (time reached, phase)."""
-    return t_end, 0
+    return t_end, ph
 
 
 @njit(cache=True, nogil=True, error_model=ERRORS)
@@ -260,14 +267,15 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 ph_arr[0] = ph
                 return t
             if HYBRID:
-                if ph == 0:
-                    t, ph = exact_free(p, y, z, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc, counters, gk)
-                    if ph != 0:         # a contact began: the numerical steps take over from the switch
-                        rhs(t, y, z, ph, p, k1)
-                        guards(t, y, z, ph, p, g0)
-                        f_prev = -np.inf
-                        d_prev = -np.inf
-                        fresh = True
+                if exact_ok(t, y, z, ph, p):
+                    t, ph = exact_free(p, y, z, ph, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc,
+                                       counters, gk)
+                    # the numerical steps take over from here (at the cycle end: the next cycle's start redoes this)
+                    rhs(t, y, z, ph, p, k1)
+                    guards(t, y, z, ph, p, g0)
+                    f_prev = -np.inf
+                    d_prev = -np.inf
+                    fresh = True
                     continue
             h = min(h, hmax, t_end - t)
             if h < 1e-14 * period:
@@ -443,16 +451,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 old = ph
                 ph = on_event(t, y, z, ph, p, k_ev)
                 if record:
-                    if old == 0 and ph > 0:
-                        acc[3] += 1.0
-                        acc[5] = 0.0
-                    elif old > 0 and ph == 0:
-                        if acc[7] == -1.0:      # the contact open at the window start: keep its part
-                            acc[7] = acc[5]
-                        else:
-                            acc[1] += acc[5]
-                            acc[2] += 1.0
-                        acc[5] = 0.0
+                    window_switch(acc, old, ph)
                     # the state just after the switch (force may jump, e.g. the damper at onset)
                     observe(t, y, z, ph, p, obs, dyd)
                     _track(acc, obs, ph > 0)

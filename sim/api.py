@@ -53,7 +53,8 @@ class Settings:
     ~1e-6 of the tight reference (bench/README.md), better than scipy RK45 at rtol 1e-6.  min_transient / max_transient:
     cycles discarded before the window (settlement is detected in between).  window:
     recorded cycles.  method: "auto" (the model's exact propagator where it applies, sim/exact/: every phase of
-    the drill, the RIMD's free flight with its contact on DOPRI5; else DOPRI5), "exact" (error if unavailable) or
+    the drill, the RIMD's free flight with its contact on DOPRI5, every phase of the indenters while their seal
+    friction is constant with DOPRI5 across its reversals; else DOPRI5), "exact" (error if unavailable) or
     "dopri5" (always the numerical integrator).  period_tol: tolerance of the periodicity test relative to each
     bounded coordinate's range.  event_tol: switch location tolerance as a fraction of
     the period.  samples_per_cycle: history sampling when a history is requested.

@@ -90,8 +90,9 @@ def kernels(funcs: tuple, n_bounded: int, exact: str | None = None):
     """The compiled ``run_point`` of a model (thread-safe: the first call may come from many
     threads of ``simulate_batch`` at once).  ``exact``: name of a module of an exact propagator (sim/exact/) whose
     names ``REPLACES`` replace the template's: ``integrate_cycles`` and ``make_workspace`` for a model exact in every
-    phase (``sim.exact.drill``), or the free-phase hook ``HYBRID``, ``exact_free`` and ``make_workspace`` for one
-    whose free flight alone is linear (``sim.exact.rimd``)."""
+    phase (``sim.exact.drill``), or the hook ``HYBRID``, ``exact_ok``, ``exact_free`` and ``make_workspace`` for one
+    exact only where ``exact_ok`` says (``sim.exact.rimd``: the free flight; ``sim.exact.indenter_metal`` and
+    ``_sandstone``: every phase while the seal friction is constant)."""
     with _LOCK:
         return _kernels(funcs, n_bounded, exact)
 

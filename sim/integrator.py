@@ -99,6 +99,35 @@ def _crossed(ga, gb):
 
 
 @njit(cache=True, inline="always")
+def widen_extremes(bvec, bmin, bmax, cyc):
+    """Row ``cyc`` of the per-cycle extremes bmin/bmax widened to the bounded coordinates ``bvec`` (an exact
+    propagator's step end; the kernel template writes the same loop out, see its note on array arguments)."""
+    for j in range(bvec.shape[0]):
+        if bvec[j] < bmin[cyc, j]:
+            bmin[cyc, j] = bvec[j]
+        if bvec[j] > bmax[cyc, j]:
+            bmax[cyc, j] = bvec[j]
+
+
+@njit(cache=True, inline="always")
+def window_switch(acc, old, ph):
+    """The window accumulator's bookkeeping at a switch from phase ``old`` to ``ph`` (sim/_kernel_template.py
+    ``integrate_cycles``): an onset counts and opens a contact's running maximum acc[5]; a release closes it into the
+    sum of per-contact maxima acc[1] and their count acc[2], or, for the contact open at the window start
+    (acc[7] == -1), keeps its part in acc[7]."""
+    if old == 0 and ph > 0:
+        acc[3] += 1.0
+        acc[5] = 0.0
+    elif old > 0 and ph == 0:
+        if acc[7] == -1.0:      # the contact open at the window start: keep its part
+            acc[7] = acc[5]
+        else:
+            acc[1] += acc[5]
+            acc[2] += 1.0
+        acc[5] = 0.0
+
+
+@njit(cache=True, inline="always")
 def _track(acc, obs, in_contact):
     """Update the window maxima with one observation (force counts only in contact); acc: the kernel's window
     accumulator (sim/_kernel_template.py ``integrate_cycles``)."""

@@ -35,6 +35,6 @@ MAX_PERIOD = 8
 # ----------------------------------------------------------------------------- kernel scratch
 # Rows of integrate_cycles' per-run scratch (sim/_kernel_template.py make_workspace): wk holds the DOPRI5 stages,
 # the interpolant and the dense states (each ny long), gk the guards and one observation; a hybrid propagator
-# (sim/exact/rimd.py) returns the same wk and keeps its own tables in gk's rows from GK_ROWS on.
+# (sim/exact/rimd.py, sim/exact/indenter.py) returns the same wk and keeps its own tables in gk's rows from GK_ROWS on.
 WK_ROWS = 16
 GK_ROWS = 5

@@ -1,4 +1,5 @@
-"""Exact propagators of models' linear phases (sim/exact/drill.py: every phase; sim/exact/rimd.py: the free flight)."""
+"""Exact propagators of models' linear phases (sim/exact/drill.py: every phase; sim/exact/rimd.py: the free flight;
+sim/exact/indenter.py: every phase while the seal friction is constant)."""
 from __future__ import annotations
 
 

@@ -28,7 +28,7 @@ import math
 import numpy as np
 from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
-from sim.integrator import REASON_TOO_MANY_STEPS, S_MAX_STEPS_PER_CYCLE, S_RTOL, STATUS_FAILED
+from sim.integrator import REASON_TOO_MANY_STEPS, S_MAX_STEPS_PER_CYCLE, S_RTOL, STATUS_FAILED, window_switch
 from sim.models.drill import (C1, C2, C3, F0, FREQ, FS, GAMMA, GAP, IV1, IV2, IV3, IW, IX1, IX2, IX3, IXB,
                               IXT, K1, K2, K3, M1, M2, M3, NY, PR)
 from sim.exact import effects_handled
@@ -406,16 +406,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                     for i in range(NY - 1):
                         zz[i] = y[i]
                     if record:
-                        if old == 0 and ph > 0:
-                            acc[3] += 1.0
-                            acc[5] = 0.0
-                        elif old > 0 and ph == 0:
-                            if acc[7] == -1.0:
-                                acc[7] = acc[5]
-                            else:
-                                acc[1] += acc[5]
-                                acc[2] += 1.0
-                            acc[5] = 0.0
+                        window_switch(acc, old, ph)
                         if ph > 0:
                             fe = _rdot(wk, ph, rr + R_F, zz)
                             if fe > acc[0]:

@@ -21,9 +21,9 @@ import math
 import numpy as np
 
 from sim.exact import effects_handled
-from sim.exact.taylor import (NT, dpeval, eval_state, first_rise, flow_tables, max_on, pack_rows, peval, root,
-                               row_poly, row_times, series, work_integral)
-from sim.integrator import N_OBS, S_RTOL, _track
+from sim.exact.taylor import (NT, eval_state, flow_tables, max_on, min_onset, pack_rows, row_poly, row_times, series,
+                               work_integral)
+from sim.integrator import N_OBS, S_RTOL, _track, widen_extremes
 from sim.layout import GK_ROWS, WK_ROWS
 from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.models.rimd import (C1, C2, F0, FREQ, GAP, IV1, IV2, IW, IX1, IX2, K1, K2, LAM, LS, M1, M2, N_BOUNDED,
@@ -37,7 +37,7 @@ bounded = njit(inline="always")(getattr(_bounded_r, "py_func", _bounded_r))
 on_event = njit(inline="always")(getattr(_on_event_r, "py_func", _on_event_r))
 observe = njit(inline="always")(getattr(_observe_r, "py_func", _observe_r))
 
-REPLACES = ("HYBRID", "exact_free", "make_workspace")
+REPLACES = ("HYBRID", "exact_ok", "exact_free", "make_workspace")
 """The kernel template's names this module replaces (sim.compiled): the free-phase hook and the workspace."""
 HYBRID = True
 EVERY_PHASE = False
@@ -135,34 +135,14 @@ def _grow(gk, row, z):
     return acc
 
 
-@njit(cache=True)
-def _rise(a, nt):
-    """First θ in [0, 1] where the polynomial a rises through 0, or -1 (``first_rise``; and, for a guard that starts
-    above 0 — δ > 0 after a release by the damping factor — a dip below 0 and back inside the step)."""
-    if a[0] > 0.0:
-        if peval(a, 1.0, nt) > 0.0 and dpeval(a, 0.0, nt) < 0.0 and dpeval(a, 1.0, nt) > 0.0:
-            tm = root(a, 0.0, 1.0, True, nt)
-            if peval(a, tm, nt) <= 0.0:
-                return root(a, tm, 1.0, False, nt)
-        return -1.0
-    return first_rise(a, nt)
-
-
-@njit(cache=True)
-def _onset(pd, ph_, nt):
-    """First θ in [0, 1] where min(δ, LS (1 + λi v2)) rises through 0 (both polynomials above 0), or -1."""
-    th = -1.0
-    td = _rise(pd, nt)
-    if td >= 0.0 and peval(ph_, td, nt) > 0.0:
-        th = td
-    tg = _rise(ph_, nt)
-    if tg >= 0.0 and peval(pd, tg, nt) > 0.0 and (th < 0.0 or tg < th):
-        th = tg
-    return th
+@njit(cache=True, nogil=True)
+def exact_ok(t, y, z, ph, p):
+    """The hook's condition: the free flight (phase 0) is exact."""
+    return ph == 0
 
 
 @njit(cache=True, nogil=True)
-def exact_free(p, y, z, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc, counters, gk):
+def exact_free(p, y, z, ph, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc, counters, gk):
     """Advance y (phase 0, free) exactly from t to the next contact onset or to t_end (the template's hook, see
     sim/_kernel_template.py): steps, window maxima of the deceleration (when ``record``), per-cycle extremes of the
     bounded coordinates (row ``cyc`` of bmin/bmax), and at an onset the switch with its bookkeeping.  Returns
@@ -233,7 +213,7 @@ def exact_free(p, y, z, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc,
             pd[0] -= eta_d
             row_poly(gk[G_R + R_GH], C, pg, nt)
             pg[0] -= eta_h
-            th = _onset(pd, pg, nt)
+            th = min_onset(pd, pg, nt)
             if th >= 0.0:
                 th_end = th
                 onset = True
@@ -254,11 +234,7 @@ def exact_free(p, y, z, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc,
             y[i] = z1[i]
         y[IW] = w
         bounded(t_new, y, z, 0, p, bvec)
-        for j in range(N_BOUNDED):
-            if bvec[j] < bmin[cyc, j]:
-                bmin[cyc, j] = bvec[j]
-            if bvec[j] > bmax[cyc, j]:
-                bmax[cyc, j] = bvec[j]
+        widen_extremes(bvec, bmin, bmax, cyc)
         counters[0] += 1
         t_cur = t_new
         if onset:

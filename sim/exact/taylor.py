@@ -300,3 +300,31 @@ def poly_max(a, lo, hi, nt):
         th = root(a, lo, hi, True, nt)
         best = max(best, peval(a, th, nt))
     return best
+
+
+@njit(cache=True)
+def rise(a, nt):
+    """First θ in [0, 1] where the polynomial a rises through 0, or -1 (``first_rise``; and, for a guard that starts
+    above 0 — a penetration δ > 0 after a release by the force indicator — a dip below 0 and back inside the step)."""
+    if a[0] > 0.0:
+        if peval(a, 1.0, nt) > 0.0 and dpeval(a, 0.0, nt) < 0.0 and dpeval(a, 1.0, nt) > 0.0:
+            tm = root(a, 0.0, 1.0, True, nt)
+            if peval(a, tm, nt) <= 0.0:
+                return root(a, tm, 1.0, False, nt)
+        return -1.0
+    return first_rise(a, nt)
+
+
+@njit(cache=True)
+def min_onset(pd, ph_, nt):
+    """First θ in [0, 1] where min(pd, ph_) rises through 0 (both polynomials above 0), or -1: the onset of a contact
+    with two indicators, penetration and force (the RIMD's δ and LS (1 + λi v2), the metal indenter's x1 - G and
+    k1 (x1 - G) + c1 ẋ1; MODELS.md §1a)."""
+    th = -1.0
+    td = rise(pd, nt)
+    if td >= 0.0 and peval(ph_, td, nt) > 0.0:
+        th = td
+    tg = rise(ph_, nt)
+    if tg >= 0.0 and peval(pd, tg, nt) > 0.0 and (th < 0.0 or tg < th):
+        th = tg
+    return th

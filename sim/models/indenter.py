@@ -5,6 +5,9 @@ electromagnetic force (a state only with `shaker_coil`), excitation work.
 Discrete states z = [xp, xf] (sandstone crater floor and unloading end point).
 Phases: metal 0 free / 1 contact; sandstone 0 free / 1 loading / 2 unloading.
 
+Every phase is linear where the seal friction is exactly ± pm (|v2| ≥ 20 v_eps): ``sim/exact/indenter.py`` propagates
+it exactly there and the DOPRI5 steps run across the shaker body's velocity reversals (``method`` "auto", "exact").
+
 Effects (MODELS.md §6; all off at their default 0):
   shaker_coil (tau [s], beta [N s/m]), rate_stiffening (alpha [s/m]), guide_friction (mu [N]),
   tip_blunting (gamma [-], sandstone), suspension_hardening (kappa [1/m^2]),
@@ -339,7 +342,7 @@ def _sensor_lowpass(res):
 
 
 def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effects: dict, progression: str,
-          calibratable: tuple[FitBound, ...], map_kind: str, synth: SynthRig) -> ModelSpec:
+          calibratable: tuple[FitBound, ...], map_kind: str, synth: SynthRig, exact: str) -> ModelSpec:
     return ModelSpec(
         name=name,
         description=f"indenter rig, {name.split('-')[1]} sample (MODELS.md §1)",
@@ -367,6 +370,9 @@ def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effe
         diagnose_max_harmonic_hz=1000.0,
         diagnose_fit={"candidate_starts": 2, "max_nfev": 15},
         synth=synth,
+        # every phase linear while the seal friction is ± pm (|ẋ2| ≥ 22 v_eps): exact there, DOPRI5 across the
+        # shaker body's velocity reversals (sim/exact/indenter.py)
+        exact=exact,
     )
 
 
@@ -414,10 +420,12 @@ def _synth(effects: dict, hertz_model: str | None) -> SynthRig:
 SPECS = {
     "indenter-metal": _spec("indenter-metal", (metal_rhs, metal_guards, metal_on_event, metal_observe, metal_bounded),
                             (), ("x1", "v1", "x2", "v2"), _PRESETS, _COMMON_EFFECTS, "none (metal does not progress)",
-                            _METAL_FIT, "pattern", _synth(_COMMON_EFFECTS, "indenter-sandstone")),
+                            _METAL_FIT, "pattern", _synth(_COMMON_EFFECTS, "indenter-sandstone"),
+                            "sim.exact.indenter_metal"),
     "indenter-sandstone": _spec("indenter-sandstone",
                                 (sand_rhs, sand_guards, sand_on_event, sand_observe, sand_bounded),
                                 ("xp", "xf"), ("x1-xp", "v1", "x2-xp", "v2"), _PRESETS,
                                 {**_COMMON_EFFECTS, "tip_blunting": ("gamma",)}, "xp (crater floor)",
-                                _SAND_FIT, "rop", _synth({**_COMMON_EFFECTS, "tip_blunting": ("gamma",)}, None)),
+                                _SAND_FIT, "rop", _synth({**_COMMON_EFFECTS, "tip_blunting": ("gamma",)}, None),
+                                "sim.exact.indenter_sandstone"),
 }

@@ -24,12 +24,14 @@ def test_quick_run_times_and_scores_every_method(quick_result):
     res, out = quick_result
     assert [(p["model"], p["point"]) for p in res["points"]] == [("indenter-metal", "table1-60hz")]
     rows = res["points"][0]["rows"]
-    assert [r["method"] for r in rows] == ["sim dopri5 rtol 1e-06", "sim dopri5 rtol 1e-08", "sim dopri5 rtol 1e-10"]
+    # the DOPRI5 kernel and the indenter's hybrid propagator (sim/exact/indenter.py) at each quick rtol
+    assert [r["method"] for r in rows] == [f"sim {m} rtol {r}" for m in ("dopri5", "hybrid")
+                                           for r in ("1e-06", "1e-08", "1e-10")]
     for r in rows:
         assert len(r["cpu_all"]) == res["repetitions"] and r["cpu_s"] > 0 and r["wall_s"] > 0
         # DOPRI5 at rtol <= 1e-6 agrees with the reference (DOP853 rtol 1e-10) far better than 1e-3
         assert math.isfinite(r["label_error"]) and r["label_error"] < 1e-3
-        assert r["error_vs_exact"] is None               # no exact propagator for this model
+        assert r["error_vs_exact"] is None               # no "sim exact" row: the indenter's is a hybrid
     assert (out / "precision_quick.json").exists() and (out / "precision_quick.md").exists()
 
 

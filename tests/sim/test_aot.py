@@ -194,10 +194,12 @@ def test_vibro_compile_reports_each_kernel_once_and_a_failure_in_one_line(monkey
     monkeypatch.setattr(aot, "build", fake_build)
     assert main(["compile", "--workers", "1"]) == 0
     err = capsys.readouterr().err
-    # 5 models' numerical kernels (the indenters' are two) and the drill's and the RIMD's exact propagators
-    assert len(built) == len(set(built)) == 7 and ("sim.models.drill", "rhs", "sim.exact.drill") in built
+    # 5 models' numerical kernels (the indenters' are two) and the drill's, the RIMD's and both indenters' exact
+    # propagators
+    assert len(built) == len(set(built)) == 9 and ("sim.models.drill", "rhs", "sim.exact.drill") in built
     assert ("sim.models.rimd", "rhs", "sim.exact.rimd") in built
-    assert err.count("vibro compile: ") == 7 and "indenter-sandstone (numerical integrator)" in err
+    assert ("sim.models.indenter", "sand_rhs", "sim.exact.indenter_sandstone") in built
+    assert err.count("vibro compile: ") == 9 and "indenter-sandstone (numerical integrator)" in err
     assert "rimd (exact propagator)" in err
 
     def broken(funcs, n_bounded, exact=None):

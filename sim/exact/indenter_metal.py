@@ -1,0 +1,19 @@
+"""The indenter rig's hybrid propagator (sim/exact/indenter.py) bound to the metal sample."""
+from __future__ import annotations
+
+from sim.exact.indenter import (EVERY_PHASE, HANDLED_EFFECT_PARAMS, HYBRID, applies, exact_free, exact_ok,
+                                 make_workspace_metal)
+
+__all__ = ["EVERY_PHASE", "HANDLED_EFFECT_PARAMS", "HYBRID", "REPLACES", "exact_applies", "exact_free", "exact_ok",
+           "make_workspace"]
+REPLACES = ("HYBRID", "exact_ok", "exact_free", "make_workspace")
+"""The kernel template's names this module replaces (sim.compiled): the hook and the workspace."""
+
+
+def exact_applies(values: dict, effects: dict) -> bool:
+    """True when no effect parameter is set (each makes a phase nonlinear)."""
+    return applies(values, effects, False)
+
+
+make_workspace = make_workspace_metal
+"""The template's scratch and the metal phase tables (sim.exact.indenter.build)."""
