@@ -100,7 +100,7 @@ def _methods(model: str, preset, n: int, w: int, quick: bool) -> dict:
     spec = sim.get_model(model)
     if spec.exact is not None and importlib.import_module(spec.exact).EVERY_PHASE:
         out["sim exact"] = lambda: sim.simulate(model, preset=preset, settings={**fixed, "method": "exact"}).labels
-    elif spec.exact is not None:    # a hybrid (exact free flight, numerical contact): its accuracy follows rtol
+    elif spec.exact is not None:    # a hybrid (exact where linear, DOPRI5 elsewhere): its accuracy follows rtol
         for r in rtols:
             out[f"sim hybrid rtol {r:.0e}"] = (lambda r=r: sim.simulate(
                 model, preset=preset, settings={**fixed, "rtol": r, "method": "exact"}).labels)
@@ -266,8 +266,8 @@ def _loosest(rows: list[dict], prefix: str, target: float) -> dict | None:
 def lean_vs_old(res: dict) -> list[dict]:
     """Issue 16 item 2: per point, the current DOPRI5 kernel against the old one (33a799c), both at the default
     rtol, with their label errors (vs the exact propagator on the drill, else vs the reference); where the model has
-    a hybrid propagator (exact free flight, DOPRI5 contact: what ``simulate`` runs by default there) a second row
-    sets it against the same old kernel."""
+    a hybrid propagator (exact where the model is linear, DOPRI5 elsewhere: the RIMD's contact, the indenters'
+    friction reversals; what ``simulate`` runs by default there) a second row sets it against the same old kernel."""
     out = []
     for pt in res["points"]:
         by = {r["method"]: r for r in pt["rows"]}

@@ -106,12 +106,13 @@ def test_phase_tables_are_the_flow_of_models_md(model, sand):
     _, gk = hy.build(p, 1 / 60, 8, sand)
     h = gk[hy.G_INFO, 0]
     assert gk[hy.G_INFO, 1] * h == pytest.approx(1 / 60, rel=1e-12)
-    assert hy._rho(p) * h <= hy.RHO_H * (1 + 1e-12)
+    assert hy._rho(p, sand) * h <= hy.RHO_H * (1 + 1e-12)
+    assert hy._rho(p, sand) <= hy._rho_bound(p)
     laws = [(0.0, 0.0), (p[ind.KL], 0.0), (p[ind.KU], 0.0)] if sand else [(0.0, 0.0), (p[ind.K1], p[ind.C1])]
     rng = np.random.default_rng(3)
     for q, (kc, cc) in enumerate(laws):
         A = _matrix_from_models_md(p, kc, cc)
-        assert max(abs(np.linalg.eigvals(A))) <= hy._rho(p)     # the step bound is a bound
+        assert max(abs(np.linalg.eigvals(A))) <= hy._rho(p, sand)     # the step bound is a bound
         b = hy.GK_ROWS + q * hy.PH_ROWS
         phi = gk[b + hy.P_PHI:b + hy.P_PHI + 11, :11]
         np.testing.assert_allclose(phi, expm(A * h), rtol=1e-12, atol=1e-12 * np.abs(expm(A * h)).max())

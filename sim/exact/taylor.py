@@ -267,16 +267,24 @@ def eval_state(C, th, z, nt):
 
 
 @njit(cache=True)
-def work_integral(C, th, L, f0, nt, pw, i_force, i_vel):
-    """f0 ∫ z[i_force] z[i_vel] dτ over [0, θ L] from the series coefficients: the product polynomial
-    q_n = Σ_{j+k=n} C[j, i_force] C[k, i_vel] integrated term by term (Horner in θ; pw: scratch of 2 NT + 1)."""
+def work_integral(C, th, L, f0, nt, pw, i_force, i_vel, i_rel=-1):
+    """f0 ∫ z[i_force] z[i_vel] dτ over [0, θ L] from the series coefficients (with ``i_rel`` ≥ 0: of the relative
+    velocity z[i_vel] - z[i_rel]): the product polynomial q_n = Σ_{j+k=n} C[j, i_force] C[k, i_vel] integrated term
+    by term (Horner in θ; pw: scratch of 2 NT + 1)."""
     for n in range(2 * nt - 1):
         pw[n] = 0.0
-    for j in range(nt):
-        cj = C[j, i_force]
-        if cj != 0.0:
-            for k in range(nt):
-                pw[j + k] += cj * C[k, i_vel]
+    if i_rel < 0:
+        for j in range(nt):
+            cj = C[j, i_force]
+            if cj != 0.0:
+                for k in range(nt):
+                    pw[j + k] += cj * C[k, i_vel]
+    else:
+        for j in range(nt):
+            cj = C[j, i_force]
+            if cj != 0.0:
+                for k in range(nt):
+                    pw[j + k] += cj * (C[k, i_vel] - C[k, i_rel])
     acc = 0.0
     for n in range(2 * nt - 2, -1, -1):
         acc = acc * th + pw[n] * INV[n]
