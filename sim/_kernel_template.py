@@ -270,9 +270,9 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 if exact_ok(t, y, z, ph, p):
                     t, ph = exact_free(p, y, z, ph, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc,
                                        counters, gk)
-                    # the numerical steps take over from here (at the cycle end: the next cycle's start redoes this)
-                    rhs(t, y, z, ph, p, k1)
-                    guards(t, y, z, ph, p, g0)
+                    if t_end - t > 1e-12 * period:   # the numerical steps take over from here (at the cycle end:
+                        rhs(t, y, z, ph, p, k1)         # the next cycle's start does this)
+                        guards(t, y, z, ph, p, g0)
                     f_prev = -np.inf
                     d_prev = -np.inf
                     fresh = True

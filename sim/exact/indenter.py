@@ -80,9 +80,7 @@ P_AC = 3 * NZ
 P_R = 4 * NZ
 R_GA, R_GB, R_GAD, R_GBD, R_F, R_FD, R_D, R_DD, R_V2D = range(9)
 N_R = 9
-P_RV = P_R + N_R          # the monitored rows packed (values, columns: ``pack_rows``), for the sparse products of a step
-P_RC = P_RV + N_R
-P_T = P_RC + N_R
+P_T = P_R + N_R
 T_GA, T_GB, T_F, T_D, T_V2 = range(5)
 P_B = P_T + 5 * NT        # per table row q: B_q = Σ_{k≥2} h^k ‖r A^(k-2) / k!‖_t (``build``)
 PH_ROWS = P_B + 1
@@ -250,7 +248,6 @@ def build(p, period, ny, sand):
         row_times(gk[r + R_D], A, gk[r + R_DD])
         for j in range(NZ):
             gk[r + R_V2D, j] = A[IV2, j]
-        pack_rows(gk[r:r + N_R, :NZ], gk[b + P_RV:b + P_RV + N_R], gk[b + P_RC:b + P_RC + N_R])
         tb = b + P_T
         for (ti, src) in ((T_GA, r + R_GA), (T_GB, r + R_GB), (T_F, r + R_F), (T_D, r + R_D)):
             for j in range(NZ):
@@ -319,11 +316,13 @@ def exact_ok(t, y, z, ph, p):
 
 @njit(cache=True, inline="always")
 def _rows(gk, b, z, out):
-    """The monitored rows of the phase block b · z into out[:N_R] (sparse: a few non-zeros per row)."""
+    """The monitored rows of the phase block b · z into out[:N_R] (dense, fixed sizes: faster than the rows' few
+    non-zeros gathered by index, 37 against 55 ns per step)."""
+    r = b + P_R
     for q in range(N_R):
         acc = 0.0
-        for m in range(int(gk[b + P_RC + q, 0])):
-            acc += gk[b + P_RV + q, m] * z[int(gk[b + P_RC + q, 1 + m])]
+        for j in range(NZ):
+            acc += gk[r + q, j] * z[j]
         out[q] = acc
 
 
