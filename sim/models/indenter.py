@@ -370,7 +370,7 @@ def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effe
         diagnose_max_harmonic_hz=1000.0,
         diagnose_fit={"candidate_starts": 2, "max_nfev": 15},
         synth=synth,
-        # every phase linear while the seal friction is ± pm (|ẋ2| ≥ 22 v_eps): exact there, DOPRI5 across the
+        # every phase linear while the seal friction is ± pm (|ẋ2| ≥ 20 v_eps): exact there, DOPRI5 across the
         # shaker body's velocity reversals (sim/exact/indenter.py)
         exact=exact,
     )
