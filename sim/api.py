@@ -177,8 +177,10 @@ def _exact_module(spec: ModelSpec, values: dict, st: Settings, history: bool) ->
     ok = mod.exact_applies(values, spec.effects)
     if st.method == "exact":
         if not ok:
-            raise ParameterError(f"setting 'method': the exact propagator of '{spec.name}' does not handle the "
-                                 f"active effects (handles {', '.join(mod.HANDLED_EFFECT_PARAMS)})")
+            when = getattr(mod, "APPLIES_WHEN", None)    # a condition beyond the effects, stated by the module
+            why = (f"applies only with {when}" if when else
+                   f"does not handle the active effects (handles {', '.join(mod.HANDLED_EFFECT_PARAMS)})")
+            raise ParameterError(f"setting 'method': the exact propagator of '{spec.name}' {why}")
         if history:
             raise ParameterError("setting 'method': the exact propagator returns no time history; use 'auto'")
         return spec.exact

@@ -168,3 +168,6 @@ def test_auto_uses_the_hybrid_only_where_every_phase_is_linear():
     assert mu == mu_num
     with pytest.raises(sim.ParameterError, match="method"):
         sim.simulate("indenter-metal", settings={**st, "method": "exact"}, mu=5.0)
+    # the error names the condition, not an empty list of handled effects
+    with pytest.raises(sim.ParameterError, match=r"'method'.*applies only with .*nl = nu = 1"):
+        sim.simulate("indenter-sandstone", settings={**st, "method": "exact"}, nl=1.3)

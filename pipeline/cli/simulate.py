@@ -33,7 +33,8 @@ def add_parser(sub) -> None:
                    help="simulator setting (repeatable): rtol, min_transient, max_transient, window, period_tol, "
                         "settle_tol, event_tol, max_step_frac, stat_tol, samples_per_cycle, and method = auto | exact "
                         "| dopri5 (auto: the exact propagator where it applies -- every phase of the drill, the RIMD's free "
-                        "flight -- else the DOPRI5 integrator)")
+                        "flight, every phase of the indenters while the seal friction is +/- pm -- else the DOPRI5 "
+                        "integrator)")
     p.add_argument("--json", action="store_true", help="print one JSON object whose keys are the label names")
     p.add_argument("--plot", metavar="FILE.png",
                    help="save time histories of the impacting mass and contact force over the recorded cycles, "

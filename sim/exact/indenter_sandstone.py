@@ -4,10 +4,12 @@ from __future__ import annotations
 from sim.exact.indenter import (EVERY_PHASE, HANDLED_EFFECT_PARAMS, HYBRID, applies, exact_free, exact_ok,
                                  make_workspace_sandstone)
 
-__all__ = ["EVERY_PHASE", "HANDLED_EFFECT_PARAMS", "HYBRID", "REPLACES", "exact_applies", "exact_free", "exact_ok",
-           "make_workspace"]
+__all__ = ["APPLIES_WHEN", "EVERY_PHASE", "HANDLED_EFFECT_PARAMS", "HYBRID", "REPLACES", "exact_applies", "exact_free",
+           "exact_ok", "make_workspace"]
 REPLACES = ("HYBRID", "exact_ok", "exact_free", "make_workspace")
 """The kernel template's names this module replaces (sim.compiled): the hook and the workspace."""
+APPLIES_WHEN = "no effect parameter set and nl = nu = 1"
+"""When ``exact_applies`` holds, for the error of ``method`` "exact" (sim.api)."""
 
 
 def exact_applies(values: dict, effects: dict) -> bool:
