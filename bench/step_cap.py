@@ -1,6 +1,6 @@
 """Label accuracy against one simulator setting over a model's parameter grid: how large a step cap can be before
 the labels get worse (the evidence behind the pendulum's ``max_step_frac`` 0.03), or what a method costs in accuracy
-(the RIMD's hybrid against DOPRI5).
+(the RIMD's and the indenters' hybrids against DOPRI5).
 
 Every grid point runs at the default rtol with each value of the setting (model defaults otherwise: adaptive
 transient, window), and once with DOPRI5 at rtol 1e-11, the yardstick (the simulator itself: at 1e-11 the cap no
@@ -34,6 +34,11 @@ GRIDS = {"pendulum": {"gap_m": (0.0, 1.0e-3, 2.4e-3), "frequency_hz": tuple(np.a
 # 0.3 and 0.6 Pr; the drill's DOPRI5 path (auto takes the exact propagator)
 GRIDS["drill"] = {"frequency_hz": tuple(np.arange(100.0, 401.0, 50.0)), "amplitude_n": (900.0, 1800.0, 2700.0),
                   "static_force_n": (900.0, 1800.0)}
+# the indenters across the seed's frequency range (MODELS.md §1, Table 1: 30-100 Hz), forcing over Table 1's range
+# (220-900 N), and a tenth, the default and ten times the seal friction pm (whose tanh band the hybrid hands to DOPRI5)
+for _m in ("indenter-metal", "indenter-sandstone"):
+    GRIDS[_m] = {"frequency_hz": tuple(np.arange(30.0, 100.1, 10.0)), "amplitude_n": (220.0, 440.0, 880.0),
+                 "pm": (2.0, 20.0, 200.0)}
 PRESETS = {"drill": "lab"}
 FIXED = {"drill": {"method": "dopri5"}}
 DEFAULT_VALUES = {"max_step_frac": "0.02,0.025,0.03,0.035,0.04,0.05", "method": "dopri5,exact"}
@@ -129,7 +134,8 @@ def main(argv: list[str] | None = None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
                                  epilog="examples:\n  python -m bench.step_cap --write-readme\n"
                                         "  python -m bench.step_cap --values 0.02,0.05\n"
-                                        "  python -m bench.step_cap --model rimd --setting method --write-readme")
+                                        "  python -m bench.step_cap --model rimd --setting method --write-readme\n"
+                                        "  python -m bench.step_cap --model indenter-metal --setting method --write-readme")
     ap.add_argument("--model", default="pendulum", help=f"model with a grid here: {', '.join(GRIDS)} (default pendulum)")
     ap.add_argument("--setting", default="max_step_frac", help="the simulator setting to vary (default max_step_frac)")
     ap.add_argument("--values", default=None,

@@ -26,12 +26,13 @@ ERRORS = "numpy"
 # Hook of a hybrid exact propagator (sim/exact/rimd.py, sim/exact/indenter.py; bound by sim.compiled in place of these
 # three): where ``exact_ok`` says so (the RIMD: in free flight; the indenter: while its seal friction is constant),
 # ``exact_free`` advances the state exactly to where the numerical steps must take over (a contact onset, a velocity
-# reversal) or to the cycle end, switches and their bookkeeping done.  False here: numba prunes the branch.
+# reversal) or to the cycle end, switches and their bookkeeping done.  False here: numba prunes the branch.  A hybrid
+# may also replace ``step_hint``, the step after an accepted numerical one (the indenter: across its friction's tanh).
 HYBRID = False
 
 
 @njit(cache=True, nogil=True, error_model=ERRORS)
-def exact_ok(t, y, z, ph, p):
+def exact_ok(t, y, z, ph, p, gk):
     """Placeholder of the hook (never called while HYBRID is False): whether the exact propagator takes over here."""
     return False
 
@@ -40,6 +41,14 @@ def exact_ok(t, y, z, ph, p):
 def exact_free(p, y, z, ph, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc, counters, gk):
     """Placeholder of the hook (never called while HYBRID is False); returns (time reached, phase)."""
     return t_end, ph
+
+
+@njit(cache=True, nogil=True, error_model=ERRORS)
+def step_hint(t, y, z, ph, p, dy, h, h_done, en_done):
+    """Optional part of the hook (a hybrid that knows what limits its numerical stretches replaces it, see
+    sim/exact/indenter.py): the next step [s] after an accepted one of length h_done [s] with error norm en_done,
+    given the step controller's proposal h and the derivative dy at the state y reached.  Here: h."""
+    return h
 
 
 @njit(cache=True, nogil=True, error_model=ERRORS)
@@ -267,7 +276,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 ph_arr[0] = ph
                 return t
             if HYBRID:
-                if exact_ok(t, y, z, ph, p):
+                if exact_ok(t, y, z, ph, p, gk):
                     t, ph = exact_free(p, y, z, ph, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc,
                                        counters, gk)
                     if t_end - t > 1e-12 * period:   # the numerical steps take over from here (at the cycle end:
@@ -469,7 +478,10 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 for i in range(ng):
                     g0[i] = g1[i]
                 fac = 0.9 * max(en, 1e-10) ** -0.2
+                h_done = h
                 h *= min(5.0, max(0.2, fac))
+                if HYBRID:
+                    h = step_hint(t, y, z, ph, p, k1, h, h_done, en)
             if t_end - t <= 1e-12 * period:
                 t = t_end
         t = t_end

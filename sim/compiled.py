@@ -92,7 +92,8 @@ def kernels(funcs: tuple, n_bounded: int, exact: str | None = None):
     names ``REPLACES`` replace the template's: ``integrate_cycles`` and ``make_workspace`` for a model exact in every
     phase (``sim.exact.drill``), or the hook ``HYBRID``, ``exact_ok``, ``exact_free`` and ``make_workspace`` for one
     exact only where ``exact_ok`` says (``sim.exact.rimd``: the free flight; ``sim.exact.indenter_metal`` and
-    ``_sandstone``: every phase while the seal friction is constant)."""
+    ``_sandstone``: every phase while the seal friction is constant, and their ``step_hint`` for the steps across a
+    reversal)."""
     with _LOCK:
         return _kernels(funcs, n_bounded, exact)
 

@@ -103,7 +103,8 @@ def _matrix_from_models_md(p, kc, cc):
 def test_phase_tables_are_the_flow_of_models_md(model, sand):
     spec = sim.get_model(model)
     p = spec.vector(spec.resolve("table1-60hz"))
-    _, gk = hy.build(p, 1 / 60, 8, sand)
+    _, gk = hy.build(p, 1 / 60, 8, sand, 1e-7)
+    assert gk[hy.G_INFO, 3] == hy.v_band(1e-7) * p[ind.VEPS] < gk[hy.G_INFO, 4]       # the band's edges at rtol 1e-7
     h = gk[hy.G_INFO, 0]
     assert gk[hy.G_INFO, 1] * h == pytest.approx(1 / 60, rel=1e-12)
     assert hy._rho(p, sand) * h <= hy.RHO_H * (1 + 1e-12)
@@ -138,17 +139,54 @@ def test_phase_tables_are_the_flow_of_models_md(model, sand):
                     assert abs(g - lin) <= gk[b + hy.P_B, ti] * nz2 * (1 + 1e-9) + 1e-13 * abs(g)
 
 
-def test_friction_band_is_bit_exact():
-    # outside |v2| < V_BAND v_eps the model's tanh(v2 / v_eps) rounds to exactly ±1, the sign the exact phases use
-    assert math.tanh(hy.V_BAND) == 1.0 and math.tanh(-hy.V_BAND) == -1.0
-    assert hy.V_RESUME > hy.V_BAND
+def test_friction_band_edge_follows_the_tolerance():
+    # beyond v_band(rtol) v_eps the exact phases take the model's friction pm tanh(v2 / v_eps) as ± pm; the two differ
+    # by pm (1 - tanh V) = 2 pm / (e^(2V) + 1), which must stay within BAND_TOL rtol pm, and V is the narrowest such edge
+    for rtol in (1e-3, 1e-6, 1e-7, 1e-9, 1e-11, 1e-13):
+        v = hy.v_band(rtol)
+        assert 2.0 / (math.exp(2.0 * v) + 1.0) <= hy.BAND_TOL * rtol
+        assert 2.0 / (math.exp(2.0 * (v - 0.01)) + 1.0) > hy.BAND_TOL * rtol
+    assert hy.v_band(1e-7) == pytest.approx(10.71, abs=0.01)        # the edge README.md quotes
+    # never wider than where tanh rounds to ±1 (the friction bit-exact), in Python and in numba's tanh alike
+    assert hy.v_band(1e-17) == hy.V_EXACT
+    assert math.tanh(hy.V_EXACT) == 1.0 and math.tanh(-hy.V_EXACT) == -1.0
+    assert hy.V_HYST > 0.0
     from sim.jit import njit
 
     @njit
     def t(x):
         return math.tanh(x)
 
-    assert t(hy.V_BAND) == 1.0 and t(-hy.V_BAND) == -1.0
+    assert t(hy.V_EXACT) == 1.0 and t(-hy.V_EXACT) == -1.0
+
+
+def test_step_hint_plans_the_approach_to_a_reversal():
+    p = sim.get_model("indenter-metal").vector(sim.get_model("indenter-metal").resolve("table1-60hz"))
+    veps = p[ind.VEPS]
+    y = np.zeros(ind.NY)
+    dy = np.zeros(ind.NY)
+    rate = 1e5                                # |x2''| / v_eps [1/s]
+    y[ind.IV2], dy[ind.IV2] = 8.0 * veps, -rate * veps          # approaching the reversal from u = 8
+    h_done, en_done, h = 2e-5, 1e-3, 1e-3
+    got = hy.step_hint(0.0, y, None, 0, p, dy, h, h_done, en_done)
+    d, d_done = got * rate, h_done * rate
+    # the planned step aims the modelled error norm en_done (Δ / Δ_done)^5 e^(2Δ) at EN_AIM (Newton stops once its
+    # last correction of ln Δ is below 1e-4, so Δ is good to ~1e-8 relative and the norm to a few 1e-8)
+    assert en_done * (d / d_done) ** 5 * math.exp(2.0 * d) == pytest.approx(hy.EN_AIM, rel=1e-6)
+    assert 0.0 < got < h
+    # the plan is the smaller, the larger the error so far; with a tiny one even a step to the reversal aims below
+    # EN_AIM, and the controller's proposal stands
+    assert hy.step_hint(0.0, y, None, 0, p, dy, h, h_done, 1e-1) < got
+    y[ind.IV2] = 4.0 * veps
+    assert hy.step_hint(0.0, y, None, 0, p, dy, h, h_done, 1e-12) == h
+    y[ind.IV2] = 8.0 * veps
+    # the controller's proposal when it is smaller, when moving away from the reversal and inside the core
+    assert hy.step_hint(0.0, y, None, 0, p, dy, 1e-7, h_done, en_done) == 1e-7
+    dy[ind.IV2] = rate * veps
+    assert hy.step_hint(0.0, y, None, 0, p, dy, h, h_done, en_done) == h
+    dy[ind.IV2] = -rate * veps
+    y[ind.IV2] = hy.U_CORE * veps
+    assert hy.step_hint(0.0, y, None, 0, p, dy, h, h_done, en_done) == h
 
 
 def test_auto_uses_the_hybrid_only_where_every_phase_is_linear():

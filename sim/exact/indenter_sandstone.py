@@ -1,13 +1,13 @@
 """The indenter rig's hybrid propagator (sim/exact/indenter.py) bound to the sandstone sample."""
 from __future__ import annotations
 
-from sim.exact.indenter import (EVERY_PHASE, HANDLED_EFFECT_PARAMS, HYBRID, applies, exact_free, exact_ok,
+from sim.exact.indenter import (EVERY_PHASE, HANDLED_EFFECT_PARAMS, HYBRID, applies, exact_free, exact_ok, step_hint,
                                  make_workspace_sandstone)
 
 __all__ = ["APPLIES_WHEN", "EVERY_PHASE", "HANDLED_EFFECT_PARAMS", "HYBRID", "REPLACES", "exact_applies", "exact_free",
-           "exact_ok", "make_workspace"]
-REPLACES = ("HYBRID", "exact_ok", "exact_free", "make_workspace")
-"""The kernel template's names this module replaces (sim.compiled): the hook and the workspace."""
+           "exact_ok", "make_workspace", "step_hint"]
+REPLACES = ("HYBRID", "exact_ok", "exact_free", "make_workspace", "step_hint")
+"""The kernel template's names this module replaces (sim.compiled): the hook, its step hint and the workspace."""
 APPLIES_WHEN = "no effect parameter set and nl = nu = 1"
 """When ``exact_applies`` holds, for the error of ``method`` "exact" (sim.api)."""
 

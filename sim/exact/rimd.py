@@ -136,8 +136,8 @@ def _grow(gk, row, z):
 
 
 @njit(cache=True, nogil=True)
-def exact_ok(t, y, z, ph, p):
-    """The hook's condition: the free flight (phase 0) is exact."""
+def exact_ok(t, y, z, ph, p, gk):
+    """The hook's condition (gk: the workspace, unused here): the free flight (phase 0) is exact."""
     return ph == 0
 
 

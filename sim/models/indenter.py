@@ -5,8 +5,8 @@ electromagnetic force (a state only with `shaker_coil`), excitation work.
 Discrete states z = [xp, xf] (sandstone crater floor and unloading end point).
 Phases: metal 0 free / 1 contact; sandstone 0 free / 1 loading / 2 unloading.
 
-Every phase is linear where the seal friction is exactly ± pm (|v2| ≥ 20 v_eps): ``sim/exact/indenter.py`` propagates
-it exactly there and the DOPRI5 steps run across the shaker body's velocity reversals (``method`` "auto", "exact").
+Every phase is linear where the seal friction is ± pm (exactly from |v2| = 20 v_eps, to rtol pm / 100 from a V v_eps
+set by the tolerance, ``sim.exact.indenter.v_band``): ``sim/exact/indenter.py`` propagates it exactly there and the DOPRI5 steps run across the shaker body's velocity reversals (``method`` "auto", "exact").
 
 Effects (MODELS.md §6; all off at their default 0):
   shaker_coil (tau [s], beta [N s/m]), rate_stiffening (alpha [s/m]), guide_friction (mu [N]),
@@ -370,7 +370,7 @@ def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effe
         diagnose_max_harmonic_hz=1000.0,
         diagnose_fit={"candidate_starts": 2, "max_nfev": 15},
         synth=synth,
-        # every phase linear while the seal friction is ± pm (|ẋ2| ≥ 20 v_eps): exact there, DOPRI5 across the
+        # every phase linear while the seal friction is ± pm (|ẋ2| ≥ v_band(rtol) v_eps): exact there, DOPRI5 across the
         # shaker body's velocity reversals (sim/exact/indenter.py)
         exact=exact,
     )

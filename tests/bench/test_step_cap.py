@@ -24,7 +24,8 @@ def test_label_error_is_the_largest_relative_deviation_of_the_compared_labels():
     (["--model", "rimd", "--setting", "method", "--values", "rk4"], "--values rk4: setting 'method' has an invalid "
                                                                     "value 'rk4'"),
     (["--setting", "step"], "--setting step: not a simulator setting; known: rtol, min_transient"),
-    (["--model", "indenter-metal"], "--model indenter-metal: no grid for it here; known: pendulum, rimd, drill"),
+    (["--model", "oscillator"], "--model oscillator: no grid for it here; known: pendulum, rimd, drill, indenter-metal, "
+                                "indenter-sandstone"),
 ])
 def test_bad_arguments_get_one_line(args, needle):
     with pytest.raises(SystemExit) as e:
