@@ -18,7 +18,8 @@ zᵀ M z per full step.
 
 Near a reversal of ẋ2 (|ẋ2| < V v_eps) the friction is the smooth tanh and the kernel template's DOPRI5 steps take
 over (the hook ``exact_ok`` hands back once |ẋ2| ≥ (V + 1) v_eps); the handover is a change of integrator on one
-trajectory, not a switch of the model, and it neglects a force below rtol pm / 100 over the reversal's tail.  Time histories are not produced here (``history=True`` runs DOPRI5).
+trajectory, not a switch of the model, and it neglects a force below rtol pm / 100 over the reversal's tail.
+Time histories are not produced here (``history=True`` runs DOPRI5).
 Effects (§6) and nl, nu ≠ 1 make a phase nonlinear: ``exact_applies`` then sends the run to DOPRI5.
 """
 from __future__ import annotations
@@ -28,8 +29,8 @@ import math
 import numpy as np
 
 from sim.exact import effects_handled
-from sim.exact.taylor import (NT, eval_state, first_rise, flow_tables, min_onset, pack_rows, poly_max, row_times,
-                               series, work_integral)
+from sim.exact.taylor import (NT, eval_state, first_rise, flow_tables, min_onset, pack_rows, poly_max, row_dot,
+                               row_times, series, work_integral)
 from sim.integrator import N_OBS, S_RTOL, _track, widen_extremes, window_switch
 from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.layout import GK_ROWS, WK_ROWS
@@ -280,8 +281,9 @@ def build(p, period, ny, sand, rtol):
     gk[G_INFO, 0] = h
     gk[G_INFO, 1] = n_grid
     gk[G_INFO, 2] = 1.0 if sand else 0.0
-    gk[G_INFO, 3] = v_band(rtol) * p[VEPS]
-    gk[G_INFO, 4] = (v_band(rtol) + V_HYST) * p[VEPS]
+    vb = v_band(rtol)
+    gk[G_INFO, 3] = vb * p[VEPS]
+    gk[G_INFO, 4] = (vb + V_HYST) * p[VEPS]
     # curvature bounds: over a step of length L ≤ h a monitored row's polynomial departs from its tangent at the start
     # by at most Σ_{k≥2} L^k |r A^k z / k!| = Σ_{k≥2} L^k |(r A^(k-2) / k!) z''| ≤ B_q max_i |z''_i| / t_i
     om = 2.0 * math.pi * p[FREQ]
@@ -377,12 +379,8 @@ def step_hint(t, y, z, ph, p, dy, h, h_done, en_done):
 def _rows(gk, b, z, out):
     """The monitored rows of the phase block b · z into out[:N_R] (dense, fixed sizes: faster than the rows' few
     non-zeros gathered by index, 37 against 55 ns per step)."""
-    r = b + P_R
     for q in range(N_R):
-        acc = 0.0
-        for j in range(NZ):
-            acc += gk[r + q, j] * z[j]
-        out[q] = acc
+        out[q] = row_dot(gk, b + P_R + q, z, NZ)
 
 
 @njit(cache=True, inline="always")
@@ -416,10 +414,7 @@ def _tpoly(gk, base, z, L, a):
     """a[k] = L^k (table row base + k) · z: the polynomial in θ of a monitored row over a step of length L."""
     f = 1.0
     for k in range(NT):
-        acc = 0.0
-        for i in range(NZ):
-            acc += gk[base + k, i] * z[i]
-        a[k] = acc * f
+        a[k] = row_dot(gk, base + k, z, NZ) * f
         f *= L
 
 
@@ -442,8 +437,8 @@ def _enter(gk, p, z, ph, sand, atol, rtol, sig, zz, z1, sv, bc):
 
 @njit(cache=True, nogil=True)
 def exact_free(p, y, z, ph, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc, counters, gk):
-    """Advance y exactly from t, in any phase, to t_end or to where |ẋ2| falls to ``v_band`` v_eps (the template's hook, see
-    sim/_kernel_template.py): steps, switches with their bookkeeping, window maxima of the contact force and the
+    """Advance y exactly from t, in any phase, to t_end or to where |ẋ2| falls to ``v_band`` v_eps (the template's
+    hook, see sim/_kernel_template.py): steps, switches with their bookkeeping, window maxima of the contact force and the
     deceleration (when ``record``), per-cycle extremes of the bounded coordinates (row ``cyc`` of bmin/bmax).
     Returns (time reached, phase)."""
     h = gk[G_INFO, 0]

@@ -21,8 +21,8 @@ import math
 import numpy as np
 
 from sim.exact import effects_handled
-from sim.exact.taylor import (NT, eval_state, flow_tables, max_on, min_onset, pack_rows, row_poly, row_times, series,
-                               work_integral)
+from sim.exact.taylor import (NT, eval_state, flow_tables, max_on, min_onset, pack_rows, row_dot, row_poly, row_times,
+                               series, work_integral)
 from sim.integrator import N_OBS, S_RTOL, _track, widen_extremes
 from sim.layout import GK_ROWS, WK_ROWS
 from sim.jit import njit  # numba is imported on first use (sim/jit.py)
@@ -126,15 +126,6 @@ def make_workspace(p, period, s, ny):
     return np.empty((WK_ROWS, ny)), gk
 
 
-@njit(cache=True, inline="always")
-def _grow(gk, row, z):
-    """Row ``row`` of gk (an index: no array view) · z."""
-    acc = 0.0
-    for i in range(NZ):
-        acc += gk[row, i] * z[i]
-    return acc
-
-
 @njit(cache=True, nogil=True)
 def exact_ok(t, y, z, ph, p, gk):
     """The hook's condition (gk: the workspace, unused here): the free flight (phase 0) is exact."""
@@ -187,25 +178,25 @@ def exact_free(p, y, z, ph, t, t_end, period, s, atol, record, acc, bmin, bmax, 
         need = not full
         if full:
             for i in range(NZ):
-                z1[i] = _grow(gk, G_PHI + i, zz)
+                z1[i] = row_dot(gk, G_PHI + i, zz, NZ)
             # an onset is possible where a guard changes sign or turns from rising to falling (a maximum inside);
             # a maximum of the deceleration, where its derivative does
             for r in (R_GD, R_GH):
                 eta = eta_d if r == R_GD else eta_h
-                ga = _grow(gk, G_R + r, zz) - eta
-                gb = _grow(gk, G_R + r, z1) - eta
+                ga = row_dot(gk, G_R + r, zz, NZ) - eta
+                gb = row_dot(gk, G_R + r, z1, NZ) - eta
                 if (ga > 0.0) != (gb > 0.0):
                     need = True
-                elif _grow(gk, G_R + r + 2, zz) * _grow(gk, G_R + r + 2, z1) < 0.0:
+                elif row_dot(gk, G_R + r + 2, zz, NZ) * row_dot(gk, G_R + r + 2, z1, NZ) < 0.0:
                     need = True
-            if record and _grow(gk, G_R + R_DA, zz) > 0.0 and _grow(gk, G_R + R_DA, z1) <= 0.0:
+            if record and row_dot(gk, G_R + R_DA, zz, NZ) > 0.0 and row_dot(gk, G_R + R_DA, z1, NZ) <= 0.0:
                 need = True
         th_end = 1.0
         onset = False
         if not need:
             dw = 0.0
             for i in (IC, IS):       # M's only non-zero rows
-                dw += zz[i] * _grow(gk, G_M + i, zz)
+                dw += zz[i] * row_dot(gk, G_M + i, zz, NZ)
             w += dw
         else:
             nt = series(gk[G_AV:G_AV + NZ], gk[G_AC:G_AC + NZ], zz, L, C, ityp)
@@ -225,7 +216,7 @@ def exact_free(p, y, z, ph, t, t_end, period, s, atol, record, acc, bmin, bmax, 
                     acc[4] = bd
         t_new = t_cur + th_end * L if onset else t_cur + L
         if record:
-            de = _grow(gk, G_R + R_D, z1)
+            de = row_dot(gk, G_R + R_D, z1, NZ)
             if de > acc[4]:
                 acc[4] = de
         for i in range(NZ):

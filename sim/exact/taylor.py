@@ -146,6 +146,15 @@ def dot(r, z):
     return acc
 
 
+@njit(cache=True, inline="always")
+def row_dot(M, row, z, n):
+    """M[row, :n] · z[:n], the row given by its index: no array view, so no reference counting in a step loop."""
+    acc = 0.0
+    for i in range(n):
+        acc += M[row, i] * z[i]
+    return acc
+
+
 @njit(cache=True)
 def row_poly(r, C, a, nt):
     """a[k] = r · C[k] for k < nt, 0 beyond (the polynomial of the quantity with row r)."""
@@ -273,18 +282,14 @@ def work_integral(C, th, L, f0, nt, pw, i_force, i_vel, i_rel=-1):
     by term (Horner in θ; pw: scratch of 2 NT + 1)."""
     for n in range(2 * nt - 1):
         pw[n] = 0.0
-    if i_rel < 0:
-        for j in range(nt):
-            cj = C[j, i_force]
-            if cj != 0.0:
-                for k in range(nt):
-                    pw[j + k] += cj * C[k, i_vel]
-    else:
-        for j in range(nt):
-            cj = C[j, i_force]
-            if cj != 0.0:
-                for k in range(nt):
-                    pw[j + k] += cj * (C[k, i_vel] - C[k, i_rel])
+    for j in range(nt):
+        cj = C[j, i_force]
+        if cj != 0.0:
+            for k in range(nt):
+                v = C[k, i_vel]
+                if i_rel >= 0:           # loop-invariant: hoisted; without i_rel the product is bit for bit the same
+                    v -= C[k, i_rel]
+                pw[j + k] += cj * v
     acc = 0.0
     for n in range(2 * nt - 2, -1, -1):
         acc = acc * th + pw[n] * INV[n]

@@ -6,7 +6,8 @@ Discrete states z = [xp, xf] (sandstone crater floor and unloading end point).
 Phases: metal 0 free / 1 contact; sandstone 0 free / 1 loading / 2 unloading.
 
 Every phase is linear where the seal friction is ± pm (exactly from |v2| = 20 v_eps, to rtol pm / 100 from a V v_eps
-set by the tolerance, ``sim.exact.indenter.v_band``): ``sim/exact/indenter.py`` propagates it exactly there and the DOPRI5 steps run across the shaker body's velocity reversals (``method`` "auto", "exact").
+set by the tolerance, ``sim.exact.indenter.v_band``): ``sim/exact/indenter.py`` propagates it exactly there and the
+DOPRI5 steps run across the shaker body's velocity reversals (``method`` "auto", "exact").
 
 Effects (MODELS.md §6; all off at their default 0):
   shaker_coil (tau [s], beta [N s/m]), rate_stiffening (alpha [s/m]), guide_friction (mu [N]),
