@@ -147,17 +147,31 @@ def test_friction_band_edge_follows_the_tolerance():
         assert 2.0 / (math.exp(2.0 * v) + 1.0) <= hy.BAND_TOL * rtol
         assert 2.0 / (math.exp(2.0 * (v - 0.01)) + 1.0) > hy.BAND_TOL * rtol
     assert hy.v_band(1e-7) == pytest.approx(10.71, abs=0.01)        # the edge README.md quotes
-    # never wider than where tanh rounds to ±1 (the friction bit-exact), in Python and in numba's tanh alike
+    # never wider than where the model's tanh rounds to ±1 (the friction bit-exact), in Python and in numba alike
     assert hy.v_band(1e-17) == hy.V_EXACT
     assert math.tanh(hy.V_EXACT) == 1.0 and math.tanh(-hy.V_EXACT) == -1.0
     assert hy.V_HYST > 0.0
-    from sim.jit import njit
+    veps = 1e-4
+    assert ind._sgn(hy.V_EXACT * veps, veps) == 1.0 and ind._sgn(-hy.V_EXACT * veps, veps) == -1.0
+    assert ind._sgn.py_func(hy.V_EXACT * veps, veps) == 1.0
 
-    @njit
-    def t(x):
-        return math.tanh(x)
 
-    assert t(hy.V_EXACT) == 1.0 and t(-hy.V_EXACT) == -1.0
+def test_friction_sign_is_tanh():
+    # the model's regularised sign (1 - e) / (1 + e), e = exp(-2|x|), against libm's tanh (accurate to < 1 ulp):
+    # within 2.3e-16 absolute everywhere, odd, 0 at 0, monotone, ±1 exactly from |x| = 18.72 (e < 2^-54) on
+    x = np.concatenate([np.linspace(-25.0, 25.0, 200_001), np.logspace(-12.0, 1.5, 20_001)])
+    veps = 1.0                      # x / veps = x exactly
+    f = np.array([ind._sgn(v * veps, veps) for v in x])
+    assert np.max(np.abs(f - np.tanh(x))) <= 2.3e-16
+    assert np.all(np.array([ind._sgn(-v * veps, veps) for v in x]) == -f)
+    assert ind._sgn(0.0, veps) == 0.0
+    grid = f[:200_001]
+    assert np.all(np.diff(grid) >= 0.0)
+    assert ind._sgn(18.72 * veps, veps) == 1.0 and ind._sgn(18.70 * veps, veps) < 1.0
+    # beyond V_ONE it returns ± 1 without the exp: the values the exp form has there (and far out, where exp underflows)
+    e = math.exp(-2.0 * ind.V_ONE)
+    assert (1.0 - e) / (1.0 + e) == 1.0 and ind.V_ONE < hy.V_EXACT
+    assert ind._sgn(1e3, veps) == 1.0 and ind._sgn(-1e300, veps) == -1.0
 
 
 def test_step_hint_plans_the_approach_to_a_reversal():

@@ -58,7 +58,8 @@ EVERY_PHASE = False
 HANDLED_EFFECT_PARAMS: tuple[str, ...] = ()
 """No effect: each of §6's effects makes a phase nonlinear (or, shaker_coil, adds a state) -> numerical path."""
 V_EXACT = 20.0
-"""|ẋ2| / v_eps from which tanh rounds to ± 1 in double precision (so does anything ≥ 19.1): the band's widest edge."""
+"""|ẋ2| / v_eps from which the model's tanh rounds to ± 1 in double precision (from 18.72 on; libm's from 19.06): the
+band's widest edge."""
 BAND_TOL = 1e-2
 """The friction is taken as ± pm where pm tanh(ẋ2 / v_eps) differs from it by at most BAND_TOL rtol pm (``v_band``)."""
 V_HYST = 1.0

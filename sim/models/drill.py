@@ -71,49 +71,51 @@ def _pc_expr(y, p):
 def _rhs_at(t, y, ph, p, dy):
     """The equations of motion; returns the contact force Pc [N] (``observe`` records it).
 
-    Written on local scalars, with the branchy helpers taking scalars only: an inlined helper that takes an
-    array costs numba a reference-count increment and decrement per array where its branches split the code
-    (10 % of a drill run before; the expressions, and so every result bit, are unchanged)."""
+    Written on local scalars read first, with the branchy helpers taking scalars only, and dy written last and
+    unconditionally: an inlined helper that takes an array costs numba a reference-count increment and decrement per
+    array where its branches split the array's live range (10 % of a drill run before; the expressions, and so
+    every result bit, are unchanged)."""
     x1, v1, x2, v2, x3, v3 = y[IX1], y[IV1], y[IX2], y[IV2], y[IX3], y[IV3]
-    xt, xb = y[IXT], y[IXB]
-    tau = p[TAU]
+    xt, xb, fh_y = y[IXT], y[IXB], y[IFH]
+    m1, m2, m3 = p[M1], p[M2], p[M3]
+    k1, k2, k3 = p[K1], p[K2], p[K3]
+    c1, c2, c3 = p[C1], p[C2], p[C3]
+    pr, gap, fs, f0, freq, gamma = p[PR], p[GAP], p[FS], p[F0], p[FREQ], p[GAMMA]
+    tau, beta, alpha, mu, kappa, veps = p[TAU], p[BETA], p[ALPHA], p[MU], p[KAPPA], p[VEPS]
     if tau > 0.0:            # harmonic force on M1: the shaker coil's state Fh, or F0 cos Ωt (algebraic coil for τ = 0)
-        fh = y[IFH]
+        fh = fh_y
+        dfh = (f0 * math.cos(2.0 * math.pi * freq * t) - beta * (v1 - v2) - fh_y) / tau
     else:
-        fh = p[F0] * math.cos(2.0 * math.pi * p[FREQ] * t) - p[BETA] * (v1 - v2)
+        fh = f0 * math.cos(2.0 * math.pi * freq * t) - beta * (v1 - v2)
+        dfh = 0.0
     if ph == 0:
         pc = 0.0
+        dxt = -(k1 / c1) * (xt - xb)
+        dxb = 0.0
     elif ph == 1:
-        pc = _pc_at(p[K1], p[ALPHA], p[C1], x1, v1, xb)
+        pc = _pc_at(k1, alpha, c1, x1, v1, xb)
+        dxt = v1
+        dxb = 0.0
     else:
-        pc = _pr_at(p[PR], p[GAMMA], p[GAP], xb)
+        pc = _pr_at(pr, gamma, gap, xb)
+        dxt = v1
+        dxb = (_pc_at(k1, alpha, c1, x1, v1, xb) - pc) / c1
     d12 = x1 - x2
     # bit-exciter link: damper, (hardening) spring, guide friction; each effect term is exactly 0 when off (the
     # friction's tanh is not even evaluated then: it was a libm call per stage for nothing)
-    s12 = p[C2] * (v1 - v2) + p[K2] * d12 * (1.0 + p[KAPPA] * d12 * d12)
-    mu = p[MU]
+    s12 = c2 * (v1 - v2) + k2 * d12 * (1.0 + kappa * d12 * d12)
     if mu != 0.0:
-        s12 += mu * math.tanh((v1 - v2) / p[VEPS])
-    s23 = p[C3] * (v2 - v3) + p[K3] * (x2 - x3)
+        s12 += mu * math.tanh((v1 - v2) / veps)
+    s23 = c3 * (v2 - v3) + k3 * (x2 - x3)
     dy[IX1] = v1
-    dy[IV1] = (fh - s12 - pc) / p[M1]
+    dy[IV1] = (fh - s12 - pc) / m1
     dy[IX2] = v2
-    dy[IV2] = (p[FS] + s12 - s23) / p[M2]
+    dy[IV2] = (fs + s12 - s23) / m2
     dy[IX3] = v3
-    dy[IV3] = s23 / p[M3]
-    if ph == 0:
-        dy[IXT] = -(p[K1] / p[C1]) * (xt - xb)
-        dy[IXB] = 0.0
-    elif ph == 1:
-        dy[IXT] = v1
-        dy[IXB] = 0.0
-    else:
-        dy[IXT] = v1
-        dy[IXB] = (_pc_at(p[K1], p[ALPHA], p[C1], x1, v1, xb) - pc) / p[C1]
-    if tau > 0.0:
-        dy[IFH] = (p[F0] * math.cos(2.0 * math.pi * p[FREQ] * t) - p[BETA] * (v1 - v2) - y[IFH]) / tau
-    else:
-        dy[IFH] = 0.0
+    dy[IV3] = s23 / m3
+    dy[IXT] = dxt
+    dy[IXB] = dxb
+    dy[IFH] = dfh
     dy[IW] = fh * v1
     return pc
 
@@ -125,16 +127,22 @@ def rhs(t, y, z, ph, p, dy):
 
 @njit(cache=True)
 def guards(t, y, z, ph, p, g):
-    for i in range(g.shape[0]):
-        g[i] = -1.0
+    """The phase's guards (MODELS.md §2), from scalars read first (``_rhs_at``); a phase with one guard sets the other
+    to -1."""
+    x1, v1, xt, xb = y[IX1], y[IV1], y[IXT], y[IXB]
+    pc = _pc_at(p[K1], p[ALPHA], p[C1], x1, v1, xb)
+    pr = _pr_at(p[PR], p[GAMMA], p[GAP], xb)
     if ph == 0:
-        g[0] = y[IX1] - y[IXT]                      # I -> II/III: bit reaches the rock surface
+        a = x1 - xt                                 # I -> II/III: bit reaches the rock surface
+        b = -1.0
     elif ph == 1:
-        pc = _pc_expr(y, p)
-        g[0] = -pc                                  # II -> I: contact force falls to zero
-        g[1] = pc - _pr_eff(y, p)                   # II -> III: force reaches the threshold
+        a = -pc                                     # II -> I: contact force falls to zero
+        b = pc - pr                                 # II -> III: force reaches the threshold
     else:
-        g[0] = _pr_eff(y, p) - _pc_expr(y, p)       # III -> II: slider velocity falls to zero
+        a = pr - pc                                 # III -> II: slider velocity falls to zero
+        b = -1.0
+    g[0] = a
+    g[1] = b
 
 
 @njit(cache=True)

@@ -44,6 +44,12 @@ GUARD_STATES = (ITH, IOM)     # the states the guards read (θ, θ̇): the only 
 
 
 @njit(cache=True, inline="always")
+def _force_at(ki, alpha, ci, d, dd):
+    """Spring–dashpot force expression ki (1 + α max(δ̇,0)) δ + ci δ̇ [N] (unclamped), from scalars."""
+    return ki * (1.0 + alpha * max(dd, 0.0)) * d + ci * dd
+
+
+@njit(cache=True, inline="always")
 def _delta(y, p, s, c):
     """Penetration δ = l sin θ − gap [m] and its rate δ̇ = l θ̇ cos θ [m/s] (s, c = sin θ, cos θ)."""
     return p[LEN] * s - p[GAP], p[LEN] * y[IOM] * c
@@ -51,9 +57,9 @@ def _delta(y, p, s, c):
 
 @njit(cache=True, inline="always")
 def _force_expr(y, p, s, c):
-    """Spring–dashpot force expression ki (1 + α max(δ̇,0)) δ + ci δ̇ [N] (unclamped)."""
+    """``_force_at`` of the state (s, c = sin θ, cos θ)."""
     d, dd = _delta(y, p, s, c)
-    return p[KI] * (1.0 + p[ALPHA] * max(dd, 0.0)) * d + p[CI] * dd
+    return _force_at(p[KI], p[ALPHA], p[CI], d, dd)
 
 
 @njit(cache=True, inline="always")
@@ -67,7 +73,8 @@ def _thdd(y, p, fi, s, c, sin_wt):
 @njit(cache=True, inline="always")
 def _rhs_at(y, ph, p, dy, s, c, sin_wt):
     """Fill dy given s, c = sin θ, cos θ and sin Ωt; returns the contact force expression fi [N] (0 out of contact)."""
-    fi = _force_expr(y, p, s, c) if ph > 0 else 0.0
+    fe = _force_expr(y, p, s, c)       # before the branch: a branch that splits an array's live range costs numba a
+    fi = fe if ph > 0 else 0.0          # reference-count increment and decrement per array (a few flops cost less)
     om = 2.0 * math.pi * p[FREQ]
     dy[ITH] = y[IOM]
     dy[IOM] = _thdd(y, p, fi, s, c, sin_wt)
@@ -84,19 +91,22 @@ def rhs(t, y, z, ph, p, dy):
 @njit(cache=True)
 def guards(t, y, z, ph, p, g):
     th = y[ITH]
-    if ph == 0 and th > -math.pi and p[LEN] * th < p[GAP]:
+    om_ = y[IOM]
+    lenp, gap, ki, ci, alpha = p[LEN], p[GAP], p[KI], p[CI], p[ALPHA]     # read before the branches (``_rhs_at``)
+    if ph == 0 and th > -math.pi and lenp * th < gap:
         # free flight, certainly short of the stop: for θ ∈ (−π, 0) sin θ < 0, and for θ ≥ 0 sin θ ≤ θ, so
         # δ = l sin θ − gap < 0 and the guard min(δ, ·) is negative.  l θ − gap [m] is then returned instead of the
         # exact guard (same sign, no sin/cos: most free-flight guard checks, 4 per step, cost no libm call; the
         # exact guard is evaluated from l θ ≥ gap on, where a crossing can be, so switches are found as before and
         # located within event_tol; ×1.10 on a pendulum run, labels within 1.5e-10 of the exact-guard kernel's).
         # The bound stands for both indicators of the shared two-indicator guard
-        bound = p[LEN] * th - p[GAP]
-        two_indicator_guard(g, bound, bound, ph)
-        return
-    s, c = math.sin(th), math.cos(th)
-    d, _ = _delta(y, p, s, c)
-    two_indicator_guard(g, d, _force_expr(y, p, s, c) / p[KI], ph)
+        d = lenp * th - gap
+        ind = d
+    else:
+        s, c = math.sin(th), math.cos(th)
+        d = lenp * s - gap
+        ind = _force_at(ki, alpha, ci, d, lenp * om_ * c) / ki
+    two_indicator_guard(g, d, ind, ph)
 
 
 @njit(cache=True)

@@ -45,25 +45,31 @@ def _hc_factor(y, p):
 
 
 @njit(cache=True, inline="always")
-def _force_expr(y, p):
-    """ki (1 + α max(ẋ2,0)) max(δ,0)^ni (1 + λi ẋ2) [N] (not clamped in the damping factor)."""
-    d = max(y[IX2] - p[GAP], 0.0)
-    return p[KI] * (1.0 + p[ALPHA] * max(y[IV2], 0.0)) * d ** p[NI] * _hc_factor(y, p)
+def _force_at(ki, alpha, ni, lam, gap, x2, v2):
+    """ki (1 + α max(ẋ2,0)) max(δ,0)^ni (1 + λi ẋ2) [N] (not clamped in the damping factor), from scalars."""
+    d = max(x2 - gap, 0.0)
+    return ki * (1.0 + alpha * max(v2, 0.0)) * d ** ni * (1.0 + lam * v2)
 
 
 @njit(cache=True)
 def rhs(t, y, z, ph, p, dy):
+    """The equations of motion, from scalars read before the contact branch and dy written after it: an inlined
+    function whose branch splits an array's live range costs numba a reference-count increment and decrement per
+    array on every stage (the expressions, and so every result bit, are unchanged)."""
+    x1, v1, x2, v2 = y[IX1], y[IV1], y[IX2], y[IV2]
+    m1, k1, c1, m2, k2, c2 = p[M1], p[K1], p[C1], p[M2], p[K2], p[C2]
+    ki, lam, ni, f0, gap, alpha, kappa = p[KI], p[LAM], p[NI], p[F0], p[GAP], p[ALPHA], p[KAPPA]
     om = 2.0 * math.pi * p[FREQ]
-    fi = _force_expr(y, p) if ph > 0 else 0.0
-    phi = y[IX2] - y[IX1]
-    dphi = y[IV2] - y[IV1]
-    inner = p[C2] * dphi + p[K2] * phi * (1.0 + p[KAPPA] * phi * phi)
-    f = p[F0] * math.sin(om * t)
-    dy[IX1] = y[IV1]
-    dy[IV1] = (f - p[C1] * y[IV1] - p[K1] * y[IX1] + inner) / p[M1]
-    dy[IX2] = y[IV2]
-    dy[IV2] = (-inner - fi) / p[M2]
-    dy[IW] = f * y[IV1]
+    fi = _force_at(ki, alpha, ni, lam, gap, x2, v2) if ph > 0 else 0.0
+    phi = x2 - x1
+    dphi = v2 - v1
+    inner = c2 * dphi + k2 * phi * (1.0 + kappa * phi * phi)
+    f = f0 * math.sin(om * t)
+    dy[IX1] = v1
+    dy[IV1] = (f - c1 * v1 - k1 * x1 + inner) / m1
+    dy[IX2] = v2
+    dy[IV2] = (-inner - fi) / m2
+    dy[IW] = f * v1
 
 
 @njit(cache=True)
@@ -79,7 +85,9 @@ def on_event(t, y, z, ph, p, k):
 @njit(cache=True)
 def observe(t, y, z, ph, p, obs, dy):
     rhs(t, y, z, ph, p, dy)
-    obs[0] = max(_force_expr(y, p), 0.0) if ph > 0 else 0.0
+    ki, alpha, ni, lam, gap, x2, v2 = p[KI], p[ALPHA], p[NI], p[LAM], p[GAP], y[IX2], y[IV2]     # before the branch
+    fi = _force_at(ki, alpha, ni, lam, gap, x2, v2) if ph > 0 else 0.0
+    obs[0] = max(fi, 0.0)
     obs[1] = dy[IV2]
     obs[2] = y[IX2]
     obs[3] = 0.0
