@@ -138,10 +138,17 @@ def _metal_expr(y, p):
     return p[K1] * _stiff_factor(y[IV1], p) * (y[IX1] - p[GAP]) + p[C1] * y[IV1]
 
 
-@njit(cache=True)
-def metal_rhs(t, y, z, ph, p, dy):
+@njit(cache=True, inline="always")
+def _metal_rhs_at(t, y, ph, p, dy):
+    """The equations of motion with the metal's contact; returns its force expression [N] (``metal_observe``)."""
     fe = _metal_expr(y, p)          # read before the branch (``_body``)
     _body(t, y, p, fe if ph > 0 else 0.0, dy)
+    return fe
+
+
+@njit(cache=True)
+def metal_rhs(t, y, z, ph, p, dy):
+    _metal_rhs_at(t, y, ph, p, dy)
 
 
 @njit(cache=True)
@@ -156,8 +163,7 @@ def metal_on_event(t, y, z, ph, p, k):
 
 @njit(cache=True)
 def metal_observe(t, y, z, ph, p, obs, dy):
-    metal_rhs(t, y, z, ph, p, dy)
-    fe = _metal_expr(y, p)          # read before the branch (``_body``)
+    fe = _metal_rhs_at(t, y, ph, p, dy)     # the force expression, computed once with the derivatives
     obs[0] = max(fe, 0.0) if ph > 0 else 0.0
     obs[1] = dy[IV1]
     obs[2] = y[IX1]
@@ -263,9 +269,17 @@ def _floor(y, z, ph, p):
     return xp
 
 
+@njit(cache=True, inline="always")
+def _sand_rhs_at(t, y, z, ph, p, dy):
+    """The equations of motion with the sandstone's reaction; returns the reaction [N] (``sand_observe``)."""
+    fr = _sand_force(y, z, ph, p)
+    _body(t, y, p, fr, dy)
+    return fr
+
+
 @njit(cache=True)
 def sand_rhs(t, y, z, ph, p, dy):
-    _body(t, y, p, _sand_force(y, z, ph, p), dy)
+    _sand_rhs_at(t, y, z, ph, p, dy)
 
 
 @njit(cache=True)
@@ -309,8 +323,7 @@ def sand_on_event(t, y, z, ph, p, k):
 
 @njit(cache=True)
 def sand_observe(t, y, z, ph, p, obs, dy):
-    sand_rhs(t, y, z, ph, p, dy)
-    obs[0] = _sand_force(y, z, ph, p)
+    obs[0] = _sand_rhs_at(t, y, z, ph, p, dy)      # the reaction, computed once with the derivatives
     obs[1] = dy[IV1]
     obs[2] = y[IX1]
     obs[3] = _floor(y, z, ph, p)

@@ -51,11 +51,12 @@ def _force_at(ki, alpha, ni, lam, gap, x2, v2):
     return ki * (1.0 + alpha * max(v2, 0.0)) * d ** ni * (1.0 + lam * v2)
 
 
-@njit(cache=True)
-def rhs(t, y, z, ph, p, dy):
-    """The equations of motion, from scalars read before the contact branch and dy written after it: an inlined
-    function whose branch splits an array's live range costs numba a reference-count increment and decrement per
-    array on every stage (the expressions, and so every result bit, are unchanged)."""
+@njit(cache=True, inline="always")
+def _rhs_at(t, y, ph, p, dy):
+    """The equations of motion; returns the contact force expression fi [N] (0 out of contact; ``observe`` records
+    it).  From scalars read before the contact branch and dy written after it: an inlined function whose branch
+    splits an array's live range costs numba a reference-count increment and decrement per array on every stage (the
+    expressions, and so every result bit, are unchanged)."""
     x1, v1, x2, v2 = y[IX1], y[IV1], y[IX2], y[IV2]
     m1, k1, c1, m2, k2, c2 = p[M1], p[K1], p[C1], p[M2], p[K2], p[C2]
     ki, lam, ni, f0, gap, alpha, kappa = p[KI], p[LAM], p[NI], p[F0], p[GAP], p[ALPHA], p[KAPPA]
@@ -70,6 +71,12 @@ def rhs(t, y, z, ph, p, dy):
     dy[IX2] = v2
     dy[IV2] = (-inner - fi) / m2
     dy[IW] = f * v1
+    return fi
+
+
+@njit(cache=True)
+def rhs(t, y, z, ph, p, dy):
+    _rhs_at(t, y, ph, p, dy)
 
 
 @njit(cache=True)
@@ -84,10 +91,7 @@ def on_event(t, y, z, ph, p, k):
 
 @njit(cache=True)
 def observe(t, y, z, ph, p, obs, dy):
-    rhs(t, y, z, ph, p, dy)
-    ki, alpha, ni, lam, gap, x2, v2 = p[KI], p[ALPHA], p[NI], p[LAM], p[GAP], y[IX2], y[IV2]     # before the branch
-    fi = _force_at(ki, alpha, ni, lam, gap, x2, v2) if ph > 0 else 0.0
-    obs[0] = max(fi, 0.0)
+    obs[0] = max(_rhs_at(t, y, ph, p, dy), 0.0)     # the contact force, computed once with the derivatives
     obs[1] = dy[IV2]
     obs[2] = y[IX2]
     obs[3] = 0.0
