@@ -1,95 +1,274 @@
-"""Identification matrix of ``vibro diagnose`` on ``vibro synth`` data: for a system, one dataset per §6 effect,
-a control (no effect) and one case of physics outside the library; each is diagnosed at the default settings.
+"""Identification matrix of ``vibro diagnose`` on rig logs it did not make.
 
-``python -m bench.identification --system drill [--threads 2] [--cases tip_blunting control]``
-writes bench/results/identification_<system>.json (or --out) and prints the markdown table of README.md
-(effect -> identified, fitted value vs truth, held-out error before/after, noise floor, wall time).
+Every system × (every §6 effect it supports, a control, physics outside the library) × noise models × seeds: the
+log is written by the independent generator in ``tests/independent`` (scipy reference with event location, each
+signal sampled at the DAQ's own instants, the noise a rig makes), diagnosed with the default settings, and the
+verdict compared with the truth: a control must be "nothing missing", an effect must be selected with its
+parameters, outside physics must be "unexplained".
+
+    python -m bench.identification                      # the whole matrix (hours on 2 cores; resumable)
+    python -m bench.identification --quick              # one seed, one noise model
+    python -m bench.identification --systems drill --cases control shaker_coil --noise rig --seeds 0
+
+Logs and per-case results are kept under ``bench/results/identification/`` (an interrupted run resumes where it
+stopped; ``--fresh`` starts over); the summary goes to bench/results/identification.json and the tables to
+docs/identification.md, between its generated-table markers.  Thresholds of the verdict can be replayed on the
+stored statistics without diagnosing again (``--replay``): how docs/diagnose.md derives them.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import tempfile
+import math
+import sys
 import time
 from pathlib import Path
 
+ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).resolve().parent / "results"
-SEEDS = {"control": 2, "outside": 3}       # effect datasets use seed 1 (as the indenter's slow tests)
+WORK = RESULTS / "identification"
+DOC = ROOT / "docs" / "identification.md"
+START, END = "<!-- identification:start -->", "<!-- identification:end -->"
+RULE_DOC = ROOT / "docs" / "diagnose.md"
+RULE_START, RULE_END = "<!-- verdict-stats:start -->", "<!-- verdict-stats:end -->"
+NOISE = ("white2", "rig")
+SEEDS = (0, 1)
+PARAM_TOL = 0.05       # a selected effect's parameters within 5 % of the truth (where identifiable)
 
 
 def cases(system: str) -> list[str]:
-    """Every §6 effect of the system's model, then 'control' and 'outside'."""
-    import sim
+    """Every §6 effect of the independent rig, the control and every outside case."""
+    from tests.independent.rigs import RIGS
 
-    return [*sim.get_model(system).effects, "control", "outside"]
+    rig = RIGS[system]
+    return [*rig.effects, "control", *(f"outside:{o}" for o in rig.outside)]
 
 
-def run_case(system: str, case: str, threads: int | None, settings: dict | None = None) -> dict:
-    """Synthesize (rig defaults) and diagnose one case; returns the row of the table."""
+def spec_of(system: str, case: str, noise: str, seed: int):
+    from tests.independent.generator import LogSpec
+
+    if case == "control":
+        return LogSpec(system, noise=noise, seed=seed)
+    if case.startswith("outside:"):
+        return LogSpec(system, outside=case.split(":", 1)[1], noise=noise, seed=seed)
+    return LogSpec(system, effect=case, noise=noise, seed=seed)
+
+
+def expected(case: str) -> str:
+    return "nothing missing" if case == "control" else ("unexplained" if case.startswith("outside:") else "selected")
+
+
+def run_case(system: str, case: str, noise: str, seed: int, threads: int, settings: dict | None = None) -> dict:
+    """Generate (or reuse) the log and diagnose it; the row of the matrix with every statistic of the verdict."""
+    from tests.independent.generator import generate
+
+    spec = spec_of(system, case, noise, seed)
+    data = WORK / "logs" / spec.name
+    truth_file = WORK / "logs" / f"{spec.name}.truth.json"
+    if not truth_file.exists():
+        if data.exists():
+            import shutil
+
+            shutil.rmtree(data)
+        t0 = time.time()
+        generate(spec, data, truth_file, threads=threads)
+        gen_s = time.time() - t0
+    else:
+        gen_s = None
+    info = json.loads(truth_file.read_text())
+    from pipeline.datasets.measured import load_dataset
     from pipeline.diagnosis.driver import diagnose
     from pipeline.diagnosis.run import DiagnoseConfig
-    from pipeline.datasets.measured import load_dataset, write_dataset
-    from pipeline.datasets.synth import SynthConfig, resolve_effects, synthesize
 
-    effects = resolve_effects(system, {case: None}) if case not in ("control", "outside") else {}
-    cfg = SynthConfig(system=system, effects=effects, outside="mount_resonance" if case == "outside" else None,
-                      seed=SEEDS.get(case, 1), n_threads=threads)
-    ds, info = synthesize(cfg)
-    with tempfile.TemporaryDirectory() as tmp:
-        write_dataset(ds, Path(tmp) / "data")
-        data = load_dataset(Path(tmp) / "data")
-        t0, c0 = time.time(), time.process_time()
-        rep = diagnose(data, Path(tmp) / "diag", DiagnoseConfig(n_threads=threads, **(settings or {})),
-                       log=lambda s: None)
-        wall, cpu = time.time() - t0, time.process_time() - c0
+    ds = load_dataset(data)
+    out = WORK / "diagnoses" / spec.name
+    if out.exists():
+        import shutil
+
+        shutil.rmtree(out)
+    t0, c0 = time.time(), time.process_time()
+    rep = diagnose(ds, out, DiagnoseConfig(n_threads=threads, **(settings or {})), log=lambda s: None)
+    wall, cpu = time.time() - t0, time.process_time() - c0
     r = rep["systems"][system]
-    sel = r["selected"]
-    fitted = {}
-    if sel:
-        fitted = next(c for c in r["candidates"] if c["effect"] == sel)["params"]
-    expected = case if case not in ("control", "outside") else None
-    return {"case": case, "expected": expected, "selected": sel, "explained": r["explained"],
-            "correct": sel == expected and (r["explained"] if case != "outside" else not r["explained"]),
-            "truth": {k: info["truth"][k] for k in effects}, "fitted": fitted,
-            "calibrated": r["calibrated"], "truth_base": {k: v for k, v in info["truth"].items() if k not in effects},
-            "base_error": r["base_error"], "final_error": r["final_error"], "noise_floor": r["noise_floor"],
-            "base_nrms": r["base_nrms"], "final_nrms": r["final_nrms"], "n_simulations": r["n_simulations"],
-            "wall_time_s": round(wall, 1), "cpu_time_s": round(cpu, 1)}
+    truth = info["truth"]
+    fitted, errors = {}, {}
+    effect = case if expected(case) == "selected" else None
+    if effect and r["selected"] == effect:
+        sel = next(c for c in r["candidates"] if c["effect"] == effect)
+        fitted = sel["params"]
+        errors = {k: fitted[k] / truth[k] - 1.0 for k in fitted if k in truth}
+    base_err = {k: r["calibrated"][k] / truth[k] - 1.0 for k in info["calibratable"] if k in truth}
+    verdict = r["verdict"]
+    correct = (verdict == expected(case)) and (effect is None or r["selected"] == effect)
+    return {"system": system, "case": case, "noise": noise, "seed": seed, "name": spec.name,
+            "expected": expected(case), "verdict": verdict, "selected": r["selected"], "leader": r["leader"],
+            "correct": bool(correct), "truth": {k: truth[k] for k in truth if k not in info["calibratable"]},
+            "fitted": fitted, "param_errors": errors, "base_param_errors": base_err,
+            "checks": r["call"], "candidates": r["candidates"],
+            "base_nrms": r["base_nrms"], "final_nrms": r["final_nrms"], "base_systematic": r["base_systematic"],
+            "final_systematic": r["final_systematic"], "base_error": r["base_error"], "final_error": r["final_error"],
+            "noise_floor": r["noise_floor"], "n_simulations": r["n_simulations"], "n_runs": r["n_runs"],
+            "heldout_n": r["heldout_n"],
+            "wall_time_s": round(wall, 1), "cpu_time_s": round(cpu, 1),
+            "generate_s": None if gen_s is None else round(gen_s, 1)}
+
+
+def replay(rows: list[dict], rule) -> list[dict]:
+    """The verdicts of ``rows`` under another VerdictRule, from their stored statistics (no diagnosis)."""
+    from pipeline.diagnosis.verdict import ModelStats, decide
+
+    out = []
+    for r in rows:
+        n = r["heldout_n"]
+        chi2_base = r["base_nrms"] ** 2 * n
+        base = ModelStats("base", 0.0, chi2_base, n, r["base_systematic"])
+        cands = [ModelStats(c["effect"], c["delta_score"], chi2_base - c["delta_chi2_heldout"], n, c["systematic"])
+                 for c in r["candidates"]]
+        v = decide(base, cands, rule)
+        effect = r["case"] if r["expected"] == "selected" else None
+        ok = v.kind == r["expected"] and (effect is None or v.selected == effect)
+        out.append({**r, "verdict": v.kind, "selected": v.selected, "leader": v.leader, "correct": ok})
+    return out
+
+
+def _fmt(x, spec=".3g") -> str:
+    return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
 
 
 def table(rows: list[dict]) -> str:
-    """Markdown table of the rows."""
-    out = ["| data made with | identified | fitted (truth) | held-out error before → after (noise floor) | "
-           "nrms before → after | time (CPU) |", "|---|---|---|---|---|---|"]
+    """The matrix as markdown: a summary per system and noise model, then every case."""
+    lines = ["| system | noise | right | controls 'nothing missing' | effects selected | outside 'unexplained' |"
+             " parameters within 5 % |", "|---|---|---|---|---|---|---|"]
+    keys = sorted({(r["system"], r["noise"]) for r in rows})
+    for system, noise in keys:
+        rs = [r for r in rows if r["system"] == system and r["noise"] == noise]
+
+        def frac(sel):
+            xs = [r for r in rs if sel(r)]
+            return f"{sum(r['correct'] for r in xs)}/{len(xs)}" if xs else "—"
+        par = [r for r in rs if r["param_errors"]]
+        lines.append(f"| {system} | {noise} | {frac(lambda r: True)} | {frac(lambda r: r['expected'] == 'nothing missing')} | "
+                     f"{frac(lambda r: r['expected'] == 'selected')} | {frac(lambda r: r['expected'] == 'unexplained')} | "
+                     f"{sum(all(abs(e) <= PARAM_TOL for e in r['param_errors'].values()) for r in par)}/{len(par)} |")
+    tot = len(rows)
+    right = sum(r["correct"] for r in rows)
+    lines.append(f"| **all** | | **{right}/{tot} ({100 * right / max(tot, 1):.0f} %)** | | | | |")
+    lines += ["", "| log | verdict | selected (leader) | effect parameters: fitted / truth − 1 | nrms base → final | "
+              "systematic base → final | noise floor | diagnosis wall (CPU) |", "|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        made = {"control": "control (no effect)", "outside": "outside: mount resonance"}.get(r["case"], r["case"])
-        ident = r["selected"] or ("nothing — explained" if r["explained"] else "nothing — **unexplained**")
         ok = "✓" if r["correct"] else "✗"
-        fit = ", ".join(f"{k} = {r['fitted'].get(k, float('nan')):.3g} ({v:.3g})" for k, v in r["truth"].items()) or "—"
-        out.append(f"| {made} | {ident} {ok} | {fit} | {r['base_error']:.3g} → {r['final_error']:.3g} "
-                   f"({r['noise_floor']:.3g}) | {r['base_nrms']:.3g} → {r['final_nrms']:.3g} | {r['wall_time_s']:.0f} s "
-                   f"({r.get('cpu_time_s', float('nan')):.0f} s) |")
-    return "\n".join(out)
+        pe = ", ".join(f"{k} {v:+.1%}" for k, v in r["param_errors"].items()) or "—"
+        lead = r["selected"] or (f"({r['leader']})" if r["leader"] else "—")
+        lines.append(f"| {r['name']} | {r['verdict']} {ok} | {lead} | {pe} | {_fmt(r['base_nrms'])} → "
+                     f"{_fmt(r['final_nrms'])} | {_fmt(r['base_systematic'])} → {_fmt(r['final_systematic'])} | "
+                     f"{_fmt(r['noise_floor'])} | {r['wall_time_s']:.0f} s ({r['cpu_time_s']:.0f} s) |")
+    return "\n".join(lines)
+
+
+def _spread(xs: list) -> str:
+    xs = sorted(x for x in xs if x is not None and math.isfinite(x))
+    if not xs:
+        return "—"
+    return f"{xs[0]:.3g} / {xs[len(xs) // 2]:.3g} / {xs[-1]:.3g}"
+
+
+def rule_table(rows: list[dict]) -> str:
+    """What each threshold of the verdict saw over the matrix (min / median / max): the statistics the rule's
+    thresholds are set against (docs/diagnose.md)."""
+    def lead(r):
+        name = r["leader"] or (r["candidates"][0]["effect"] if r["candidates"] else None)
+        return next((c for c in r["candidates"] if c["effect"] == name), None)
+
+    def true_c(r):
+        return next((c for c in r["candidates"] if c["effect"] == r["case"]), None)
+
+    ctl = [r for r in rows if r["expected"] == "nothing missing"]
+    eff = [r for r in rows if r["expected"] == "selected"]
+    out = [r for r in rows if r["expected"] == "unexplained"]
+    lines = ["| statistic (held-out) | controls: calibrated base | effects: the true effect's fit | "
+             "outside physics: best candidate |", "|---|---|---|---|",
+             f"| nrms (adequate ≤ explained_nrms) | {_spread([r['base_nrms'] for r in ctl])} | "
+             f"{_spread([true_c(r)['nrms'] for r in eff if true_c(r)])} | "
+             f"{_spread([lead(r)['nrms'] for r in out if lead(r)])} |",
+             f"| systematic error (adequate ≤ systematic_tol) | {_spread([r['base_systematic'] for r in ctl])} | "
+             f"{_spread([true_c(r)['systematic'] for r in eff if true_c(r)])} | "
+             f"{_spread([lead(r)['systematic'] for r in out if lead(r)])} |",
+             f"| best candidate's ΔBIC (improves ≥ bic_margin) | "
+             f"{_spread([-lead(r)['delta_score'] for r in ctl if lead(r)])} | "
+             f"{_spread([-true_c(r)['delta_score'] for r in eff if true_c(r)])} | "
+             f"{_spread([-lead(r)['delta_score'] for r in out if lead(r)])} |",
+             f"| best candidate's held-out Δχ² (improves ≥ test_margin) | "
+             f"{_spread([lead(r)['delta_chi2_heldout'] for r in ctl if lead(r)])} | "
+             f"{_spread([true_c(r)['delta_chi2_heldout'] for r in eff if true_c(r)])} | "
+             f"{_spread([lead(r)['delta_chi2_heldout'] for r in out if lead(r)])} |",
+             f"| base systematic error | {_spread([r['base_systematic'] for r in ctl])} | "
+             f"{_spread([r['base_systematic'] for r in eff])} | {_spread([r['base_systematic'] for r in out])} |",
+             "", f"Logs: {len(ctl)} controls, {len(eff)} effects, {len(out)} outside; min / median / max."]
+    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--system", default="drill")
-    p.add_argument("--cases", nargs="+", help="subset of the cases (effects, control, outside)")
-    p.add_argument("--threads", type=int)
-    p.add_argument("--out", help="results JSON (default bench/results/identification_<system>.json); rows of other "
-                                 "cases already there are kept")
+    p.add_argument("--systems", nargs="+", default=["drill", "indenter-metal", "indenter-sandstone", "pendulum", "rimd"])
+    p.add_argument("--cases", nargs="+", help="subset: effect names, control, outside:<name>")
+    p.add_argument("--noise", nargs="+", default=list(NOISE))
+    p.add_argument("--seeds", nargs="+", type=int, default=list(SEEDS))
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--quick", action="store_true", help="seed 0 and the first noise model only")
+    p.add_argument("--fresh", action="store_true", help="diagnose every case again (the logs are kept)")
+    p.add_argument("--replay", action="store_true", help="recompute verdicts from stored statistics only")
+    p.add_argument("--no-doc", action="store_true", help="do not rewrite docs/identification.md")
     a = p.parse_args(argv)
-    out = Path(a.out) if a.out else RESULTS / f"identification_{a.system}.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    old = json.loads(out.read_text()) if out.exists() else []
-    rows: list[dict] = []
-    for case in a.cases or cases(a.system):
-        rows.append(run_case(a.system, case, a.threads))
-        print(table(rows[-1:]).splitlines()[-1], flush=True)
-        keep = [r for r in old if r["case"] not in {x["case"] for x in rows}]
-        out.write_text(json.dumps(keep + rows, indent=2, default=float))     # after every case (long runs)
-    print(table(keep + rows))
+    if a.quick:
+        a.seeds, a.noise = a.seeds[:1], a.noise[:1]
+    WORK.mkdir(parents=True, exist_ok=True)
+    done_file = WORK / "rows.json"
+    done = {r["name"]: r for r in json.loads(done_file.read_text())} if done_file.exists() and not a.fresh else {}
+    todo = [(s, c, n, seed) for s in a.systems for c in (a.cases or cases(s)) if c in cases(s)
+            for n in a.noise for seed in a.seeds]
+    rows = []
+    for k, (s, c, n, seed) in enumerate(todo, 1):
+        name = spec_of(s, c, n, seed).name
+        if name in done and not a.replay:
+            rows.append(done[name])
+            continue
+        if a.replay:
+            if name in done:
+                rows.append(done[name])
+            continue
+        r = run_case(s, c, n, seed, a.threads)
+        done[name] = r
+        rows.append(r)
+        done_file.write_text(json.dumps(list(done.values()), indent=1, default=float))
+        print(f"[{k}/{len(todo)}] {name}: {r['verdict']} {'✓' if r['correct'] else '✗'} "
+              f"(selected {r['selected']}, nrms {_fmt(r['base_nrms'])} -> {_fmt(r['final_nrms'])}, "
+              f"systematic {_fmt(r['base_systematic'])} -> {_fmt(r['final_systematic'])}, {r['wall_time_s']:.0f} s)",
+              flush=True)
+    if a.replay:
+        from pipeline.diagnosis.run import DiagnoseConfig
+        from pipeline.diagnosis.verdict import VerdictRule
+
+        c = DiagnoseConfig()
+        rows = replay(rows, VerdictRule(c.explained_nrms, c.systematic_tol, c.bic_margin, c.test_margin))
+    text = table(rows)
+    print(text)
+    summary = {"rows": len(rows), "right": sum(r["correct"] for r in rows),
+               "by_expected": {e: [sum(r["correct"] for r in rows if r["expected"] == e),
+                                   sum(1 for r in rows if r["expected"] == e)]
+                               for e in ("nothing missing", "selected", "unexplained")}}
+    (RESULTS / "identification.json").write_text(json.dumps({"summary": summary, "rows": rows}, indent=1, default=float))
+    if not a.no_doc and DOC.exists():
+        from bench import write_block
+
+        write_block(DOC, START, END, text)
+        if RULE_DOC.exists():
+            write_block(RULE_DOC, RULE_START, RULE_END, rule_table(rows))
+        from bench import write_between_markers
+
+        summary_rows = text.split("\n\n")[0]
+        write_between_markers(ROOT, ["README.md"], "<!-- identification-summary:start -->",
+                              "<!-- identification-summary:end -->", summary_rows)
+    print(json.dumps(summary), file=sys.stderr)
     return 0
 
 

@@ -129,6 +129,8 @@ class SimulationResult:
     history: "pd.DataFrame | None" = None
     settings: Settings = field(default_factory=Settings)
     final_state: tuple | None = None   # (y, z, phase) at the end: pass as initial_state to continue
+    initial_state: tuple | None = None  # the state the run started from (None: rest, MODELS.md)
+    history_times: np.ndarray | None = None   # the history's times from the window start, when chosen by the caller
 
     @property
     def status(self) -> str:
@@ -221,8 +223,20 @@ def _check_state(spec: ModelSpec, state) -> tuple[np.ndarray, np.ndarray, int]:
     return y, (z if z.size else np.zeros(1)), ph
 
 
+def _check_times(times, period: float, window: int) -> np.ndarray:
+    """``history_times`` as a float array: finite, non-decreasing, inside the window [0, window × period] [s]."""
+    try:
+        t = np.array(times, dtype=np.float64).ravel()
+    except (TypeError, ValueError):
+        raise ParameterError("history_times must be a sequence of times [s]") from None
+    span = window * period
+    if t.size and (not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0) or t[0] < 0.0 or t[-1] > span * (1 + 1e-12)):
+        raise ParameterError(f"history_times must be finite, non-decreasing and within the window [0, {span:.6g}] s")
+    return t
+
+
 def simulate(model: str, preset: str | None = None, settings: Settings | dict | None = None,
-             history: bool = False, initial_state=None, **params) -> SimulationResult:
+             history: bool = False, initial_state=None, history_times=None, **params) -> SimulationResult:
     """Simulate one parameter point of ``model`` to a labelled steady state.
 
     ``params`` override the model defaults (after ``preset``) by name, e.g.
@@ -235,6 +249,9 @@ def simulate(model: str, preset: str | None = None, settings: Settings | dict | 
     from that state instead of rest — used by continuation sweeps (bifurcation diagrams,
     up/down frequency sweeps); time restarts at 0, i.e. at the same forcing phase as the
     end of the previous run's last whole cycle.
+    ``history_times`` (implies ``history``): sample the history at these times [s] from the window start instead
+    (non-decreasing, within the window), e.g. a data-acquisition system's own instants; the samples come from the
+    integrator's dense output, not from an interpolated grid.
     """
     spec = get_model(model)
     values = spec.resolve(preset, **params)
@@ -242,7 +259,13 @@ def simulate(model: str, preset: str | None = None, settings: Settings | dict | 
     p, y0, z0, ph0, period, atol = _prepare(spec, values, st.rtol)
     msg = spec.precheck(p)
     s = st.to_array(runaway_check=msg is not None)
-    if history:
+    chosen = None
+    if history_times is not None:
+        chosen = _check_times(history_times, period, st.window)
+        history = True
+        n = chosen.size
+        ht = chosen.copy()
+    elif history:
         n = st.window * st.samples_per_cycle
         ht = np.arange(n) * (period / st.samples_per_cycle)
     else:
@@ -253,6 +276,7 @@ def simulate(model: str, preset: str | None = None, settings: Settings | dict | 
     hp = np.zeros(n, dtype=np.int64)
     if initial_state is not None:
         y0, z0, ph0 = _check_state(spec, initial_state)
+    start = None if initial_state is None else (y0.copy(), z0.copy(), int(ph0))
     y, z, ph = y0.copy(), z0.copy(), np.array([ph0], dtype=np.int64)
     exact = _exact_module(spec, values, st, history)
     run_one = _main_thread_aot(spec, exact)
@@ -272,7 +296,7 @@ def simulate(model: str, preset: str | None = None, settings: Settings | dict | 
         for i, name in enumerate(("force_n", "accel_m_s2", "disp_m", "progression_m", "vel_m_s")):
             hist[name] = ho[:, i]
     res = SimulationResult(model=spec.name, params=values, labels=labels, history=hist, settings=st,
-                           final_state=(y, z, int(ph[0])))
+                           final_state=(y, z, int(ph[0])), initial_state=start, history_times=chosen)
     if spec.postprocess is not None:
         res = spec.postprocess(res)
     res.labels["power_w"] = _power_w(res.labels.get("energy_per_cycle_j"), values["frequency_hz"])

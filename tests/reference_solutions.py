@@ -1,4 +1,4 @@
-"""Independent high-accuracy reference solutions of the vibro-impact models of MODELS.md (sections 1-5).
+"""Independent high-accuracy reference solutions of the vibro-impact models of MODELS.md (sections 1-6).
 
 Pure numpy/scipy.  Deliberately shares NO code with the fast simulator in ``sim/``: it is the yardstick
 the simulator is validated and benchmarked against.
@@ -33,13 +33,45 @@ Method
   contact segment (about 200 per cycle, min 16, in free segments), then the best sample is refined with a
   bounded Brent search on the interpolant.
 * The excitation work W is an extra ODE state.
+* ``sample_times`` (absolute times from the start at rest, t = 0): every segment evaluates the times that
+  fall in it on its own dense output, vectorised (a time on a segment boundary goes to the later segment,
+  as in the ``samples_per_cycle`` history); runs without it do no extra work.
+
+Effects (MODELS.md section 6; every parameter off at 0 = absent; a non-zero parameter of an effect the
+model does not have is an error)
+-----------------------------------------------------------------------------------------------------
+* indenter-metal / -sandstone: ``shaker_coil`` (tau, beta): tau dFem/dt + Fem = Fa sin(Om t) - beta phi1',
+  Fem a state from Fem(0) = 0, or for tau = 0 the algebraic Fem = Fa sin(Om t) - beta phi1'; it acts on m1,
+  its reaction on m2, and W integrates Fem phi1'.  ``rate_stiffening`` (alpha): k -> k (1 + alpha max(x1', 0))
+  in the contact force, so for the metal also in its force indicator k1 (1 + ...) (x1 - G) + c1 x1' (the
+  release surface); for the sandstone in both branches (so in loading only: x1' < 0 while unloading).
+  ``guide_friction`` (mu): -mu tanh(phi1' / v_eps) on m1, reaction on m2 (v_eps as the seal's, 1e-4 m/s).
+  ``suspension_hardening`` (kappa): k2 phi1 -> k2 phi1 (1 + kappa phi1^2).  Sandstone ``tip_blunting``
+  (gamma): kl, ku -> (1 + gamma xh / 1 mm) with xh the crater floor held in the discrete state: xp while
+  free or loading, the floor at the start of an unloading while unloading (the floor itself moves then).
+  Both factors multiply kl and ku alike, so they cancel from the xp <-> xf relations of section 1b.
+* drill: shaker_coil, rate_stiffening, guide_friction, tip_blunting, suspension_hardening as in ``_Drill``.
+* pendulum: ``rate_stiffening``: Fi = ki (1 + alpha max(d', 0)) d + ci d' (and so its force indicator).
+* rimd: ``rate_stiffening``: Fi = ki (1 + alpha max(x2', 0)) d^ni (1 + lambda_i x2') (the indicator
+  1 + lambda_i x2' is unchanged); ``suspension_hardening``: k2 phi (1 + kappa phi^2), phi = x2 - x1.
+* every model: ``sensor_lowpass`` (fc > 0): the measured acceleration z of the impacting mass (drill M1,
+  indenter m1, RIMD m2, pendulum hammer absolute) is the true one a through the continuous 2nd-order
+  Butterworth low-pass, z'' + sqrt(2) wc z' + wc^2 z = wc^2 a(t), wc = 2 pi fc: two ODE states after W,
+  integrated with the model from rest (z = z' = 0 at t = 0), with a from the same right-hand side.  It
+  changes no dynamics; peak_decel_g and the sampled ``accel_m_s2`` are of z (the window search then uses
+  >= 10 samples per 1/fc in every segment and refines a maximum on a segment end too, since z is smooth
+  across switches); the true a is ``accel_true_m_s2``.  The filter's poles (|s| = wc) bound an explicit
+  method's step to a few / wc, so with fc >> f DOP853 runs cost more (pendulum at 3.75 Hz: x8 at fc =
+  300 Hz, x35 at 3 kHz); method="LSODA" (stiff switching) then runs the 3 kHz case 8x faster than DOP853
+  with labels within 2e-9 of it.
 
 Tolerances
 ----------
 ``atol_i = rtol * atol_scale * s_i`` with ``s_i`` = 1 for a position in metres (so positions are "atol_scale
 metres" typical, 1 mm by default), Omega for a velocity (1 mm * Omega: ~0.4-2.5 m/s for these models),
-1/l for the pendulum angle, Omega/l for its rate, and a force scale (F0, Fa, Fs, Pr ... whichever is
-largest, N) for the work state W.  ``max_step = max_step_fraction * T`` (default T/20) so that a low-order
+1/l for the pendulum angle, Omega/l for its rate, a force scale (F0, Fa, Fs, Pr ... whichever is
+largest, N) for the work state W and the coil forces, Omega^2 for the filtered acceleration and
+Omega^2 wc for its rate.  ``max_step = max_step_fraction * T`` (default T/20) so that a low-order
 baseline (e.g. method="RK45", rtol=1e-6) cannot stride over the forcing.
 
 Labels (MODELS.md section 5, over the recorded window)
@@ -53,7 +85,7 @@ Labels (MODELS.md section 5, over the recorded window)
 * ``period``: smallest n <= 8 with |s[k+n] - s[k]| <= 1e-3 * range_j for every k and bounded coordinate
   j (range_j from the dense samples of the window, floored at 1e-9 * its typical scale so that a constant
   coordinate does not demand exact equality); 0 if none (also when window_cycles <= n for every n).
-* ``peak_decel_g`` = max over the window of -(acceleration of the impacting mass) / 9.81.
+* ``peak_decel_g`` = max over the window of -(measured acceleration of the impacting mass) / 9.81.
 * ``energy_per_cycle_j`` = increase of the work state W over the window / window_cycles;
   ``specific_energy_j_m`` = window work / window progression (inf if progression <= 0 or the model
   cannot progress).  ``rop_m_s`` = progression / window duration (drill xb, sandstone xp; else 0).
@@ -61,7 +93,10 @@ Labels (MODELS.md section 5, over the recorded window)
   else 'ok' -- the reference does not judge settling), ``strobe`` (window_cycles x n_bounded samples at
   the cycle starts), ``strobe_names``, ``n_events`` (switching events over the whole run, transient
   included), ``wall_s``; with samples_per_cycle > 0, ``history`` = dict of t_s, disp_m, force_n,
-  accel_m_s2, progression_m sampled at t = t_window_start + j T / samples_per_cycle.
+  accel_m_s2, progression_m (and accel_true_m_s2 if fc > 0) sampled at t = t_window_start + j T /
+  samples_per_cycle; with sample_times, ``samples`` = dict of t_s (the times given), disp_m, vel_m_s,
+  force_n, accel_m_s2 (measured), accel_true_m_s2, progression_m of the impacting mass (pendulum:
+  absolute hammer position and velocity; progression: drill xb, sandstone the current crater floor).
 
 Public entry point: :func:`reference_run`.
 """
@@ -79,8 +114,19 @@ ETA_X = 1e-15             # hysteresis on position-like switching functions [m]
 ETA_V = 1e-12             # hysteresis on velocity switching functions [m/s]
 N_CONTACT_SAMPLES = 200   # dense-output samples per contact segment
 N_FREE_PER_CYCLE = 200    # dense-output samples per cycle in non-contact segments (min 16 per segment)
+N_PER_FC = 10             # with sensor_lowpass: at least this many samples per 1/fc in every segment
 
 MODELS = ("drill", "indenter-metal", "indenter-sandstone", "pendulum", "rimd")
+
+# section-6 effect parameters (off at 0) and the models that have each (MODELS.md section 6)
+EFFECT_PARAMS = ("tau", "beta", "alpha", "mu", "gamma", "kappa", "fc")
+EFFECTS = {
+    "drill": ("tau", "beta", "alpha", "mu", "gamma", "kappa", "fc"),
+    "indenter-metal": ("tau", "beta", "alpha", "mu", "kappa", "fc"),
+    "indenter-sandstone": ("tau", "beta", "alpha", "mu", "gamma", "kappa", "fc"),
+    "pendulum": ("alpha", "fc"),
+    "rimd": ("alpha", "kappa", "fc"),
+}
 
 
 def _req(params: dict, names, model: str) -> dict:
@@ -90,14 +136,30 @@ def _req(params: dict, names, model: str) -> dict:
     return {n: float(params[n]) for n in names}
 
 
+def _effect_params(params: dict, model: str) -> dict:
+    """The model's effect parameters (absent = 0); a non-zero effect the model does not have is an error."""
+    own = EFFECTS[model]
+    for n in EFFECT_PARAMS:
+        if n not in own and float(params.get(n, 0.0)) != 0.0:
+            raise ValueError(f"reference_run({model!r}): effect parameter {n!r} = {params[n]!r} does not apply "
+                             f"to this model (its effect parameters: {own})")
+    out = {n: float(params.get(n, 0.0)) for n in own}
+    bad = [n for n, v in out.items() if not (v >= 0.0 and math.isfinite(v))]
+    if bad:
+        raise ValueError(f"reference_run({model!r}): effect parameter(s) {bad} must be finite and >= 0")
+    return out
+
+
 # =====================================================================================================
 # Model definitions.  Conventions:
 #   * t is the local time in the current forcing cycle; forcing is periodic in T.
-#   * rhs(t, y, br, disc) -> list (scalar, hot path)
-#   * vectorised post-processing: force / accel / disp / progression / bounded with t (N,), Y (n, N)
+#   * rhs(t, y, br, disc) -> list of the core derivatives (scalar, hot path); ``flow`` appends the
+#     sensor_lowpass states, fed by acc_of(t, y, dy) = the true acceleration of the impacting mass
+#   * vectorised post-processing: force / accel / vel / disp / progression / bounded with t (N,), Y (n, N)
 #   * classify(t, y, disc) -> (branch, y, disc) decides the branch at the start of every segment
 #   * events(br, disc) -> list of (g, direction), g vectorised g(t (N,), Y (n, N)); all terminal
 #   * on_segment_end / on_event update the discrete state disc
+#   * state layout: the model's states, the work W (index iW), then the two filter states (fc > 0 only)
 # =====================================================================================================
 class _Model:
     name = ""
@@ -111,6 +173,52 @@ class _Model:
             raise ValueError("frequency_hz must be > 0")
         self.T = 1.0 / self.f
         self.Om = 2.0 * math.pi * self.f
+
+    def _init_sensor(self):
+        """sensor_lowpass: z'' + sqrt(2) wc z' + wc^2 z = wc^2 a(t), two states after W (call once scales is set)."""
+        self.iW = len(self.scales) - 1
+        self.fc = self.p.get("fc", 0.0)
+        self.iz = None
+        if self.fc > 0.0:
+            self.wc = 2.0 * math.pi * self.fc
+            self.iz = len(self.scales)
+            # atol: 1 mm * Om^2 for the measured acceleration, times wc for its rate
+            self.scales = list(self.scales) + [self.Om ** 2, self.Om ** 2 * self.wc]
+
+    def initial_state(self):
+        y, disc = self.initial()
+        if self.iz is not None:
+            y = np.concatenate([y, [0.0, 0.0]])
+        return y, disc
+
+    def flow(self, br, disc):
+        """y' = fun(t, y) on branch br: the model's rhs, plus the sensor filter if fc > 0."""
+        rhs = self.rhs
+        if self.iz is None:
+            return lambda t, y: rhs(t, y, br, disc)
+        iz, wc2, c, acc = self.iz, self.wc ** 2, math.sqrt(2.0) * self.wc, self.acc_of
+
+        def fun(t, y):
+            dy = rhs(t, y, br, disc)
+            a = acc(t, y, dy)
+            zd = y[iz + 1]
+            dy.append(zd)
+            dy.append(wc2 * (a - y[iz]) - c * zd)
+            return dy
+        return fun
+
+    def accel_meas(self, t, Y, br, disc):
+        """Measured acceleration of the impacting mass: the filter output if fc > 0, else the true one."""
+        if self.iz is None:
+            return self.accel(t, Y, br, disc)
+        return Y[self.iz]
+
+    def observe(self, t, Y, br, disc) -> dict:
+        a = self.accel(t, Y, br, disc)
+        return {"disp_m": self.disp(t, Y, br, disc), "vel_m_s": self.vel(t, Y, br, disc),
+                "force_n": self.force(t, Y, br, disc),
+                "accel_m_s2": a if self.iz is None else Y[self.iz], "accel_true_m_s2": a,
+                "progression_m": self.progression(t, Y, br, disc)}
 
     # defaults ------------------------------------------------------------------------------------
     def is_contact(self, br) -> bool:
@@ -138,6 +246,7 @@ class _TwoIndicatorModel(_Model):
     g = min(g1, g2) is continuous; entry = g rising through +eta, exit = g falling through -eta.
     Subclasses give indicators(t, y) -> (g1, g2) and free-flow rates(t, y) -> (dg1/dt, dg2/dt)
     (on the boundary the contact force is zero, or about to jump up, so the free flow decides).
+    g2 is the contact force expression divided by a positive stiffness-like factor (metres).
     """
 
     eta = ETA_X
@@ -168,6 +277,20 @@ class _TwoIndicatorModel(_Model):
         return [(leave, -1.0)]
 
 
+def _stiffened_indicators(d, dd, alpha, tau):
+    """(d, d (1 + alpha max(dd, 0)) + tau dd): penetration and force expression / k of a Kelvin-Voigt contact
+    k (1 + alpha max(dd, 0)) d + c dd, tau = c / k (scalar or vectorised)."""
+    return d, d * (1.0 + alpha * np.maximum(dd, 0.0)) + tau * dd
+
+
+def _stiffened_rates(d, dd, ddd, alpha, tau):
+    """Time derivatives of ``_stiffened_indicators`` given dd = d', ddd = d'' (scalar)."""
+    r2 = dd * (1.0 + alpha * max(dd, 0.0)) + tau * ddd
+    if dd > 0.0:
+        r2 += alpha * ddd * d
+    return dd, r2
+
+
 # ---------------------------------------------------------------------------------------------------
 # 2. drill
 # ---------------------------------------------------------------------------------------------------
@@ -178,7 +301,7 @@ class _Drill(_Model):
     rate_stiffening (alpha): contact expression P = K1 (1 + alpha max(v1, 0)) (x1 - xb) + C1 v1 (phase II force,
     switching surfaces, and the slider law of phase III).  guide_friction (mu, v_eps): -mu tanh((v1 - v2)/v_eps)
     on M1, reaction on M2.  tip_blunting (gamma): threshold Pr (1 + gamma (xb - G) / 1 mm).
-    suspension_hardening (kappa): K2 d (1 + kappa d^2), d = x1 - x2.
+    suspension_hardening (kappa): K2 d (1 + kappa d^2), d = x1 - x2.  sensor_lowpass (fc): on a1.
     """
     name = "drill"
     # phases: 0 = I (no contact), 1 = II (contact, no progression), 2 = III (contact with progression)
@@ -186,13 +309,12 @@ class _Drill(_Model):
     bounded_names = ("x1-xb", "x2-xb", "x3-xb", "xt-xb", "v1", "v2", "v3", "Fh")
     PARAMS = ("M1", "M2", "M3", "K1", "K2", "K3", "C1", "C2", "C3", "Pr",
               "gap_m", "static_force_n", "amplitude_n", "frequency_hz")
-    EFFECTS = {"tau": 0.0, "beta": 0.0, "alpha": 0.0, "mu": 0.0, "gamma": 0.0, "kappa": 0.0, "v_eps": 1e-4}
 
     def __init__(self, params):
         params = dict(params)
-        for k, v in self.EFFECTS.items():
-            params.setdefault(k, v)
-        p = _req(params, self.PARAMS + tuple(self.EFFECTS), self.name)
+        params.setdefault("v_eps", 1e-4)
+        p = _req(params, self.PARAMS + ("v_eps",), self.name)
+        p.update(_effect_params(params, self.name))
         super().__init__(p)
         self.G, self.Fs, self.F0 = p["gap_m"], p["static_force_n"], p["amplitude_n"]
         self.coil_state = p["tau"] > 0.0
@@ -201,6 +323,7 @@ class _Drill(_Model):
         self.scales = [1, self.Om, 1, self.Om, 1, self.Om, 1, 1, fsc, fsc]
         self.etaP = 1e-10 * max(p["Pr"], 1.0)
         self.bscales = np.array([1, 1, 1, 1, self.Om, self.Om, self.Om, fsc])
+        self._init_sensor()
 
     def initial(self):
         G = self.G
@@ -230,7 +353,7 @@ class _Drill(_Model):
 
     def rhs(self, t, y, br, disc):
         p = self.p
-        x1, v1, x2, v2, x3, v3, xt, xb, Fh, _ = y
+        v1, x2, v2, x3, v3, xt, xb, Fh = y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8]
         K1, C1 = p["K1"], p["C1"]
         if br == 0:
             Pc = 0.0
@@ -254,6 +377,9 @@ class _Drill(_Model):
         else:
             dFh = 0.0
         return [v1, a1, v2, a2, v3, a3, dxt, dxb, dFh, F * v1]
+
+    def acc_of(self, t, y, dy):
+        return dy[1]
 
     def _a1(self, t, y, Pc):
         return (self._F(t, y) - self._link(y) - Pc) / self.p["M1"]
@@ -342,6 +468,9 @@ class _Drill(_Model):
     def disp(self, t, Y, br, disc):
         return Y[0]
 
+    def vel(self, t, Y, br, disc):
+        return Y[1]
+
     def progression(self, t, Y, br, disc):
         return Y[7]
 
@@ -357,6 +486,13 @@ class _Drill(_Model):
 # 1. indenter (shared part)
 # ---------------------------------------------------------------------------------------------------
 class _IndenterBase(_Model):
+    """MODELS.md section 1 with the section-6 indenter effects (all off at 0):
+    shaker_coil (tau, beta): tau dFem/dt + Fem = Fa sin(Om t) - beta phi1', Fem(0) = 0; tau = 0 is the algebraic
+    limit Fem = Fa sin(Om t) - beta phi1' (state Fem unused, stays 0); the force acts on m1, its reaction on m2, and
+    W integrates Fem phi1'.  suspension_hardening (kappa): k2 phi1 -> k2 phi1 (1 + kappa phi1^2).
+    guide_friction (mu): -mu tanh(phi1' / v_eps) on m1, reaction on m2.  rate_stiffening / tip_blunting: in the
+    contact laws of the subclasses.  sensor_lowpass (fc): on a1.
+    """
     COMMON = ("m1", "m2", "m3", "k2", "c2", "k3", "c3", "pm",
               "gap_m", "static_force_n", "amplitude_n", "frequency_hz")
 
@@ -364,66 +500,93 @@ class _IndenterBase(_Model):
         params = dict(params)
         params.setdefault("v_eps", 1e-4)
         p = _req(params, self.COMMON + ("v_eps",) + extra, self.name)
+        p.update(_effect_params(params, self.name))
         _Model.__init__(self, p)
         self.G, self.Fp, self.Fa = p["gap_m"], p["static_force_n"], p["amplitude_n"]
+        self.coil_state = p["tau"] > 0.0
+        self.alpha, self.mu, self.kappa, self.beta = p["alpha"], p["mu"], p["kappa"], p["beta"]
         fsc = max(abs(self.Fa), abs(self.Fp), 1.0)
-        # state [x1, v1, x2, v2, x3, v3, W]
-        self.scales = [1, self.Om, 1, self.Om, 1, self.Om, fsc]
+        # state [x1, v1, x2, v2, x3, v3, Fem, W]
+        self.scales = [1, self.Om, 1, self.Om, 1, self.Om, fsc, fsc]
+        self._init_sensor()
 
     def initial(self):
-        return np.zeros(7), self._disc0()
+        return np.zeros(8), self._disc0()
 
     def _disc0(self):
         return None
 
     def _body(self, t, y, Fr):
-        """Accelerations and work rate for a given contact force Fr (scalar path)."""
+        """Derivatives for a given contact force Fr (scalar path)."""
         p = self.p
         x1, v1, x2, v2, x3, v3 = y[0], y[1], y[2], y[3], y[4], y[5]
-        Fem = self.Fa * math.sin(self.Om * t)
-        f1 = p["c2"] * (v1 - v2) + p["k2"] * (x1 - x2)
+        phi, dphi = x1 - x2, v1 - v2
+        drive = self.Fa * math.sin(self.Om * t)
+        if self.coil_state:
+            Fem = y[6]
+            dFem = (drive - self.beta * dphi - Fem) / p["tau"]
+        else:
+            Fem = drive - self.beta * dphi
+            dFem = 0.0
+        f1 = p["c2"] * dphi + p["k2"] * phi * (1.0 + self.kappa * phi * phi)
+        if self.mu:
+            f1 += self.mu * math.tanh(dphi / p["v_eps"])
         f2 = p["c3"] * (v2 - v3) + p["k3"] * (x2 - x3)
         a1 = (Fem - f1 - Fr) / p["m1"]
         a2 = (-Fem + f1 - f2) / p["m2"]
         a3 = (self.Fp + f2 - p["pm"] * math.tanh(v2 / p["v_eps"])) / p["m3"]
-        return [v1, a1, v2, a2, v3, a3, Fem * (v1 - v2)]
+        return [v1, a1, v2, a2, v3, a3, dFem, Fem * dphi]
+
+    def acc_of(self, t, y, dy):
+        return dy[1]
 
     def _a1_vec(self, t, Y, Fr):
         p = self.p
-        Fem = self.Fa * np.sin(self.Om * t)
-        return (Fem - p["c2"] * (Y[1] - Y[3]) - p["k2"] * (Y[0] - Y[2]) - Fr) / p["m1"]
+        phi, dphi = Y[0] - Y[2], Y[1] - Y[3]
+        Fem = Y[6] if self.coil_state else self.Fa * np.sin(self.Om * t) - self.beta * dphi
+        f1 = p["c2"] * dphi + p["k2"] * phi * (1.0 + self.kappa * phi * phi)
+        if self.mu:
+            f1 = f1 + self.mu * np.tanh(dphi / p["v_eps"])
+        return (Fem - f1 - Fr) / p["m1"]
 
     def disp(self, t, Y, br, disc):
         return Y[0]
 
+    def vel(self, t, Y, br, disc):
+        return Y[1]
+
 
 class _IndenterMetal(_TwoIndicatorModel, _IndenterBase):
+    """Fr = max(0, k1 (1 + alpha max(v1, 0)) (x1 - G) + c1 v1): rate_stiffening enters the force expression, and
+    so the second (force) indicator of the two-indicator contact."""
     name = "indenter-metal"
     bounded_names = ("x1", "v1", "x2", "v2")
 
     def __init__(self, params):
         self._setup(params, ("k1", "c1"))
-        self.tau = self.p["c1"] / self.p["k1"]
+        self.t_kv = self.p["c1"] / self.p["k1"]
         self.bscales = np.array([1, self.Om, 1, self.Om])
 
     def _Fr(self, y):
-        return max(0.0, self.p["k1"] * (y[0] - self.G) + self.p["c1"] * y[1])
+        p = self.p
+        return max(0.0, p["k1"] * (1.0 + self.alpha * max(y[1], 0.0)) * (y[0] - self.G) + p["c1"] * y[1])
 
     def rhs(self, t, y, br, disc):
         return self._body(t, y, self._Fr(y) if br == 1 else 0.0)
 
     def indicators(self, t, y):
-        d = y[0] - self.G
-        return d, d + self.tau * y[1]
+        return _stiffened_indicators(y[0] - self.G, y[1], self.alpha, self.t_kv)
 
     def rates(self, t, y):
         a1 = self._body(t, y, 0.0)[1]
-        return y[1], y[1] + self.tau * a1
+        return _stiffened_rates(y[0] - self.G, y[1], a1, self.alpha, self.t_kv)
 
     def force(self, t, Y, br, disc):
         if br == 0:
             return np.zeros_like(t)
-        return np.maximum(self.p["k1"] * (Y[0] - self.G) + self.p["c1"] * Y[1], 0.0)
+        p = self.p
+        return np.maximum(p["k1"] * (1.0 + self.alpha * np.maximum(Y[1], 0.0)) * (Y[0] - self.G)
+                          + p["c1"] * Y[1], 0.0)
 
     def accel(self, t, Y, br, disc):
         return self._a1_vec(t, Y, self.force(t, Y, br, disc))
@@ -433,7 +596,14 @@ class _IndenterMetal(_TwoIndicatorModel, _IndenterBase):
 
 
 class _IndenterSandstone(_IndenterBase):
-    """Branches: 0 free, 1 loading, 2 unloading.  disc = (xp, xf), kept current at every segment end."""
+    """Branches: 0 free, 1 loading, 2 unloading.  disc = (xp, xf, xh), kept current at every segment end.
+
+    Both branch stiffnesses carry the factor (1 + gamma xh / 1 mm)(1 + alpha max(v1, 0)) (tip_blunting,
+    rate_stiffening), which cancels from the algebraic xp <-> xf relations.  xh is the crater floor held for the
+    blunting: xp while free or loading, the floor at the start of the unloading while unloading (the floor
+    itself moves continuously then); on reloading it takes the floor of that moment.  rate_stiffening acts in
+    loading only (v1 < 0 while unloading).
+    """
     name = "indenter-sandstone"
     contact_branches = (1, 2)
     bounded_names = ("x1-xp", "v1", "x2-xp", "v2")
@@ -442,11 +612,12 @@ class _IndenterSandstone(_IndenterBase):
         self._setup(params, ("kl", "ku", "nl", "nu"))
         p = self.p
         self.kl, self.ku, self.nl, self.nu = p["kl"], p["ku"], p["nl"], p["nu"]
+        self.gamma = p["gamma"]
         self.eta4 = ETA_X * min(1.0, self.kl / self.ku)
         self.bscales = np.array([1, self.Om, 1, self.Om])
 
     def _disc0(self):
-        return (0.0, 0.0)
+        return (0.0, 0.0, 0.0)
 
     # algebraic relations of seed Eqs. 9-10 (exact form, MODELS.md 1b)
     def _xf_from_xp(self, x1, xp):
@@ -457,35 +628,45 @@ class _IndenterSandstone(_IndenterBase):
         phi4 = max(x1 - self.G - xf, 0.0)
         return x1 - self.G - (self.ku * phi4 ** self.nu / self.kl) ** (1.0 / self.nl)
 
-    def _Fr(self, x1, br, disc):
+    def _fac(self, v1, xh):
+        """(1 + gamma xh / 1 mm)(1 + alpha max(v1, 0)), scalar."""
+        return (1.0 + self.gamma * xh / 1e-3) * (1.0 + self.alpha * max(v1, 0.0))
+
+    def _fac_vec(self, V1, xh):
+        return (1.0 + self.gamma * xh / 1e-3) * (1.0 + self.alpha * np.maximum(V1, 0.0))
+
+    def _Fr(self, x1, v1, br, disc):
+        xp, xf, xh = disc
         if br == 1:
-            return self.kl * max(x1 - self.G - disc[0], 0.0) ** self.nl
+            return self.kl * self._fac(v1, xh) * max(x1 - self.G - xp, 0.0) ** self.nl
         if br == 2:
-            return self.ku * max(x1 - self.G - disc[1], 0.0) ** self.nu
+            return self.ku * self._fac(v1, xh) * max(x1 - self.G - xf, 0.0) ** self.nu
         return 0.0
 
     def rhs(self, t, y, br, disc):
-        return self._body(t, y, self._Fr(y[0], br, disc))
+        return self._body(t, y, self._Fr(y[0], y[1], br, disc))
 
     def classify(self, t, y, disc):
-        xp, xf = disc
+        xp, xf, xh = disc
         x1, v1 = y[0], y[1]
         phi3 = x1 - self.G - xp
         if phi3 < -ETA_X:
-            return 0, y, (xp, xp)
+            return 0, y, (xp, xp, xp)
         if phi3 > ETA_X:
             contact = True
         else:
             contact = v1 > ETA_V or (abs(v1) <= ETA_V and self._body(t, y, 0.0)[1] > 0.0)
         if not contact:
-            return 0, y, (xp, xp)
-        F = self.kl * max(phi3, 0.0) ** self.nl
+            return 0, y, (xp, xp, xp)
+        F = self.kl * self._fac(v1, xp) * max(phi3, 0.0) ** self.nl
         loading = v1 > ETA_V or (abs(v1) <= ETA_V and self._body(t, y, F)[1] > 0.0)
         xf = self._xf_from_xp(x1, xp)
-        return (1 if loading else 2), y, (xp, xf)
+        if loading:
+            return 1, y, (xp, xf, xp)
+        return 2, y, (xp, xf, xh)
 
     def events(self, br, disc):
-        xp, xf = disc
+        xp, xf, _ = disc
         G = self.G
         if br == 0:
             return [(lambda t, y: y[0] - G - xp - ETA_X, 1.0)]
@@ -496,34 +677,34 @@ class _IndenterSandstone(_IndenterBase):
                 (lambda t, y: y[1] - ETA_V, 1.0)]                      # reversal -> reloading
 
     def on_segment_end(self, br, t, y, disc):
-        xp, xf = disc
+        xp, xf, xh = disc
         if br == 1:
-            return (xp, self._xf_from_xp(y[0], xp))
+            return (xp, self._xf_from_xp(y[0], xp), xh)
         if br == 2:
-            return (self._xp_from_xf(y[0], xf), xf)
+            return (self._xp_from_xf(y[0], xf), xf, xh)
         return disc
 
     def on_event(self, br, idx, t, y, disc):
-        xp, xf = disc
+        xp, xf, xh = disc
         if br == 2 and idx == 0:       # left contact while unloading: crater floor = end of unloading branch
-            return y, (xf, xf)
+            return y, (xf, xf, xf)
         if br == 1 and idx == 1:
-            return y, (xp, xp)
+            return y, (xp, xp, xp)
         return y, disc
 
     def _xp_vec(self, Y, br, disc):
-        xp, xf = disc
+        xp, xf, _ = disc
         if br == 2:
             phi4 = np.maximum(Y[0] - self.G - xf, 0.0)
             return Y[0] - self.G - (self.ku * phi4 ** self.nu / self.kl) ** (1.0 / self.nl)
         return np.full(Y.shape[1], xp)
 
     def force(self, t, Y, br, disc):
-        xp, xf = disc
+        xp, xf, xh = disc
         if br == 1:
-            return self.kl * np.maximum(Y[0] - self.G - xp, 0.0) ** self.nl
+            return self.kl * self._fac_vec(Y[1], xh) * np.maximum(Y[0] - self.G - xp, 0.0) ** self.nl
         if br == 2:
-            return self.ku * np.maximum(Y[0] - self.G - xf, 0.0) ** self.nu
+            return self.ku * self._fac_vec(Y[1], xh) * np.maximum(Y[0] - self.G - xf, 0.0) ** self.nu
         return np.zeros_like(t)
 
     def accel(self, t, Y, br, disc):
@@ -544,6 +725,8 @@ class _IndenterSandstone(_IndenterBase):
 # 3. pendulum
 # ---------------------------------------------------------------------------------------------------
 class _Pendulum(_TwoIndicatorModel):
+    """Fi = max(0, ki (1 + alpha max(d', 0)) d + ci d') (rate_stiffening), d = l sin(th) - gap; sensor_lowpass on
+    the absolute hammer acceleration l (th'' cos th - th'^2 sin th) - A0 Om^2 sin(Om t)."""
     name = "pendulum"
     bounded_names = ("theta", "theta_dot")
     PARAMS = ("m", "l", "amplitude_m", "ki", "ci", "zeta", "gap_m", "frequency_hz")
@@ -552,15 +735,18 @@ class _Pendulum(_TwoIndicatorModel):
         params = dict(params)
         params.setdefault("g", 9.81)
         p = _req(params, self.PARAMS + ("g",), self.name)
+        p.update(_effect_params(params, self.name))
         super().__init__(p)
         self.l, self.A0, self.gap, self.m = p["l"], p["amplitude_m"], p["gap_m"], p["m"]
+        self.alpha = p["alpha"]
         self.w0 = math.sqrt(p["g"] / self.l)
         self.Aacc = self.A0 * self.Om ** 2 / self.l
-        self.tau = p["ci"] / p["ki"]
+        self.t_kv = p["ci"] / p["ki"]
         fsc = max(self.m * self.A0 * self.Om ** 2, 1e-3)
         # state [theta, theta_dot, W]; W in J = N * m  -> scale force * 1 m
         self.scales = [1.0 / self.l, self.Om / self.l, fsc]
         self.bscales = np.array([1.0 / self.l, self.Om / self.l])
+        self._init_sensor()
 
     def initial(self):
         return np.zeros(3), None
@@ -572,8 +758,10 @@ class _Pendulum(_TwoIndicatorModel):
                 - 2.0 * p["zeta"] * self.w0 * om - Fi * c / (self.m * self.l))
 
     def _Fi(self, th, om):
-        c = math.cos(th)
-        return max(0.0, self.p["ki"] * (self.l * math.sin(th) - self.gap) + self.p["ci"] * self.l * om * c)
+        p = self.p
+        d = self.l * math.sin(th) - self.gap
+        dd = self.l * om * math.cos(th)
+        return max(0.0, p["ki"] * (1.0 + self.alpha * max(dd, 0.0)) * d + p["ci"] * dd)
 
     def rhs(self, t, y, br, disc):
         th, om = y[0], y[1]
@@ -581,24 +769,29 @@ class _Pendulum(_TwoIndicatorModel):
         W = self.m * self.l * self.A0 * self.Om ** 2 * math.sin(self.Om * t) * math.cos(th) * om
         return [om, self._thdd(t, th, om, Fi), W]
 
+    def acc_of(self, t, y, dy):
+        th, om = y[0], y[1]
+        return (self.l * (dy[1] * math.cos(th) - om * om * math.sin(th))
+                - self.A0 * self.Om ** 2 * math.sin(self.Om * t))
+
     def indicators(self, t, y):
         th, om = y[0], y[1]
-        d = self.l * np.sin(th) - self.gap
-        return d, d + self.tau * self.l * om * np.cos(th)
+        return _stiffened_indicators(self.l * np.sin(th) - self.gap, self.l * om * np.cos(th), self.alpha, self.t_kv)
 
     def rates(self, t, y):
         th, om = y[0], y[1]
         dd = self.l * om * math.cos(th)
         thdd = self._thdd(t, th, om, 0.0)
         ddd = self.l * (thdd * math.cos(th) - om * om * math.sin(th))
-        return dd, dd + self.tau * ddd
+        return _stiffened_rates(self.l * math.sin(th) - self.gap, dd, ddd, self.alpha, self.t_kv)
 
     def force(self, t, Y, br, disc):
         if br == 0:
             return np.zeros_like(t)
         p = self.p
-        return np.maximum(p["ki"] * (self.l * np.sin(Y[0]) - self.gap)
-                          + p["ci"] * self.l * Y[1] * np.cos(Y[0]), 0.0)
+        dd = self.l * Y[1] * np.cos(Y[0])
+        return np.maximum(p["ki"] * (1.0 + self.alpha * np.maximum(dd, 0.0)) * (self.l * np.sin(Y[0]) - self.gap)
+                          + p["ci"] * dd, 0.0)
 
     def accel(self, t, Y, br, disc):
         p = self.p
@@ -612,6 +805,9 @@ class _Pendulum(_TwoIndicatorModel):
     def disp(self, t, Y, br, disc):
         return self.l * np.sin(Y[0]) + self.A0 * np.sin(self.Om * t)
 
+    def vel(self, t, Y, br, disc):
+        return self.l * Y[1] * np.cos(Y[0]) + self.A0 * self.Om * np.cos(self.Om * t)
+
     def bounded(self, t, Y, br, disc):
         return np.array([Y[0], Y[1]])
 
@@ -620,6 +816,9 @@ class _Pendulum(_TwoIndicatorModel):
 # 4. RIMD
 # ---------------------------------------------------------------------------------------------------
 class _Rimd(_TwoIndicatorModel):
+    """Fi = max(0, ki (1 + alpha max(v2, 0)) d^ni (1 + lambda_i v2)) (rate_stiffening; the force indicator
+    1 + lambda_i v2 is unchanged); suspension_hardening: k2 phi -> k2 phi (1 + kappa phi^2), phi = x2 - x1;
+    sensor_lowpass on a2."""
     name = "rimd"
     bounded_names = ("x1", "v1", "x2", "v2")
     PARAMS = ("m1", "k1", "c1", "m2", "k2", "c2", "ki", "lambda_i", "ni",
@@ -628,11 +827,14 @@ class _Rimd(_TwoIndicatorModel):
 
     def __init__(self, params):
         p = _req(params, self.PARAMS, self.name)
+        p.update(_effect_params(params, self.name))
         super().__init__(p)
         self.F0, self.gap = p["amplitude_n"], p["gap_m"]
+        self.alpha, self.kappa = p["alpha"], p["kappa"]
         fsc = max(abs(self.F0), 1e-3)
         self.scales = [1, self.Om, 1, self.Om, fsc]
         self.bscales = np.array([1, self.Om, 1, self.Om])
+        self._init_sensor()
 
     def initial(self):
         return np.zeros(5), None
@@ -642,19 +844,26 @@ class _Rimd(_TwoIndicatorModel):
         d = y[2] - self.gap
         if d <= 0.0:
             return 0.0
-        return p["ki"] * d ** p["ni"] * max(0.0, 1.0 + p["lambda_i"] * y[3])
+        return (p["ki"] * (1.0 + self.alpha * max(y[3], 0.0)) * d ** p["ni"]
+                * max(0.0, 1.0 + p["lambda_i"] * y[3]))
 
     def _acc(self, t, y, Fi):
         p = self.p
         x1, v1, x2, v2 = y[0], y[1], y[2], y[3]
         F = self.F0 * math.sin(self.Om * t)
-        a1 = (-(p["c1"] + p["c2"]) * v1 - (p["k1"] + p["k2"]) * x1 + F + p["c2"] * v2 + p["k2"] * x2) / p["m1"]
-        a2 = (-p["c2"] * v2 - p["k2"] * x2 + p["c2"] * v1 + p["k2"] * x1 - Fi) / p["m2"]
+        phi = x2 - x1
+        hard = p["k2"] * self.kappa * phi * phi * phi          # hardening part of the k2 spring force
+        a1 = (-(p["c1"] + p["c2"]) * v1 - (p["k1"] + p["k2"]) * x1 + F + p["c2"] * v2 + p["k2"] * x2
+              + hard) / p["m1"]
+        a2 = (-p["c2"] * v2 - p["k2"] * x2 + p["c2"] * v1 + p["k2"] * x1 - hard - Fi) / p["m2"]
         return a1, a2, F * v1
 
     def rhs(self, t, y, br, disc):
         a1, a2, w = self._acc(t, y, self._Fi(y) if br == 1 else 0.0)
         return [y[1], a1, y[3], a2, w]
+
+    def acc_of(self, t, y, dy):
+        return dy[3]
 
     def indicators(self, t, y):
         return y[2] - self.gap, self.LS * (1.0 + self.p["lambda_i"] * y[3])
@@ -668,15 +877,21 @@ class _Rimd(_TwoIndicatorModel):
             return np.zeros_like(t)
         p = self.p
         d = np.maximum(Y[2] - self.gap, 0.0)
-        return p["ki"] * d ** p["ni"] * np.maximum(0.0, 1.0 + p["lambda_i"] * Y[3])
+        return (p["ki"] * (1.0 + self.alpha * np.maximum(Y[3], 0.0)) * d ** p["ni"]
+                * np.maximum(0.0, 1.0 + p["lambda_i"] * Y[3]))
 
     def accel(self, t, Y, br, disc):
         p = self.p
         Fi = self.force(t, Y, br, disc)
-        return (-p["c2"] * Y[3] - p["k2"] * Y[2] + p["c2"] * Y[1] + p["k2"] * Y[0] - Fi) / p["m2"]
+        phi = Y[2] - Y[0]
+        hard = p["k2"] * self.kappa * phi * phi * phi
+        return (-p["c2"] * Y[3] - p["k2"] * Y[2] + p["c2"] * Y[1] + p["k2"] * Y[0] - hard - Fi) / p["m2"]
 
     def disp(self, t, Y, br, disc):
         return Y[2]
+
+    def vel(self, t, Y, br, disc):
+        return Y[3]
 
     def bounded(self, t, Y, br, disc):
         return np.array([Y[0], Y[1], Y[2], Y[3]])
@@ -699,12 +914,14 @@ def _make_model(model: str, params: dict) -> _Model:
 # =====================================================================================================
 # Recording of window statistics
 # =====================================================================================================
-def _refined_max(fun, dense, ts, vals):
-    """Max of fun over [ts[0], ts[-1]] given samples vals = fun(ts); refine an interior max with Brent."""
+def _refined_max(fun, dense, ts, vals, ends=False):
+    """Max of fun over [ts[0], ts[-1]] given samples vals = fun(ts); refine an interior max with Brent
+    (with ``ends``, also a max on the first or last sample: for a signal smooth across segment ends)."""
     i = int(np.argmax(vals))
     best = float(vals[i])
-    if 0 < i < len(ts) - 1:
-        a, b = float(ts[i - 1]), float(ts[i + 1])
+    n = len(ts)
+    if 0 < i < n - 1 or (ends and n > 1):
+        a, b = float(ts[max(i - 1, 0)]), float(ts[min(i + 1, n - 1)])
 
         def neg(tt):
             return -float(fun(np.array([tt]), dense(tt)[:, None])[0])
@@ -715,8 +932,12 @@ def _refined_max(fun, dense, ts, vals):
     return best
 
 
+HIST_KEYS = ("t_s", "disp_m", "force_n", "accel_m_s2", "progression_m")
+SAMPLE_KEYS = ("t_s", "disp_m", "vel_m_s", "force_n", "accel_m_s2", "accel_true_m_s2", "progression_m")
+
+
 class _Recorder:
-    def __init__(self, model: _Model, window_cycles: int, samples_per_cycle: int):
+    def __init__(self, model: _Model, window_cycles: int, samples_per_cycle: int, sample_times=None):
         self.m = model
         self.prev_contact = False
         self.cur = None            # open contact interval: [max_force, counted]
@@ -731,9 +952,29 @@ class _Recorder:
         self.spc = samples_per_cycle
         if samples_per_cycle > 0:
             n = window_cycles * samples_per_cycle
-            self.hist = {k: np.full(n, np.nan) for k in
-                         ("t_s", "disp_m", "force_n", "accel_m_s2", "progression_m")}
+            keys = HIST_KEYS + (("accel_true_m_s2",) if model.iz is not None else ())
+            self.hist = {k: np.full(n, np.nan) for k in keys}
         self.tail_closed = False
+        # sampling at absolute times: sorted times, index of the first one not yet taken, last segment seen
+        self.st = sample_times
+        if sample_times is not None:
+            self.si = 0
+            self.samples = {k: np.full(sample_times.size, np.nan) for k in SAMPLE_KEYS}
+            self.samples["t_s"] = sample_times.copy()
+            self.last = None
+
+    def sample(self, tau1, dense, br, disc, t_cycle0, final=False):
+        """Evaluate the samples with t < t_cycle0 + tau1 (all remaining ones if final) on this segment's dense
+        output; a time on a segment boundary goes to the later segment, as in the history."""
+        ts = self.st
+        i0 = self.si
+        i1 = ts.size if final else int(np.searchsorted(ts, t_cycle0 + tau1, side="left"))
+        if i1 > i0:
+            tt = ts[i0:i1] - t_cycle0
+            obs = self.m.observe(tt, dense(tt), br, disc)
+            for k, v in obs.items():
+                self.samples[k][i0:i1] = v
+            self.si = i1
 
     def segment(self, kwin, phase, tau0, tau1, dense, br, disc, t_cycle0):
         m = self.m
@@ -770,11 +1011,14 @@ class _Recorder:
             n = N_CONTACT_SAMPLES
         else:
             n = max(16, int(math.ceil(N_FREE_PER_CYCLE * (tau1 - tau0) / m.T)))
+        filtered = m.iz is not None
+        if filtered:     # the measured signal rings at ~fc long after the contact: resolve it everywhere
+            n = max(n, int(math.ceil(N_PER_FC * m.fc * (tau1 - tau0))))
         ts = np.linspace(tau0, tau1, n)
         Y = dense(ts)
-        acc = m.accel(ts, Y, br, disc)
+        acc = m.accel_meas(ts, Y, br, disc)
         self.peak_decel = max(self.peak_decel, _refined_max(
-            lambda t, Yv: -m.accel(t, Yv, br, disc), dense, ts, -acc))
+            lambda t, Yv: -m.accel_meas(t, Yv, br, disc), dense, ts, -acc, ends=filtered))
         if contact:
             self.any_contact = True
             F = m.force(ts, Y, br, disc)
@@ -794,10 +1038,10 @@ class _Recorder:
                 k = kwin * self.spc + idx
                 h = self.hist
                 h["t_s"][k] = t_cycle0 + tt
-                h["disp_m"][k] = m.disp(tt, Yh, br, disc)
-                h["force_n"][k] = m.force(tt, Yh, br, disc)
-                h["accel_m_s2"][k] = m.accel(tt, Yh, br, disc)
-                h["progression_m"][k] = m.progression(tt, Yh, br, disc)
+                obs = m.observe(tt, Yh, br, disc)
+                for key in h:
+                    if key != "t_s":
+                        h[key][k] = obs[key]
 
 
 # =====================================================================================================
@@ -897,12 +1141,14 @@ def _run_cycle(m, y, disc, kwin, phase, rec, t_cycle0, solver_kw, max_events_per
     while T - tau > tiny:
         br, y, disc = m.classify(tau, y, disc)
         try:
-            dense, t1, y1, idx = _integrate(lambda t, yy: m.rhs(t, yy, br, disc), tau, y, T,
-                                            m.events(br, disc), T=T, **solver_kw)
+            dense, t1, y1, idx = _integrate(m.flow(br, disc), tau, y, T, m.events(br, disc), T=T, **solver_kw)
         except RuntimeError as exc:
             raise RuntimeError(f"{m.name}: integration failed at cycle {kwin} ({phase}), "
                                f"tau={tau}: {exc}") from exc
         if t1 > tau and dense is not None:
+            if rec.st is not None and phase != "tail":
+                rec.sample(t1, dense, br, disc, t_cycle0)
+                rec.last = (t1, dense, br, disc, t_cycle0)
             rec.segment(kwin, phase, tau, t1, dense, br, disc, t_cycle0)
         disc = m.on_segment_end(br, t1, y1, disc)
         if idx is not None:
@@ -939,13 +1185,18 @@ def _period(strobe, rng, floor):
 
 def reference_run(model: str, params: dict, transient_cycles: int, window_cycles: int,
                   method: str = "DOP853", rtol: float = 1e-10, atol_scale: float = 1e-3,
-                  samples_per_cycle: int = 0, *, max_step_fraction: float = 0.05,
+                  samples_per_cycle: int = 0, *, sample_times=None, max_step_fraction: float = 0.05,
                   max_events_per_cycle: int = 2000, event_subdivisions: int = N_EVENT_SUB) -> dict:
     """High-accuracy event-located reference solution of one run of ``model`` (see module docstring).
 
     Runs ``transient_cycles`` forcing cycles from the rest state of MODELS.md, then records
     ``window_cycles`` cycles and returns the MODELS.md section-5 labels plus ``strobe``, ``n_events``,
-    ``wall_s`` (and ``history`` if ``samples_per_cycle > 0``).
+    ``wall_s`` (and ``history`` if ``samples_per_cycle > 0``).  ``model`` is a name in MODELS, or a factory
+    ``params -> model object`` (e.g. a subclass of one of the model classes below adding a term); the object's
+    ``name`` then says which model's labels apply.
+
+    ``sample_times``: 1-D non-decreasing absolute times [s] since the start from rest (t = 0), anywhere in
+    [0, (transient_cycles + window_cycles) T]; the result then holds ``samples`` (module docstring).
 
     Keyword-only extras: ``max_step_fraction`` (max step = this * T), ``max_events_per_cycle`` (more
     switching events than this in one forcing cycle raises RuntimeError: chattering / Zeno), and
@@ -955,30 +1206,50 @@ def reference_run(model: str, params: dict, transient_cycles: int, window_cycles
     t_wall = time.perf_counter()
     if window_cycles < 1 or transient_cycles < 0:
         raise ValueError("need window_cycles >= 1 and transient_cycles >= 0")
-    m = _make_model(model, params)
+    if isinstance(model, str):
+        m = _make_model(model, params)
+    else:
+        m = model(params)
+        if not isinstance(m, _Model) or m.name not in MODELS:
+            raise TypeError(f"model factory {model!r} must return a reference model of one of {MODELS}")
+        model = m.name
     T = m.T
+    n_cycles = transient_cycles + window_cycles
+    if sample_times is not None:
+        sample_times = np.array(sample_times, dtype=float)
+        if sample_times.ndim != 1 or not np.all(np.isfinite(sample_times)):
+            raise ValueError("sample_times must be a 1-D array of finite times [s]")
+        if np.any(np.diff(sample_times) < 0.0):
+            raise ValueError("sample_times must be non-decreasing")
+        t_end = n_cycles * T
+        if sample_times.size and (sample_times[0] < 0.0 or sample_times[-1] > t_end * (1.0 + 1e-12)):
+            raise ValueError(f"sample_times must lie in [0, {t_end!r}] s (transient + window cycles of "
+                             f"{model}); got [{sample_times[0]!r}, {sample_times[-1]!r}]")
     atol = m.atol(rtol, atol_scale)
     solver_kw = dict(method=method, rtol=rtol, atol=atol, max_step=max_step_fraction * T,
                      n_sub=max(1, int(event_subdivisions)))
-    rec = _Recorder(m, window_cycles, samples_per_cycle)
-    y, disc = m.initial()
+    rec = _Recorder(m, window_cycles, samples_per_cycle, sample_times)
+    y, disc = m.initial_state()
     nb = len(m.bounded_names)
     strobe = np.empty((window_cycles, nb))
     n_events = 0
     W0 = P0 = None
-    for k in range(transient_cycles + window_cycles):
+    iW = m.iW
+    for k in range(n_cycles):
         phase = "window" if k >= transient_cycles else "transient"
         kwin = k - transient_cycles
         if kwin == 0:
-            W0 = float(y[-1])
+            W0 = float(y[iW])
             P0 = m.progression_scalar(y, disc)
         if phase == "window":
             # disc is kept current at every segment end, so br=None is enough here
             strobe[kwin] = m.bounded(np.array([0.0]), y[:, None], None, disc)[:, 0]
         y, disc, ne = _run_cycle(m, y, disc, kwin, phase, rec, k * T, solver_kw, max_events_per_cycle)
         n_events += ne
-    W1 = float(y[-1])
+    W1 = float(y[iW])
     P1 = m.progression_scalar(y, disc)
+    if sample_times is not None and rec.si < sample_times.size:      # times at the very end of the run
+        rec.sample(*rec.last, final=True)
     # follow a contact interval still open at the end of the window to its separation (<= 1 cycle)
     if rec.cur is not None and rec.cur[1]:
         _run_cycle(m, y, disc, window_cycles, "tail", rec, (transient_cycles + window_cycles) * T,
@@ -1018,5 +1289,7 @@ def reference_run(model: str, params: dict, transient_cycles: int, window_cycles
     }
     if samples_per_cycle > 0:
         out["history"] = rec.hist
+    if sample_times is not None:
+        out["samples"] = rec.samples
     out["wall_s"] = time.perf_counter() - t_wall
     return out

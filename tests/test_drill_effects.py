@@ -126,7 +126,7 @@ def test_state_layout():
     assert len(drill.PARAMS) == drill.NP and len(drill.BOUNDED) == drill.N_BOUNDED
     names = [q.name for q in drill.PARAMS]
     for const, name in [(drill.TAU, "tau"), (drill.BETA, "beta"), (drill.ALPHA, "alpha"), (drill.MU, "mu"),
-                        (drill.GAMMA, "gamma"), (drill.KAPPA, "kappa"), (drill.VEPS, "v_eps")]:
+                        (drill.GAMMA, "gamma"), (drill.KAPPA, "kappa"), (drill.VEPS, "v_eps"), (drill.FC, "fc")]:
         assert names[const] == name
 
 
@@ -151,7 +151,7 @@ def test_effect_tables_check_themselves():
     params = {q.name: q for q in drill.PARAMS}
     effect_params = {n for names in drill.SPEC.effects.values() for n in names}
     assert set(drill.SPEC.effects) == {"shaker_coil", "rate_stiffening", "guide_friction", "tip_blunting",
-                                       "suspension_hardening"}
+                                       "suspension_hardening", "sensor_lowpass"}
     assert set(drill.EFFECT_FIT_BOUNDS) == effect_params
     assert set(drill.EFFECT_VISIBLE) == set(drill.SPEC.effects)
     for name, (lo, hi, unit) in drill.EFFECT_FIT_BOUNDS.items():

@@ -23,8 +23,12 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
    forcing frequency up to max_harmonic_hz of acceleration, force and displacement, the progression rate, or
    the summary features (peak_decel_g, impacts_per_cycle, rop_m_s, peak_force_n, spectral_ratio);
 4. fit every §6 effect that applies to the system (shaker_coil, rate_stiffening, guide_friction, tip_blunting,
-   suspension_hardening, sensor_lowpass) on top of the calibrated base model, rank by BIC, and select one
-   only if its held-out residual is at the measurement-noise level estimated from the data;
+   suspension_hardening, sensor_lowpass) on top of the calibrated base model and rank them by BIC; the verdict
+   (docs/diagnose.md) is "nothing missing", an effect "selected" or "unexplained", decided on held-out runs:
+   a model is adequate when its held-out nrms (residual / noise estimated per signal, record and harmonic,
+   with a model floor) is <= explained_nrms or its systematic error (from the two halves of every record,
+   free of any noise estimate) is <= systematic_tol; a candidate is selected when it beats the base on BIC
+   (bic_margin), on held-out chi2 (test_margin) and materially (half of systematic_tol), and is adequate;
 5. write DIR/report.json, DIR/report.md and PNG figures (residual structure before/after, measured vs
    simulated cycle histories and spectra), and log the run to MLflow;
 6. write the corrected rig DIR/rig.yaml (DIR/rig-<system>.yaml per system of a several-system dataset):
@@ -41,17 +45,25 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
   min_runs_holdout [8]     a system with fewer runs is cross-validated leave-one-run-out
   n_starts [2]             base-model starts (defaults + seeded random points)
   grid [4]                 grid points per effect parameter for a candidate's starting point
+  profile_points [2]       best grid points at which the base parameters are refitted with the effect held
+  profile_nfev [3]         iterations of that refit (0: start from the grid's best point as it is)
   candidate_starts [2 indenter, 1 others]  candidate fits start from the grid's best point at the calibrated base (1) and also
                            at the default base parameters (2)
   max_nfev [15 indenter, 10 others]  least-squares iterations per start
-  diff_step [0.01]         finite-difference step in log10 of a parameter
-  bic_margin [10]          a candidate must beat the base model's BIC by this much
-  explained_nrms [1.5]     held-out residual/noise at or below this counts as explained
+  diff_step [0.01]         finite-difference step in log10 of a parameter (2.3 %); every fit ends with 6
+                           iterations at 0.002 (0.46 %)
+  bic_margin [10]          a candidate must beat the base model's BIC by this much (calibration runs)
+  test_margin [25]         ... and its held-out chi2 by this much
+  explained_nrms [2]       held-out residual/noise at or below this counts as adequate ...
+  systematic_tol [0.005]   ... and so does a held-out systematic error (record halves) at or below this
+  model_floor [0.001]      feature sd floor: this x the signal's RMS harmonic amplitude, in quadrature with
+                           the noise (what two correct simulations and a rig's sampling may differ by)
+  summary_floor [0.01]     summary feature sd floor: this x the value
   effects [all]            list of candidate effects to try
   fs_sim_hz [20000]        model sample rate for summary-only runs
-  sim_settings [{rtol: 1e-6, window: 2, max_step_frac: 0.05}]   simulator settings while fitting
-  record_window [64]       the model records as many cycles as the measured series (up to this; 0 = use
-                           sim_settings.window): features of drifting runs (tip blunting) depend on it
+  sim_settings [{rtol: 1e-7, window: 2, max_step_frac: 0.05}]   simulator settings while fitting (series runs are
+                           sampled at the record's own instants, a window that covers the record)
+  record_window [64]       a steady-state series is compared over its first this many cycles (0 = all)
   summary_sd [{}]          e.g. {peak_decel_g: [rel, 0.05], impacts_per_cycle: [abs, 0.5]}
   seed [0]                 seed of the random starts
 examples:
@@ -82,9 +94,11 @@ def add_parser(sub) -> None:
 
 # integer settings: (low, high) — the highs bound the work (fits x starts x iterations)
 INT_BOUNDS = {"holdout_every": (1, 1000), "min_runs_holdout": (1, 100_000), "n_starts": (1, 100), "grid": (1, 100),
+              "profile_points": (1, 100), "profile_nfev": (0, 1000),
               "candidate_starts": (1, 2), "max_nfev": (1, 10_000), "seed": (0, 2**32 - 1), "n_threads": (1, A.MAX_THREADS),
               "record_window": (0, 10_000)}
-FLOAT_BOUNDS = {"max_harmonic_hz": 1e6, "diff_step": 1.0, "bic_margin": 1e12, "explained_nrms": 1e6, "fs_sim_hz": 1e7}
+FLOAT_BOUNDS = {"max_harmonic_hz": 1e6, "diff_step": 1.0, "bic_margin": 1e12, "explained_nrms": 1e6, "fs_sim_hz": 1e7,
+                "test_margin": 1e12, "systematic_tol": 1.0, "model_floor": 1.0, "summary_floor": 1.0}
 
 
 def load_config(path: str | None, sets: dict, effects: list[str] | None, threads: int | None):
@@ -108,7 +122,8 @@ def load_config(path: str | None, sets: dict, effects: list[str] | None, threads
             lo, hi = INT_BOUNDS[k]
             values[k] = A.number(v, f"diagnose setting '{k}'", integer=True, lo=lo, hi=hi)
         elif k in FLOAT_BOUNDS and v is not None:
-            values[k] = A.number(v, f"diagnose setting '{k}'", lo=0.0, lo_open=True, hi=FLOAT_BOUNDS[k])
+            values[k] = A.number(v, f"diagnose setting '{k}'", lo=0.0, lo_open=k not in ("model_floor", "summary_floor"),
+                                 hi=FLOAT_BOUNDS[k])
     if values.get("effects") is not None and (not isinstance(values["effects"], list)
                                               or not all(isinstance(e, str) for e in values["effects"])):
         raise UserError(f"diagnose setting 'effects' must be a list of effect names, got {values['effects']!r}")
@@ -202,8 +217,8 @@ def check_report(report: dict) -> None:
 
 
 def _headline(report: dict) -> dict:
-    keys = ("system", "selected", "explained", "noise_floor", "default_error", "base_error", "final_error",
-            "default_nrms", "base_nrms", "final_nrms", "wall_time_s")
+    keys = ("system", "verdict", "selected", "explained", "noise_floor", "default_error", "base_error", "final_error",
+            "default_nrms", "base_nrms", "final_nrms", "base_systematic", "final_systematic", "wall_time_s")
     out = {k: report[k] for k in keys}
     out["rig"] = report.get("rig")
     return out

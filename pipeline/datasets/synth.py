@@ -158,49 +158,64 @@ def _hertz_model(system: str) -> str:
 
 
 def _simulate_run(cfg: SynthConfig, truth: dict, row: dict, known: dict):
-    """The true run sampled on the DAQ's time base: (t, true signals, true summary features)."""
+    """The true run sampled at the DAQ's own instants: (t, true signals, true summary features).  The simulator's
+    dense output is sampled at every instant of the record (``sim.simulate(history_times=...)``); the outside
+    mount resonance filters a 4x finer grid aligned with them, started early enough to have settled."""
     import sim
 
-    from pipeline.diagnosis.features import _history_summary
+    from pipeline.diagnosis.features import history_summary
 
     f = row["frequency_hz"]
-    spc = max(32, int(math.ceil(4.0 * cfg.fs_hz / f)))      # >= 4x the DAQ rate, then interpolated
+    period = 1.0 / f
     rs = row.get("record_start_s")
     from_rest = rs is not None and np.isfinite(rs)
     n_rec = int(math.floor(row["duration_s"] * cfg.fs_hz))
+    from pipeline.diagnosis.features import SENSOR_SUBSAMPLES
+    from sim.models.sensor import warmup_s
+
+    warm = warmup_s(truth.get("fc", 0.0))            # the sensor_lowpass effect's start-up
+    # a sensor's dynamics (the low-pass effect, the outside mount) want a grid finer than the DAQ's
+    sub = SENSOR_SUBSAMPLES if (warm > 0 or cfg.outside == "mount_resonance") else 1
+    dt = 1.0 / (cfg.fs_hz * sub)
+    if cfg.outside == "mount_resonance":
+        zeta = cfg.outside_params.get("zeta", 0.1)
+        fr = cfg.outside_params.get("fr_hz", rig_of(cfg.system).mount_hz)
+        warm = max(warm, 30.0 / (zeta * 2 * math.pi * fr))
+    t0 = rs if from_rest else math.ceil(warm / period - 1e-9) * period
+    n_pre = int(math.floor(min(warm, t0) / dt + 1e-9))
+    times = t0 + np.arange(-n_pre, n_rec * sub) * dt
+    window = int(math.ceil((t0 + row["duration_s"]) * f)) + 1
+    st = {"window": window}
     if from_rest:
-        st = {"samples_per_cycle": spc, "min_transient": 0, "max_transient": 0,
-              "window": int(math.ceil((rs + row["duration_s"]) * f)) + 1}
-    else:
-        st = {"samples_per_cycle": spc, "window": int(math.ceil(cfg.cycles)) + 1}
+        st.update(min_transient=0, max_transient=0)
     ctrl = {k: row[k] for k in ("frequency_hz", "amplitude_n", "amplitude_m", "static_force_n", "gap_m")
             if k in row and np.isfinite(row[k])}
     if cfg.outside == "contact_hertz":
         kh = cfg.outside_params.get("kh", 3.0e8)     # N/m^1.5: same order of contact force as k1 = 1e7 N/m
         params = {k: v for k, v in truth.items() if k not in ("k1", "c1")}
-        r = sim.simulate(_hertz_model(cfg.system), settings=st, history=True, kl=kh, ku=kh, nl=1.5, nu=1.5,
+        r = sim.simulate(_hertz_model(cfg.system), settings=st, history_times=times, kl=kh, ku=kh, nl=1.5, nu=1.5,
                          **{**known, **ctrl, **params})
     else:
-        r = sim.simulate(cfg.system, settings=st, history=True, **{**known, **ctrl, **truth})
+        r = sim.simulate(cfg.system, settings=st, history_times=times, **{**known, **ctrl, **truth})
     if r.history is None:
         raise UserError(f"run {row['run_id']}: the true model ended with status {r.status} ({r.labels['reason']}); "
                         "choose other effect values or another seed")
     h = r.history
-    th = h["t_s"].to_numpy() - (0.0 if from_rest else float(h["t_s"].iloc[0]))
     a = h["accel_m_s2"].to_numpy()
     if cfg.outside == "mount_resonance":
-        a = _mount_resonance(a, spc * f, cfg.outside_params.get("fr_hz", rig_of(cfg.system).mount_hz),
-                             cfg.outside_params.get("zeta", 0.1), periodic=not from_rest)
+        a = _mount_resonance(a, 1.0 / dt, cfg.outside_params.get("fr_hz", rig_of(cfg.system).mount_hz),
+                             cfg.outside_params.get("zeta", 0.1), periodic=False)
+    keep = slice(n_pre, None, sub)
+    sig = {"accel_m_s2": a[keep], "force_n": h["force_n"].to_numpy()[keep], "disp_m": h["disp_m"].to_numpy()[keep],
+           "progression_m": h["progression_m"].to_numpy()[keep]}
+    if not from_rest:      # a steady-state record: positions relative to the window's progression at its start
+        sig["progression_m"] = sig["progression_m"] - sig["progression_m"][0]
     t = np.arange(n_rec) / cfg.fs_hz
-    tq = t + (rs if from_rest else 0.0)
-    sig = {"accel_m_s2": a, "force_n": h["force_n"].to_numpy(), "disp_m": h["disp_m"].to_numpy(),
-           "progression_m": h["progression_m"].to_numpy() - (0.0 if from_rest else h["progression_m"].iloc[0])}
-    sig = {k: np.interp(tq, th, v) for k, v in sig.items()}
     if from_rest:
-        m = (th >= rs) & (th < rs + row["duration_s"])
-        hc = h.loc[m].assign(accel_m_s2=a[m])
-        summ = {k: _history_summary(k, th[m], hc, f) for k in ("rop_m_s", "peak_force_n", "impacts_per_cycle",
-                                                             "peak_decel_g")}
+        ts = times[keep]
+        hc = h.iloc[keep].assign(accel_m_s2=a[keep])
+        summ = {k: history_summary(k, ts, hc, f) for k in ("rop_m_s", "peak_force_n", "impacts_per_cycle",
+                                                          "peak_decel_g")}
     else:
         summ = {k: r.labels[k] for k in ("rop_m_s", "peak_force_n", "impacts_per_cycle", "peak_decel_g")}
     return {"t_s": t}, sig, {**summ, "status": r.labels["status"]}

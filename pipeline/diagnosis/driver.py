@@ -78,8 +78,8 @@ def ev_targets(rep: dict) -> list:
     return list(rep["_ev"].targets)
 
 
-KEYS = ("calibrated", "noise_floor", "default_error", "base_error", "candidates", "selected", "final_error",
-        "default_nrms", "base_nrms", "final_nrms", "rig")
+KEYS = ("verdict", "calibrated", "noise_floor", "default_error", "base_error", "candidates", "selected", "final_error",
+        "default_nrms", "base_nrms", "final_nrms", "base_systematic", "final_systematic", "rig")
 
 
 def _combine(per: list[dict], dataset: str, cfg: DiagnoseConfig) -> dict:

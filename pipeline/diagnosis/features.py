@@ -1,27 +1,24 @@
 """Features compared between measurement and model, and their measurement noise.
 
-Series runs, recorded at any uniform sampling rate (MODELS.md §7: the data-acquisition rate is in
-general not a multiple of the forcing frequency), over any length (not whole cycles):
-every signal is fitted by linear least squares on the record's own time base,
-``x(t) = a0 + s·(t − t_mid) + Σ_k a_k cos kΩt + b_k sin kΩt``, k = 1..K, K = floor(max_harmonic_hz / f),
-t the time since the start of excitation (``record_start_s`` + record time) or, for a steady-state
-record, the record time (t = 0 is forcing phase 0).  The features are the complex coefficients
-c_k = a_k − i b_k (amplitude and phase of every impact harmonic; the offset a0 is left out, so sensor
-offsets do not matter); the drift s absorbs progression / creep, and for ``progression_m`` it is the
-progression rate (with its regression standard error), plus, for a record from rest, the mean
-position (the record's depth in the rig frame).
-Noise: the sd σx of the signal's measurement noise is estimated by removing that fit, phase-folding the
-rest and taking the robust (median absolute) deviation of each sample from the linear interpolation of its
-two phase neighbours (samples of other cycles), scaled by that difference's noise gain.  It does not see the harmonics above K or the sharp impact transients that make
-a least-squares residual non-white (neighbours in phase are ≤ T/N apart), and for an integer number of
-samples per cycle it equals the old scatter about the synchronous average.  Each coefficient part
-then has sd σx·sqrt(2/N) (white-noise model, N samples) — the same noise model as before.
-Resolution: K f must stay below the Nyquist frequency fs/2 and the record must hold >= 2 cycles;
-otherwise one line names the run and the numbers.
+Series runs, recorded at any uniform sampling rate (MODELS.md §7: the data-acquisition rate is in general not a
+multiple of the forcing frequency), over any length (not whole cycles): every acceleration, force and displacement
+is fitted by linear least squares on the record's own time base, x(t) = cubic drift + Σ a_k cos kΩt + b_k sin kΩt,
+k = 1..K, K = floor(max_harmonic_hz / f), t the time since the start of excitation (``record_start_s`` + record
+time) or, for a steady-state record, the record time (t = 0 is forcing phase 0).  The features are the complex
+coefficients c_k = a_k − i b_k (amplitude and phase of every impact harmonic; offsets and slow drifts stay in the
+polynomial); the progression is fitted with a linear drift, its rate (and, for a record from rest, its mean: the
+record's depth in the rig frame) being the features.  The model is sampled at the same instants
+(``sampling_plan``) and reduced by the same operators, and so is each half of a record (``halves``: the
+systematic error of the verdict).
 
-Summary runs: peak_decel_g, impacts_per_cycle, rop_m_s, peak_force_n and spectral_ratio (largest
-acceleration harmonic k >= 2, k f <= max_harmonic_hz, other than the reference, divided by the
-harmonic at spectral_ratio_ref_hz).  Their sd is a `<name>_sd` column or the assumed default.
+Noise (``record_noise``): per signal, record and harmonic, from the periodogram of what a fit with slowly varying
+amplitudes leaves (``band_noise``); each coefficient part has sd sqrt(2 S_k / N), and a model floor is added in
+quadrature (``series_target``).  Resolution: K f must stay below the Nyquist frequency fs/2 and the record must
+hold >= 2 cycles; otherwise one line names the run and the numbers.
+
+Summary runs: peak_decel_g, impacts_per_cycle, rop_m_s, peak_force_n and spectral_ratio (largest acceleration
+harmonic k >= 2, k f <= max_harmonic_hz, other than the reference, divided by the harmonic at
+spectral_ratio_ref_hz).  Their sd is a `<name>_sd` column or the assumed default, with a floor.
 """
 from __future__ import annotations
 
@@ -76,24 +73,38 @@ class HarmonicFit:
     n: int
 
 
-def _design(t: np.ndarray, f: float, k_max: int) -> np.ndarray:
+DRIFT_DEGREE = 3
+"""Degree of the polynomial drift fitted beside the harmonics of accelerations, forces and displacements: a sensor's
+slow drift (and a record's slow transient) then stays out of the harmonic features, and the noise estimate removes
+the same drift (``_slow_design``).  The progression keeps a linear drift: its rate is a feature."""
+
+
+def _design(t: np.ndarray, f: float, k_max: int, drift: int = 1) -> np.ndarray:
+    """Columns 1, t − t_mid [s], then τ^j for j = 2..drift (τ = (t − t_mid) / half the record), then cos kΩt,
+    sin kΩt for k = 1..k_max."""
     tm = t - 0.5 * (t[0] + t[-1])
+    tau = tm / max(0.5 * (t[-1] - t[0]), 1e-300)
     w = 2.0 * math.pi * f * t
-    cols = [np.ones_like(t), tm]
+    cols = [np.ones_like(t), tm] + [tau ** j for j in range(2, drift + 1)]
     for k in range(1, k_max + 1):
         cols += [np.cos(k * w), np.sin(k * w)]
     return np.column_stack(cols)
 
 
-def _from_coef(a: np.ndarray, x: np.ndarray, coef: np.ndarray) -> tuple[HarmonicFit, np.ndarray]:
+def _harmonics(coef: np.ndarray, drift: int) -> np.ndarray:
+    """Complex harmonics c_k = a_k − i b_k of coefficients on ``_design(..., drift)``."""
+    return coef[drift + 1::2] - 1j * coef[drift + 2::2]
+
+
+def _from_coef(a: np.ndarray, x: np.ndarray, coef: np.ndarray, drift: int = 1) -> tuple[HarmonicFit, np.ndarray]:
     """HarmonicFit of the least-squares coefficients ``coef`` of ``x`` on design ``a``, and the residual."""
     res = x - a @ coef
     dof = max(x.size - a.shape[1], 1)
     s2 = float(res @ res) / dof
     tm = a[:, 1]
     se = math.sqrt(s2 / max(float(((tm - tm.mean()) ** 2).sum()), 1e-300))
-    c = coef[2::2] - 1j * coef[3::2]
-    return HarmonicFit(c=c, offset=float(coef[0]), slope=float(coef[1]), slope_se=se, n=int(x.size)), res
+    return HarmonicFit(c=_harmonics(coef, drift), offset=float(coef[0]), slope=float(coef[1]), slope_se=se,
+                       n=int(x.size)), res
 
 
 def harmonic_fit(t: np.ndarray, x: np.ndarray, f: float, k_max: int) -> HarmonicFit:
@@ -102,26 +113,126 @@ def harmonic_fit(t: np.ndarray, x: np.ndarray, f: float, k_max: int) -> Harmonic
     return _from_coef(a, x, np.linalg.lstsq(a, x, rcond=None)[0])[0]
 
 
-def _folded_noise(t: np.ndarray, y: np.ndarray, f: float) -> float:
-    """Robust noise sd of a residual ``y``: phase-fold and compare each sample with the interpolation
-    between its phase neighbours (1.4826 · median |e| / sqrt(1 + w1² + w2²))."""
-    ph = np.mod(t * f, 1.0)
-    order = np.argsort(ph, kind="stable")
-    ph, y = ph[order], y[order]
-    if y.size < 3:
+NOISE_MIN_BINS = 32
+"""Fewest periodogram bins a harmonic's noise estimate averages (neighbouring harmonics' bands are pooled until
+there are as many)."""
+NOISE_TRIM = 0.8
+"""The noise level is the mean of the lowest NOISE_TRIM of the bins (robust to the lines a residual keeps), divided
+by that mean's fraction of the full mean for exponentially distributed bins (white Gaussian noise)."""
+_TRIM_BIAS = (1.0 - (1.0 - math.log(1.0 - NOISE_TRIM)) * (1.0 - NOISE_TRIM)) / NOISE_TRIM
+
+
+def _trimmed_level(vals: np.ndarray) -> float:
+    """White-equivalent level of periodogram bins: the trimmed mean (NOISE_TRIM) over its exponential-law bias."""
+    if vals.size == 0:
         return 0.0
-    h1, h2 = ph[1:-1] - ph[:-2], ph[2:] - ph[1:-1]
-    w1 = np.where(h1 + h2 > 0, h2 / np.maximum(h1 + h2, 1e-300), 0.5)   # linear interpolation weights
-    e = y[1:-1] - (w1 * y[:-2] + (1.0 - w1) * y[2:])
-    return float(1.4826 * np.median(np.abs(e) / np.sqrt(1.0 + w1 ** 2 + (1.0 - w1) ** 2)))
+    v = np.sort(vals)[:max(int(math.ceil(NOISE_TRIM * vals.size)), 1)]
+    return float(v.mean()) / _TRIM_BIAS
+
+
+SLOW_DEGREE = 2
+"""Degree of the polynomials the harmonic amplitudes of a record from rest may vary by over the record in the noise
+estimate's fit (a transient is not noise); a steady-state record's amplitudes are constant (degree 0)."""
+NOISE_EXTRA_HARMONICS = 4
+"""Harmonics above the features' k_max the noise estimate's fit removes as well (an impact's lines go on far above
+the features; the nearest would leak into the top bands)."""
+
+
+def _exclude_bins(degree: int) -> float:
+    """Bins either side of every harmonic left out of the noise bands: a fit whose amplitudes vary as polynomials of
+    ``degree`` takes the noise out of about degree + 1 bins around each line, a Hann window spreads a bin over 2."""
+    return degree + 1.5
+
+
+def _slow_design(t: np.ndarray, f: float, k_max: int, degree: int = SLOW_DEGREE) -> np.ndarray:
+    """Design of the noise estimate: a cubic drift and every harmonic with amplitudes that vary over the record
+    as polynomials of ``degree`` (a transient or a slow change of the response is not noise)."""
+    tau = (t - 0.5 * (t[0] + t[-1])) / max(0.5 * (t[-1] - t[0]), 1e-300)
+    w = 2.0 * math.pi * f * t
+    cols = [tau ** j for j in range(4)]
+    for k in range(1, k_max + 1):
+        c, s = np.cos(k * w), np.sin(k * w)
+        for j in range(degree + 1):
+            cols += [c * tau ** j, s * tau ** j]
+    return np.column_stack(cols)
+
+
+def _periodogram(res: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """(bin frequencies [Hz], Hann-windowed periodogram normalised so that white noise of sd σ gives σ², bin width)."""
+    n = res.size
+    w = np.hanning(n)
+    p = np.abs(np.fft.rfft(res * w)) ** 2 / max(float(np.sum(w * w)), 1e-300)
+    df = fs / n
+    return np.arange(p.size) * df, p, df
+
+
+def _band_bins(fj: np.ndarray, f: float, df: float, k_max: int, degree: int) -> tuple[np.ndarray, np.ndarray]:
+    """(harmonic number of every bin, which bins may hold noise): within 0.5 f of k f, k <= k_max, and not within
+    ``_exclude_bins(degree)`` of a harmonic (or of DC)."""
+    k_of = np.round(fj / f)
+    ok = (np.abs(fj - k_of * f) >= _exclude_bins(degree) * df) & (k_of <= max(k_max, 1))
+    return k_of, ok
+
+
+def _pooled(vals: np.ndarray, k_of: np.ndarray, ok: np.ndarray, k: int, k_max: int) -> float:
+    """``_trimmed_level`` of the band of harmonic k, pooled with its neighbours up to NOISE_MIN_BINS bins."""
+    for spread in range(0, k_max + 2):
+        m = ok & (np.abs(k_of - k) <= spread)
+        if np.count_nonzero(m) >= NOISE_MIN_BINS or spread > k_max:
+            break
+    return _trimmed_level(vals[m] if np.any(m) else vals[1:])
+
+
+def band_noise(res: np.ndarray, fs: float, f: float, k_max: int, degree: int = 0) -> np.ndarray:
+    """Noise variance density [unit²] around each harmonic k = 0..k_max of ``f`` (k = 0: the slow band below
+    0.5 f, DC left out), white-equivalent (a white noise of sd σ gives σ² at every k): a trimmed mean
+    (``_trimmed_level``) of the Hann-windowed periodogram of the residual ``res`` over the bins within 0.5 f of k f,
+    leaving out ``_exclude_bins(degree)`` around every harmonic, and pooling neighbouring bands of harmonics
+    1..k_max up to NOISE_MIN_BINS bins.  The periodogram is first whitened by the power law f^b that the bands
+    follow (b ≈ 0 white or gain noise, −1 for 1/f noise), so that pooling and trimming do not bias a sloping
+    spectrum.  Trimming over frequency is robust to the lines a least-squares residual keeps (harmonics above k_max
+    folded by the sampling, subharmonics), a band per harmonic follows coloured noise, and noise proportional to
+    the signal, which spreads over every band, is seen in full (a median over time would see only the quiet part
+    of each cycle)."""
+    fj, p, df = _periodogram(res, fs)
+    k_of, ok = _band_bins(fj, f, df, k_max, degree)
+    out = np.empty(k_max + 1)
+    out[0] = _pooled(p, k_of, ok, 0, 0)
+    if k_max == 0:
+        return out
+    ks = np.arange(1, k_max + 1)
+    raw = np.array([_pooled(p, k_of, ok, k, k_max) for k in ks])
+    b = 0.0
+    if k_max >= 3 and np.all(raw > 0):
+        b = float(np.polyfit(np.log(ks), np.log(raw), 1)[0])
+    white = p / np.maximum(fj / f, 0.5) ** b
+    out[1:] = [_pooled(white, k_of, ok, k, k_max) * k ** b for k in ks]
+    return out
+
+
+def _broadband(res: np.ndarray, fs: float, f: float, k_max: int, degree: int = 0) -> float:
+    """sd of a white noise with the residual's periodogram level over the bands of harmonics 1..k_max."""
+    fj, p, df = _periodogram(res, fs)
+    k_of, ok = _band_bins(fj, f, df, k_max, degree)
+    m = ok & (k_of >= 1)
+    return math.sqrt(_trimmed_level(p[m] if np.any(m) else p[1:]))
+
+
+def record_noise(t: np.ndarray, x: np.ndarray, f: float, k_max: int, degree: int = 0) -> tuple[np.ndarray, float]:
+    """(noise variance density around k f, k = 0..k_max (``band_noise``), broadband sd [unit of x]) of a record:
+    the residual of a harmonic fit whose amplitudes may vary as polynomials of ``degree`` over the record
+    (``_slow_design``; SLOW_DEGREE for a record from rest, 0 in steady state), on the record's own time base."""
+    fs = 1.0 / float(t[1] - t[0])
+    # a few harmonics above k_max too: their lines would leak into the top bands
+    k_fit = max(min(k_max + NOISE_EXTRA_HARMONICS, int(math.floor(fs / (2.0 * f) - 0.5))), k_max)
+    a = _slow_design(t, f, k_fit, degree)
+    res = x - a @ np.linalg.lstsq(a, x, rcond=None)[0]
+    return band_noise(res, fs, f, k_max, degree), _broadband(res, fs, f, k_max, degree)
 
 
 def noise_sd(t: np.ndarray, x: np.ndarray, f: float, k_max: int = 0) -> float:
-    """Measurement-noise sd [unit of x]: remove the least-squares fit (offset, drift, harmonics 1..k_max),
-    phase-fold the rest and take the robust deviation from the interpolation between phase neighbours
-    (see the module docstring)."""
-    a = _design(t, f, k_max)
-    return _folded_noise(t, x - a @ np.linalg.lstsq(a, x, rcond=None)[0], f)
+    """Broadband measurement-noise sd [unit of x] of a record (``record_noise``)."""
+    return record_noise(t, x, f, max(k_max, 1))[1]
 
 
 @dataclass
@@ -148,7 +259,16 @@ class Target:
     noise: dict = field(default_factory=dict)      # signal -> estimated sd (series)
     segments: dict = field(default_factory=dict)   # signal -> (n_seg, K) complex harmonics per time segment
     t_rec: np.ndarray | None = None                # record time base [s] (series)
-    pinv: np.ndarray | None = None                 # least-squares operator of the record's design matrix
+    pinv: dict | None = None                       # least-squares operators of the record's time base (_operators)
+    halves: list = field(default_factory=list)     # [(slice, operators)] of the record's two halves
+    y_halves: np.ndarray | None = None             # (2, n) features of each half (series; the summary has none)
+    noise_sd: np.ndarray | None = None             # the noise part of sd, without the model floor (series)
+    max_harmonic_hz: float = 0.0                    # the features' highest harmonic frequency
+
+    @property
+    def low(self) -> np.ndarray:
+        """Which features a first, coarse fit uses (``low_harmonics``)."""
+        return low_harmonics(self.names, self.frequency_hz, self.max_harmonic_hz)
 
     @property
     def n(self) -> int:
@@ -164,6 +284,24 @@ class Target:
         return self.duration_s * self.frequency_hz
 
 
+LOW_FRACTION = 0.2
+"""A coarse fit compares the harmonics up to this fraction of max_harmonic_hz (at least the second) and every
+non-harmonic feature."""
+
+
+def low_harmonics(names: list[str], f: float, max_harmonic_hz: float) -> np.ndarray:
+    """Mask of the features a coarse fit uses: every feature but the harmonics above LOW_FRACTION × max_harmonic_hz
+    (and above the second).  An impact's high harmonics turn by k × its timing: their misfit is periodic in any
+    parameter that shifts the impact, with a local minimum every 1/k of a cycle, where the low harmonics' misfit has
+    one; fitting those first finds the right basin."""
+    k_low = max(2, int(math.floor(LOW_FRACTION * max_harmonic_hz / f + 1e-9))) if max_harmonic_hz else 10 ** 9
+    out = np.ones(len(names), dtype=bool)
+    for j, n in enumerate(names):
+        if ":h" in n:
+            out[j] = int(n.split(":h")[1].split(":")[0]) <= k_low
+    return out
+
+
 def _complex_features(sig: str, c: np.ndarray) -> tuple[list[str], np.ndarray]:
     names = [f"{sig}:h{k}:{part}" for k in range(1, c.size + 1) for part in ("re", "im")]
     return names, np.column_stack([c.real, c.imag]).ravel()
@@ -174,69 +312,137 @@ def record_time(tg: Target, t_record: np.ndarray) -> np.ndarray:
     return t_record + (tg.record_start_s or 0.0)
 
 
-def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segments: int = 4) -> Target:
-    """Fill ``tg`` (run_id, system, controls, known, record_start_s set) from a measured series."""
+def _operators(t: np.ndarray, f: float, k: int) -> dict:
+    """Least-squares operators of a time base: "harmonic" (cubic drift, DRIFT_DEGREE) for accelerations, forces and
+    displacements, "linear" (offset and rate) for the progression."""
+    return {"harmonic": np.linalg.pinv(_design(t, f, k, DRIFT_DEGREE)), "linear": np.linalg.pinv(_design(t, f, k, 1))}
+
+
+def _coefs(ops: dict, x: dict, sl: slice = slice(None)) -> dict:
+    """Each signal's least-squares coefficients on its operator (samples ``sl`` of ``x``)."""
+    return {sig: ops["linear" if sig == "progression_m" else "harmonic"] @ v[sl] for sig, v in x.items()}
+
+
+def _features(signals: tuple[str, ...], coef: dict, from_rest: bool) -> np.ndarray:
+    """Feature values from each signal's least-squares coefficients (``_coefs``): the complex harmonics
+    c_k = a_k − i b_k of accel / force / displacement, the progression's rate and, for a record from rest, its mean
+    (the record's depth in the rig frame)."""
+    out = []
+    for sig in signals:
+        c = coef[sig]
+        if sig == "progression_m":
+            out.append(np.array([c[1]] + ([c[0]] if from_rest else [])))
+        else:
+            h = _harmonics(c, DRIFT_DEGREE)
+            out.append(np.column_stack([h.real, h.imag]).ravel())
+    return np.concatenate(out)
+
+
+def steady_cycles(cycles: float, max_cycles: float = 0.0) -> int:
+    """Whole cycles of a steady-state record that its features use: a multiple of 4 (of 2 below 8 cycles), at most
+    ``max_cycles`` (> 0)."""
+    c = math.floor(cycles + 1e-9)
+    if max_cycles:
+        c = min(c, int(max_cycles))
+    return max((c // 4) * 4 if c >= 8 else (c // 2) * 2, 2)
+
+
+def _halves(t: np.ndarray, f: float, k: int, steady: bool) -> list:
+    """The record's two halves (slices) and the least-squares operators of their own time bases; a steady-state
+    record (whole pairs of cycles, ``steady_cycles``) is split between its pairs."""
+    mid = t.size // 2
+    if steady:
+        mid = int(np.searchsorted(t, t[0] + 0.5 * (t[-1] - t[0] + (t[1] - t[0])) - 1e-9 * (t[1] - t[0])))
+    return [(sl, _operators(t[sl], f, k)) for sl in (slice(0, mid), slice(mid, t.size))]
+
+
+def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segments: int = 4,
+                  model_floor: float = 0.0, max_cycles: float = 0.0) -> Target:
+    """Fill ``tg`` (run_id, system, controls, known, record_start_s set) from a measured series.
+
+    Feature sd: the noise of each harmonic coefficient part, sqrt(2 S_k / N) with S_k the record's noise density
+    around k f (``record_noise``: coloured and signal-proportional noise included), and in quadrature the model
+    floor ``model_floor`` × the RMS harmonic amplitude of the signal (what two correct simulations of the same
+    equations and a rig's sampling may differ by, not noise).  Progression: its rate's sd from the slow band
+    (sqrt(12 S_0 / N) / T, at least the regression's) and the same relative floor.
+    A steady-state record is cut to whole cycles (``steady_cycles``: a multiple of 4, at most ``max_cycles``), so
+    that each half holds whole pairs of cycles: a period-2 response (an impact every second cycle) then leaves the
+    harmonics of f alone whichever of its two phases the record started in, and the model's orbit may be in the
+    other one (a steady state does not say).  A record from rest keeps every sample (its phase is the run's)."""
     f = tg.frequency_hz
+    if tg.record_start_s is None:
+        t_all = df["t_s"].to_numpy()
+        if t_all.size > 1:
+            dt0 = float(t_all[1] - t_all[0])
+            n_cyc = steady_cycles((t_all[-1] - t_all[0] + dt0) * f, max_cycles)
+            df = df.iloc[:int(np.searchsorted(t_all, n_cyc / f - 1e-9 * dt0))]
     t_rec = df["t_s"].to_numpy()
     k = harmonic_count(f, max_harmonic_hz)
     check_resolution(tg.run_id, t_rec, f, k)
     dt = float(t_rec[1] - t_rec[0])
     tg.kind, tg.k_max, tg.fs_hz, tg.duration_s = "series", k, 1.0 / dt, float(t_rec[-1] - t_rec[0] + dt)
+    tg.max_harmonic_hz = max_harmonic_hz
     t = record_time(tg, t_rec)
     tg.t_rec = t_rec
     a = _design(t, f, k)
-    tg.pinv = np.linalg.pinv(a)
-    # one operator for every signal of the record (the model's records use the same one, model_on_record)
-    fits = {sig: _from_coef(a, x, tg.pinv @ x) for sig in (*HARMONIC_SIGNALS, "progression_m") if sig in df.columns
-            for x in [df[sig].to_numpy()]}
+    tg.pinv = _operators(t, f, k)
+    sigs = tuple(sig for sig in (*HARMONIC_SIGNALS, "progression_m") if sig in df.columns)
+    x_all = {sig: df[sig].to_numpy() for sig in sigs}
+    coef = _coefs(tg.pinv, x_all)
+    from_rest = tg.record_start_s is not None
+    tg.halves = _halves(t, f, k, not from_rest) if tg.cycles >= 2 * MIN_CYCLES else []
+    if tg.halves:
+        tg.y_halves = np.array([_features(sigs, _coefs(ops, x_all, sl), from_rest) for sl, ops in tg.halves])
     present = [sig for sig in HARMONIC_SIGNALS if sig in df.columns]
-    seg_c: dict[str, list] = {sig: [] for sig in present}
     if present and tg.cycles >= 2 * n_segments * MIN_CYCLES / 2:
-        x_all = np.column_stack([df[sig].to_numpy() for sig in present])
+        a_h = _design(t, f, k, DRIFT_DEGREE)
+        x_stack = np.column_stack([x_all[sig] for sig in present])
         edges = np.linspace(0, t.size, n_segments + 1).astype(int)
-        for lo, hi in zip(edges[:-1], edges[1:]):    # the segment's own design (drift centring does not change c)
-            coef = np.linalg.lstsq(a[lo:hi], x_all[lo:hi], rcond=None)[0]
+        seg_c: dict[str, list] = {sig: [] for sig in present}
+        for lo, hi in zip(edges[:-1], edges[1:]):    # the segment's own fit (harmonics as the features')
+            cs = np.linalg.lstsq(a_h[lo:hi], x_stack[lo:hi], rcond=None)[0]
             for j, sig in enumerate(present):
-                seg_c[sig].append(coef[2::2, j] - 1j * coef[3::2, j])
-    names, y, sd, group, sigs = [], [], [], [], []
-    for sig in HARMONIC_SIGNALS:
-        if sig not in df.columns:
+                seg_c[sig].append(_harmonics(cs[:, j], DRIFT_DEGREE))
+        tg.segments = {sig: np.array(v) for sig, v in seg_c.items()}
+    names, sd, noise, group = [], [], [], []
+    n = t.size
+    for sig in sigs:
+        dens, broad = record_noise(t, x_all[sig], f, k, SLOW_DEGREE if from_rest else 0)
+        tg.noise[sig] = broad
+        c = coef[sig]
+        if sig == "progression_m":
+            _, res = _from_coef(a, x_all[sig], c)
+            se = math.sqrt(float(res @ res) / max(n - a.shape[1], 1) / max(float(((t - t.mean()) ** 2).sum()), 1e-300))
+            s_rate = max(se, math.sqrt(12.0 * dens[0] / n) / tg.duration_s)
+            names.append("rop_m_s")
+            sd.append(math.hypot(s_rate, model_floor * abs(c[1])))
+            noise.append(s_rate)
+            group.append("rop_m_s")
+            if from_rest:
+                names.append("progression_m:mean")
+                sd.append(math.hypot(math.sqrt(dens[0] / n), model_floor * abs(c[0])))
+                noise.append(math.sqrt(dens[0] / n))
+                group.append("progression_m")
             continue
-        x = df[sig].to_numpy()
-        hf, res = fits[sig]
-        s = _folded_noise(t, res, f)
-        tg.noise[sig] = s
-        csd = max(s * math.sqrt(2.0 / x.size), 1e-12 * (np.abs(hf.c).max() + 1e-30))
-        n_, v = _complex_features(sig, hf.c)
-        names += n_
-        y.append(v)
-        sd.append(np.full(v.size, csd))
-        group += [sig] * v.size
-        sigs.append(sig)
-        if seg_c[sig]:
-            tg.segments[sig] = np.array(seg_c[sig])
-    if "progression_m" in df.columns:
-        x = df["progression_m"].to_numpy()
-        hf, res = fits["progression_m"]
-        s = _folded_noise(t, res, f)
-        tg.noise["progression_m"] = s
-        names.append("rop_m_s")
-        y.append(np.array([hf.slope]))
-        sd.append(np.array([max(hf.slope_se, s * math.sqrt(12.0 / x.size) / tg.duration_s, 1e-12)]))
-        group.append("rop_m_s")
-        if tg.record_start_s is not None:    # from rest, the rig-frame depth of the record is a feature
-            names.append("progression_m:mean")
-            y.append(np.array([hf.offset]))
-            sd.append(np.array([max(s / math.sqrt(x.size), 1e-12)]))
-            group.append("progression_m")
-        sigs.append("progression_m")
-    tg.names, tg.y, tg.sd, tg.group, tg.signals = names, np.concatenate(y), np.concatenate(sd), group, tuple(sigs)
+        h = _harmonics(c, DRIFT_DEGREE)
+        floor = model_floor * math.sqrt(float(np.mean(np.abs(h) ** 2)))
+        csd = np.sqrt(2.0 * dens[1:] / n + floor ** 2)
+        csd = np.maximum(csd, 1e-12 * (float(np.abs(h).max()) + 1e-30))
+        names += _complex_features(sig, h)[0]
+        sd += list(np.repeat(csd, 2))
+        noise += list(np.repeat(np.sqrt(2.0 * dens[1:] / n), 2))
+        group += [sig] * (2 * k)
+    tg.names, tg.sd, tg.group, tg.signals = names, np.array(sd), group, sigs
+    tg.noise_sd = np.array(noise)
+    tg.y = _features(sigs, coef, from_rest)
     tg.lower_bound = np.zeros(tg.y.size, dtype=bool)
     return tg
 
 
-def summary_target(tg: Target, srow: pd.Series, max_harmonic_hz: float, sd_defaults: dict | None = None) -> Target:
-    """Fill ``tg`` from a summary.csv row."""
+def summary_target(tg: Target, srow: pd.Series, max_harmonic_hz: float, sd_defaults: dict | None = None,
+                   floor: float = 0.0) -> Target:
+    """Fill ``tg`` from a summary.csv row.  A feature's sd is its ``<name>_sd`` column or the assumed default, and in
+    quadrature ``floor`` × its value (a label the rig's software and the model define slightly differently)."""
     sd_defaults = {**DEFAULT_SUMMARY_SD, **(sd_defaults or {})}
     tg.kind, tg.k_max = "summary", harmonic_count(tg.frequency_hz, max_harmonic_hz)
     names, y, sd, lb = [], [], [], []
@@ -256,7 +462,7 @@ def summary_target(tg: Target, srow: pd.Series, max_harmonic_hz: float, sd_defau
             s = val * max(abs(v), 1e-12) if how == "rel" else val
         names.append(feat)
         y.append(v)
-        sd.append(s)
+        sd.append(math.hypot(s, floor * abs(v)))
         lb.append(feat == "impacts_per_cycle" and bool(srow.get("impacts_per_cycle_lower_bound", 0) == 1))
     tg.names, tg.y, tg.sd, tg.group = names, np.array(y), np.array(sd), list(names)
     tg.lower_bound = np.array(lb, dtype=bool)
@@ -264,17 +470,44 @@ def summary_target(tg: Target, srow: pd.Series, max_harmonic_hz: float, sd_defau
 
 
 def model_record(tg: Target, h: pd.DataFrame) -> tuple[np.ndarray, pd.DataFrame]:
-    """The part of a simulated history that corresponds to the record, and its time base
-    (see ``record_time``): a steady-state window as simulated (starts at forcing phase 0); a run
-    from rest cut to [record_start_s, record_start_s + duration_s]."""
+    """The part of a simulated history that corresponds to the record, and its time base (``record_time``).
+    Series: the history was sampled at the record's own instants (``sampling_plan``), after a warm-up of the
+    sensor where one was needed: its last N rows.  Summary: a steady-state window as simulated (starts at forcing
+    phase 0); a run from rest cut to [record_start_s, record_start_s + duration_s]."""
     t = h["t_s"].to_numpy()
+    if tg.t_rec is not None:
+        return record_time(tg, tg.t_rec), h.iloc[_record_rows(tg, h)]
     if tg.record_start_s is None:
         return t - t[0], h
     m = (t >= tg.record_start_s - 1e-12) & (t < tg.record_start_s + tg.duration_s - 1e-12)
     return t[m], h.loc[m]
 
 
-def _history_summary(name: str, t: np.ndarray, h: pd.DataFrame, f: float) -> float:
+SENSOR_SUBSAMPLES = 8
+"""Model samples per record interval while a sensor low-pass is on: it filters the sampled velocity, exact for a
+velocity linear between samples (sim.models.sensor), so a contact's kink wants a finer grid than the record's."""
+
+
+def sampling_plan(tg: Target, frequency_hz: float, warmup_s: float = 0.0) -> tuple[np.ndarray, int, float]:
+    """Where to sample the model of a series run: (times from the start of the simulated window [s], window cycles,
+    first record time [s] in that window).  The times are the record's own instants — a steady-state record
+    starts at forcing phase 0 of the window (after whole warm-up cycles), a record from rest at record_start_s
+    of a window that starts at rest — and, for ``warmup_s`` > 0 (a sensor's dynamics to settle), the same uniform
+    grid SENSOR_SUBSAMPLES times finer, extended backwards over that long (from rest: back to t = 0)."""
+    period = 1.0 / frequency_hz
+    sub = SENSOR_SUBSAMPLES if warmup_s > 0 else 1
+    dt = 1.0 / (tg.fs_hz * sub)
+    if tg.record_start_s is None:
+        t0 = math.ceil(warmup_s / period - 1e-9) * period if warmup_s > 0 else 0.0
+    else:
+        t0 = tg.record_start_s
+    n_pre = int(math.floor(min(warmup_s, t0) / dt + 1e-9)) if warmup_s > 0 else 0
+    times = t0 + np.arange(-n_pre, tg.t_rec.size * sub) * dt
+    window = int(math.ceil((t0 + tg.duration_s) / period)) + 1
+    return times, max(window, 2), t0
+
+
+def history_summary(name: str, t: np.ndarray, h: pd.DataFrame, f: float) -> float:
     """Summary label over a cut history (runs from rest): MODELS.md §5 definitions."""
     if name == "rop_m_s":
         x = h["progression_m"].to_numpy()
@@ -289,20 +522,26 @@ def _history_summary(name: str, t: np.ndarray, h: pd.DataFrame, f: float) -> flo
     raise KeyError(name)
 
 
+def _record_rows(tg: Target, h: pd.DataFrame) -> np.ndarray:
+    """Rows of a history sampled by ``sampling_plan`` at the record's instants: the last N on its grid (every
+    SENSOR_SUBSAMPLES-th where it was sampled finer)."""
+    n = tg.t_rec.size
+    t = h["t_s"].to_numpy()
+    sub = max(int(round(1.0 / (tg.fs_hz * (t[1] - t[0])))), 1) if t.size > 1 else 1
+    return np.arange(len(h) - n * sub, len(h), sub)        # the grid runs sub - 1 points past the record's end
+
+
 def model_on_record(tg: Target, h: pd.DataFrame, sig: str) -> np.ndarray:
-    """A simulated signal on the measured record's own time base (linear interpolation of the densely
-    sampled model: the model's harmonics then see the same sampling as the measurement's).  Steady state:
-    the window starts at forcing phase 0 and repeats if the record is longer; from rest: absolute time."""
-    th = h["t_s"].to_numpy()
-    x = h[sig].to_numpy()
-    if tg.record_start_s is None:
-        th = th - th[0]
-        tq = tg.t_rec
-        span = th[-1] + (th[1] - th[0])
-        if tq[-1] >= span:
-            tq = np.mod(tq, span)
-        return np.interp(tq, th, x)
-    return np.interp(record_time(tg, tg.t_rec), th, x)
+    """A simulated signal at the measured record's own instants (``sampling_plan``)."""
+    return h[sig].to_numpy()[_record_rows(tg, h)]
+
+
+def simulated_halves(tg: Target, res) -> np.ndarray | None:
+    """The model's features of each half of a series record, (2, n) (None: no halves, or no history)."""
+    if not tg.halves or res.history is None:
+        return None
+    x = {sig: model_on_record(tg, res.history, sig) for sig in tg.signals}
+    return np.array([_features(tg.signals, _coefs(ops, x, sl), tg.record_start_s is not None) for sl, ops in tg.halves])
 
 
 def simulated_features(tg: Target, res) -> np.ndarray | None:
@@ -313,14 +552,8 @@ def simulated_features(tg: Target, res) -> np.ndarray | None:
         return None
     f = tg.frequency_hz
     if tg.kind == "series":
-        out = []
-        for sig in tg.signals:
-            coef = tg.pinv @ model_on_record(tg, h, sig)
-            if sig == "progression_m":
-                out.append(np.array([coef[1]] + ([coef[0]] if tg.record_start_s is not None else [])))
-            else:
-                out.append(_complex_features(sig, coef[2::2] - 1j * coef[3::2])[1])
-        return np.concatenate(out)
+        return _features(tg.signals, _coefs(tg.pinv, {sig: model_on_record(tg, h, sig) for sig in tg.signals}),
+                         tg.record_start_s is not None)
     t, hr = model_record(tg, h)
     if t.size < 4:
         return None
@@ -330,7 +563,7 @@ def simulated_features(tg: Target, res) -> np.ndarray | None:
         if name == "spectral_ratio":
             vals.append(spectral_ratio(t, hr["accel_m_s2"].to_numpy(), f, tg.k_max, tg.ratio_ref_hz))
         elif tg.record_start_s is not None:
-            vals.append(_history_summary(name, t, hr, f))
+            vals.append(history_summary(name, t, hr, f))
         else:
             v = lab.get(name)
             vals.append(0.0 if v is None else float(v))

@@ -12,7 +12,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from pipeline.diagnosis.features import Target, peak_velocity, simulated_features
+from pipeline.diagnosis.features import (Target, peak_velocity, sampling_plan, simulated_features,
+                                         simulated_halves)
 from pipeline.core.errors import UserError
 from sim.models.base import FitBound
 from sim.registry import warm as sim_warm
@@ -73,31 +74,44 @@ def candidates(system: str) -> dict[str, tuple[FreeParam, ...]]:
 
 
 MAX_MODEL_SAMPLES = 500_000
-"""Cap on the samples of one model history (memory; the integrator steps on its own, the history is only output).
-A cap per cycle instead (4096) starved low-frequency runs: the pendulum at 3 Hz recorded at 10 kHz got 1.2x
-instead of 4x oversampling and its truth mismatch was ~8 instead of ~1 (issue 12)."""
+"""Cap on the samples of one summary run's model history (memory; the integrator steps on its own, the history is
+only output)."""
 
 
-def run_settings(tg: Target, sim_settings: dict, fs_sim_hz: float, max_window: int = 0,
-                 oversample: float = 4.0) -> dict:
-    """Simulator settings of one run.  The model is sampled densely (``oversample`` x the record's rate,
-    at least 4 K + 8 samples per cycle, at most MAX_MODEL_SAMPLES in the whole window) and interpolated onto the
-    record's own time base (features.model_on_record), so its harmonics see the same sampling as the measurement's.
-    Steady-state record: as many cycles as were recorded (up to ``max_window``; drifting effects depend on it).
-    Record from rest (``record_start_s``): no transient, a window from rest that covers [record_start_s,
-    record_start_s + duration_s] (features.model_record cuts it)."""
+def sensor_warmup_s(params: dict) -> float:
+    """How long the sensor low-pass of ``params`` (fc > 0) needs to forget its start [s] (``sim.models.sensor``)."""
+    from sim.models.sensor import warmup_s
+
+    return warmup_s(float(params.get("fc", 0.0) or 0.0))
+
+
+def run_settings(tg: Target, sim_settings: dict, fs_sim_hz: float, oversample: float = 4.0) -> dict:
+    """Simulator settings of one summary run: sampled densely (``oversample`` x ``fs_sim_hz``, at least 4 K + 8
+    samples per cycle, at most MAX_MODEL_SAMPLES in the window).  Steady state: the settings' window; from rest
+    (``record_start_s``): no transient and a window from rest that covers [record_start_s, record_start_s +
+    duration_s] (features.model_record cuts it).  Series runs are sampled at their record's instants instead
+    (``series_settings``)."""
     f = tg.frequency_hz
-    fs = tg.fs_hz or fs_sim_hz
     st = dict(sim_settings)
     if tg.record_start_s is not None:
         end = tg.record_start_s + max(tg.duration_s, 2.0 / f)
         st.update(min_transient=0, max_transient=0, window=max(int(math.ceil(end * f)) + 1, 2))
-    elif max_window and tg.kind == "series":
-        st["window"] = max(int(st.get("window", 2)), min(int(math.ceil(tg.cycles)), max_window))
     window = int(st.get("window", 2))
-    st["samples_per_cycle"] = max(min(int(math.ceil(oversample * fs / f)), MAX_MODEL_SAMPLES // max(window, 1)),
+    st["samples_per_cycle"] = max(min(int(math.ceil(oversample * fs_sim_hz / f)), MAX_MODEL_SAMPLES // max(window, 1)),
                                   4 * tg.k_max + 8)
     return st
+
+
+def series_settings(tg: Target, sim_settings: dict, params: dict) -> tuple[dict, np.ndarray]:
+    """(settings, history_times) of a series run: the model sampled at the record's own instants
+    (``features.sampling_plan``), a steady-state record after the settings' transient, a record from rest from
+    rest, with the sensor's warm-up of ``params`` before it."""
+    times, window, _ = sampling_plan(tg, tg.frequency_hz, sensor_warmup_s(params))
+    st = {k: v for k, v in sim_settings.items() if k != "samples_per_cycle"}
+    st["window"] = window
+    if tg.record_start_s is not None:
+        st.update(min_transient=0, max_transient=0)
+    return st, times
 
 
 class Evaluator:
@@ -105,12 +119,13 @@ class Evaluator:
     and returns noise-normalised residuals (model - measured) / sd."""
 
     def __init__(self, system: str, targets: list[Target], sim_settings: dict, fs_sim_hz: float,
-                 n_threads: int | None = None, max_window: int = 0):
+                 n_threads: int | None = None):
         calibratable(system)
         self.system = system
         self.targets = targets
         self.n_threads = n_threads or os.cpu_count() or 1
-        self.settings = [run_settings(tg, sim_settings, fs_sim_hz, max_window) for tg in targets]
+        self.sim_settings = dict(sim_settings)
+        self.settings = [run_settings(tg, sim_settings, fs_sim_hz) for tg in targets]
         self.n_sims = 0
         warm(system)
 
@@ -123,9 +138,12 @@ class Evaluator:
         def one(job):
             j, i = job
             tg = self.targets[i]
+            params = {**tg.known, **tg.controls, **param_sets[j]}
             try:
-                return sim.simulate(self.system, settings=self.settings[i], history=True,
-                                    **{**tg.known, **tg.controls, **param_sets[j]})
+                if tg.kind == "series":
+                    st, times = series_settings(tg, self.sim_settings, params)
+                    return sim.simulate(self.system, settings=st, history_times=times, **params)
+                return sim.simulate(self.system, settings=self.settings[i], history=True, **params)
             except sim.ParameterError as e:
                 raise UserError(f"run {tg.run_id}: {e}") from None
 
@@ -150,10 +168,21 @@ class Evaluator:
             r[tg.lower_bound] = np.minimum(r[tg.lower_bound], 0.0)
         return r
 
-    def residuals(self, param_sets: list[dict], idx: list[int]) -> list[np.ndarray]:
-        """Concatenated normalised residual over runs ``idx`` for each parameter set."""
+    def residuals(self, param_sets: list[dict], idx: list[int], low_only: bool = False) -> list[np.ndarray]:
+        """Concatenated normalised residual over runs ``idx`` for each parameter set (``low_only``: the features of
+        the low harmonics only, ``features.low_harmonics``)."""
         sims = self.simulate(param_sets, idx)
+        if low_only:
+            return [np.concatenate([self.residual_of(i, r)[self.targets[i].low] for i, r in zip(idx, row)])
+                    for row in sims]
         return [np.concatenate([self.residual_of(i, r) for i, r in zip(idx, row)]) for row in sims]
+
+    def held_out(self, param_sets: list[dict], idx: list[int]) -> list[tuple[list[np.ndarray], list]]:
+        """Per parameter set: the normalised residual of every run ``idx`` and the model's features of each half
+        of its record (``features.simulated_halves``; None for summary runs)."""
+        sims = self.simulate(param_sets, idx)
+        return [([self.residual_of(i, r) for i, r in zip(idx, row)],
+                 [simulated_halves(self.targets[i], r) for i, r in zip(idx, row)]) for row in sims]
 
     def run_details(self, params: dict, idx: list[int]) -> list[dict]:
         """Per run: normalised residual, simulated features and peak velocity (for reports)."""

@@ -186,6 +186,8 @@ def figures(rep: dict, ds, base_runs: list[dict], final_runs: list[dict], defaul
 
 
 def _fmt(v) -> str:
+    if v is None:
+        return "—"
     if isinstance(v, float):
         return f"{v:.4g}"
     return str(v)
@@ -206,31 +208,50 @@ def markdown(report: dict, per_system: list[dict], seconds: float) -> str:
              "measurement noise alone; `nrms` = residual / noise (1 = at the noise level).", ""]
     for rep in per_system:
         lines += [f"## {rep['system']} ({rep['n_runs']} runs, {', '.join(rep['data'])} data, {rep['split']['scheme']})", ""]
-        verdict = ("**explained**" if rep["explained"] else "**unexplained**")
-        sel = rep["selected"] or ("none (the calibrated base model fits to the noise level)" if rep["explained"]
-                                  else f"none — no candidate brings the held-out residual to the noise level "
-                                       f"(best partial: {rep['best_partial_candidate']})")
-        lines += [f"Selected effect: **{sel}**; residual {verdict}.", ""]
+        verdict = {"nothing missing": "**nothing missing** (the calibrated base model is adequate)",
+                   "selected": f"**{rep['selected']}** selected",
+                   "unexplained": "**unexplained** (no §6 effect brings the model to the data)"}[rep["verdict"]]
+        lines += [f"Verdict: {verdict}.", "", f"How close the call was: {rep['call']['text']}.", ""]
+        shown = [m for m in (rep["leader"], rep["runner_up"]) if m]
+        by = {c["effect"]: c for c in rep["candidates"]}
+        lines += ["| model | held-out error (noise floor) | held-out nrms | systematic error | ΔBIC vs base | "
+                  "held-out Δχ² vs base | adequate | improves |", "|---|---|---|---|---|---|---|---|",
+                  f"| calibrated base | {_fmt(rep['base_error'])} ({_fmt(rep['noise_floor'])}) | {_fmt(rep['base_nrms'])} | "
+                  f"{_fmt(rep['base_systematic'])} | 0 | 0 | {'yes' if rep['call']['base']['adequate'] else 'no'} | — |"]
+        for m in shown:
+            c = by[m]
+            role = "selected" if m == rep["selected"] else ("leader" if m == rep["leader"] else "runner-up")
+            lines.append(f"| {m} ({role}) | {_fmt(c['error'])} ({_fmt(rep['noise_floor'])}) | {_fmt(c['nrms'])} | "
+                         f"{_fmt(c['systematic'])} | {_fmt(-c['delta_score'])} | {_fmt(c['delta_chi2_heldout'])} | "
+                         f"{'yes' if c['adequate'] else 'no'} | {'yes' if c['improves'] else 'no'} |")
+        lines.append("")
+        if rep.get("absorbed"):
+            lines += ["Parameters the base fit moved to absorb the missing physics (base fit against the fit with "
+                      f"{rep['leader']}): " + ", ".join(f"{n} {a['base']:.4g} vs {a['with']:.4g} ({100 * a['change']:+.0f} %)"
+                                                      for n, a in rep["absorbed"].items()) + ".", ""]
         if rep.get("rig"):
             lines += [f"Corrected rig: [`{rep['rig']['file']}`]({rep['rig']['file']}) (use it with `--rig`): "
                       f"{rep['rig']['source']}.", ""]
         lines += [
-                  "| model | held-out error | held-out nrms |", "|---|---|---|",
-                  f"| default parameters | {_fmt(rep['default_error'])} | {_fmt(rep['default_nrms'])} |",
-                  f"| calibrated base (before) | {_fmt(rep['base_error'])} | {_fmt(rep['base_nrms'])} |",
-                  f"| final (after) | {_fmt(rep['final_error'])} | {_fmt(rep['final_nrms'])} |",
-                  f"| noise floor | {_fmt(rep['noise_floor'])} | 1 |", "",
+                  "| model | held-out error | held-out nrms | systematic error |", "|---|---|---|---|",
+                  f"| default parameters | {_fmt(rep['default_error'])} | {_fmt(rep['default_nrms'])} | — |",
+                  f"| calibrated base (before) | {_fmt(rep['base_error'])} | {_fmt(rep['base_nrms'])} | "
+                  f"{_fmt(rep['base_systematic'])} |",
+                  f"| final (after) | {_fmt(rep['final_error'])} | {_fmt(rep['final_nrms'])} | "
+                  f"{_fmt(rep['final_systematic'])} |",
+                  f"| noise floor | {_fmt(rep['noise_floor'])} | 1 | 0 |", "",
                   "Calibrated base parameters (value, sd, 95 % interval):", ""]
         lines += [_param_line(n, v) for n, v in rep["calibrated_uncertainty"].items()]
         if rep["selected_params"]:
             lines += ["", f"Parameters with `{rep['selected']}` (value, sd, 95 % interval):", ""]
             lines += [_param_line(n, v) for n, v in rep["selected_params"].items()]
         lines += ["", "Candidates (score = BIC on calibration runs; lower is better):", "",
-                  "| effect | fitted effect parameters | held-out error | held-out nrms | score − base score |",
-                  "|---|---|---|---|---|"]
+                  "| effect | fitted effect parameters | held-out error | held-out nrms | systematic error | "
+                  "score − base score | held-out Δχ² |", "|---|---|---|---|---|---|---|"]
         for c in rep["candidates"]:
             ps = ", ".join(f"{k}={v:.3g}" for k, v in c["params"].items())
-            lines.append(f"| {c['effect']} | {ps} | {_fmt(c['error'])} | {_fmt(c['nrms'])} | {_fmt(c['delta_score'])} |")
+            lines.append(f"| {c['effect']} | {ps} | {_fmt(c['error'])} | {_fmt(c['nrms'])} | {_fmt(c['systematic'])} | "
+                         f"{_fmt(c['delta_score'])} | {_fmt(c['delta_chi2_heldout'])} |")
         st = rep["residual_structure"]
         lines += ["", "Residual structure of the calibrated base model (Spearman correlation of per-run nrms with): "
                   + ", ".join(f"{k} {v:+.2f}" for k, v in st["spearman_base_nrms"].items() if v is not None) + "."]

@@ -63,6 +63,7 @@ def corrected_rig(rep: dict, targets: list, presets: list[str | None], dataset: 
         else:
             params[name] = float(fr.values[name])
     uncertainty = {n: float(fr.sd[n]) for n in fr.free}
+    absorbed = rep.get("absorbed") or {}
     if rep["explained"]:
         verdict = (f"explained with {rep['selected']}" if rep["selected"]
                    else "explained by the calibrated base model (no effect needed)")
@@ -70,10 +71,15 @@ def corrected_rig(rep: dict, targets: list, presets: list[str | None], dataset: 
         verdict = (f"{UNEXPLAINED_PREFIX}: no §6 effect explains the residual; calibrated base model, known to be wrong "
                    f"by held-out error {rep['final_error']:.3g} against a noise floor of {rep['noise_floor']:.3g} "
                    f"(nrms {rep['final_nrms']:.3g})")
+        names = ", ".join(f"{n} ({100 * a['change']:+.0f} % against the fit with {a['effect']})"
+                          for n, a in absorbed.items())
+        verdict += ("; parameters that may have absorbed the missing physics: " + names if names else
+                    "; the calibrated parameters may have absorbed part of the missing physics")
     source = f"vibro diagnose {dataset} ({system}): {verdict}"
     rig = sim.Rig(model=system, preset=preset, parameters=params, effects=effects, uncertainty=uncertainty,
                   source=source)
     info = {"explained": bool(rep["explained"]), "selected": rep["selected"], "source": source,
+            "verdict": rep.get("verdict"), "absorbed": absorbed,
             "model_error": float(rep["final_error"]), "noise_floor": float(rep["noise_floor"]),
             "nrms": float(rep["final_nrms"]), "notes": notes}
     return rig, info

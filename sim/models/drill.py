@@ -29,11 +29,12 @@ import numpy as np
 from sim.jit import interpreted, njit  # numba is imported on first use (sim/jit.py)
 
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
+from sim.models.sensor import sensor_lowpass
 
 # parameter vector layout
 (M1, M2, M3, K1, K2, K3, C1, C2, C3, PR, GAP, FS, F0, FREQ, GAMMA,
- TAU, BETA, ALPHA, MU, KAPPA, VEPS) = range(21)
-NP = 21
+ TAU, BETA, ALPHA, MU, KAPPA, VEPS, FC) = range(22)
+NP = 22
 # state layout: W stays LAST (the kernel reads the excitation work from y[-1])
 IX1, IV1, IX2, IV2, IX3, IV3, IXT, IXB, IFH, IW = range(10)
 NY = 10
@@ -238,6 +239,7 @@ PARAMS = (
     Param("mu", 0.0, "N", "guide_friction: Coulomb friction on the bit's guides, on ẋ1 - ẋ2", nonnegative=True),
     Param("kappa", 0.0, "1/m^2", "suspension_hardening: K2 φ -> K2 φ (1 + κ φ²), φ = x1 - x2", nonnegative=True),
     Param("v_eps", 1e-4, "m/s", "tanh regularisation speed of the Coulomb term (guide_friction)", positive=True),
+    Param("fc", 0.0, "Hz", "sensor_lowpass: accelerometer bandwidth (2nd-order Butterworth); 0 = ideal", nonnegative=True),
 )
 
 # Fit bounds of the §6 effect parameters for identification from rig data at the `lab` preset's scale:
@@ -262,6 +264,7 @@ EFFECT_FIT_BOUNDS = {
     "mu": (2.0, 500.0, "N"),
     "gamma": (3e-4, 1.0, "-"),
     "kappa": (2e7, 3e9, "1/m^2"),
+    "fc": (100.0, 3e4, "Hz"),
 }
 
 # A clearly visible strength of each effect on the `lab` preset at its default operating point (same
@@ -275,6 +278,7 @@ EFFECT_VISIBLE = {
     "guide_friction": {"mu": 50.0},
     "tip_blunting": {"gamma": 0.01},
     "suspension_hardening": {"kappa": 3e8},
+    "sensor_lowpass": {"fc": 1500.0},
 }
 
 STATES = ("x1", "v1", "x2", "v2", "x3", "v3", "xt", "xb", "fh", "work")
@@ -361,8 +365,10 @@ SPEC = ModelSpec(
     atol=_atol,
     precheck=_precheck,
     effects={"shaker_coil": ("tau", "beta"), "rate_stiffening": ("alpha",), "guide_friction": ("mu",),
-             "tip_blunting": ("gamma",), "suspension_hardening": ("kappa",)},
+             "tip_blunting": ("gamma",), "suspension_hardening": ("kappa",), "sensor_lowpass": ("fc",)},
     presets=PRESETS,
+    postprocess=sensor_lowpass,
+    needs_history=lambda values: values.get("fc", 0.0) > 0.0,
     impacting_mass="M1 (drill bit)",
     progression="xb (rock slider base)",
     default_settings={"min_transient": 20, "max_transient": 400, "window": 32},

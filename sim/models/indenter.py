@@ -12,18 +12,18 @@ DOPRI5 steps run across the shaker body's velocity reversals (``method`` "auto",
 Effects (MODELS.md §6; all off at their default 0):
   shaker_coil (tau [s], beta [N s/m]), rate_stiffening (alpha [s/m]), guide_friction (mu [N]),
   tip_blunting (gamma [-], sandstone), suspension_hardening (kappa [1/m^2]),
-  sensor_lowpass (fc [Hz]: applied to the recorded acceleration, see `_sensor_lowpass`).
+  sensor_lowpass (fc [Hz]: applied to the recorded acceleration, ``sim.models.sensor``).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import FitBound, ModelSpec, Param, SynthRig
+from sim.models.sensor import sensor_lowpass
 
 (M1, M2, M3, K2, C2, K3, C3, PM, GAP, FP, FA, FREQ, VEPS, K1, C1, KL, KU, NL, NU,
  TAU, BETA, ALPHA, MU, GAMMA, KAPPA, FC) = range(26)
@@ -393,36 +393,6 @@ def _derive(values: dict) -> dict:
     return v
 
 
-def _sensor_lowpass(res):
-    """MODELS.md §6 `sensor_lowpass`: the measured acceleration is a 2nd-order Butterworth
-    low-pass (fc) of the true one.  Needs the time history: peak_decel_g is recomputed
-    from the filtered signal (filter run over the whole recorded window, steady state
-    assumed: the window is prepended with itself to remove the filter's start-up)."""
-    fc = res.params.get("fc", 0.0)
-    if not fc or res.labels["status"] in ("runaway", "failed"):
-        return res
-    from scipy.signal import butter, sosfilt
-
-    from sim.api import simulate
-    hist = res.history
-    if hist is None:
-        settings = replace(res.settings, samples_per_cycle=max(res.settings.samples_per_cycle, 400))
-        params = {k: v for k, v in res.params.items() if k not in ("P", "D")}
-        full = simulate(res.model, settings=settings, history=True, **{**params, "fc": 0.0})
-        hist = full.history
-    fs = 1.0 / float(hist["t_s"].iloc[1] - hist["t_s"].iloc[0])
-    if fc >= 0.5 * fs:
-        return res
-    sos = butter(2, fc, btype="low", fs=fs, output="sos")
-    a = hist["accel_m_s2"].to_numpy()
-    filt = sosfilt(sos, np.concatenate([a, a]))[a.size:]
-    res.labels["peak_decel_g"] = float(max(-filt.min(), 0.0) / 9.81)
-    if res.history is not None:
-        res.history["accel_true_m_s2"] = a
-        res.history["accel_m_s2"] = filt
-    return res
-
-
 def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effects: dict, progression: str,
           calibratable: tuple[FitBound, ...], map_kind: str, synth: SynthRig, exact: str) -> ModelSpec:
     return ModelSpec(
@@ -442,7 +412,7 @@ def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effe
         presets=presets,
         derive=_derive,
         default_settings={"min_transient": 40, "max_transient": 600, "window": 16},
-        postprocess=_sensor_lowpass,
+        postprocess=sensor_lowpass,
         needs_history=lambda values: values.get("fc", 0.0) > 0.0,
         calibratable=calibratable,
         map_kind=map_kind,

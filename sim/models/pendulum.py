@@ -17,7 +17,8 @@ Impacting mass: the hammer, absolute displacement x = l sin θ + A0 sin Ωt (obs
 its second derivative).  Work: W' = m l A0 Ω² sin(Ωt) cos θ θ̇ (power of the cart's inertial forcing).
 The pendulum does not progress (observed progression 0).
 
-Effect (MODELS.md §6): ``rate_stiffening`` α [s/m] (0 = off).
+Effects (MODELS.md §6): ``rate_stiffening`` α [s/m] (0 = off); ``sensor_lowpass`` fc [Hz] on the recorded
+acceleration (``sim.models.sensor``).
 """
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
+from sim.models.sensor import sensor_lowpass
 
 # parameter vector layout
 MASS, LEN, A0, KI, CI, ZETA, GAP, FREQ, GRAV, MCART, ALPHA = range(11)
@@ -162,6 +164,7 @@ PARAMS = (
     Param("g", 9.81, "m/s^2", "gravitational acceleration", positive=True),
     Param("M", 5.38, "kg", "cart mass (informational: the cart motion is prescribed)", positive=True),
     Param("alpha", 0.0, "s/m", "rate_stiffening: ki -> ki (1 + α max(δ̇,0)); 0 = off", nonnegative=True),
+    Param("fc", 0.0, "Hz", "sensor_lowpass: accelerometer bandwidth (2nd-order Butterworth); 0 = ideal", nonnegative=True),
 )
 
 STATES = ("theta", "theta_dot", "work")
@@ -196,7 +199,9 @@ SPEC = ModelSpec(
     n_bounded=N_BOUNDED,
     initial=_initial,
     atol=_atol,
-    effects={"rate_stiffening": ("alpha",)},
+    effects={"rate_stiffening": ("alpha",), "sensor_lowpass": ("fc",)},
+    postprocess=sensor_lowpass,
+    needs_history=lambda values: values.get("fc", 0.0) > 0.0,
     impacting_mass="hammer m (absolute x = l sin θ + A0 sin Ωt)",
     progression="none (the pendulum does not progress)",
     presets=PRESETS,
@@ -205,7 +210,7 @@ SPEC = ModelSpec(
     calibratable=(FitBound("ki", 5.5e5, 5.5e7, "N/m"), FitBound("ci", 1.2e2, 1.2e4, "N s/m"),
                   FitBound("zeta", 5e-4, 5e-2, "-")),
     # contact rate of the hammer ~0.1-0.5 m/s: alpha ~ 0.1-10 s/m changes the contact stiffness by 1-100 %
-    effect_bounds={"alpha": FitBound("alpha", 1e-2, 100.0, "s/m")},
+    effect_bounds={"alpha": FitBound("alpha", 1e-2, 100.0, "s/m"), "fc": FitBound("fc", 5.0, 2000.0, "Hz")},
     # the 3-8 Hz impacts are resolved by their first ~25 harmonics
     diagnose_max_harmonic_hz=100.0,
     diagnose_fit={"candidate_starts": 1, "max_nfev": 10},
@@ -216,5 +221,5 @@ SPEC = ModelSpec(
     # ~0.3 m/s, so alpha 1 s/m is +30 % contact stiffness; mount resonance 40 Hz, inside the diagnosed harmonics
     synth=SynthRig(frequencies_hz=(2.5, 3.0, 3.5, 3.75, 4.5, 5.5, 6.5, 7.25), level_name="gap_m", levels=(0.0, 1.0e-3),
                    fixed={"amplitude_m": 0.89e-3}, fs_hz=10000.0, cycles=12.4,
-                   effect_strengths={"rate_stiffening": {"alpha": 1.0}}, mount_hz=40.0),
+                   effect_strengths={"rate_stiffening": {"alpha": 1.0}, "sensor_lowpass": {"fc": 100.0}}, mount_hz=40.0),
 )

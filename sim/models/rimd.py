@@ -14,7 +14,8 @@ Hunt–Crossley force expression is positive); both are switching surfaces, comb
 guard ``min(δ, 1 mm · (1 + λi ẋ2))`` (metres).  Contact can resume while δ > 0.
 
 Impacting mass: the hammer x2.  Work: W' = F0 sin(Ωt) ẋ1.  No progression (observed 0).
-Effects (MODELS.md §6): ``rate_stiffening`` α [s/m], ``suspension_hardening`` κ [1/m²] on the k2 spring.
+Effects (MODELS.md §6): ``rate_stiffening`` α [s/m], ``suspension_hardening`` κ [1/m²] on the k2 spring,
+``sensor_lowpass`` fc [Hz] on the recorded acceleration (``sim.models.sensor``).
 Off the stop (κ = 0) the equations are linear: ``sim/exact/rimd.py`` propagates the free flight exactly and leaves
 the contact to the DOPRI5 steps (``method`` "auto" and "exact"; "dopri5" integrates both phases numerically).
 """
@@ -27,6 +28,7 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
+from sim.models.sensor import sensor_lowpass
 
 M1, K1, C1, M2, K2, C2, KI, LAM, NI, F0, GAP, FREQ, ALPHA, KAPPA = range(14)
 IX1, IV1, IX2, IV2, IW = range(5)
@@ -135,6 +137,7 @@ PARAMS = (
     Param("alpha", 0.0, "s/m", "rate_stiffening: ki -> ki (1 + α max(ẋ2,0)); 0 = off", nonnegative=True),
     Param("kappa", 0.0, "1/m^2", "suspension_hardening: k2 φ -> k2 φ (1 + κ φ²), φ = x2 − x1; 0 = off",
           nonnegative=True),
+    Param("fc", 0.0, "Hz", "sensor_lowpass: accelerometer bandwidth (2nd-order Butterworth); 0 = ideal", nonnegative=True),
 )
 
 STATES = ("x1", "v1", "x2", "v2", "work")
@@ -163,7 +166,9 @@ SPEC = ModelSpec(
     n_bounded=N_BOUNDED,
     initial=_initial,
     atol=_atol,
-    effects={"rate_stiffening": ("alpha",), "suspension_hardening": ("kappa",)},
+    effects={"rate_stiffening": ("alpha",), "suspension_hardening": ("kappa",), "sensor_lowpass": ("fc",)},
+    postprocess=sensor_lowpass,
+    needs_history=lambda values: values.get("fc", 0.0) > 0.0,
     impacting_mass="hammer m2 (x2)",
     progression="none (the RIMD does not progress)",
     presets=PRESETS,
@@ -174,7 +179,8 @@ SPEC = ModelSpec(
     calibratable=(FitBound("ki", 9.25e3, 9.25e5, "N/m^ni"), FitBound("lambda_i", 0.8, 80.0, "s/m"),
                   FitBound("c1", 0.1269, 12.69, "N s/m")),
     # hammer impact velocity ~0.05-0.2 m/s; beam amplitude ~1-5 mm, so kappa x1^2 ~ 1 at kappa ~ 1e5 1/m^2
-    effect_bounds={"alpha": FitBound("alpha", 1e-2, 100.0, "s/m"), "kappa": FitBound("kappa", 1e1, 1e7, "1/m^2")},
+    effect_bounds={"alpha": FitBound("alpha", 1e-2, 100.0, "s/m"), "kappa": FitBound("kappa", 1e1, 1e7, "1/m^2"),
+                   "fc": FitBound("fc", 10.0, 3000.0, "Hz")},
     # the 4-15 Hz impacts are resolved by their first ~25 harmonics
     diagnose_max_harmonic_hz=200.0,
     diagnose_fit={"candidate_starts": 1, "max_nfev": 10},
@@ -185,6 +191,7 @@ SPEC = ModelSpec(
     # velocity ~0.1 m/s: alpha 2 s/m is +20 %; beam amplitude ~2 mm: kappa x1^2 ~ 0.4; mount resonance 60 Hz
     synth=SynthRig(frequencies_hz=(5.0, 6.0, 6.5, 7.0, 7.5, 8.0, 9.0, 10.0), level_name="amplitude_n", levels=(0.5, 1.0),
                    fixed={"gap_m": 0.0}, fs_hz=10000.0, cycles=16.3,
-                   effect_strengths={"rate_stiffening": {"alpha": 2.0}, "suspension_hardening": {"kappa": 1.0e5}},
+                   effect_strengths={"rate_stiffening": {"alpha": 2.0}, "suspension_hardening": {"kappa": 1.0e5},
+                                     "sensor_lowpass": {"fc": 100.0}},
                    mount_hz=60.0),
 )

@@ -109,7 +109,7 @@ def test_simulate_rig_equals_preset_plus_sets(tmp_path, capsys):
 @pytest.mark.parametrize("text,needle", [
     ("model: drill\ncolour: red\n", "unknown key 'colour'"),
     ("model: drill\nparameters: {K9: 1.0}\n", "unknown parameter 'K9'"),
-    ("model: drill\neffects: {sensor_lowpass: {fc: 300.0}}\n", "unknown effect 'sensor_lowpass'"),
+    ("model: drill\neffects: {mount_resonance: {fr_hz: 300.0}}\n", "unknown effect 'mount_resonance'"),
     ("model: drill\npreset: nope\n", "nope"),
 ])
 def test_bad_rig_file_is_one_line_naming_the_culprit(tmp_path, capsys, text, needle):

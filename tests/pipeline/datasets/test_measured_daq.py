@@ -31,7 +31,9 @@ def test_harmonics_at_any_daq_rate(f, fs):
     sd_c = 0.1 * math.sqrt(2.0 / t.size)
     assert abs(hf.c[0] - 3.0) < 5 * sd_c and abs(hf.c[2] - (-2j)) < 5 * sd_c
     assert np.all(np.abs(hf.c[[1, 3, 4]]) < 5 * sd_c)
-    assert noise_sd(t, x, f, 5) == pytest.approx(0.1, rel=0.1)   # robust estimator: ~3 % sd at these N
+    # the spectral estimator (features.record_noise) averages the periodogram between the harmonics: ~8 % sd with
+    # 5 harmonics and 17 cycles (2500-3100 samples), so 3 sd is 25 %
+    assert noise_sd(t, x, f, 5) == pytest.approx(0.1, rel=0.25)
 
 
 def test_drift_is_fitted_and_noise_ignores_impacts():

@@ -46,7 +46,7 @@ def test_truth_is_at_noise_level_defaults_are_not(tmp_path, system):
         t = data.series[data.runs["run_id"][0]]["t_s"].to_numpy()
         assert abs(1 / (t[1] - t[0]) / 190.0 - round(1 / (t[1] - t[0]) / 190.0)) > 1e-3   # not whole samples/cycle
     targets = build_targets(data, DiagnoseConfig())[system]
-    ev = Evaluator(system, targets, dict(DiagnoseConfig().sim_settings), 20000.0, 2, 64)
+    ev = Evaluator(system, targets, dict(DiagnoseConfig().sim_settings), 20000.0, 2)
     r_true, r_default = ev.residuals([info["truth"], {}], list(range(len(targets))))
     nrms = lambda r: float(np.sqrt(np.mean(r ** 2)))   # noqa: E731
     assert nrms(r_true) < 1.5            # 'explained' threshold of the diagnosis (run.py explained_nrms)

@@ -1,0 +1,155 @@
+"""The verdict of a diagnosis from held-out statistics: nothing missing, a §6 effect selected, or unexplained.
+
+Every statistic is on the held-out runs (never those a model was fitted to), except the information criterion:
+
+- ``nrms``: sqrt(χ²/n) of the noise-normalised residual; the feature sd is the noise estimated per signal, record
+  and harmonic (features.record_noise) with a model floor in quadrature, so 1 means "at the noise level";
+- ``systematic``: the relative systematic error from the record halves, sqrt(Σ r_A·r_B / Σ y²) with r_A, r_B the
+  residuals of the two halves of every series record: noise is independent between the halves and averages out of
+  the product, a model error is in both, so this needs no estimate of σ at all;
+- ``delta_bic``: the base model's BIC minus the candidate's on the calibration runs (χ² + k ln n with the same σ);
+- ``delta_chi2``: the base model's held-out χ² minus the candidate's.
+
+The rule (thresholds in ``VerdictRule``; docs/diagnose.md derives them from the identification matrix):
+
+1. A model is **adequate** when its held-out nrms ≤ ``explained_nrms`` *or* its systematic error ≤
+   ``systematic_tol``: either the residual is at the noise level, or it is too small to matter even where the
+   noise estimate is off (σ misestimated) or the records are so clean that simulator round-off shows.
+2. A candidate **improves** on the base when it wins on the calibration runs (delta_bic ≥ ``bic_margin``), on the
+   held-out runs (delta_chi2 ≥ ``test_margin``), and materially: it removes at least half of ``systematic_tol``
+   of systematic error (held-out), so a tiny mismatch between two simulations of the same equations, significant
+   only because the records are long and clean, is never assigned to an effect.
+3. Of the improving candidates the one with the lowest BIC is the **leader**: *selected* if adequate, else the
+   residual is *unexplained* (the leader is the best partial explanation).  With no improving candidate: *nothing
+   missing* if the base is adequate, else *unexplained*.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+NOTHING_MISSING = "nothing missing"
+SELECTED = "selected"
+UNEXPLAINED = "unexplained"
+
+
+@dataclass(frozen=True)
+class VerdictRule:
+    """Thresholds of the verdict (DiagnoseConfig carries them; see the module docstring)."""
+
+    explained_nrms: float = 2.0
+    systematic_tol: float = 0.005
+    bic_margin: float = 10.0
+    test_margin: float = 25.0
+
+
+@dataclass(frozen=True)
+class ModelStats:
+    """What the verdict reads of one model (base or candidate)."""
+
+    name: str
+    bic: float                       # calibration runs
+    chi2: float                      # held-out
+    n: int                           # held-out residuals
+    systematic: float | None         # held-out split-half systematic error (None: no series halves)
+
+    @property
+    def nrms(self) -> float:
+        return math.sqrt(self.chi2 / max(self.n, 1))
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The call and the numbers behind it: ``kind`` (NOTHING_MISSING, SELECTED, UNEXPLAINED), the selected effect,
+    the leader (best improving candidate, selected or not) and the runner-up (next by BIC), and per model why."""
+
+    kind: str
+    selected: str | None
+    leader: str | None
+    runner_up: str | None
+    checks: dict = field(default_factory=dict)    # model -> {adequate, improves, delta_bic, delta_chi2, ...}
+
+    @property
+    def explained(self) -> bool:
+        return self.kind != UNEXPLAINED
+
+
+def adequate(m: ModelStats, rule: VerdictRule) -> bool:
+    """Held-out residual at the noise level, or a systematic error below the tolerance (rule 1)."""
+    return m.nrms <= rule.explained_nrms or (m.systematic is not None and m.systematic <= rule.systematic_tol)
+
+
+def _gain(base: ModelStats, m: ModelStats) -> float | None:
+    if base.systematic is None or m.systematic is None:
+        return None
+    return base.systematic - m.systematic
+
+
+def improves(base: ModelStats, m: ModelStats, rule: VerdictRule) -> bool:
+    """Better on calibration (BIC) and held-out (χ²) runs, and by a material systematic error (rule 2)."""
+    gain = _gain(base, m)
+    return (base.bic - m.bic >= rule.bic_margin and base.chi2 - m.chi2 >= rule.test_margin
+            and (gain is None or gain >= 0.5 * rule.systematic_tol))
+
+
+def decide(base: ModelStats, candidates: list[ModelStats], rule: VerdictRule) -> Verdict:
+    """The verdict (module docstring, rule 3)."""
+    ranked = sorted(candidates, key=lambda m: m.bic)
+    checks = {}
+    for m in [base, *ranked]:
+        checks[m.name] = {"adequate": adequate(m, rule), "nrms": m.nrms, "systematic": m.systematic,
+                          "delta_bic": base.bic - m.bic, "delta_chi2": base.chi2 - m.chi2,
+                          "systematic_gain": _gain(base, m),
+                          "improves": m is not base and improves(base, m, rule)}
+    winners = [m for m in ranked if checks[m.name]["improves"]]
+    leader = winners[0] if winners else None
+    others = [m for m in ranked if m is not leader]
+    runner = others[0].name if others else None
+    if leader is not None:
+        kind = SELECTED if checks[leader.name]["adequate"] else UNEXPLAINED
+        return Verdict(kind, leader.name if kind == SELECTED else None, leader.name, runner, checks)
+    kind = NOTHING_MISSING if checks[base.name]["adequate"] else UNEXPLAINED
+    return Verdict(kind, None, None, runner, checks)
+
+
+def _ratio(x: float | None, limit: float) -> str:
+    return "n/a" if x is None else f"{x:.3g} ({x / limit:.2g}× the limit {limit:g})"
+
+
+def closeness(v: Verdict, stats: dict[str, ModelStats], rule: VerdictRule) -> dict:
+    """How close the call was: the numbers each threshold saw, and a sentence a user can weigh."""
+    base = stats["base"]
+    c = v.checks
+    out = {"base": c[base.name]}
+    if v.leader:
+        out["leader"] = {"name": v.leader, **c[v.leader]}
+    if v.runner_up:
+        out["runner_up"] = {"name": v.runner_up, **c[v.runner_up]}
+    if v.kind == SELECTED:
+        lead = c[v.leader]
+        gap = (stats[v.runner_up].bic - stats[v.leader].bic) if v.runner_up else math.inf
+        text = (f"{v.leader} selected: held-out nrms {_ratio(lead['nrms'], rule.explained_nrms)}, systematic error "
+                f"{_ratio(lead['systematic'], rule.systematic_tol)}; BIC better than the base by {lead['delta_bic']:.3g} "
+                f"(margin {rule.bic_margin:g}) and than the runner-up {v.runner_up} by {gap:.3g}; held-out χ² "
+                f"{lead['delta_chi2']:.3g} below the base's (margin {rule.test_margin:g})")
+        out["bic_gap_to_runner_up"] = gap
+    elif v.kind == NOTHING_MISSING:
+        best = c[v.runner_up] if v.runner_up else None
+        text = (f"nothing missing: the calibrated base has held-out nrms {_ratio(c['base']['nrms'], rule.explained_nrms)} "
+                f"and systematic error {_ratio(c['base']['systematic'], rule.systematic_tol)}")
+        if best:
+            text += (f"; the best candidate {v.runner_up} gains ΔBIC {best['delta_bic']:.3g} (margin {rule.bic_margin:g}) "
+                     f"and held-out Δχ² {best['delta_chi2']:.3g} (margin {rule.test_margin:g})")
+    else:
+        who = v.leader or v.runner_up
+        text = (f"unexplained: the calibrated base has held-out nrms {c['base']['nrms']:.3g} and systematic error "
+                f"{_ratio(c['base']['systematic'], rule.systematic_tol)}")
+        if who:
+            w = c[who]
+            excess = max(base.chi2 - base.n, 1e-300)
+            got = max(0.0, min(1.0, w["delta_chi2"] / excess))
+            out["best_candidate_share"] = got
+            text += (f"; the best candidate {who} removes {100 * got:.0f} % of the excess held-out χ² and leaves nrms "
+                     f"{w['nrms']:.3g}, systematic error {_ratio(w['systematic'], rule.systematic_tol)}")
+    out["text"] = text
+    return out

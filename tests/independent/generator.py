@@ -1,0 +1,175 @@
+"""Write an independent rig log (MODELS.md §7 directory) and its truth.
+
+``generate(LogSpec(system, effect=..., outside=..., noise=..., seed=...), out_dir)`` simulates every run of the
+rig (``rigs.RIGS``) with the scipy reference (``tests/reference_solutions.py``), samples each signal at the DAQ's
+own instants on the dense output, adds the noise model's noise, and writes ``runs.csv``, ``series/<run_id>.csv``
+and ``summary.csv``.  The truth (perturbed calibratable parameters, the effect, the outside physics) is returned
+and, with ``truth_path``, written apart from the data.
+
+Runs: every frequency at every level of the rig; records from rest (``record_start_s``, cycled over the runs) or
+in steady state; DAQ rates and record lengths cycled over the runs (not whole cycles, not multiples of f); two runs
+are logged as summaries only (their labels over a whole-cycle record: the rig software's numbers), and every
+``drop_signal_every``-th series run lost its second channel.
+"""
+from __future__ import annotations
+
+import json
+import math
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from tests.independent.noise import NOISE_MODELS
+from tests.independent.outside import OUTSIDE, measured_accel, model_for
+from tests.independent.rigs import RIGS, Rig
+from tests.reference_solutions import reference_run
+
+RTOL = 1e-9
+"""The reference's tolerance for generated logs: labels within ~1e-8 of its rtol-1e-10 solution, a third of the cost."""
+
+
+@dataclass(frozen=True)
+class LogSpec:
+    """What to generate: a rig, at most one §6 effect and/or one outside-physics term, a noise model, a seed."""
+
+    system: str
+    effect: str | None = None
+    outside: str | None = None
+    noise: str = "white2"
+    seed: int = 0
+    n_runs: int | None = None          # use the first n runs of the grid (spread over it), None: all
+    effect_scale: float = 1.0          # multiplies the effect's visible strength
+    overrides: dict = field(default_factory=dict)   # rig parameters to set in the truth (e.g. two effects)
+
+    @property
+    def name(self) -> str:
+        what = self.effect or (f"outside-{self.outside}" if self.outside else "control")
+        return f"{self.system}-{what}-{self.noise}-s{self.seed}"
+
+
+def true_parameters(rig: Rig, spec: LogSpec) -> dict:
+    """The rig's calibratable parameters perturbed log-normally (seeded), the effect and outside parameters."""
+    rng = np.random.default_rng([spec.seed, 7])
+    truth = {n: float(rig.known[n] * math.exp(rig.perturb * rng.standard_normal())) for n in rig.calibratable}
+    if spec.effect:
+        truth.update({k: v * spec.effect_scale for k, v in rig.effects[spec.effect].items()})
+    if spec.outside:
+        truth.update(rig.outside[spec.outside])
+    truth.update(spec.overrides)
+    return truth
+
+
+def _pick(n: int, k: int) -> set[int]:
+    """k runs spread over n, never the first or the last."""
+    if k <= 0 or n < 4:
+        return set()
+    return {int(round(x)) for x in np.linspace(1, n - 2, k + 2)[1:-1]}
+
+
+def _series_times(rig: Rig, i: int, f: float) -> tuple[float | None, float, float, int]:
+    """(record_start_s or None, fs, duration, transient cycles) of series run i."""
+    fs = rig.fs_hz[i % len(rig.fs_hz)]
+    cycles = rig.record_cycles[i % len(rig.record_cycles)]
+    n = int(math.floor(cycles / f * fs))
+    duration = n / fs
+    if rig.record_start_s:
+        return rig.record_start_s[i % len(rig.record_start_s)], fs, duration, 0
+    return None, fs, duration, rig.settle_cycles
+
+
+def _run(rig: Rig, spec: LogSpec, truth: dict, i: int, f: float, level: float, summary: bool) -> dict:
+    """One run: its runs.csv row, and its clean samples (series) or labels (summary)."""
+    ctrl = rig.controls(f, level)
+    params = {**rig.known, **ctrl, **truth}
+    params.update(rig.derived(params))
+    run_id = f"{spec.system.split('-')[-1][:5]}-{i:02d}-{f:g}hz"
+    row = {"run_id": run_id, "system": rig.system, **ctrl}
+    if rig.preset:
+        row["preset"] = rig.preset
+    model = model_for(spec.system, spec.outside)
+    T = 1.0 / f
+    rs, fs, duration, settle = _series_times(rig, i, f)
+    if summary:      # whole cycles, so the reference's window labels cover exactly the record
+        k0 = settle if rs is None else max(int(round(rs * f)), 1)
+        nw = max(int(round(duration * f)), 4)
+        out = reference_run(model, params, k0, nw, rtol=RTOL)
+        row.update(duration_s=nw * T, record_start_s=None if rs is None else k0 * T)
+        labels = {k: float(out[k]) for k in rig.summary_labels}
+        if spec.outside in OUTSIDE and OUTSIDE[spec.outside].measurement:
+            labels.pop("peak_decel_g", None)      # the rig software's deceleration comes from the mounted sensor
+        return {"row": row, "summary": labels}
+    n = int(round(duration * fs))
+    t_rec = np.arange(n) / fs
+    start = (rs if rs is not None else settle * T)
+    times = start + t_rec
+    warm = OUTSIDE[spec.outside].warmup_s(truth) if spec.outside in OUTSIDE and OUTSIDE[spec.outside].measurement else 0.0
+    n_cycles = int(math.ceil((start + duration) / T)) + 1
+    fine = None
+    if warm:     # measurement-side physics: the true acceleration on a fine grid aligned with the DAQ's instants
+        sub = 8
+        t0 = max(start - warm, 0.0)
+        k0 = int(math.floor((start - t0) * fs * sub))
+        fine = start + (np.arange(-k0, n * sub) / (fs * sub))
+        fine = fine[fine >= 0.0]
+        out = reference_run(model, params, 0, n_cycles, rtol=RTOL, sample_times=fine)
+    else:
+        out = reference_run(model, params, 0, n_cycles, rtol=RTOL, sample_times=times)
+    smp = out["samples"]
+    if fine is not None:
+        a = measured_accel(spec.outside, truth, smp["t_s"], smp["vel_m_s"], from_rest=rs is not None)
+        j = np.searchsorted(smp["t_s"], times - 0.25 / (fs * 8))
+        smp = {k: np.asarray(v)[j] for k, v in smp.items()}
+        smp["accel_m_s2"] = a[j]
+    sig = {"accel_m_s2": smp["accel_m_s2"], "force_n": smp["force_n"], "disp_m": smp["disp_m"],
+           "progression_m": smp["progression_m"]}
+    row.update(duration_s=duration, record_start_s=rs)
+    return {"row": row, "t": t_rec, "signals": sig, "fs": fs}
+
+
+def generate(spec: LogSpec, out_dir: str | Path, truth_path: str | Path | None = None, threads: int = 2) -> dict:
+    """Write the §7 directory ``out_dir`` (must not exist) and return the truth."""
+    rig = RIGS[spec.system]
+    noise = NOISE_MODELS[spec.noise]
+    out_dir = Path(out_dir)
+    if out_dir.exists():
+        raise FileExistsError(out_dir)
+    truth = true_parameters(rig, spec)
+    grid = rig.run_grid()
+    if spec.n_runs is not None and spec.n_runs < len(grid):
+        grid = [grid[int(round(j))] for j in np.linspace(0, len(grid) - 1, spec.n_runs)]
+    summ = _pick(len(grid), rig.summary_runs)
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        runs = list(pool.map(lambda a: _run(rig, spec, truth, a[0], a[1][0], a[1][1], a[0] in summ), enumerate(grid)))
+    rng = np.random.default_rng([spec.seed, 11])
+    (out_dir / "series").mkdir(parents=True)
+    rows, summary = [], []
+    n_series = 0
+    for r in runs:
+        rows.append(r["row"])
+        if "summary" in r:
+            summary.append({"run_id": r["row"]["run_id"], **noise.summary(r["summary"], rng)})
+            continue
+        sigs = list(rig.signals)
+        if rig.drop_signal_every and n_series % rig.drop_signal_every == rig.drop_signal_every - 1:
+            sigs = sigs[:1] + sigs[2:]            # this run lost its second channel
+        n_series += 1
+        cols = {"t_s": r["t"]}
+        for s in sigs:
+            cols[s] = noise.apply(np.asarray(r["signals"][s], dtype=float), r["fs"], rng, s)
+        df = pd.DataFrame(cols)
+        df.to_csv(out_dir / "series" / f"{r['row']['run_id']}.csv", index=False, float_format="%.9g")
+    runs_df = pd.DataFrame(rows)
+    if runs_df["record_start_s"].isna().all():
+        runs_df = runs_df.drop(columns=["record_start_s"])
+    runs_df.to_csv(out_dir / "runs.csv", index=False, float_format="%.12g")
+    if summary:
+        pd.DataFrame(summary).to_csv(out_dir / "summary.csv", index=False, float_format="%.12g")
+    info = {"spec": asdict(spec), "name": spec.name, "system": spec.system, "truth": truth,
+            "effect": spec.effect, "outside": spec.outside, "noise": spec.noise,
+            "calibratable": list(rig.calibratable)}
+    if truth_path is not None:
+        Path(truth_path).write_text(json.dumps(info, indent=2))
+    return info

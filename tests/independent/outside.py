@@ -1,0 +1,53 @@
+"""Physics outside MODELS.md §6, for the cases the diagnosis must call "unexplained".
+
+  mount_resonance    the accelerometer sits on a resonant mount: measured acceleration = the true one through a
+                     lightly damped 2nd-order resonance H(s) = wr²/(s² + 2 ζr wr s + wr²) (fr_hz, zeta_r); no §6
+                     effect has a resonance (sensor_lowpass is a Butterworth, ζ = 0.71)
+  quadratic_damping  a velocity-squared loss on the impacting mass (fluid / air drag): −cq v |v| [N]; the §6 losses
+                     are viscous-like (shaker_coil β) or Coulomb (guide_friction) on a relative velocity
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import lsim
+
+
+@dataclass(frozen=True)
+class Outside:
+    name: str
+    measurement: bool           # True: changes only what the sensor reports
+
+    def warmup_s(self, truth: dict) -> float:
+        """How long before the record the sensor's dynamics must start (start-up below 1e-12) [s]."""
+        if not self.measurement:
+            return 0.0
+        wr = 2.0 * math.pi * truth["fr_hz"]
+        return 28.0 / (truth["zeta_r"] * wr)
+
+
+OUTSIDE = {"mount_resonance": Outside("mount_resonance", True),
+           "quadratic_damping": Outside("quadratic_damping", False)}
+
+
+def measured_accel(name: str, truth: dict, t: np.ndarray, vel: np.ndarray, from_rest: bool) -> np.ndarray:
+    """The sensor's output on the uniform grid ``t`` [s] from the impacting mass's velocity ``vel``: H(s) a =
+    (s H(s)) v, with v linear between the samples (continuous, where the acceleration jumps at a contact's onset);
+    from rest at t[0] (a record from rest starts its grid at t = 0, a steady-state one early enough)."""
+    if name != "mount_resonance":
+        raise ValueError(name)
+    wr = 2.0 * math.pi * truth["fr_hz"]
+    z = truth["zeta_r"]
+    _, y, _ = lsim(([wr * wr, 0.0], [1.0, 2.0 * z * wr, wr * wr]), vel, t - t[0], interp=True)
+    return np.asarray(y)
+
+
+def model_for(system: str, outside: str | None):
+    """What ``reference_run`` simulates: the system's own model, or its subclass with the outside dynamics."""
+    if outside is None or OUTSIDE[outside].measurement:
+        return system
+    from tests.independent.dynamics import with_quadratic_damping
+
+    return with_quadratic_damping(system)

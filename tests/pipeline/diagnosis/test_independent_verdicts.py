@@ -1,0 +1,75 @@
+"""Verdicts on rig logs this project did not make: the independent generator (tests/independent: scipy reference,
+samples at the DAQ's instants, a rig's noise) writes the log, ``vibro diagnose`` judges it at its defaults.
+
+One short log per system runs by default; the slow subset covers every kind of verdict on every system at both
+noise models of the identification matrix (``python -m bench.identification`` runs the whole matrix)."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from tests.independent.generator import LogSpec, generate
+from tests.independent.rigs import RIGS
+
+PARAM_TOL = 0.05      # issue target: parameters of a selected effect within 5 % of the truth
+
+
+def _diagnose(tmp_path, spec: LogSpec, *args) -> tuple[dict, dict]:
+    from pipeline.cli import main
+
+    data = tmp_path / spec.name
+    truth = generate(spec, data, threads=2)
+    out = tmp_path / (spec.name + "-diag")
+    assert main(["diagnose", str(data), "--out", str(out), "--quiet", "--no-mlflow", *args]) == 0
+    return json.loads((out / "report.json").read_text()), truth
+
+
+def _check(rep: dict, truth: dict, spec: LogSpec) -> None:
+    if spec.effect:
+        assert rep["verdict"] == "selected" and rep["selected"] == spec.effect, rep["call"]["text"]
+        fitted = next(c for c in rep["candidates"] if c["effect"] == spec.effect)["params"]
+        for k, v in fitted.items():
+            assert v == pytest.approx(truth["truth"][k], rel=PARAM_TOL), (k, v)
+    elif spec.outside:
+        assert rep["verdict"] == "unexplained" and rep["selected"] is None, rep["call"]["text"]
+        assert "UNEXPLAINED" in rep["rig"]["source"] and "absorbed" in rep["rig"]["source"]
+    else:
+        assert rep["verdict"] == "nothing missing" and rep["selected"] is None, rep["call"]["text"]
+    if not spec.outside:     # the calibrated rig is the true rig where nothing outside the library acts
+        cal = rep["calibrated"] if not spec.effect else \
+            next(c for c in rep["candidates"] if c["effect"] == spec.effect)["calibrated"]
+        for k in truth["calibratable"]:
+            assert cal[k] == pytest.approx(truth["truth"][k], rel=PARAM_TOL), (k, cal[k])
+    assert rep["call"]["text"] and rep["heldout_n"] > 0
+
+
+FAST = [LogSpec("drill", effect="shaker_coil", noise="rig", seed=0, n_runs=8),
+        LogSpec("indenter-metal", noise="white2", seed=1, n_runs=8),
+        LogSpec("indenter-sandstone", effect="tip_blunting", noise="rig", seed=0, n_runs=8),
+        LogSpec("pendulum", effect="sensor_lowpass", noise="white2", seed=0, n_runs=8),
+        LogSpec("rimd", outside="quadratic_damping", noise="rig", seed=1, n_runs=8)]
+
+
+@pytest.mark.parametrize("spec", FAST, ids=lambda s: s.name)
+def test_verdict_on_an_independent_log(tmp_path, spec):
+    rep, truth = _diagnose(tmp_path, spec)
+    _check(rep, truth, spec)
+
+
+def _slow_cases() -> list[LogSpec]:
+    out = []
+    for system, rig in RIGS.items():
+        eff = sorted(rig.effects)
+        for k, noise in enumerate(("white2", "rig")):
+            out += [LogSpec(system, noise=noise, seed=k),
+                    LogSpec(system, effect=eff[k % len(eff)], noise=noise, seed=k),
+                    LogSpec(system, outside=sorted(rig.outside)[k % len(rig.outside)], noise=noise, seed=k)]
+    return out
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("spec", _slow_cases(), ids=lambda s: s.name)
+def test_verdict_subset_of_the_matrix(tmp_path, spec):
+    rep, truth = _diagnose(tmp_path, spec)
+    _check(rep, truth, spec)
