@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml requirements.lock
 	@$(BIN)/python -m pip install --progress-bar off -c requirements.lock -e ".[dev]" \
 	  | grep --line-buffered -E "^(Collecting|Successfully installed)" | sed -u 's/^/    /' || true
 	@$(BIN)/python -c "import pipeline, sim, surrogate" || { echo "install failed: rerun 'make install' to see pip's errors"; exit 1; }
-	@echo "==> compiling the simulation kernels ahead of time (vibro compile: about 6 min on 2 cores, once)"
+	@echo "==> compiling the simulation kernels ahead of time (vibro compile: a few minutes on 2 cores, once; it prints the time it took)"
 	@$(BIN)/vibro compile --quiet || echo "    (ahead-of-time kernels not built: vibro simulate falls back to numba's JIT)"
 	@touch $(STAMP)
 	@echo "==> installed; .venv/bin/vibro --version: $$($(BIN)/vibro --version)"

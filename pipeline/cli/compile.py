@@ -5,24 +5,34 @@ import argparse
 import os
 import sys
 import time
+from typing import Callable, Iterable, Iterator
+
+PIPELINE_MODELS = ("drill", "indenter-metal", "indenter-sandstone")
+"""Models `make run`'s pipeline simulates (params.yaml sweep.model; diagnose's drill rig and the published
+indenter logs): compiled first, so a pipeline started early finds its kernels built."""
+
+Job = tuple[str, "str | None", bool]               # (model, exact propagator or None, also fill the JIT cache)
+Result = tuple[str, str, "str | None", "float | None"]   # (label, path, error or None, seconds or None: up to date)
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "compile", help="compile the models' kernels ahead of time, so 'vibro simulate' starts without numba",
-        description="Compile each model's simulation kernels (the numerical integrator and, for the drill and the RIMD, the "
-                    "exact propagator) into CPython extension modules with numba.pycc.  'vibro simulate' and "
-                    "sim.simulate() on the main thread then load them in about a millisecond instead of importing "
-                    "numba (about 1 s of CPU per process); the labels are bit-identical to the JIT kernel's.  "
-                    "Modules are named by the hash of the kernel's sources and kept beside numba's cache "
-                    "($VIBRO_KERNEL_DIR, else .numba_cache/ in the repository, else ~/.cache/vibro); after a change "
-                    "to sim/ the old modules go unused and simulate falls back to the JIT kernel until this is rerun.  "
-                    "'make install' runs it.  An existing module is not rebuilt.  Set VIBRO_NO_AOT=1 to ignore the "
-                    "modules.",
+        description="Compile each model's simulation kernels (the numerical integrator and, for the drill, the RIMD "
+                    "and the indenters, the exact propagator) into CPython extension modules with numba.pycc.  "
+                    "'vibro simulate' and sim.simulate() on the main thread then load them in about a millisecond "
+                    "instead of importing numba (about 1 s of CPU per process); the labels are bit-identical to the "
+                    "JIT kernel's.  Modules are named by the hash of the kernel's sources and kept beside numba's "
+                    "cache ($VIBRO_KERNEL_DIR, else .numba_cache/ in the repository, else ~/.cache/vibro); after a "
+                    "change to sim/ the old modules go unused and simulate falls back to the JIT kernel until this "
+                    "is rerun.  'make install' runs it.  An existing module is not rebuilt.  Set VIBRO_NO_AOT=1 to "
+                    "ignore the modules.  Kernels are built in parallel processes, those of the models the pipeline "
+                    "uses (" + ", ".join(PIPELINE_MODELS) + ") first; one line per kernel as it finishes, with the "
+                    "elapsed time and an estimate of the time left, and the total at the end.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
-               "  vibro compile                 # every model: about 6 min of CPU the first time (3.5 min on 2 cores)\n"
-               "  vibro compile drill           # the drill's two kernels (about 2 min of CPU)\n"
+               "  vibro compile                 # every model: a few minutes on 2 cores; it prints the time it took\n"
+               "  vibro compile drill           # the drill's two kernels\n"
                "  vibro compile --workers 1\n"
                "  vibro compile --jit           # also fill numba's JIT cache (threads: sweeps, batches, diagnosis)")
     p.add_argument("models", nargs="*", metavar="MODEL", help="models to compile (default: all)")
@@ -30,8 +40,64 @@ def add_parser(sub) -> None:
                    help="kernels compiled at once, one process each (default: the number of cores)")
     p.add_argument("--jit", action="store_true", help="also compile the GIL-free JIT kernels into numba's cache "
                                                       "(30-70 s per kernel the first time)")
-    p.add_argument("--quiet", action="store_true", help="no per-kernel lines")
+    p.add_argument("--quiet", action="store_true", help="short per-kernel lines (no module paths)")
     p.set_defaults(func=run)
+
+
+def pipeline_first(names: Iterable[str]) -> list[str]:
+    """``names`` with the pipeline's models (in :data:`PIPELINE_MODELS` order) ahead of the others."""
+    names = list(dict.fromkeys(names))
+    return [n for n in PIPELINE_MODELS if n in names] + [n for n in names if n not in PIPELINE_MODELS]
+
+
+def _mmss(seconds: float) -> str:
+    s = int(round(max(seconds, 0.0)))
+    return f"{s // 60}:{s % 60:02d}"
+
+
+class CompileClock:
+    """One line per finished kernel: ``[k/N] label: built in 41 s; 1:52 elapsed, about 3:10 left``.
+
+    The estimate is the mean build time so far times the kernels still to build, divided by the processes."""
+
+    def __init__(self, n_total: int, workers: int, out=None, now: Callable[[], float] = time.perf_counter):
+        self.n_total, self.workers = n_total, max(workers, 1)
+        self.out = out or sys.stderr
+        self.now = now
+        self.t0 = now()
+        self.done = 0
+        self.built_s: list[float] = []
+
+    def line(self, result: Result, n_left_to_build: int, quiet: bool) -> str:
+        """Record ``result`` and return its progress line."""
+        label, path, err, seconds = result
+        self.done += 1
+        elapsed = self.now() - self.t0
+        if err is not None:
+            state = "failed"
+        elif seconds is None:
+            state = "up to date"
+        else:
+            self.built_s.append(seconds)
+            state = f"built in {seconds:.0f} s"
+        text = f"vibro compile: [{self.done}/{self.n_total}] {label}: {state}; {_mmss(elapsed)} elapsed"
+        if n_left_to_build and self.built_s:
+            left = sum(self.built_s) / len(self.built_s) * n_left_to_build / min(self.workers, n_left_to_build)
+            text += f", about {_mmss(left)} left (estimate)"
+        if not quiet and err is None and path:
+            text += f": {path}"
+        return text
+
+    def emit(self, text: str) -> None:
+        self.out.write(text + "\n")
+        self.out.flush()
+
+    def total(self, n_built: int, n_current: int, n_failed: int = 0) -> str:
+        """The closing line: the measured total wall time."""
+        failed = f", {n_failed} failed" if n_failed else ""
+        return (f"vibro compile: {n_built + n_current + n_failed} kernels in {_mmss(self.now() - self.t0)} "
+                f"({n_built} built, {n_current} up to date{failed}; {self.workers} "
+                f"process{'es' if self.workers > 1 else ''})")
 
 
 def run(args) -> int:
@@ -45,8 +111,10 @@ def run(args) -> int:
             raise UserError(f"unknown model '{n}'; known models: {', '.join(model_names())}")
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
-    results, todo, seen = [], [], set()
-    for n in names:
+    current: list[Result] = []
+    todo: list[Job] = []
+    seen = set()
+    for n in pipeline_first(names):
         spec = get_model(n)
         for exact in kernel_variants(spec):
             if (spec.funcs, exact) in seen:
@@ -54,24 +122,24 @@ def run(args) -> int:
             seen.add((spec.funcs, exact))
             path = aot.module_path(spec.funcs, exact)
             if path.exists() and not args.jit:      # up to date: reported without starting a worker
-                results.append((_label(n, exact), str(path), None, None))
+                current.append((_label(n, exact), str(path), None, None))
             else:
                 todo.append((n, exact, args.jit))
     workers = min(args.workers or os.cpu_count() or 1, max(len(todo), 1))
-    if workers == 1:
-        results += [compile_kernel(*job) for job in todo]
-    else:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
-        with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-            results += list(pool.map(compile_kernel, *zip(*todo)))
-    failed = [r for r in results if r[2] is not None]
-    if not args.quiet:
-        for label, path, err, seconds in results:
-            if err is None:
-                state = "up to date" if seconds is None else f"built in {seconds:.0f} s"
-                print(f"vibro compile: {label}: {state}: {path}", file=sys.stderr, flush=True)
+    clock = CompileClock(len(current) + len(todo), workers)
+    if todo:
+        clock.emit(f"vibro compile: building {len(todo)} kernel{'s' if len(todo) > 1 else ''} in {workers} "
+                   f"process{'es' if workers > 1 else ''}, the pipeline's models first; one line per kernel")
+    for r in current:
+        clock.emit(clock.line(r, len(todo), args.quiet))
+    failed: list[Result] = []
+    left = len(todo)
+    for r in build_all(todo, workers):
+        left -= 1
+        clock.emit(clock.line(r, left, args.quiet))
+        if r[2] is not None:
+            failed.append(r)
+    clock.emit(clock.total(len(todo) - len(failed), len(current), len(failed)))
     if failed:
         label, _, err, _ = failed[0]
         raise UserError(f"ahead-of-time compilation of the {label} kernel failed ({err}); "
@@ -79,11 +147,26 @@ def run(args) -> int:
     return 0
 
 
+def build_all(todo: list[Job], workers: int) -> Iterator[Result]:
+    """:func:`compile_kernel` of every job, yielded as each finishes (``workers`` processes; 1: in this process)."""
+    if workers == 1:
+        for job in todo:
+            yield compile_kernel(*job)
+        return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = [pool.submit(compile_kernel, *job) for job in todo]     # submitted in order: pipeline first
+        for f in as_completed(futures):
+            yield f.result()
+
+
 def _label(model: str, exact: str | None) -> str:
     return f"{model} ({'exact propagator' if exact else 'numerical integrator'})"
 
 
-def compile_kernel(model: str, exact: str | None, jit: bool) -> tuple[str, str, str | None, float | None]:
+def compile_kernel(model: str, exact: str | None, jit: bool) -> Result:
     """Build one kernel's AOT module (and with ``jit`` its numba cache): (label, path, error or None,
     seconds or None when it was already built).  Runs in a worker process."""
     from sim import aot, get_model

@@ -1,0 +1,85 @@
+"""``vibro compile`` talks as it goes: a line per kernel with the elapsed time and an estimate, also under --quiet,
+the pipeline's models first, and its own measured total at the end (the compiler replaced by a stub)."""
+from __future__ import annotations
+
+import io
+import re
+from pathlib import Path
+
+import pytest
+import yaml
+
+from pipeline.cli import compile as compile_cmd
+from pipeline.cli import main
+from sim import aot, model_names
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+@pytest.fixture
+def stub_build(tmp_path, monkeypatch):
+    """An empty kernel folder and a build that records its calls instead of compiling."""
+    monkeypatch.setenv("VIBRO_KERNEL_DIR", str(tmp_path))
+    monkeypatch.setattr(aot, "_LOADED", {})
+    built = []
+
+    def fake_build(funcs, n_bounded, exact=None):
+        built.append((funcs[0].py_func.__module__, exact))
+        return aot.module_path(funcs, exact)
+
+    monkeypatch.setattr(aot, "build", fake_build)
+    return built
+
+
+def test_quiet_compile_prints_one_line_per_kernel_pipeline_first_and_its_total(stub_build, capsys):
+    assert main(["compile", "--quiet", "--workers", "1"]) == 0
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert lines[0].startswith("vibro compile: building 9 kernels in 1 process")
+    progress = [ln for ln in lines if re.match(r"vibro compile: \[\d+/9\] ", ln)]
+    assert len(progress) == 9
+    assert [int(re.search(r"\[(\d+)/9\]", ln).group(1)) for ln in progress] == list(range(1, 10))
+    assert all(re.search(r"built in \d+ s; \d+:\d\d elapsed", ln) for ln in progress)
+    assert all("about " in ln and "left (estimate)" in ln for ln in progress[:-1])   # the last has nothing left
+    assert not any("vibro_aot_" in ln for ln in progress)                 # --quiet: no module paths
+    order = [re.search(r"\] (\S+) \(", ln).group(1) for ln in progress]
+    assert order == ["drill", "drill", "indenter-metal", "indenter-metal", "indenter-sandstone",
+                     "indenter-sandstone", "pendulum", "rimd", "rimd"]          # the pipeline's models first
+    assert stub_build[0] == ("sim.models.drill", None)
+    assert re.fullmatch(r"vibro compile: 9 kernels in \d+:\d\d \(9 built, 0 up to date; 1 process\)", lines[-1])
+
+
+def test_verbose_compile_names_each_module(stub_build, capsys):
+    assert main(["compile", "drill", "--workers", "1"]) == 0
+    progress = [ln for ln in capsys.readouterr().err.splitlines() if "/2] drill" in ln]
+    assert len(progress) == 2 and all("vibro_aot_" in ln for ln in progress)
+
+
+def test_estimate_is_the_mean_build_time_over_the_free_processes():
+    t = iter([0.0, 60.0, 100.0, 200.0])
+    out = io.StringIO()
+    clock = compile_cmd.CompileClock(n_total=5, workers=2, out=out, now=lambda: next(t))
+    first = clock.line(("drill (numerical integrator)", "/k/a.so", None, 50.0), n_left_to_build=4, quiet=True)
+    assert first == ("vibro compile: [1/5] drill (numerical integrator): built in 50 s; 1:00 elapsed, "
+                     "about 1:40 left (estimate)")                     # 50 s x 4 kernels / 2 processes
+    second = clock.line(("drill (exact propagator)", "", "RuntimeError: x", None), n_left_to_build=1, quiet=False)
+    assert second == "vibro compile: [2/5] drill (exact propagator): failed; 1:40 elapsed, about 0:50 left (estimate)"
+    assert clock.total(3, 1, 1) == "vibro compile: 5 kernels in 3:20 (3 built, 1 up to date, 1 failed; 2 processes)"
+
+
+def test_the_pipelines_models_come_first_and_are_models():
+    params = yaml.safe_load((ROOT / "params.yaml").read_text())
+    assert params["sweep"]["model"] == compile_cmd.PIPELINE_MODELS[0]
+    assert set(compile_cmd.PIPELINE_MODELS) <= set(model_names())
+    assert compile_cmd.pipeline_first(["rimd", "indenter-sandstone", "drill", "pendulum"]) == [
+        "drill", "indenter-sandstone", "rimd", "pendulum"]
+
+
+def test_help_and_makefile_state_no_compile_time_of_their_own(capsys):
+    """The one compile time is the one `vibro compile` measures and prints."""
+    with pytest.raises(SystemExit):
+        main(["compile", "--help"])
+    help_text = capsys.readouterr().out
+    make_lines = [ln for ln in (ROOT / "Makefile").read_text().splitlines() if "compil" in ln]
+    for text in [help_text, *make_lines]:
+        assert not re.search(r"\d+(\.\d+)? ?(min|minutes)\b", text), text
+    assert "prints the time it took" in help_text and any("prints the time it took" in ln for ln in make_lines)
