@@ -1,4 +1,4 @@
-"""Work-precision benchmark (issue 16): CPU time against label error for every model and method.
+"""Work-precision benchmark: CPU time against label error for every model and method.
 
 For each point (one per model, plus the drill's ``lab``) and each method, the same fixed transient and
 window are run (settings min_transient = max_transient = N, window = W) and timed by interleaved
@@ -14,10 +14,10 @@ resolves errors down to ~1e-12.
 
 Methods: the simulator's DOPRI5 kernel (``method="dopri5"``) at rtol 1e-6 ... 1e-11 (drill also 1e-12, for
 the x10 target at 1e-10 label error); the exact propagator (``method="exact"``: on the drill exact in every phase,
-one row; on the RIMD the hybrid of an exact free flight and DOPRI5 contact, a row per rtol); on the drill the
-DOPRI5 kernel of the day issue 16 was filed (commit 33a799c, ``bench/baseline.py``: unpacked from git and run
-in a worker process, interleaved like the rest; drill rtol 1e-7, 1e-8, 1e-10, 1e-11, 1e-12, the "today" of the x10
-target; every other model at the default rtol 1e-7, for item 2's lean-kernel ratio); on the drill the
+one row; on the RIMD the hybrid of an exact free flight and DOPRI5 contact, a row per rtol); the baseline
+DOPRI5 kernel of commit 33a799c (``bench/baseline.py``: unpacked from git and run in a worker process, interleaved
+like the rest; drill rtol 1e-7, 1e-8, 1e-10, 1e-11, 1e-12, the reference of the x10 line; every other model at the
+default rtol 1e-7, for the lean-kernel ratio); on the drill the
 peers: scipy RK45 / DOP853 in a plain ``solve_ivp`` loop as a user writes it (``bench/peers_scipy.py``), CyRK
 ``pysolve_ivp`` (``bench/peers_cyrk.py``) and heyoka.py (``bench/peers_heyoka.py``, tol 1e-6 ... 1e-11);
 on the other models scipy RK45 (rtol 1e-6, 1e-8) and DOP853 (rtol 1e-8) through the reference harness (no
@@ -26,7 +26,7 @@ and of ``vibro sweep`` (:mod:`bench.scaling`), and the CPU of one warm ``vibro s
 ``vibro --help`` (:mod:`bench.startup`).  Writes ``results/precision.json`` (``--quick``:
 ``precision_quick.json``) and the table ``results/precision.md`` (summary per error level, the x10 line,
 every method, the scaling, the start-up); a full run (or ``--write-readme``) copies that table into the marked blocks of
-README.md and bench/README.md, so the figures quoted there are always this run's.
+docs/speed.md and bench/README.md, so the figures quoted there are always this run's.
 
 Run: ``python -m bench.bench_precision [--quick] [--models drill,...] [--scaling] [--write-readme] [--reps N]``.  Not a test: nothing asserts a timing.
 """
@@ -61,8 +61,8 @@ SCIPY = (("RK45", 1e-6), ("RK45", 1e-8), ("DOP853", 1e-8))   # (method, rtol) th
 SCIPY_PLAIN = (("RK45", 1e-6), ("RK45", 1e-8), ("DOP853", 1e-8), ("DOP853", 1e-10))   # drill: plain solve_ivp loop
 CYRK = (("RK45", 1e-6), ("RK45", 1e-8), ("DOP853", 1e-8), ("DOP853", 1e-10))          # drill: CyRK pysolve_ivp
 BASELINE = "baseline"      # method-name prefix of the old kernel (bench/baseline.py); neither simulator nor peer
-DEFAULT_RTOL = 1e-7        # sim.Settings().rtol, the default tolerance (item 2's "x2 on every model at the default
-                           # tolerance"); tests/bench/test_bench_quick.py checks the two agree
+DEFAULT_RTOL = 1e-7        # sim.Settings().rtol, the tolerance of the lean-kernel ratio;
+                           # tests/bench/test_bench_quick.py checks the two agree
 BASELINE_RTOLS = (DEFAULT_RTOL, 1e-8, 1e-10, 1e-11, 1e-12)   # drill; the other models: DEFAULT_RTOL only
 TARGETS = (1e-6, 1e-8, 1e-10)   # label-error levels of the summary (fastest simulator method vs fastest peer)
 HOT_BELOW_S = 0.1         # methods faster than this are timed right after an untimed call of themselves: in the
@@ -105,7 +105,7 @@ def _methods(model: str, preset, n: int, w: int, quick: bool) -> dict:
             out[f"sim hybrid rtol {r:.0e}"] = (lambda r=r: sim.simulate(
                 model, preset=preset, settings={**fixed, "rtol": r, "method": "exact"}).labels)
     params = {k: v for k, v in spec.resolve(preset).items() if k not in ("P", "D")}
-    try:   # issue 16's "today": the DOPRI5 kernel of the commit the issue measured, in a worker process
+    try:   # the baseline DOPRI5 kernel (bench/baseline.py), in a worker process
         from bench.baseline import COMMIT
         rtols_old = BASELINE_RTOLS if model == "drill" else (DEFAULT_RTOL,)
         if quick:                                           # --quick: only the x10 line's row
@@ -264,7 +264,7 @@ def _loosest(rows: list[dict], prefix: str, target: float) -> dict | None:
 
 
 def lean_vs_old(res: dict) -> list[dict]:
-    """Issue 16 item 2: per point, the current DOPRI5 kernel against the old one (33a799c), both at the default
+    """Per point, the current DOPRI5 kernel against the baseline one (33a799c), both at the default
     rtol, with their label errors (vs the exact propagator on the drill, else vs the reference); where the model has
     a hybrid propagator (exact where the model is linear, DOPRI5 elsewhere: the RIMD's contact, the indenters'
     friction reversals; what ``simulate`` runs by default there) a second row sets it against the same old kernel."""
@@ -283,8 +283,8 @@ def lean_vs_old(res: dict) -> list[dict]:
 
 
 def exact_vs_dopri5(res: dict, target: float = 1e-10) -> list[dict]:
-    """Issue 16's ×10 target: the exact propagator against the DOPRI5 kernel of the day the issue was filed
-    (``baseline``, bench/baseline.py) and against the current DOPRI5 kernel, each at the loosest rtol whose
+    """The ×10 line: the exact propagator against the baseline DOPRI5 kernel (commit 33a799c,
+    bench/baseline.py) and against the current DOPRI5 kernel, each at the loosest rtol whose
     labels are within ``target`` of the exact ones."""
     out = []
     for pt in res["points"]:
@@ -385,8 +385,8 @@ def table(res: dict) -> str:
 
 
 def write_readmes(md: str) -> list[str]:
-    """Replace the text between the bench-table markers in README.md and bench/README.md."""
-    return write_between_markers(ROOT, ("README.md", "bench/README.md"), START, END, md)
+    """Replace the text between the bench-table markers in docs/speed.md and bench/README.md."""
+    return write_between_markers(ROOT, ("docs/speed.md", "bench/README.md"), START, END, md)
 
 
 def run_scaling(quick: bool) -> dict:
@@ -417,9 +417,9 @@ def sim_kernel_kind(models) -> str:
 def main(quick: bool = False, write_readme: bool | None = None, models: tuple[str, ...] | None = None,
          scaling: bool | None = None, out_dir: Path | None = None, reps: int = 3) -> dict:
     """Run, save to ``out_dir`` (default bench/results), and (by default for a full run, as under
-    ``make bench``) rewrite the README tables.  ``scaling`` defaults to on for a full run.  A ``models`` subset
-    is saved as ``precision_subset.json/.md`` and, unless asked, neither measures the scaling nor touches the
-    READMEs: the full run's figures stay where they are quoted."""
+    ``make bench``) rewrite the tables in docs/speed.md and bench/README.md.  ``scaling`` defaults to on for a
+    full run.  A ``models`` subset is saved as ``precision_subset.json/.md`` and, unless asked, neither measures
+    the scaling nor touches the docs: the full run's figures stay where they are quoted."""
     full = not quick and not models
     res = run(quick, models=models, reps=reps)
     res["quick"] = quick
@@ -447,12 +447,12 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="two points, three rtols, fewer peers, no scaling (development)")
     ap.add_argument("--models", default="", help="comma-separated models to run (default: all points); a subset is "
-                    "saved as results/precision_subset.json/.md and leaves the READMEs alone unless --write-readme")
+                    "saved as results/precision_subset.json/.md and leaves the docs' tables alone unless --write-readme")
     ap.add_argument("--scaling", action="store_true", default=None, help="also run the 1-/2-worker scaling (default for a full run, not for --quick or --models)")
     ap.add_argument("--write-readme", action="store_true", default=None,
-                    help="copy the table into README.md and bench/README.md (default for a full run)")
+                    help="copy the table into docs/speed.md and bench/README.md (default for a full run)")
     ap.add_argument("--no-write-readme", dest="write_readme", action="store_false",
-                    help="leave the README tables alone (e.g. a --models subset)")
+                    help="leave the docs' tables alone (e.g. a --models subset)")
     ap.add_argument("--out-dir", type=Path, help="where precision.json/.md go (default bench/results)")
     ap.add_argument("--reps", type=int, default=3, help="interleaved repetitions per method (default 3; medians)")
     a = ap.parse_args()

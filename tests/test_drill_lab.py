@@ -1,7 +1,7 @@
 """The drill model's `lab` preset and its search space LAB_SPACE (MODELS.md §2 requirements (i)-(iii)).
 
 A coarse grid (8 log-spaced frequencies x 3 F0 x 3 Fs over LAB_SPACE, window 16 cycles) keeps this fast;
-README.md, "The drill model's lab preset" has the 12 x 6 x 6 measurements behind the preset.
+docs/simulate.md, "The drill model's lab preset" has the 12 x 6 x 6 measurements behind the preset.
 """
 import numpy as np
 import pytest

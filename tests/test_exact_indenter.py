@@ -146,7 +146,7 @@ def test_friction_band_edge_follows_the_tolerance():
         v = hy.v_band(rtol)
         assert 2.0 / (math.exp(2.0 * v) + 1.0) <= hy.BAND_TOL * rtol
         assert 2.0 / (math.exp(2.0 * (v - 0.01)) + 1.0) > hy.BAND_TOL * rtol
-    assert hy.v_band(1e-7) == pytest.approx(10.71, abs=0.01)        # the edge README.md quotes
+    assert hy.v_band(1e-7) == pytest.approx(10.71, abs=0.01)        # the edge docs/speed.md quotes
     # never wider than where the model's tanh rounds to ±1 (the friction bit-exact), in Python and in numba alike
     assert hy.v_band(1e-17) == hy.V_EXACT
     assert math.tanh(hy.V_EXACT) == 1.0 and math.tanh(-hy.V_EXACT) == -1.0

@@ -9,7 +9,7 @@ Where the numbers come from:
   gap 3 mm -> 5.5 Hz, 25.6 N (up-sweep); from rest no impacting branch above 5.5 / 4.5 Hz).
 * Published measurements: seed 001 Table 2 (pendulum impact resonances), seed 002 Table 3 (RIMD first
   impact resonance, experiment / seed numerics), both restated in MODELS.md.  The model does not match
-  them exactly; the tests assert what the model gives and the documented distance (README.md).
+  them exactly; the tests assert what the model gives and the documented distance (docs/maps.md).
 """
 from __future__ import annotations
 
@@ -153,7 +153,7 @@ def test_pendulum_impact_resonances(pendulum_sweep, gap):
     f12, F12 = band_resonance(d, Z12)
     # what the model gives: the independent solution's resonances (MODELS.md §3)
     assert (f11, f12) == pytest.approx(PEND_MODEL_REF[gap], abs=1e-9)
-    # distance from the measurement (seed 001 Table 2): within 0.5 Hz (documented in README.md)
+    # distance from the measurement (seed 001 Table 2): within 0.5 Hz (documented in docs/maps.md)
     m11, m12 = PEND_TABLE2[gap]
     assert abs(f11 - m11) <= 0.5 + 1e-9 and abs(f12 - m12) <= 0.5 + 1e-9
     if gap == 0.0:

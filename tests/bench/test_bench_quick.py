@@ -1,7 +1,7 @@
-"""The work-precision benchmark's quick path on one model, and its generated table (issue 16).
+"""The work-precision benchmark's quick path on one model, and its generated table.
 
 No timing is asserted (speed targets live in ``make bench``); what is checked is the plumbing that makes
-the README figures trustworthy: every method is timed and scored, the summary picks methods that really
+the docs/speed.md figures trustworthy: every method is timed and scored, the summary picks methods that really
 reach each error level, and the table lands between the markers and only there.
 """
 from __future__ import annotations
@@ -54,14 +54,18 @@ def test_table_is_generated_and_written_between_the_markers_only(quick_result, t
     assert "| indenter-metal | table1-60hz | sim dopri5 rtol 1e-08 |" in md
     assert f"{res['machine']['load_avg_at_start'][0]:.1f} at the start" in md
     (tmp_path / "bench").mkdir()
+    (tmp_path / "docs").mkdir()
     before, after = "# Title\nprose above\n", "\nprose below\n"
-    for p in (tmp_path / "README.md", tmp_path / "bench" / "README.md"):
+    for p in (tmp_path / "docs" / "speed.md", tmp_path / "bench" / "README.md"):
         p.write_text(f"{before}{bp.START}\nold figures\n{bp.END}{after}")
+    (tmp_path / "README.md").write_text(f"{before}{bp.START}\nstays\n{bp.END}{after}")   # the front page: not a target
     monkeypatch.setattr(bp, "ROOT", tmp_path)
-    assert sorted(bp.write_readmes(md)) == ["README.md", "bench/README.md"]
-    text = (tmp_path / "README.md").read_text()
-    assert text == f"{before}{bp.START}\n{md}{bp.END}{after}"
-    assert "old figures" not in text
+    assert sorted(bp.write_readmes(md)) == ["bench/README.md", "docs/speed.md"]
+    for p in (tmp_path / "docs" / "speed.md", tmp_path / "bench" / "README.md"):
+        text = p.read_text()
+        assert text == f"{before}{bp.START}\n{md}{bp.END}{after}"
+        assert "old figures" not in text
+    assert "stays" in (tmp_path / "README.md").read_text()
 
 
 def _row(method, cpu_ms, err_x):

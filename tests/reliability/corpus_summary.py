@@ -1,4 +1,4 @@
-"""Print the bad-input corpus's size and outcome counts (the README's reliability section quotes them).
+"""Print the bad-input corpus's size and outcome counts (docs/reliability.md quotes them).
 
     PYTHONPATH=. python -m tests.reliability.corpus_summary
 

@@ -1,10 +1,10 @@
-"""The bad-input corpus (issue 15, items 1 and 5): every user mistake exits 2 with one line naming the culprit,
+"""The bad-input corpus: every user mistake exits 2 with one line naming the culprit,
 writes nothing and deletes nothing.
 
 Two parts: hand-written cases (the adversarial run's findings, one per file format, the output-folder rules),
 and generated cases, one per argument of every subcommand (read from the parser itself, so a renamed or new flag
-is covered without editing this file).  ``python -m tests.reliability.corpus_summary`` prints the counts the
-README quotes.
+is covered without editing this file).  ``python -m tests.reliability.corpus_summary`` prints the counts
+docs/reliability.md quotes.
 """
 from __future__ import annotations
 
@@ -248,5 +248,5 @@ def test_internal_error_is_one_line_and_traceback_only_with_debug(capsys, monkey
 
 
 def test_corpus_size():
-    """The README quotes these numbers (tests/reliability/corpus_summary.py)."""
+    """docs/reliability.md quotes these numbers (tests/reliability/corpus_summary.py)."""
     assert len(CASES) >= 40 and len(GENERATED) >= 60
