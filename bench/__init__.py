@@ -1,4 +1,4 @@
-"""Benchmarks (issue 2 and friends): ``python -m bench.run_all [--quick]`` or ``make bench``.
+"""Benchmarks: ``python -m bench.run_all [--quick]`` or ``make bench``.
 
 Each ``bench/bench_*.py`` module has a ``main(quick)`` (or ``main()``) and writes ``bench/results/<name>.json``.
 This package also holds the small pure-Python pieces of the drill model (MODELS.md §2) that the peer
@@ -24,7 +24,7 @@ ETA_X = 1e-15          # hysteresis on the position switching function [m] (as t
 def write_between_markers(root: Path, paths, start: str, end: str, text: str) -> list[str]:
     """Replace what stands between the lines ``start`` and ``end`` of each file in ``paths`` (relative to ``root``)
     that has both with ``text`` (a line break either side), atomically (``pipeline.core.files``); returns the
-    paths written.  How the benchmarks keep the tables the READMEs quote generated."""
+    paths written.  How the benchmarks keep the tables the docs quote generated."""
     from pipeline.core.files import atomic_write_text
 
     done = []

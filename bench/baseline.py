@@ -1,7 +1,7 @@
-"""The simulator as it was when issue 16 was filed (commit 33a799c), timed in the same benchmark run.
+"""The baseline simulator (a fixed earlier commit, 33a799c), timed in the same benchmark run.
 
-Issue 16's target "drill at 1e-10 label error >= x10 faster than today" needs the kernel of that day next
-to the current one, with interleaved repetitions.  Two versions of the ``sim`` package cannot share one
+The x10 line (drill at 1e-10 label error against the baseline) needs that kernel next to the current one, with
+interleaved repetitions.  Two versions of the ``sim`` package cannot share one
 interpreter, so the old one runs in a worker process: ``git archive`` of the commit is unpacked once into
 ``bench/results/.baseline-<commit>/`` (its numba kernels are cached beside it), and the worker answers one
 JSON request per line, ``{"model", "preset", "settings"}`` -> ``{"cpu_s", "wall_s", "labels"}``, timing
@@ -19,7 +19,7 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-COMMIT = "33a799c"          # "A fresh clone of the final commit (33a799c)" -- the state issue 16 measured
+COMMIT = "33a799c"          # the baseline the x10 line and the lean-kernel ratio are measured against
 
 _WORKER = r"""
 import json, sys, time

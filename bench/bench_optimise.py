@@ -1,4 +1,4 @@
-"""Benchmark of the ROP optimisation (issue 5) on the drill ``lab`` preset.
+"""Benchmark of the ROP optimisation on the drill ``lab`` preset.
 
 Best *simulated* ROP found within a budget of simulator calls (training + verification) by
 (a) surrogate + optuna with verification rounds that feed back into training, (b) optuna TPE

@@ -1,4 +1,4 @@
-"""Simulator benchmark (issue 2): the jitted simulator against scipy RK45 and against the strongest peers.
+"""Simulator benchmark: the jitted simulator against scipy RK45 and against the strongest peers.
 
 For each model of ``sim.model_names()`` that imports, a few representative points are run with the SAME
 fixed transient and window (settings min_transient = max_transient = N, window = W) by

@@ -1,4 +1,4 @@
-"""Throughput of ``vibro sweep`` (issue 3): simulations per second for the default sweep (drill ``lab``
+"""Throughput of ``vibro sweep``: simulations per second for the default sweep (drill ``lab``
 preset, Sobol' over LAB_SPACE, default settings) on this machine.
 
   local   run_sweep on local cores (threads over the GIL-free numba kernel)

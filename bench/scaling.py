@@ -1,4 +1,4 @@
-"""Two-core scaling (issue 16): ``sim.simulate_batch`` with n_threads = 1 and 2, and ``vibro sweep`` with
+"""Two-core scaling: ``sim.simulate_batch`` with n_threads = 1 and 2, and ``vibro sweep`` with
 ``--workers 1`` and ``2``, as CPU time per point and throughput (points per wall second).
 
 ``simulate_batch``: the same drill ``lab`` table (a frequency x amplitude grid of the lab space) is run with

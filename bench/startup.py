@@ -1,4 +1,4 @@
-"""Start-up cost of the command line (issue 16 item 3): process CPU seconds of one warm ``vibro simulate drill
+"""Start-up cost of the command line: process CPU seconds of one warm ``vibro simulate drill
 --preset lab`` (kernel cache warm: ``vibro compile drill`` and a warm-up run build or load it first) with the
 ahead-of-time kernel and, for comparison, with numba's JIT cache (``VIBRO_NO_AOT=1``), of ``vibro --help`` and of
 ``vibro simulate --help``.

@@ -1,4 +1,4 @@
-"""Step budget of the DOPRI5 kernel (issue 16 item 2): per model and phase, how many steps a forcing cycle takes and
+"""Step budget of the DOPRI5 kernel: per model and phase, how many steps a forcing cycle takes and
 what limits their size -- the error control (accuracy), the step cap (``max_step_frac``), or stability.
 
 Runs every benchmark point (``bench.bench_precision.POINTS``, its fixed transient and window) at the default rtol with
@@ -272,8 +272,8 @@ def rhs_floor(points: list[dict], over: dict, reps: int = 30) -> list[dict]:
     out = []
     for pt in points:
         spec = sim.get_model(pt["model"])
-        # the model's right-hand side inlined into the timing loop, as the kernel inlines it (sim.compiled); its cached
-        # dispatcher called instead timed 2.4x faster on RIMD after one recompile and not after another
+        # the model's right-hand side inlined into the timing loop, as the kernel inlines it (sim.compiled); calling
+        # its cached dispatcher instead gave timings that changed from one recompile to the next
         rhs = njit(inline="always")(spec.funcs[0].py_func)
 
         @njit

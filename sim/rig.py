@@ -2,7 +2,7 @@
 
 A rig is what a user means by "my machine": the model (MODELS.md §1-4), an optional preset, parameter
 values that override the preset, the §6 effects that are on with their parameters, and where it came
-from.  It is the in-memory form of a rig file (``--rig FILE``, README.md "Rig files"); the diagnosis
+from.  It is the in-memory form of a rig file (``--rig FILE``, docs/commands.md "Rig files"); the diagnosis
 writes the corrected rig in the same form.  Controls (``frequency_hz``, ``amplitude_n``, ...) are
 given per simulation, on top of the rig.
 

@@ -1,4 +1,4 @@
-"""ROP optimisation (issue 5): optuna studies on the surrogate or the simulator, verified by the simulator.
+"""ROP optimisation: optuna studies on the surrogate or the simulator, verified by the simulator.
 
 ``run_optimise(OptimiseConfig(...), out_dir)`` runs (or resumes) a study, re-simulates the
 recommended points, compares prediction and simulation, appends the verified points to a

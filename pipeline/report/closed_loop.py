@@ -1,5 +1,5 @@
 """Report section 5: closing the loop — the recommendation on the uncorrected model beside the one on the
-corrected rig (``vibro compare``'s results/closed-loop/report.json; README.md "Closing the loop")."""
+corrected rig (``vibro compare``'s results/closed-loop/report.json; docs/closed-loop.md)."""
 from __future__ import annotations
 
 from pathlib import Path

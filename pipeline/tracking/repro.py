@@ -42,9 +42,9 @@ TIMES_REL = Path(".vibro/stage-times.json")
 _RUNNING = re.compile(r"Running stage '([^']+)'")
 TYPICAL_S = {"sweep": 40.0, "train": 150.0, "optimise@rop": 40.0, "optimise@pareto": 50.0, "verify": 25.0,
              "diagnose@seed000-published": 150.0, "report": 15.0,
-             # issue 14, the corrected chain (first-run ETA only; later runs use the measured times)
+             # the corrected chain (first-run ETA only; later runs use the measured times)
              "diagnose@drill-rig": 300.0, "sweep_rig": 15.0, "train_rig": 100.0, "optimise_rig": 40.0, "compare": 20.0}
-"""Stage wall times [s] on two idle cores with the default params.yaml (README.md "Measured run time"):
+"""Stage wall times [s] on two idle cores with the default params.yaml (docs/pipeline.md "Measured run time"):
 the first run's ETA; later runs use the previous run's times (``.vibro/stage-times.json``)."""
 
 

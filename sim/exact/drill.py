@@ -187,8 +187,8 @@ def _rdot(wk, ph, row, z):
     return acc
 
 
-# the drill's own row polynomial and state evaluation (sim.exact.taylor's, with the component count a constant:
-# LLVM unrolls the NZ-long dot products, 2-3 % of a drill run against the shape-generic versions)
+# the drill's own row polynomial and state evaluation (sim.exact.taylor's, with the component count a constant,
+# so LLVM unrolls the NZ-long dot products)
 @njit(cache=True, inline="always")
 def _dot(r, z):
     acc = 0.0

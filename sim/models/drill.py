@@ -74,8 +74,7 @@ def _rhs_at(t, y, ph, p, dy):
 
     Written on local scalars read first, with the branchy helpers taking scalars only, and dy written last and
     unconditionally: an inlined helper that takes an array costs numba a reference-count increment and decrement per
-    array where its branches split the array's live range (10 % of a drill run before; the expressions, and so
-    every result bit, are unchanged)."""
+    array where its branches split the array's live range."""
     x1, v1, x2, v2, x3, v3 = y[IX1], y[IV1], y[IX2], y[IV2], y[IX3], y[IV3]
     xt, xb, fh_y = y[IXT], y[IXB], y[IFH]
     m1, m2, m3 = p[M1], p[M2], p[M3]
@@ -103,7 +102,7 @@ def _rhs_at(t, y, ph, p, dy):
         dxb = (_pc_at(k1, alpha, c1, x1, v1, xb) - pc) / c1
     d12 = x1 - x2
     # bit-exciter link: damper, (hardening) spring, guide friction; each effect term is exactly 0 when off (the
-    # friction's tanh is not even evaluated then: it was a libm call per stage for nothing)
+    # friction's tanh, a libm call per stage, is then not evaluated)
     s12 = c2 * (v1 - v2) + k2 * d12 * (1.0 + kappa * d12 * d12)
     if mu != 0.0:
         s12 += mu * math.tanh((v1 - v2) / veps)
@@ -242,21 +241,8 @@ PARAMS = (
     Param("fc", 0.0, "Hz", "sensor_lowpass: accelerometer bandwidth (2nd-order Butterworth); 0 = ideal", nonnegative=True),
 )
 
-# Fit bounds of the §6 effect parameters for identification from rig data at the `lab` preset's scale:
-# (lo, hi, unit).  lo = where the effect just becomes measurable, hi = large but still simulable.  Measured with
-# sim.simulate_batch("drill", preset="lab", default settings) at the default operating point (280 Hz, F0 2250 N,
-# Fs 1200 N; base ROP 3.576 mm/s, peak decel 3.457 g, 1 impact/cycle, period 1), one effect on at a time:
-#   tau    3e-5 s:      ROP -0.6 %, decel -0.35 %  | 5e-4 s: ROP -97 %, decel -32 % (Fh lags Ω by ~40°, still
-#                       impacting; τ < 3e-5 s only makes the fh equation stiff: 5x the steps of the base run at 3e-5)
-#   beta   200 N s/m:   ROP -0.55 %, decel -0.33 % | 3e4 N s/m: ROP -54 %, decel -36 % (β ~ C2 = 4.8e4 would
-#                       double the bit-exciter damping)
-#   alpha  3 s/m:       ROP +0.6 %, decel -0.37 %  | 1000 s/m: ROP +25 %, decel -9 % (K1 x15 at the bit's
-#                       ~0.014 m/s; the effect saturates: phase III caps the force at Pr)
-#   mu     2 N:         ROP -0.5 %, decel -0.37 %  | 500 N: ROP -81 %, decel -43 % (0.22 F0)
-#   gamma  3e-4:        ROP -0.5 %, force +0.16 %  | 1.0: ROP -93 %, peak force +99 % (tip blunting never
-#                       settles: numbers after the 400-cycle default transient cap, ~1.4 s from rest)
-#   kappa  2e7 1/m^2:   ROP -0.65 %, decel -0.46 % | 3e9 1/m^2: ROP -67 %, decel -35 % (link deflection ~3e-5 m,
-#                       κ φ² ~ 3 at hi)
+# Fit bounds (lo, hi, unit) of the §6 effect parameters at the `lab` preset's scale: lo = where the effect just
+# becomes measurable (~0.5 % ROP at the default point), hi = large but still simulable (docs/simulate.md).
 EFFECT_FIT_BOUNDS = {
     "tau": (3e-5, 5e-4, "s"),
     "beta": (200.0, 3e4, "N s/m"),
@@ -267,11 +253,8 @@ EFFECT_FIT_BOUNDS = {
     "fc": (100.0, 3e4, "Hz"),
 }
 
-# A clearly visible strength of each effect on the `lab` preset at its default operating point (same
-# measurement as above; for synthetic rig data and the validation against tests/reference_solutions.py):
-#   shaker_coil tau 1e-4 s + beta 3e3 N s/m: ROP -14.1 %, decel -8.6 %    rate_stiffening alpha 50 s/m: ROP +7.7 %, decel -4.3 %
-#   guide_friction mu 50 N: ROP -12.1 %, decel -9.3 %                      tip_blunting gamma 0.01: ROP -14.3 %, force +5.1 %
-#   suspension_hardening kappa 3e8 1/m^2: ROP -9.5 %, decel -6.7 %
+# A clearly visible strength of each effect on the `lab` preset at its default point (8-14 % ROP), for
+# synthetic rig data and the validation against tests/reference_solutions.py (effect sizes: docs/simulate.md).
 EFFECT_VISIBLE = {
     "shaker_coil": {"tau": 1e-4, "beta": 3e3},
     "rate_stiffening": {"alpha": 50.0},
@@ -291,8 +274,8 @@ PRESETS = {
                  "static_force_n": 1260e3, "amplitude_n": 995e3, "frequency_hz": 0.1 / (2.0 * math.pi)},
     # MODELS.md §2 starting point, kept for comparison with its independent solution (ROP ~ m/s: too fast).
     "models-start": {},
-    # Lab-scale resonance-enhanced drilling rig in hard rock (README.md, "The drill model's lab preset").  Why the starting point
-    # drills at m/s: with G = 0, ROP scales exactly as (force scale)/(mass scale x time-scale^-1): scaling F0, Fs,
+    # Lab-scale resonance-enhanced drilling rig in hard rock (docs/simulate.md, "The drill model's lab preset").
+    # Why the starting point drills at m/s: with G = 0, ROP scales exactly as (force scale)/(mass scale x time-scale^-1): scaling F0, Fs,
     # Pr by phi multiplies ROP by phi; scaling every M, K, C by lam divides it by lam -- a 2 kg bit driven by up
     # to 2 Pr = 3 kN at 200 Hz swings at ~1 m/s.  Here the bit is 30x heavier, F0 <= 0.9 Pr instead of 2 Pr, and
     # the modes are placed (bit-exciter 200 Hz, isolation 30 Hz, contact ~500 Hz) so the RED resonance gives the
@@ -335,9 +318,8 @@ PRESETS = {
     },
 }
 
-# Search space of the `lab` preset's controls (MODELS.md §2 requirements (i)-(iii), measured in
-# README.md, "The drill model's lab preset"): on a 12 x 6 x 6 grid 99 % of points progress, the best frequency is interior for
-# 36/36 (F0, Fs) pairs (198-342 Hz) and the ROP optima span 0.3-8 mm/s.  F0 >= 0.6 Pr closes the non-progressing
+# Search space of the `lab` preset's controls (MODELS.md §2 requirements (i)-(iii); measured over it in
+# docs/simulate.md, "The drill model's lab preset").  F0 >= 0.6 Pr closes the non-progressing
 # hole F0 < min(Fs, Pr - Fs) (neither lift-off impacts nor Fs + F0 reaching Pr); Fs <= 0.6 Pr stays well
 # clear of the runaway Fs >= Pr and of the near-threshold region where ROP shoots up.
 LAB_SPACE = {"frequency_hz": (100.0, 450.0), "amplitude_n": (1800.0, 2700.0), "static_force_n": (600.0, 1800.0)}
@@ -379,7 +361,7 @@ SPEC = ModelSpec(
     calibratable=(FitBound("K1", 2e6, 6e9, "N/m"), FitBound("C1", 5e2, 4e6, "N s/m"),
                   FitBound("Pr", 150.0, 3e4, "N")),
     # the lab contact mode is ~500 Hz: harmonics up to 3 kHz carry the impact's shape; one candidate start and
-    # 10 iterations give the same answer as 2/15 on the 16-run control in half the time (README 'Speed')
+    # 10 iterations reach the answer of 2 starts and 15 iterations on a 16-run control at half the cost
     diagnose_max_harmonic_hz=3000.0,
     diagnose_fit={"candidate_starts": 1, "max_nfev": 10},
     # "lab": LAB_SPACE above; "": the MODELS.md §2 ranges at the default Pr = 1.5 kN (f 10-400 Hz,

@@ -55,7 +55,7 @@ V_ONE = 19.0
 @njit(cache=True, inline="always")
 def _sgn(v, veps):
     """tanh(v / veps), the regularised sign of the Coulomb terms, as (1 − e) / (1 + e) with e = exp(−2 |v| / veps): one
-    exp instead of libm's tanh, whose expm1 was 10 % of a sandstone run.  It differs from tanh by at most a few units
+    exp instead of libm's tanh, which goes through the slower expm1.  It differs from tanh by at most a few units
     of 1e-16 (absolute; the relative difference grows as |v| / veps → 0, where the friction does too), is odd, exactly
     0 at v = 0 and exactly ± 1 from |v| / veps ≥ 18.72 (where e < 2^-54), as tanh is from about 19.  From V_ONE on
     it is ± 1 without the exp, whose underflow far out (e below 1e-308 from |v| / veps ≈ 354) is libm's slow path."""
@@ -418,7 +418,7 @@ def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effe
         map_kind=map_kind,
         map_ranges=MAP_RANGES,
         # impacts ring up to ~1 kHz; the base fit can absorb a missing effect in pm, so each candidate also
-        # starts at the default base (issue 7): 2 starts, 15 iterations
+        # starts at the default base: 2 starts, 15 iterations
         diagnose_max_harmonic_hz=1000.0,
         diagnose_fit={"candidate_starts": 2, "max_nfev": 15},
         synth=synth,

@@ -99,8 +99,8 @@ def guards(t, y, z, ph, p, g):
         # free flight, certainly short of the stop: for θ ∈ (−π, 0) sin θ < 0, and for θ ≥ 0 sin θ ≤ θ, so
         # δ = l sin θ − gap < 0 and the guard min(δ, ·) is negative.  l θ − gap [m] is then returned instead of the
         # exact guard (same sign, no sin/cos: most free-flight guard checks, 4 per step, cost no libm call; the
-        # exact guard is evaluated from l θ ≥ gap on, where a crossing can be, so switches are found as before and
-        # located within event_tol; ×1.10 on a pendulum run, labels within 1.5e-10 of the exact-guard kernel's).
+        # exact guard is evaluated from l θ ≥ gap on, where a crossing can be, so every switch is still found and
+        # located within event_tol).
         # The bound stands for both indicators of the shared two-indicator guard
         d = lenp * th - gap
         ind = d
@@ -182,10 +182,8 @@ PRESETS = {
 # need several hundred cycles to settle to settle_tol.  min_transient 60 lets impacting runs (which lose
 # energy at every impact and settle in tens of cycles) stop early; max_transient 600 caps the slow
 # free-swing ones (a non-impacting run at the cap is still labelled no_contact from its window).
-# Step cap 0.03 T: the pendulum's free swing is smooth and its steps are limited by the cap alone (``python -m
-# bench.step_budget``).  0.03 is the largest cap that leaves the labels as accurate as the 0.02 used until issue 16's
-# fifth pass, with 22 % fewer steps over the seed's Peterka grid; 0.035 and above the error grows (table:
-# ``python -m bench.step_cap``, bench/README.md "Step cap").
+# Step cap 0.03 T: the free swing is smooth, so the cap alone limits its steps (``python -m bench.step_budget``);
+# 0.03 is the largest cap that keeps the labels as accurate as a finer one (``python -m bench.step_cap``).
 DEFAULT_SETTINGS = {"min_transient": 60, "max_transient": 600, "window": 32, "max_step_frac": 0.03}
 
 SPEC = ModelSpec(
