@@ -18,9 +18,8 @@ from sim.kernel import N_ACC, _rel_close, settled_period
 from numba import njit  # noqa: E402
 
 # IEEE division (x/0 -> inf or nan, caught by the step's finiteness check) instead of Python's ZeroDivisionError:
-# the same quotients, bit for bit, without a zero test and exception exit after every division, which split the
-# step loop into blocks that numba's reference-count pruning cannot see across (an NRT_incref/NRT_decref pair per
-# array and block on every step, 6 % of a sandstone or RIMD run)
+# the same quotients without a zero test and exception exit per division, which would split the step loop into
+# blocks that numba's reference-count pruning cannot see across (an incref/decref pair per array and block per step)
 ERRORS = "numpy"
 
 # Hook of a hybrid exact propagator (sim/exact/rimd.py, sim/exact/indenter.py; bound by sim.compiled in place of these

@@ -1,6 +1,6 @@
 """The command-line vocabulary and the validated argument types shared by every subcommand.
 
-One spelling per idea (README.md "One vocabulary"), old spellings kept as aliases:
+One spelling per idea (docs/commands.md "One vocabulary"), old spellings kept as aliases:
 
 =================  ==============================  =================================================
 idea               flag                            aliases (older spellings)
@@ -10,7 +10,7 @@ range              ``--vary NAME=LOW:HIGH``        ``--range`` (optimise); map a
 parallelism        ``--workers N``                 ``--threads``
 numerical setting  ``--setting NAME=VALUE``        ``--set`` (diagnose only: its settings)
 no progress bars   ``--quiet``                     ``--no-progress``
-your machine       ``--rig FILE``                  (rig file, README.md "Rig files")
+your machine       ``--rig FILE``                  (rig file, docs/commands.md "Rig files")
 =================  ==============================  =================================================
 
 Every number a user gives (flag, ``--set``/``--setting``/``--fix`` value, params.yaml value) goes
@@ -164,7 +164,7 @@ def add_rig(p, what: str = "simulate") -> None:
     """``--rig FILE``: model, preset, parameters and effects from a rig file."""
     p.add_argument("--rig", metavar="FILE.yaml",
                    help=f"{what} your own rig: model, preset, parameters and §6 effects from this rig file "
-                        "(README.md 'Rig files'); --set and the controls still override it")
+                        "(docs/commands.md 'Rig files'); --set and the controls still override it")
 
 
 def check_workers(n: int | None, flag: str = "--workers") -> int | None:

@@ -26,7 +26,7 @@ def add_parser(sub) -> None:
         description="Simulate the operating point recommended on the uncorrected model and the one recommended on "
                     "the corrected rig (vibro diagnose's rig.yaml) on both models; report what the correction is "
                     "worth in mm/s on the corrected rig, and the ROP spread of the corrected recommendation over "
-                    "samples of the rig's fitted parameters (README.md 'Closing the loop').",
+                    "samples of the rig's fitted parameters (docs/closed-loop.md).",
         formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG)
     p.add_argument("--uncorrected", required=True, metavar="DIR", help="vibro optimise output on the uncorrected model")
     p.add_argument("--corrected", required=True, metavar="DIR", help="vibro optimise output on the corrected rig")

@@ -33,7 +33,7 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
    simulated cycle histories and spectra), and log the run to MLflow;
 6. write the corrected rig DIR/rig.yaml (DIR/rig-<system>.yaml per system of a several-system dataset):
    preset, known and calibrated parameters, the selected effect with its fitted parameters and their sd
-   (README.md "Closing the loop"); use it with --rig in every simulating command.  An unexplained residual
+   (docs/closed-loop.md); use it with --rig in every simulating command.  An unexplained residual
    still writes the calibrated base rig, marked UNEXPLAINED in its 'source' (report.json 'rig')."""
 
 EPILOG = """\

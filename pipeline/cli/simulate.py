@@ -22,7 +22,7 @@ def add_parser(sub) -> None:
                "  vibro simulate indenter-metal --preset table1-60hz --json\n"
                "  vibro simulate drill --preset lab --setting method=dopri5 --setting rtol=1e-10   # the integrator\n"
                "  vibro simulate indenter-sandstone --set frequency_hz=80 --set amplitude_n=650 --plot out.png\n"
-               "  vibro simulate --rig my-rig.yaml --set frequency_hz=250   # your own rig (README.md 'Rig files')\n"
+               "  vibro simulate --rig my-rig.yaml --set frequency_hz=250   # your own rig (docs/commands.md)\n"
                "  vibro models            # lists models, presets and every parameter with its default and unit")
     p.add_argument("model", nargs="?", help="drill | indenter-metal | indenter-sandstone | pendulum | rimd "
                                             "(optional with --rig)")

@@ -13,7 +13,7 @@ from pipeline.core.errors import UserError
 EPILOG = """\
 spec (params.yaml section 'sweep'; command-line options override it):
   model: drill                 preset: lab (null = model defaults)
-  rig: my-rig.yaml             optional rig file: model, preset, parameters, effects (README.md "Rig files")
+  rig: my-rig.yaml             optional rig file: model, preset, parameters, effects (docs/commands.md "Rig files")
   fixed: {gap_m: 0.0}          parameters held constant (on top of the rig)
   vary:                        varied parameters; scale linear|log; levels = grid points (grid only)
     frequency_hz: {low: 10.0, high: 400.0, scale: linear}

@@ -37,7 +37,7 @@ class ReportInputs:
     optimise: Path = Path("results/optimise")
     verify: Path = Path("results/verify")
     diagnose: Path = Path("results/diagnose")
-    closed_loop: Path = Path("results/closed-loop")     # vibro compare (README.md "Closing the loop")
+    closed_loop: Path = Path("results/closed-loop")     # vibro compare (docs/closed-loop.md)
     metrics: Path = Path("metrics")
     params: Path = Path("params.yaml")
     title: str = "vibro pipeline report"
@@ -530,7 +530,7 @@ def _calibrated_tables(doc: Document, reports: dict[str, dict], summary: dict) -
         summary["diagnose_calibrated"] = out
 
 
-from pipeline.report.closed_loop import section_closed_loop  # noqa: E402  (issue 14: closing the loop)
+from pipeline.report.closed_loop import section_closed_loop  # noqa: E402  (closing the loop)
 
 SECTIONS = (section_sweep, section_train, section_optimise, section_verify, section_diagnose, section_closed_loop)
 

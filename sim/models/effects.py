@@ -1,7 +1,7 @@
 """Fit bounds of the MODELS.md §6 effect parameters, shared by every model that has the effect.
 
 An effect is off at 0; a log10 fit approaches "off" by its lower bound, where it no longer changes the
-response measurably (bounds as used by the diagnosis since issue 7).  A model may override a bound in its
+response measurably (the bounds the diagnosis fits within).  A model may override a bound in its
 own ``ModelSpec.effect_bounds``; a new effect parameter must be added here or there (ModelSpec checks).
 """
 from __future__ import annotations
