@@ -8,8 +8,8 @@ and, with ``truth_path``, written apart from the data.
 
 Runs: every frequency at every level of the rig; records from rest (``record_start_s``, cycled over the runs) or
 in steady state; DAQ rates and record lengths cycled over the runs (not whole cycles, not multiples of f); two runs
-are logged as summaries only (their labels over a whole-cycle record: the rig software's numbers), and every
-``drop_signal_every``-th series run lost its second channel.
+are logged as summaries only (their labels over a whole-cycle record: the rig software's numbers), and the 2nd series run and every
+``drop_signal_every``-th after it lost its second channel.
 """
 from __future__ import annotations
 
@@ -153,7 +153,7 @@ def generate(spec: LogSpec, out_dir: str | Path, truth_path: str | Path | None =
             summary.append({"run_id": r["row"]["run_id"], **noise.summary(r["summary"], rng)})
             continue
         sigs = list(rig.signals)
-        if rig.drop_signal_every and n_series % rig.drop_signal_every == rig.drop_signal_every - 1:
+        if rig.drop_signal_every and n_series % rig.drop_signal_every == 1:
             sigs = sigs[:1] + sigs[2:]            # this run lost its second channel
         n_series += 1
         cols = {"t_s": r["t"]}
