@@ -40,6 +40,8 @@ REASONS = {
     I.REASON_NOT_PERIODIC: "no period <= 8 found and the two half-windows disagree: still transient at the cap",
 }
 
+NAN_LABELS_REASON = ("label(s) {} not a number: the parameters are outside what the simulator resolves "
+                     "(a mass, stiffness or frequency many orders of magnitude off)")
 
 METHODS = ("auto", "exact", "dopri5")
 
@@ -152,8 +154,12 @@ def _labels_from_vector(v: np.ndarray, precheck_msg: str | None) -> dict:
                                  if int(v[I.L_REASON]) == I.REASON_DRIFT else "")
     out = {}
     valid = status in ("ok", "no_contact", "not_settled")
-    for name, idx in zip(KERNEL_LABELS, (I.L_ROP, I.L_PEAK_F, I.L_MEAN_PEAK_F, I.L_IMPACTS, I.L_PERIOD, I.L_DECEL,
-                                  I.L_ENERGY, I.L_SPEC_E)):
+    idxs = (I.L_ROP, I.L_PEAK_F, I.L_MEAN_PEAK_F, I.L_IMPACTS, I.L_PERIOD, I.L_DECEL, I.L_ENERGY, I.L_SPEC_E)
+    lost = [name for name, idx in zip(KERNEL_LABELS, idxs) if math.isnan(float(v[idx]))]
+    if valid and lost:     # a label is null only with a failure status and a reason
+        status, valid = "failed", False
+        reason = NAN_LABELS_REASON.format(", ".join(lost))
+    for name, idx in zip(KERNEL_LABELS, idxs):
         val = float(v[idx])
         if not valid or (math.isnan(val)):
             out[name] = None

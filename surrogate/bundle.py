@@ -26,6 +26,7 @@ from pipeline.core.files import atomic_write_bytes, atomic_write_text
 from surrogate.candidates import SubsampledGP
 from surrogate.features import InputScaler, TargetTransform
 from surrogate.intervals import ConformalInterval
+from surrogate.tree_check import CHECKED_TYPES, TreeStorageError, check_trees
 
 FORMAT = 2                       # 1: bundle.joblib (pickle), no manifest; 2: skops + manifest
 PAYLOAD = "bundle.skops"
@@ -174,7 +175,7 @@ class Bundle:
         d = Path(path)
         d.mkdir(parents=True, exist_ok=True)
         data = sio.dumps(self)
-        unknown = sorted(set(sio.get_untrusted_types(data=data)) - set(TRUSTED_TYPES))
+        unknown = sorted(set(sio.get_untrusted_types(data=data)) - set(TRUSTED_TYPES) - set(CHECKED_TYPES))
         if unknown:   # a bug, not a user error: a new estimator class must be reviewed and listed
             raise RuntimeError(f"bundle holds types not in surrogate.bundle.TRUSTED_TYPES: {unknown}")
         atomic_write_bytes(d / PAYLOAD, data)
@@ -189,7 +190,8 @@ class Bundle:
 
 # Types a bundle may hold beyond skops' defaults (numpy, scipy, scikit-learn estimators): reviewed
 # classes of this package and scikit-learn internals skops does not trust by default.  Loading
-# refuses anything else *before* constructing it.
+# refuses anything else *before* constructing it.  scikit-learn's tree storage, which skops leaves
+# out on purpose, is not here: it is surrogate.tree_check.CHECKED_TYPES, bounds-checked after loading.
 TRUSTED_TYPES = (
     "surrogate.bundle.Bundle", "surrogate.bundle.TargetModel", "surrogate.candidates.SubsampledGP",
     "surrogate.features.InputScaler", "surrogate.features.TargetTransform", "surrogate.intervals.ConformalInterval",
@@ -199,7 +201,6 @@ TRUSTED_TYPES = (
     "sklearn.gaussian_process.kernels.Hyperparameter",
     "sklearn.neural_network._stochastic_optimizers.AdamOptimizer",
     "sklearn.neural_network._stochastic_optimizers.SGDOptimizer",
-    "sklearn.tree._tree.Tree", "sklearn.ensemble._hist_gradient_boosting.predictor.TreePredictor",
 )
 
 
@@ -252,7 +253,8 @@ def load_bundle(ref: str | os.PathLike, model: str | None = None) -> Bundle:
     """Load a bundle from its directory (pipeline.tracking.load_bundle also resolves MLflow run ids).
 
     Order: manifest and hashes (:func:`verify_bundle`), then the skops payload's types against
-    :data:`TRUSTED_TYPES`, and only then are objects constructed.  ``model``: raise UserError unless
+    :data:`TRUSTED_TYPES` and the tree storage types, and only then are objects constructed; every
+    tree's node arrays are bounds-checked before the bundle is returned.  ``model``: raise UserError unless
     the bundle was trained on that model's data."""
     import skops.io as sio
 
@@ -266,14 +268,18 @@ def load_bundle(ref: str | os.PathLike, model: str | None = None) -> Bundle:
         untrusted = sio.get_untrusted_types(data=data)
     except Exception as e:  # noqa: BLE001 - not a skops file
         raise UserError(f"{f}: cannot be read ({type(e).__name__})") from None
-    foreign = sorted(set(untrusted) - set(TRUSTED_TYPES))
+    foreign = sorted(set(untrusted) - set(TRUSTED_TYPES) - set(CHECKED_TYPES))
     if foreign:
         raise UserError(f"{f}: holds type(s) a vibro bundle never contains ({', '.join(foreign[:3])}); refusing to load")
     try:
         b = sio.loads(data, trusted=list(untrusted))
     except Exception as e:  # noqa: BLE001 - damaged content of a verified file: a foreign writer
         raise UserError(f"{f}: cannot be read ({type(e).__name__}: {str(e)[:120]})") from None
-    if not isinstance(b, Bundle):
+    if not isinstance(b, Bundle) or not isinstance(b.inputs, list):
         raise UserError(f"{f}: not a vibro surrogate bundle")
+    try:
+        check_trees(b, len(b.inputs))
+    except TreeStorageError as e:
+        raise UserError(f"{f}: a tree model is malformed ({e}); refusing to use it") from None
     b.check_model(model)
     return b

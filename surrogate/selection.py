@@ -4,6 +4,7 @@ Each candidate's out-of-fold (OOF) predictions are kept: the winner's OOF residu
 calibrate its prediction intervals (surrogate.intervals)."""
 from __future__ import annotations
 
+import os
 import warnings
 from dataclasses import dataclass, field
 
@@ -54,10 +55,20 @@ def _cv_regressor(name: str, X: np.ndarray, z: np.ndarray, tr: np.ndarray, te: n
         return f"{type(e).__name__}: {e}"
 
 
+class _OrphanFreeParallel(Parallel):
+    """joblib Parallel whose worker processes die with this process (pipeline.core.lifetime)."""
+
+    def __call__(self, iterable):
+        from pipeline.core.lifetime import in_worker
+
+        me = os.getpid()
+        return super().__call__((in_worker, (me, fn, *args), kwargs) for fn, args, kwargs in iterable)
+
+
 def parallel(n_jobs: int | None, **kwargs) -> Parallel:
     """joblib processes for independent fits (``n_jobs`` None: all cores; 1: in this process).  Results do not
-    depend on ``n_jobs``: every fit is seeded and returned in submission order."""
-    return Parallel(n_jobs=n_jobs if n_jobs else -1, **kwargs)
+    depend on ``n_jobs``: every fit is seeded and returned in submission order.  The workers die with this process."""
+    return _OrphanFreeParallel(n_jobs=n_jobs if n_jobs else -1, **kwargs)
 
 
 def _folds_of(name: str, jobs: list, results: list, errors: dict):

@@ -24,6 +24,10 @@ what it writes under --out:
 studies persist in optuna storage (default: sqlite file optuna.db at the project root); rerunning the same
 command resumes the study and only runs the missing trials (--n-trials is the total).  Several workers on
 several machines: give them the same --storage RDB URL and --study-name.
+resume is exact only after an interruption between batches (every --batch-size trials): the rerun then holds
+the trials of the uninterrupted study with the same seed.  An interruption inside a batch keeps that batch's
+finished trials and proposes the rest afresh, so the study (and its recommendation) may differ from an
+uninterrupted one; it still ends with exactly --n-trials trials.
 
 examples:
   vibro optimise --surrogate models/surrogate --out results/optimise

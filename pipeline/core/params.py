@@ -10,20 +10,12 @@ from pipeline.core.errors import UserError
 
 def read_params(path: str | os.PathLike, missing_ok: bool = False) -> dict:
     """The whole params file as a dict; ``{}`` when ``missing_ok`` and it does not exist (UserError on bad YAML)."""
-    import yaml
+    from pipeline.core.bounded import load_yaml
 
     p = Path(path)
     if missing_ok and not p.exists():
         return {}
-    try:
-        data = yaml.safe_load(p.read_text()) or {}
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        why = getattr(e, "problem", None) or str(e).splitlines()[0]
-        raise UserError(f"{p}{where}: not valid YAML ({why})") from None
-    except UnicodeDecodeError:
-        raise UserError(f"{p}: not a text (UTF-8) file") from None
+    data = load_yaml(p, str(p)) or {}
     if not isinstance(data, dict):
         raise UserError(f"{p}: must be a mapping of sections")
     return data

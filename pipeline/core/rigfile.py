@@ -27,35 +27,15 @@ HEADER = """\
 """
 
 
-def _loader():
-    """yaml.SafeLoader that also reads ``5e8`` / ``5.0e8`` as floats (YAML 1.2; PyYAML's 1.1 rules need ``5.0e+8``)."""
-    import re
-
-    import yaml
-
-    class Loader(yaml.SafeLoader):
-        pass
-
-    Loader.add_implicit_resolver(
-        "tag:yaml.org,2002:float",
-        re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
-        list("-+0123456789."))
-    return Loader
-
-
 def read_rig(path: str | os.PathLike):
     """The validated ``sim.Rig`` of a rig file (UserError naming the file and the culprit)."""
-    import yaml
-
+    from pipeline.core.bounded import load_yaml
     from sim import ParameterError, Rig
 
     p = Path(path)
-    if not p.is_file():
+    if not p.exists():
         raise UserError(f"rig file {p}: not found")
-    try:
-        data = yaml.load(p.read_text(), Loader=_loader())  # noqa: S506 - a SafeLoader subclass
-    except (yaml.YAMLError, UnicodeDecodeError) as e:
-        raise UserError(f"rig file {p}: not valid YAML ({str(e).splitlines()[0]})") from None
+    data = load_yaml(p, f"rig file {p}", floats_12=True)
     try:
         return Rig.from_mapping(data)
     except ParameterError as e:

@@ -18,6 +18,24 @@ from pipeline.core.errors import UserError
 from pipeline.datasets.compute import compute_chunk
 
 
+LOCAL_PER_CORE = 4
+"""``local:N`` may start at most this many worker processes per core (more only thrash the machine)."""
+
+
+def local_workers(address: str) -> int:
+    """N of a ``local:N`` address: an integer in [1, LOCAL_PER_CORE x cores] (UserError otherwise)."""
+    import os
+
+    cap = LOCAL_PER_CORE * (os.cpu_count() or 1)
+    try:
+        n = int(address.split(":", 1)[1])
+    except ValueError:
+        raise UserError(f"--scheduler {address}: expected local:N with N an integer") from None
+    if not 1 <= n <= cap:
+        raise UserError(f"--scheduler {address}: N must be in [1, {cap}] ({LOCAL_PER_CORE} worker processes per core)")
+    return n
+
+
 @contextlib.contextmanager
 def connect(address: str):
     """A ``distributed.Client`` for ``address`` (``tcp://host:port``), or ``local:N`` for a throw-away
@@ -25,12 +43,7 @@ def connect(address: str):
     from distributed import Client, LocalCluster
 
     if address.startswith("local:"):
-        try:
-            n = int(address.split(":", 1)[1])
-        except ValueError:
-            raise UserError(f"--scheduler {address}: expected local:N with N an integer") from None
-        if n < 1:
-            raise UserError(f"--scheduler {address}: N must be >= 1")
+        n = local_workers(address)
         with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
                 Client(cluster) as client:
             yield client
@@ -52,6 +65,10 @@ class DaskBackend:
 
     address: str
     extra_packages: tuple[str, ...] = ("dask", "distributed")
+
+    def __post_init__(self) -> None:
+        if self.address.startswith("local:"):
+            local_workers(self.address)      # refuse a bad N before anything is written
 
     @property
     def description(self) -> str:

@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
+from pipeline.core.bounded import MAX_CSV_BYTES, check_size
 from pipeline.core.files import atomic_directory, duplicate_csv_column
 
 RUN_COLUMNS = ("run_id", "system", "frequency_hz", "gap_m", "duration_s")
@@ -67,6 +68,7 @@ def _where(file: str, line: int, column: str) -> str:
 def _read_csv(path: Path, label: str) -> pd.DataFrame:
     if not path.is_file():
         raise UserError(f"{label}: file not found ({path})")
+    check_size(path, MAX_CSV_BYTES, label)
     try:
         df = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
     except pd.errors.EmptyDataError:

@@ -258,6 +258,16 @@ def _read_table(path: Path):
         raise UserError(f"{path}: not a readable Parquet file ({type(e).__name__}: {str(e).splitlines()[0][:120]})") from None
 
 
+def _check_chunk(path: Path, required: bool) -> None:
+    """UserError naming the chunk unless it matches its checksum sidecar; a chunk without a sidecar
+    passes only when not ``required`` (a dataset assembled by hand; 'vibro sweep' writes every sidecar)."""
+    if not required and not checksum_path(path).exists():
+        return
+    bad = verify_checksum(path)
+    if bad is not None:
+        raise UserError(f"{path}: {bad}; rerun the same 'vibro sweep' to recompute it")
+
+
 def load_dataset(path: str | os.PathLike, allow_partial: bool = False) -> pd.DataFrame:
     """Read a sweep dataset (directory of chunks, or one .parquet file), rows ordered by ``point_id``.
 
@@ -272,6 +282,7 @@ def load_dataset(path: str | os.PathLike, allow_partial: bool = False) -> pd.Dat
     if not path.exists():
         raise FileNotFoundError(2, "no such sweep dataset", str(path))
     if path.is_file():     # e.g. a simulate_batch table saved by hand: no point_id is fine, file order is kept
+        _check_chunk(path, required=False)
         df = _read_table(path).to_pandas()
         if "point_id" not in df.columns:
             return df
@@ -280,6 +291,8 @@ def load_dataset(path: str | os.PathLike, allow_partial: bool = False) -> pd.Dat
     parts = sorted(path.glob(PART_GLOB))
     if not parts:
         raise UserError(f"{path}: no {PART_GLOB} files (not a sweep dataset, or nothing computed yet)")
+    for p in parts:
+        _check_chunk(p, required=bool(meta and "n_chunks" in meta))
     tables = [_read_table(p) for p in parts]
     for p, t in zip(parts, tables):
         if "point_id" not in t.column_names:

@@ -271,6 +271,18 @@ def _summary_picks(n: int, k: int) -> list[int]:
     return sorted({int(round(x)) for x in np.linspace(1, n - 2, k + 2)[1:-1]})[:k]
 
 
+MIN_SAMPLES_PER_CYCLE = 10
+"""Fewest DAQ samples per forcing cycle a synthetic record may have (diagnose needs the cycle's shape)."""
+
+
+def check_sampling(cfg: SynthConfig) -> None:
+    """UserError unless the resolved ``cfg`` samples every forcing cycle at least MIN_SAMPLES_PER_CYCLE times."""
+    f_hi = max(cfg.frequencies_hz)
+    if cfg.fs_hz / f_hi < MIN_SAMPLES_PER_CYCLE:
+        raise UserError(f"--fs {cfg.fs_hz:g} Hz gives {cfg.fs_hz / f_hi:.3g} samples per cycle at {f_hi:g} Hz "
+                        f"(--frequencies); need >= {MIN_SAMPLES_PER_CYCLE}: raise --fs or lower the frequencies")
+
+
 def synthesize(cfg: SynthConfig, progress: bool = False) -> tuple[Dataset, dict]:
     """Build the dataset in memory: (Dataset, truth) — nothing is written here."""
     import os
@@ -291,6 +303,7 @@ def synthesize(cfg: SynthConfig, progress: bool = False) -> tuple[Dataset, dict]
             raise UserError(f"--signals: unknown signal '{s}' (accel_m_s2, force_n, disp_m, progression_m)")
     if cfg.cycles < 2.5:
         raise UserError(f"--cycles must be >= 2.5, got {cfg.cycles:g}")
+    check_sampling(cfg)
     truth = true_parameters(cfg)
     runs = run_table(cfg)
     known = known_parameters(runs)

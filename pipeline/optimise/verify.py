@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
+from pipeline.core.bounded import MAX_CSV_BYTES, check_size
 from pipeline.optimise.constraints import Constraints
 from pipeline.core.files import atomic_write_parquet
 from pipeline.core.names import REGIME_TO_STATUS, TARGETS  # noqa: F401 (TARGETS re-exported)
@@ -154,6 +155,7 @@ def read_points(path: str | os.PathLike) -> pd.DataFrame:
     p = Path(path)
     if not p.exists():
         raise UserError(f"points file {p}: not found")
+    check_size(p, MAX_CSV_BYTES, "points file")
     try:
         df = pd.read_parquet(p) if p.suffix.lower() in (".parquet", ".pq") else pd.read_csv(p)
     except Exception as e:  # noqa: BLE001

@@ -90,12 +90,34 @@ def run_name(stage: str, variant: str | None = None) -> str:
     return f"{stage}-{variant}" if variant and variant != stage else stage
 
 
+HTTP_DEFAULTS = {"MLFLOW_HTTP_REQUEST_TIMEOUT": "10", "MLFLOW_HTTP_REQUEST_MAX_RETRIES": "1",
+                 "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1"}
+"""A tracking server's request limits unless the user set them (MLflow's own wait minutes on a dead server)."""
+
+
 def _quiet_mlflow() -> None:
     import logging
 
     for name in ("mlflow", "alembic", "sqlalchemy"):
         logging.getLogger(name).setLevel(logging.WARNING)
     os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
+    for key, value in HTTP_DEFAULTS.items():
+        os.environ.setdefault(key, value)
+
+
+def _first_contact(mlflow):
+    """The experiment (or None), asked once; an unreachable tracking server is a UserError naming it."""
+    from pipeline.core.errors import UserError
+
+    uri = tracking_uri()
+    try:
+        return mlflow.get_experiment_by_name(experiment_name())
+    except Exception as e:  # noqa: BLE001 - connection refused, timeout, DNS: the server, not the project
+        if not uri.startswith(("http:", "https:")):
+            raise
+        raise UserError(f"MLflow tracking server {uri} did not answer within "
+                        f"{os.environ['MLFLOW_HTTP_REQUEST_TIMEOUT']} s ({type(e).__name__}); start it, unset "
+                        f"MLFLOW_TRACKING_URI, or pass --no-mlflow") from None
 
 
 def setup():
@@ -104,7 +126,7 @@ def setup():
     import mlflow
 
     mlflow.set_tracking_uri(tracking_uri())
-    if mlflow.get_experiment_by_name(experiment_name()) is None:
+    if _first_contact(mlflow) is None:
         art = project_root() / "mlartifacts"
         uri = tracking_uri()
         kwargs = {"artifact_location": art.as_uri()} if uri.startswith("sqlite:") else {}
