@@ -12,6 +12,7 @@ import importlib
 import os
 import sys
 import time
+import warnings
 
 # One BLAS/OpenMP thread per worker: vibro parallelises over simulations and fits itself, and OpenBLAS's own
 # threads beside them spin for the cores (a 4000 x 52 least-squares took 1.1 s instead of 29 ms under load, and
@@ -19,7 +20,7 @@ import time
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-from pipeline.core.errors import USER_ERRORS  # noqa: E402
+from pipeline.core.errors import USER_ERRORS, machine_error, show_warnings  # noqa: E402
 
 SUBCOMMANDS = ("simulate", "sweep", "train", "optimise", "verify", "diagnose", "synth", "map", "report", "models",
                "compare", "compile")
@@ -113,6 +114,10 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as e:  # noqa: BLE001 - last resort: one line, not a traceback
         if args.debug or os.environ.get("VIBRO_DEBUG"):
             raise
+        msg = machine_error(e)
+        if msg is not None:                     # the machine's or the user's files: disk full, read-only, ...
+            print(f"vibro {args.command}: error: {msg}", file=sys.stderr)
+            return 2
         print(f"vibro {args.command}: internal error: {type(e).__name__}: {e} (rerun with --debug for details)",
               file=sys.stderr)
         return 1

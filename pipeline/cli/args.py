@@ -229,6 +229,13 @@ def check_settings(values: dict | None, what: str = "--setting") -> dict | None:
         out[name] = number(v, f"{what} {name}", integer=integer, lo=lo, hi=hi, lo_open=not lo_incl)
     if out.get("max_transient", math.inf) < out.get("min_transient", 0):
         raise UserError(f"{what} max_transient ({out['max_transient']}) must be >= min_transient ({out['min_transient']})")
+    if "min_transient" in out and "max_transient" not in out:
+        from sim.api import Settings
+
+        cap = Settings().max_transient
+        if out["min_transient"] > cap:
+            raise UserError(f"{what} min_transient ({out['min_transient']}) exceeds the default max_transient ({cap}); "
+                            f"also set max_transient >= {out['min_transient']}")
     return out
 
 

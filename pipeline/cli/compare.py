@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from pipeline.cli import args as A
 from pipeline.cli.args import add_quiet, add_workers, check_workers
 from pipeline.core.errors import UserError
 
@@ -38,6 +39,7 @@ def add_parser(sub) -> None:
     add_workers(p, dest="threads", help="simulation threads (default: all cores)")
     p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
     add_quiet(p)
+    A.add_overwrite(p, "comparison")
     p.set_defaults(func=run)
 
 
@@ -49,9 +51,23 @@ def _read_json(path, what: str) -> dict:
     if not f.is_file():
         raise UserError(f"{what} {f}: not found")
     try:
-        return json.loads(f.read_text())
-    except json.JSONDecodeError as e:
+        doc = json.loads(f.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise UserError(f"{what} {f}: not valid JSON ({e})") from None
+    if not isinstance(doc, dict):
+        raise UserError(f"{what} {f}: expected a JSON object, got {type(doc).__name__}")
+    return doc
+
+
+def check_optimise_report(doc: dict, path, what: str) -> None:
+    """UserError naming ``path`` unless ``doc`` has what compare reads of a 'vibro optimise' report.json."""
+    tried, rec = doc.get("tried"), doc.get("recommendation")
+    if not isinstance(tried, dict) or not isinstance(tried.get("model"), str):
+        raise UserError(f"{what} {path}: no 'tried' section naming the model; not a 'vibro optimise' report.json")
+    if not isinstance(doc.get("inputs"), list):
+        raise UserError(f"{what} {path}: no 'inputs' list; not a 'vibro optimise' report.json")
+    if rec and not (isinstance(rec, dict) and isinstance(rec.get("params"), dict)):
+        raise UserError(f"{what} {path}: 'recommendation' has no 'params'; not a 'vibro optimise' report.json")
 
 
 def run(args) -> int:
@@ -60,15 +76,26 @@ def run(args) -> int:
     from pipeline import tracking
     from pipeline.core.files import atomic_write_text
     from pipeline.core.jsonable import dump_json
+    from pipeline.core.outdir import check_out, check_out_file, prepare_out, record_out_file
     from pipeline.core.rigfile import read_rig
     from pipeline.optimise.closed_loop import compare, markdown
 
     if args.samples < 1:
         raise UserError(f"--samples must be >= 1, got {args.samples}")
-    unc = _read_json(Path(args.uncorrected) / "report.json", "--uncorrected report")
-    cor = _read_json(Path(args.corrected) / "report.json", "--corrected report")
+    for flag, path in (("--uncorrected", args.uncorrected), ("--corrected", args.corrected)):
+        doc = _read_json(Path(path) / "report.json", f"{flag} report")
+        check_optimise_report(doc, Path(path) / "report.json", f"{flag} report")
+        if flag == "--uncorrected":
+            unc = doc
+        else:
+            cor = doc
     rig = read_rig(args.rig)
     diag_file = Path(args.rig).parent / "report.json"
+    inputs = [args.uncorrected, args.corrected, args.rig, diag_file if diag_file.is_file() else None]
+    check_out(args.out, inputs=[*inputs, args.metrics], overwrite=args.overwrite, marker="compare")
+    if args.metrics:
+        check_out_file(args.metrics, flag="--metrics", kind="json", inputs=[*inputs, args.out],
+                       overwrite=args.overwrite)
     diag = _read_json(diag_file, "diagnosis report").get("rig") if diag_file.is_file() else None
     if isinstance(diag, dict) and "explained" not in diag:   # several systems: system -> entry
         diag = diag.get(rig.model)
@@ -77,9 +104,9 @@ def run(args) -> int:
         cmp = compare(unc, cor, rig, diag, n_samples=args.samples, seed=args.seed,
                       n_threads=check_workers(args.threads))
         out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(out / "report.json", dump_json(cmp))
-        atomic_write_text(out / "report.md", "# Closing the loop\n\n" + markdown(cmp))
+        with prepare_out(out, inputs=[*inputs, args.metrics], overwrite=args.overwrite, marker="compare") as tmp:
+            atomic_write_text(tmp / "report.json", dump_json(cmp))
+            atomic_write_text(tmp / "report.md", "# Closing the loop\n\n" + markdown(cmp))
         t = cmp["recommendations"]
         metrics = {"worth_mm_s": cmp["worth_mm_s"],
                    "uncorrected_rop_on_corrected_mm_s": t["uncorrected"]["rop_m_s_on_corrected"] * 1e3,
@@ -91,6 +118,7 @@ def run(args) -> int:
                    "explained": 1.0 if cmp["explained"] else 0.0}
         if args.metrics:
             atomic_write_text(args.metrics, dump_json(metrics))
+            record_out_file(args.metrics, command="compare", kind="json")
         if mlflow is not None:
             mlflow.log_metrics({k: float(v) for k, v in metrics.items()})
             mlflow.log_artifact(str(out / "report.json"))

@@ -139,7 +139,7 @@ def run(args) -> int:
     from pipeline.cli.args import parse_assignments
     from pipeline.core.files import atomic_write_text
     from pipeline.core.jsonable import dump_json
-    from pipeline.core.outdir import prepare_out
+    from pipeline.core.outdir import check_out_file, prepare_out, record_out_file
     from pipeline.diagnosis.driver import diagnose
     from pipeline.datasets.measured import load_dataset
 
@@ -157,6 +157,9 @@ def run(args) -> int:
     from dataclasses import asdict
 
     inputs = [args.dataset, args.params, args.metrics]
+    if args.metrics:
+        check_out_file(args.metrics, flag="--metrics", kind="json", inputs=[args.dataset, args.params, out],
+                       overwrite=args.overwrite)
     with prepare_out(out, inputs=inputs, overwrite=args.overwrite, marker="diagnose") as tmp:
         bar = tqdm(total=n_steps, desc="diagnose (folds)", disable=args.quiet, unit="fold", file=sys.stderr)
         with tracking.run("diagnose", {"dataset": args.dataset, **asdict(cfg)}, enabled=not args.no_mlflow,
@@ -174,6 +177,7 @@ def run(args) -> int:
                 mlflow.set_tag("vibro.rig_explained", str(bool(report["explained"])).lower())
     if args.metrics:
         atomic_write_text(args.metrics, dump_json(headline))
+        record_out_file(args.metrics, command="diagnose", kind="json")
     if not args.quiet:
         print(dump_json(headline))
         print(f"report: {out / 'report.md'}")

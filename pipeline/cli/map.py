@@ -75,6 +75,9 @@ def add_parser(sub) -> None:
                         "settle_tol, event_tol, max_step_frac, stat_tol, method = auto | exact | dopri5")
     add_workers(p, dest="threads", help="worker threads (default: all cores)")
     p.add_argument("--out", metavar="PREFIX", help="output prefix: writes PREFIX.png and PREFIX.parquet")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace existing PREFIX.png / PREFIX.parquet files vibro did not write (only a figure / "
+                        "a Parquet file)")
     p.add_argument("--no-mlflow", action="store_true", help="do not log the run to MLflow")
     add_quiet(p)
     p.set_defaults(func=run)
@@ -126,6 +129,7 @@ def run(args) -> int:
     from pipeline.maps import compute as M
     from pipeline.maps.workflow import MapConfig, run_map
     from pipeline import tracking
+    from pipeline.core.outdir import check_out_file, record_out_file
 
     args.x, xr = _axis(args.x, args.x_range, "--x")
     args.y, yr = _axis(args.y, args.y_range, "--y")
@@ -155,8 +159,16 @@ def run(args) -> int:
     cfg = MapConfig(model=args.model, kind=kind, x=args.x, xs=xs, out=out, y=args.y, ys=ys, color=color,
                     direction=args.direction, preset=args.preset, fixed=fixed, settings=settings,
                     threads=args.threads)
+    written = [(cfg.png, "figure"), (cfg.parquet, "parquet")]
+    if kind == "bifurcation":
+        written.append((out.with_name(out.name + ".strobe.parquet"), "parquet"))
+    for path, file_kind in written:
+        check_out_file(path, flag="--out", kind=file_kind, inputs=[args.rig], overwrite=args.overwrite)
     with tracking.run("map", params, enabled=not args.no_mlflow) as mlflow:
         res = run_map(cfg, progress=not args.quiet)
+        for path, file_kind in written:
+            if Path(path) in map(Path, res.files):
+                record_out_file(path, command="map", kind=file_kind)
         if mlflow is not None:
             mlflow.log_metric("wall_s", res.wall_s)
             mlflow.log_metric("n_points", len(res.table))

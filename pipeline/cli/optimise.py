@@ -111,7 +111,8 @@ def add_parser(sub) -> None:
 
 
 DEFAULT_FEEDBACK = "feedback/optimise.parquet"
-"""Where verified points go without --feedback: outside every dvc-managed output (dvc.yaml outs)."""
+"""Where verified points go without --feedback, relative to the project root (like the default optuna.db, so both
+land in one place whatever the current folder): outside every dvc-managed output (dvc.yaml outs)."""
 
 
 def _feedback_path(base: dict) -> None:
@@ -177,7 +178,19 @@ def config_from_args(args):
         base["preset"] = None
     check_workers(base.get("n_threads"))
     _feedback_path(base)
+    base["storage"] = real_sqlite_url(base.get("storage"))
     return OptimiseConfig.from_mapping(base)
+
+
+def real_sqlite_url(url: str | None) -> str | None:
+    """A ``sqlite:///`` URL with its file's real path (symlinks resolved), so every worker reaching one database
+    through another name shares its locks and its journal; other URLs unchanged."""
+    from pipeline.optimise.coordination import sqlite_path
+
+    db = sqlite_path(url)
+    if db is None or "?" in str(db):
+        return url
+    return "sqlite:///" + str(db.resolve())
 
 
 def run(args) -> int:
@@ -186,13 +199,27 @@ def run(args) -> int:
 
     from pipeline.core.outdir import prepare_out
 
+    from pipeline.core.outdir import check_out_file, record_out_file
+    from pipeline.optimise.coordination import sqlite_path
+    from pipeline.optimise.study import default_storage
+
     cfg = config_from_args(args)
+    db = sqlite_path(cfg.storage or default_storage())
+    reads = [args.params, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None,
+             args.rig, db, db and f"{db}.lock", args.out]
+    if args.metrics:
+        check_out_file(args.metrics, flag="--metrics", kind="json", inputs=[*reads, cfg.feedback],
+                       overwrite=args.overwrite)
+    if cfg.feedback:
+        check_out_file(cfg.feedback, flag="--feedback", kind="feedback", inputs=[*reads, args.metrics])
     inputs = [args.params, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None,
-              args.metrics, args.feedback]
+              args.metrics, args.feedback, db]
     with tracking.variant(cfg.objective), \
             prepare_out(args.out, inputs=inputs, overwrite=args.overwrite, marker="optimise") as tmp:
         rep = run_optimise(cfg, tmp, metrics_path=args.metrics, progress=not args.quiet,
                            mlflow_enabled=not args.no_mlflow)
+    if args.metrics:
+        record_out_file(args.metrics, command="optimise", kind="json")
     print(rep["outcome"])
     if rep.get("pareto_verified") is not None:
         print(f"verified Pareto front ({' vs '.join(rep.get('objectives', []))}): {len(rep['pareto_verified'])} "

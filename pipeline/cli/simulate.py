@@ -38,16 +38,24 @@ def add_parser(sub) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object whose keys are the label names")
     p.add_argument("--plot", metavar="FILE.png",
                    help="save time histories of the impacting mass and contact force over the recorded cycles, "
-                        "and the acceleration spectrum (0-1000 Hz for the indenter)")
+                        "and the acceleration spectrum (0-1000 Hz for the indenter); .png added without a suffix")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing --plot file vibro did not write (only a figure)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from sim import simulate
 
+    from pipeline.core.outdir import check_out_file, figure_path, record_out_file
+
     model, preset, params = model_and_overrides(args.model, args.preset, args.rig, parse_assignments(args.sets))
     settings = parse_settings(args.settings) or None
-    res = simulate(model, preset=preset, settings=settings, history=bool(args.plot), **params)
+    plot = None
+    if args.plot is not None:
+        plot = check_out_file(figure_path(args.plot), flag="--plot", kind="figure", inputs=[args.rig],
+                              overwrite=args.overwrite)
+    res = simulate(model, preset=preset, settings=settings, history=plot is not None, **params)
     if args.json:
         print(dump_json(res.labels))
     else:
@@ -56,12 +64,13 @@ def run(args) -> int:
             if isinstance(v, float):
                 v = f"{v:.6g}"
             print(f"{k:<{width}}  {v}")
-    if args.plot:
+    if plot is not None:
         from pipeline.report.plots import plot_time_history
 
         if res.history is None:
             print(f"no plot: the run ended with status {res.status} ({res.labels['reason']})")
         else:
-            plot_time_history(res, args.plot)
-            print(f"plot saved to {args.plot}")
+            plot_time_history(res, plot)
+            record_out_file(plot, command="simulate", kind="figure")
+            print(f"plot saved to {plot}")
     return 0 if res.status != "failed" else 1

@@ -78,7 +78,9 @@ def add_parser(sub) -> None:
     p.add_argument("--plot", metavar="FILE.png",
                    help="overview figure (ROP over the first two varied parameters, statuses marked); "
                         "by default written to a temporary file and only logged to MLflow")
-    p.add_argument("--overwrite", action="store_true", help="discard an existing dataset in --out and start afresh")
+    p.add_argument("--overwrite", action="store_true",
+                   help="discard an existing dataset in --out and start afresh (never files a sweep did not "
+                        "write); also replace --metrics / --plot files vibro did not write")
     p.add_argument("--dry-run", action="store_true", help="validate the spec and print the plan; write nothing")
     add_quiet(p)
     p.add_argument("--no-mlflow", action="store_true", help="do not log the run to MLflow")
@@ -146,7 +148,18 @@ def run(args) -> int:
     from pipeline.core.files import atomic_write_json
     from pipeline.datasets.workflow import SweepJob, plan_lines, run_sweep_job
 
+    from pipeline.core.outdir import check_out_file, figure_path, record_out_file
+
+    if not str(args.out).strip():
+        raise UserError("--out is empty; give the dataset folder")
     spec, scheduler, workers = spec_from_args(args)
+    if args.plot is not None:
+        args.plot = str(check_out_file(figure_path(args.plot), flag="--plot", kind="figure",
+                                       inputs=[args.params, args.rig, args.out, args.metrics],
+                                       overwrite=args.overwrite))
+    if args.metrics is not None:
+        check_out_file(args.metrics, flag="--metrics", kind="json",
+                       inputs=[args.params, args.rig, args.out, args.plot], overwrite=args.overwrite)
     if args.dry_run:
         print("\n".join(plan_lines(spec, args.out)))
         return 0
@@ -163,10 +176,12 @@ def run(args) -> int:
                        overwrite=args.overwrite, plot=plot)
         res = run_sweep_job(job, progress=not args.quiet)
         summary = res.summary
+        if args.plot and res.plot is not None:
+            record_out_file(res.plot, command="sweep", kind="figure")
         print("\n".join(summary.lines()))
         if args.metrics:
-            Path(args.metrics).parent.mkdir(parents=True, exist_ok=True)
             atomic_write_json(Path(args.metrics), summary.metrics())
+            record_out_file(args.metrics, command="sweep", kind="json")
         if mlflow is not None:
             if res.plot is not None:
                 mlflow.log_artifact(str(res.plot))

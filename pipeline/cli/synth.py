@@ -64,6 +64,20 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
+MAX_RECORD_SAMPLES = 10_000_000
+"""Samples in one run's record (cycles / f x DAQ rate): a bound on the memory asked for (80 MB per signal)."""
+
+
+def check_record_size(cfg) -> None:
+    """UserError when the lowest frequency's record would hold more than MAX_RECORD_SAMPLES samples."""
+    r = cfg.resolved()
+    f = min(r.frequencies_hz)
+    n = r.cycles / f * r.fs_hz
+    if n > MAX_RECORD_SAMPLES:
+        raise UserError(f"--frequencies {f:g}: a record of {r.cycles:g} cycles at {r.fs_hz:g} Hz holds {n:.3g} samples, "
+                        f"more than the bound {MAX_RECORD_SAMPLES:.0e}; raise the frequency or lower --cycles / --fs")
+
+
 def run(args) -> int:
     from pipeline.cli.args import parse_assignments
     from pipeline.datasets.measured import write_dataset
@@ -92,14 +106,16 @@ def run(args) -> int:
                       noise_accel=args.noise_accel, noise_force=args.noise_force, n_threads=check_workers(args.threads))
     if any(f <= 0 for f in cfg.frequencies_hz or ()) or any(x < 0 for x in cfg.record_start_s or ()):
         raise UserError("--frequencies must be > 0 and --record-start >= 0")
-    from pipeline.core.outdir import check_out, prepare_out
+    check_record_size(cfg)
+    from pipeline.core.outdir import check_out, check_out_file, prepare_out, record_out_file
 
     truth = Path(args.truth) if args.truth else Path(str(Path(args.out)).rstrip("/") + ".truth.json")
     check_out(args.out, inputs=[truth], overwrite=args.overwrite, marker="synth")   # before the simulations, not after
+    check_out_file(truth, flag="--truth", kind="json", inputs=[args.out], overwrite=args.overwrite)
     ds, info = synthesize(cfg, progress=not args.quiet)
     with prepare_out(args.out, inputs=[truth], overwrite=args.overwrite, marker="synth") as tmp:
         write_dataset(ds, tmp)
-    truth.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_json(truth, info)
+    record_out_file(truth, command="synth", kind="json")
     print(f"wrote {len(ds.runs)} runs to {args.out} (truth: {truth})")
     return 0

@@ -97,11 +97,12 @@ def run(args) -> int:
     from pipeline import tracking
     from pipeline.core.files import atomic_write_text
     from pipeline.core.jsonable import dump_json
-    from pipeline.core.outdir import check_out, prepare_out
+    from pipeline.core.outdir import check_out, check_out_file, prepare_out, record_out_file
     from pipeline.training.workflow import load_training_data, run_training
     from surrogate import mlflow_model
 
     cfg = _config(args)
+    check_adaptive(cfg.adaptive)
     inputs_arg = [s.strip() for s in args.inputs.split(",")] if args.inputs else None
     data = load_training_data(args.dataset, args.model, inputs_arg)
     if args.rig and not cfg.adaptive.enabled:
@@ -109,6 +110,10 @@ def run(args) -> int:
     rig = load_rig(args.rig, data.model)
     out = Path(args.out)
     check_out(out, inputs=[args.dataset, args.params, args.metrics], overwrite=args.overwrite, marker="train")
+    if args.metrics:
+        check_out_file(args.metrics, flag="--metrics", kind="json", inputs=[args.dataset, args.params, args.rig, out],
+                       overwrite=args.overwrite)
+    check_some_rows_usable(data.df, args.dataset)
     params = {"dataset": str(args.dataset), "model": data.model, "preset": data.preset, "fingerprint": data.fingerprint,
               "inputs": ",".join(data.inputs), "n_points": len(data.df),
               **{f"train.{k}": v for k, v in cfg.to_dict().items()}}
@@ -117,9 +122,8 @@ def run(args) -> int:
         res = run_training(data, cfg, tmp, rig=rig, progress=not args.quiet)
         bundle = res.bundle
         if args.metrics:
-            m = Path(args.metrics)
-            m.parent.mkdir(parents=True, exist_ok=True)
-            atomic_write_text(m, dump_json(res.headline) + "\n")
+            atomic_write_text(args.metrics, dump_json(res.headline) + "\n")
+            record_out_file(args.metrics, command="train", kind="json")
         if mlflow is not None:
             mlflow.log_metrics(res.flat_metrics)
             for path in res.figures.values():
@@ -131,6 +135,19 @@ def run(args) -> int:
     if mlflow is not None:
         print(f"MLflow run {run_id}  (pipeline.tracking.load_bundle('{run_id}'))")
     return 0
+
+
+def check_adaptive(ad) -> None:
+    """UserError when the adaptive design cannot fit its budget (initial points and one batch)."""
+    if ad.enabled and ad.initial + ad.batch > ad.budget:
+        raise UserError(f"--adaptive: --initial {ad.initial} + --batch {ad.batch} exceeds --budget {ad.budget} "
+                        f"simulations; raise --budget or lower --initial / --batch")
+
+
+def check_some_rows_usable(df, dataset: str) -> None:
+    """UserError when every row of the training set failed (nothing to learn from)."""
+    if "status" in df and len(df) and (df["status"].astype(str) == "failed").all():
+        raise UserError(f"{dataset}: every one of its {len(df)} rows has status 'failed'; nothing to train on")
 
 
 def _print_summary(bundle, out: Path, ad: dict | None) -> None:

@@ -65,7 +65,7 @@ def run(args) -> int:
     from pipeline.core.files import atomic_write_text
     from pipeline.optimise.constraints import Constraints
     from pipeline.optimise.verify import VerifyConfig, read_points, run_verify
-    from pipeline.core.outdir import check_out, prepare_out
+    from pipeline.core.outdir import check_out, check_out_file, prepare_out, record_out_file
     from pipeline.tracking import load_bundle
 
     if args.rel_tol <= 0:
@@ -103,6 +103,12 @@ def run(args) -> int:
     sources = [args.points, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None,
                args.feedback, args.metrics]
     check_out(out, inputs=sources, overwrite=args.overwrite, marker="verify")
+    reads = [args.points, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None, args.rig, out]
+    if args.metrics:
+        check_out_file(args.metrics, flag="--metrics", kind="json", inputs=[*reads, args.feedback],
+                       overwrite=args.overwrite)
+    if args.feedback:
+        check_out_file(args.feedback, flag="--feedback", kind="feedback", inputs=[*reads, args.metrics])
     params = {"points": args.points, "surrogate": args.surrogate, "model": model, "preset": preset,
               "inputs": ",".join(inputs), "rel_tol": args.rel_tol, **cons.to_dict()}
     cfg = VerifyConfig(points=points, source=args.points, model=model, preset=preset, inputs=inputs,
@@ -114,6 +120,7 @@ def run(args) -> int:
         summary = res.summary
         if args.metrics:
             atomic_write_text(Path(args.metrics), dump_json(summary))
+            record_out_file(args.metrics, command="verify", kind="json")
         if mlflow is not None:
             mlflow.log_metrics({k: float(v) for k, v in summary.items() if isinstance(v, (int, float))})
             for f in (res.figure, str(res.table_path), str(res.summary_path)):

@@ -1,20 +1,65 @@
 """The one atomic-write module: a file is written to a temporary sibling, flushed to disk (fsync) and
-moved over its target with ``os.replace``, so a reader sees the old or the new content, never half."""
+moved over its target with ``os.replace``, so a reader sees the old or the new content, never half.
+
+Temporary siblings are named ``.NAME.PID-XXXX.tmp`` (and a folder being replaced ``.NAME.old-PID``): the writer's
+process id lets the next run remove what a killed writer left (:func:`clean_stale_temps`) without touching the
+temporaries of a writer still alive."""
 from __future__ import annotations
 
 import contextlib
 import os
+import re
 import shutil
 import tempfile
 from pathlib import Path
 from typing import Callable, Iterator
 
 
+def _temp_prefix(path: Path) -> str:
+    return f".{path.name}.{os.getpid()}-"
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:                  # EPERM: alive, another user's
+        return True
+    return True
+
+
+def clean_stale_temps(path: str | os.PathLike) -> list[Path]:
+    """Remove the temporary siblings of ``path`` (``.NAME.PID-XXXX.tmp``, ``.NAME.old-PID``) whose writer is
+    dead (a killed run); returns what was removed.  Files and folders of any other name are never touched."""
+    path = Path(path)
+    pat = re.compile(rf"^\.{re.escape(path.name)}\.(?:(\d+)-[A-Za-z0-9_]+\.tmp|old-(\d+))$")
+    removed = []
+    try:
+        siblings = list(path.parent.iterdir())
+    except OSError:
+        return removed
+    for p in siblings:
+        m = pat.match(p.name)
+        if m is None or _pid_alive(int(m.group(1) or m.group(2))):
+            continue
+        if m.group(2) and not os.path.lexists(path):
+            os.replace(p, path)      # killed between the two renames of a swap: the previous folder goes back
+            continue
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                p.unlink()
+        removed.append(p)
+    return removed
+
+
 def _atomic(path: Path, write: Callable[[str], None], mode: int = 0o644) -> Path:
     """Run ``write(tmp)`` on a temporary sibling of ``path``, fsync it and move it over ``path``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=_temp_prefix(path), suffix=".tmp")
     os.close(fd)
     try:
         write(tmp)
@@ -62,7 +107,7 @@ def atomic_directory(path: str | os.PathLike) -> Iterator[Path]:
     moved aside first and removed after), on error it is removed and ``path`` is left untouched."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp"))
+    tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=_temp_prefix(path), suffix=".tmp"))
     try:
         yield tmp
     except BaseException:

@@ -1,4 +1,5 @@
-"""One way to write a command's ``--out`` folder without ever losing a user's file.
+"""The output rule: one way to write a command's ``--out`` folder or single output file without ever losing a
+user's file.
 
 ``with prepare_out(out, inputs=[dataset], overwrite=args.overwrite, marker="diagnose") as tmp:``
 the command writes everything into ``tmp`` (a hidden sibling on the same filesystem,
@@ -14,18 +15,28 @@ Refused before anything is written (UserError, one line):
   in it is one the marker lists (a file the user added to an old output is never deleted).
 
 The swap is ``atomic_directory``'s: ``out`` is moved aside, ``tmp`` moved in, then the old copy deleted.
+Temporary folders a killed run left beside ``out`` are removed on the next run (``clean_stale_temps``).
+
+Single files (``--metrics``, ``--truth``, ``--plot``, ``--feedback``, ``map --out PREFIX``): the command calls
+``check_out_file`` before any work and ``record_out_file`` after writing (atomically, ``pipeline.core.files``).
+Refused: a path that is, or lies inside, one of the command's inputs (real paths: symlinks resolved); a
+directory, device, pipe or socket; an existing file vibro did not write (no ``.NAME.vibro`` record whose
+checksum matches) unless ``overwrite`` — and then only a file of the kind the command writes (:data:`KINDS`).
+A ``kind="feedback"`` file is appended to, so an existing one must be a feedback file, ``overwrite`` or not.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import stat
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Iterable, Iterator
+from typing import Callable, Iterable, Iterator
 
 from pipeline.core.errors import UserError
-from pipeline.core.files import atomic_directory, atomic_write_text
+from pipeline.core.files import atomic_directory, atomic_write_text, clean_stale_temps
 
 MARKER_NAME = ".vibro-output.json"
 
@@ -56,6 +67,8 @@ def _overlaps(a: Path, b: Path) -> bool:
 def check_out(out: str | os.PathLike, *, inputs: Iterable[str | os.PathLike] = (), overwrite: bool = False,
               marker: str) -> None:
     """Raise UserError unless command ``marker`` may write ``out`` (see the module docstring)."""
+    if not str(out).strip():
+        raise UserError("--out is empty; give a folder")
     out = Path(out)
     real = out.resolve()
     for inp in inputs:
@@ -104,6 +117,7 @@ def prepare_out(out: str | os.PathLike, *, inputs: Iterable[str | os.PathLike] =
     out = Path(out)
     inputs = list(inputs)
     check_out(out, inputs=inputs, overwrite=overwrite, marker=marker)
+    clean_stale_temps(out)
     created: list[Path] = []
     for parent in reversed(out.absolute().parents):
         if not parent.exists():
@@ -119,3 +133,154 @@ def prepare_out(out: str | os.PathLike, *, inputs: Iterable[str | os.PathLike] =
     except BaseException:
         _remove_created(created)
         raise
+
+
+# ------------------------------------------------------------------------------------------ single files
+RECORD_SUFFIX = ".vibro"
+"""``DIR/.NAME.vibro`` records that vibro wrote ``DIR/NAME`` (command, kind, sha256 of what it wrote)."""
+
+READ_LIMIT = 64 << 20
+"""Bytes read to recognise a file's kind or checksum it; a larger file is never taken for one of ours."""
+
+
+def _head(path: Path, n: int = 16) -> bytes:
+    with open(path, "rb") as fh:
+        return fh.read(n)
+
+
+def _is_json(path: Path) -> bool:
+    if path.stat().st_size > READ_LIMIT:
+        return False
+    try:
+        json.loads(path.read_bytes())
+    except ValueError:
+        return False
+    return True
+
+
+FIGURE_MAGIC = {"png": (b"\x89PNG",), "pdf": (b"%PDF",), "svg": (b"<?xml", b"<svg"), "svgz": (b"\x1f\x8b",),
+                "eps": (b"%!PS", b"\xc5\xd0\xd3\xc6"), "ps": (b"%!PS",), "jpg": (b"\xff\xd8",),
+                "jpeg": (b"\xff\xd8",), "tif": (b"II*", b"MM\x00*"), "tiff": (b"II*", b"MM\x00*"),
+                "webp": (b"RIFF",), "pgf": (b"%",), "raw": (), "rgba": ()}
+"""The leading bytes of each figure format matplotlib writes (raw / rgba have none: never replaced)."""
+
+
+def _is_figure(path: Path) -> bool:
+    magic = FIGURE_MAGIC.get(path.suffix[1:].lower(), ())
+    head = _head(path)
+    return any(head.startswith(m) for m in magic)
+
+
+def _is_parquet(path: Path) -> bool:
+    return _head(path, 4) == b"PAR1"
+
+
+def _is_feedback(path: Path) -> bool:
+    """A feedback file: Parquet whose columns include those ``append_feedback`` adds."""
+    if not _is_parquet(path):
+        return False
+    import pyarrow.parquet as pq
+
+    try:
+        names = set(pq.read_schema(path).names)
+    except Exception:  # noqa: BLE001 - unreadable: not a feedback file
+        return False
+    return {"point_id", "source", "study", "created"} <= names
+
+
+KINDS: dict[str, tuple[str, Callable[[Path], bool]]] = {
+    "json": ("a JSON file", _is_json),
+    "figure": ("a figure", _is_figure),
+    "parquet": ("a Parquet file", _is_parquet),
+    "feedback": ("a vibro feedback Parquet file", _is_feedback),
+}
+"""Output kind -> (what it is called in messages, whether an existing file is one)."""
+
+
+def _record_path(path: Path) -> Path:
+    return path.with_name(f".{path.name}{RECORD_SUFFIX}")
+
+
+def _sha256(path: Path) -> str | None:
+    if path.stat().st_size > READ_LIMIT:
+        return None
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def written_by_vibro(path: str | os.PathLike) -> bool:
+    """Whether ``path`` holds exactly what a vibro command last wrote there (its ``.NAME.vibro`` record)."""
+    path = Path(path)
+    try:
+        rec = json.loads(_record_path(path).read_text())
+        return isinstance(rec, dict) and rec.get("sha256") == _sha256(path)
+    except (OSError, ValueError):
+        return False
+
+
+def _inside(real: Path, inputs: Iterable[str | os.PathLike | None]) -> str | None:
+    """The first input that ``real`` is or lies inside (a file inside an input folder), else None."""
+    for inp in inputs:
+        if inp is None or not str(inp):
+            continue
+        ri = Path(inp).resolve()
+        if real == ri or real.is_relative_to(ri):
+            return str(inp)
+    return None
+
+
+def check_out_file(path: str | os.PathLike, *, flag: str, kind: str, inputs: Iterable[str | os.PathLike | None] = (),
+                   overwrite: bool = False) -> Path:
+    """Raise UserError unless the command may write the single file ``path`` (see the module docstring);
+    removes the temporaries a killed writer of ``path`` left.  Returns ``path`` as a Path."""
+    what, is_kind = KINDS[kind]
+    if not str(path).strip():
+        raise UserError(f"{flag} is empty; give a file path")
+    path = Path(path)
+    real = path.resolve()
+    inp = _inside(real, inputs)
+    if inp is not None:
+        where = "is" if real == Path(inp).resolve() else "lies inside"
+        raise UserError(f"{flag} {path} {where} the input {inp}; write it elsewhere")
+    if os.path.lexists(path):
+        try:
+            st = os.stat(path)
+        except OSError:
+            raise UserError(f"{flag} {path} is a broken symbolic link; remove it or give another path") from None
+        if stat.S_ISDIR(st.st_mode):
+            raise UserError(f"{flag} {path} is a directory; give a file path")
+        if not stat.S_ISREG(st.st_mode):
+            raise UserError(f"{flag} {path} is not a regular file (a device, pipe or socket); give a file path")
+        if kind == "feedback":
+            if not is_kind(path):
+                raise UserError(f"{flag} {path} exists and is not {what}; rows are only appended to one")
+        elif not written_by_vibro(path):
+            if not overwrite:
+                raise UserError(f"{flag} {path} exists and vibro did not write it; add --overwrite to replace it, "
+                                f"or give another path")
+            if not is_kind(path):
+                raise UserError(f"--overwrite: {flag} {path} is not {what}, the kind of file {flag} writes; "
+                                f"refusing to replace it")
+    clean_stale_temps(path)
+    return path
+
+
+def record_out_file(path: str | os.PathLike, *, command: str, kind: str) -> None:
+    """Record that ``command`` wrote ``path`` (so a rerun may replace it without --overwrite)."""
+    path = Path(path)
+    doc = {"command": command, "kind": kind, "sha256": _sha256(path),
+           "written": datetime.now(timezone.utc).isoformat(timespec="seconds")}
+    atomic_write_text(_record_path(path), json.dumps(doc) + "\n")
+
+
+def figure_path(path: str | os.PathLike, flag: str = "--plot") -> Path:
+    """``path`` with ``.png`` added when it has no suffix and does not exist (what matplotlib would write);
+    UserError naming the flag when its suffix is not a figure format matplotlib writes."""
+    path = Path(path)
+    fmt = path.suffix[1:].lower()
+    if not fmt:
+        # an existing path (/dev/null, a user's file) is checked as given, never silently turned into another
+        return path if os.path.lexists(path) else path.with_name(path.name + ".png")
+    if fmt not in FIGURE_MAGIC:
+        raise UserError(f"{flag} {path}: '.{fmt}' is not a figure format (use one of "
+                        f"{', '.join('.' + k for k in FIGURE_MAGIC)})")
+    return path

@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -178,9 +179,24 @@ def _existing_chunks(out: Path, spec: SweepSpec) -> set[int]:
     return done
 
 
+TEMP_RE = re.compile(r"^\.(?:part-\d{5}\.parquet(?:\.sha256)?|metadata\.json)\.[A-Za-z0-9_-]+\.tmp$")
+"""Temporaries of a chunk, its sidecar or the metadata (pipeline.core.files): the only hidden files a sweep removes."""
+
+
 def _clean_temp(out: Path) -> None:
-    for p in out.glob(".part-*"):       # temporaries of chunks and their sidecars (pipeline.core.files, older runs)
-        p.unlink(missing_ok=True)
+    """Remove the temporaries an interrupted sweep left (the caller holds the sweep's lock: no writer is alive)."""
+    for p in out.iterdir():
+        if TEMP_RE.match(p.name) and p.is_file():
+            p.unlink(missing_ok=True)
+
+
+def _is_sweep_meta(p: Path) -> bool:
+    """Whether ``p`` is a sweep's metadata.json (a JSON object with a fingerprint and a canonical spec)."""
+    try:
+        doc = json.loads(p.read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(doc, dict) and "fingerprint" in doc and "spec_canonical" in doc
 
 
 def _prepare_out(out: Path, spec: SweepSpec, overwrite: bool) -> dict | None:
@@ -194,6 +210,11 @@ def _prepare_out(out: Path, spec: SweepSpec, overwrite: bool) -> dict | None:
                             f"(first: {foreign[0].name}); refusing to delete them: use a new --out")
     if not out.exists() or overwrite:
         return None
+    if not (out / META_NAME).exists():
+        foreign = _foreign_files(out)
+        if foreign:
+            raise UserError(f"--out {out} holds {len(foreign)} file(s) a sweep did not write (first: "
+                            f"{foreign[0].name}); choose a new or empty --out")
     meta = _read_meta(out)
     parts = list(out.glob(PART_GLOB))
     if meta is None:
@@ -215,10 +236,9 @@ def _foreign_files(out: Path) -> list[Path]:
     """Files in ``out`` that a sweep did not write (--overwrite never deletes those)."""
     import pyarrow.parquet as pq
 
-    own_names = {META_NAME, LOCK_NAME}
     foreign = []
     for p in sorted(out.iterdir()):
-        if p.name in own_names or (p.name.startswith(".part-") and p.name.endswith(".tmp")):
+        if p.name == LOCK_NAME or TEMP_RE.match(p.name) or (p.name == META_NAME and _is_sweep_meta(p)):
             continue
         if p.is_file() and p.name.startswith("part-") and p.name.endswith(".parquet" + CHECKSUM_SUFFIX):
             continue

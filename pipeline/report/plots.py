@@ -46,7 +46,6 @@ def plot_time_history(res, path: str | os.PathLike) -> str:
     for a in ax:
         a.grid(alpha=0.3)
     fig.tight_layout()
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return str(path)
+    from pipeline.core.files import atomic_write_figure
+
+    return str(atomic_write_figure(path, fig, dpi=110))
