@@ -19,15 +19,15 @@ class BundleModel(mlflow.pyfunc.PythonModel):
         return self.bundle.predict(model_input)
 
 
-def log(mlflow, bundle: Bundle, bundle_dir: Path, example: pd.DataFrame) -> None:
+def log(mlflow, bundle: Bundle, bundle_dir: Path, example: pd.DataFrame, name: str = "model") -> None:
     """Log the bundle directory (artifacts 'surrogate', what ``load_bundle(run_id)`` reads) and a pyfunc
-    model 'model' whose signature is inferred from ``example`` (input columns) and its prediction."""
+    model ``name`` whose signature is inferred from ``example`` (input columns) and its prediction."""
     from mlflow.models import infer_signature
 
     mlflow.log_artifacts(str(bundle_dir), artifact_path=ARTIFACT_DIR)
     X = example[bundle.inputs].reset_index(drop=True)
     sig = infer_signature(X, bundle.predict(X))
-    mlflow.pyfunc.log_model(name="model", python_model=BundleModel(), artifacts={"bundle": str(bundle_dir)},
+    mlflow.pyfunc.log_model(name=name, python_model=BundleModel(), artifacts={"bundle": str(bundle_dir)},
                             signature=sig, input_example=X.head(3), pip_requirements=_requirements())
 
 

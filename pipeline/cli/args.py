@@ -160,6 +160,18 @@ def add_quiet(p) -> None:
                    help="no progress bars (they go to stderr); alias --no-progress")
 
 
+def add_chain(p, default_note: str = "corrected with --rig, else lab") -> None:
+    """``--chain lab|corrected``: which chain the command's MLflow run belongs to."""
+    p.add_argument("--chain", choices=["lab", "corrected"],
+                   help="MLflow: the chain this run belongs to, tag vibro.chain; runs of the corrected chain are "
+                        f"named <stage>-corrected (default: {default_note})")
+
+
+def chain_of(args, default: str | None = None) -> str:
+    """``--chain`` if given, else ``default``, else ``corrected`` with a ``--rig`` and ``lab`` without."""
+    return getattr(args, "chain", None) or default or ("corrected" if getattr(args, "rig", None) else "lab")
+
+
 def add_rig(p, what: str = "simulate") -> None:
     """``--rig FILE``: model, preset, parameters and effects from a rig file."""
     p.add_argument("--rig", metavar="FILE.yaml",

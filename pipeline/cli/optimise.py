@@ -17,8 +17,8 @@ what it writes under --out:
   history.png, importances.png, verification.png, pareto.png (with --objective pareto)
   the outcome line says which limits the recommendation sits at and whether it lies on a bound of the search
   space (which control, lower or upper): there the optimum may lie beyond the box.
-  feedback: verified points are appended to feedback/optimise.parquet (or --feedback FILE; never inside the
-  surrogate's dvc-managed folder) so that
+  feedback: verified points are appended to feedback/optimise.parquet at the project root, beside optuna.db
+  (or --feedback FILE; never inside the surrogate's dvc-managed folder), from whichever folder it runs, so that
   training can include them (closing the loop).
 
 studies persist in optuna storage (default: sqlite file optuna.db at the project root); rerunning the same
@@ -68,6 +68,7 @@ def add_parser(sub) -> None:
     p.add_argument("--model", help="model for --simulator (default drill; the surrogate knows its own)")
     p.add_argument("--preset", help="preset for --simulator (default lab)")
     add_rig(p, "with --simulator, optimise")
+    A.add_chain(p, "the surrogate's chain (its report.json), corrected with --rig, else lab")
     p.add_argument("--vary", "--range", dest="ranges", action="append", metavar="NAME=LOW:HIGH",
                    help="search range (repeatable); default: the surrogate's training ranges, or the preset's published "
                         "space (drill lab: LAB_SPACE); alias --range")
@@ -99,7 +100,8 @@ def add_parser(sub) -> None:
     p.add_argument("--storage", metavar="URL", help="optuna storage URL (default sqlite:///<project root>/optuna.db)")
     p.add_argument("--study-name", help="study name (default derived from mode, objective, model, preset and settings)")
     p.add_argument("--feedback", metavar="FILE.parquet",
-                   help=f"append verified points here (default {DEFAULT_FEEDBACK}, outside every dvc output; "
+                   help=f"append verified points here (default <project root>/{DEFAULT_FEEDBACK}, beside optuna.db, "
+                        "outside every dvc output; "
                         "never inside the surrogate's folder)")
     add_workers(p, dest="n_threads", help="simulator threads (default: all cores)")
     p.add_argument("--out", default="results/optimise", help="output directory (default results/optimise)")
@@ -122,7 +124,9 @@ def _feedback_path(base: dict) -> None:
     fb = base.get("feedback")
     sur = base.get("surrogate") or "models/surrogate" if base.get("mode", "surrogate") == "surrogate" else None
     if fb is None and sur is not None and Path(str(sur)).is_dir():
-        base["feedback"] = fb = DEFAULT_FEEDBACK
+        from pipeline.tracking import project_root
+
+        base["feedback"] = fb = str(project_root() / DEFAULT_FEEDBACK)
     if fb and sur and Path(str(sur)).is_dir() and Path(str(sur)).resolve() in Path(fb).resolve().parents:
         raise UserError(f"--feedback {fb} is inside the surrogate folder {sur} (a dvc-managed output that "
                         f"the next 'make run' replaces): write it elsewhere, e.g. {DEFAULT_FEEDBACK}")
@@ -193,6 +197,17 @@ def real_sqlite_url(url: str | None) -> str | None:
     return "sqlite:///" + str(db.resolve())
 
 
+def surrogate_chain(surrogate) -> str | None:
+    """The chain a surrogate bundle folder was trained in (its report.json 'chain'), None when unknown."""
+    import json
+
+    try:
+        chain = json.loads((Path(str(surrogate)) / "report.json").read_text()).get("chain")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return chain if chain in ("lab", "corrected") else None
+
+
 def run(args) -> int:
     from pipeline import tracking
     from pipeline.optimise.workflow import run_optimise
@@ -204,6 +219,7 @@ def run(args) -> int:
     from pipeline.optimise.study import default_storage
 
     cfg = config_from_args(args)
+    chain = A.chain_of(args, surrogate_chain(cfg.surrogate) if cfg.mode == "surrogate" else None)
     db = sqlite_path(cfg.storage or default_storage())
     reads = [args.params, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None,
              args.rig, db, db and f"{db}.lock", args.out]
@@ -214,7 +230,7 @@ def run(args) -> int:
         check_out_file(cfg.feedback, flag="--feedback", kind="feedback", inputs=[*reads, args.metrics])
     inputs = [args.params, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None,
               args.metrics, args.feedback, db]
-    with tracking.variant(cfg.objective), \
+    with tracking.variant(cfg.objective), tracking.chain(chain), \
             prepare_out(args.out, inputs=inputs, overwrite=args.overwrite, marker="optimise") as tmp:
         rep = run_optimise(cfg, tmp, metrics_path=args.metrics, progress=not args.quiet,
                            mlflow_enabled=not args.no_mlflow)

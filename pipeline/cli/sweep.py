@@ -55,6 +55,7 @@ def add_parser(sub) -> None:
     p.add_argument("--model", help="model name (drill, indenter-metal, indenter-sandstone, ...)")
     p.add_argument("--preset", help="named parameter set of the model; 'none' for the model defaults")
     add_rig(p, "sweep")
+    A.add_chain(p)
     add_set(p, ("--fix",), help="hold a parameter at a value (repeatable; added to the spec's 'fixed', over the "
                                 "rig); alias --fix")
     p.add_argument("--vary", action="append", metavar="NAME=LOW:HIGH[:SCALE[:LEVELS]]",
@@ -169,7 +170,7 @@ def run(args) -> int:
               **{f"vary.{k}": f"{r.low:g}:{r.high:g}:{r.scale}" for k, r in spec.vary.items()},
               **{f"fixed.{k}": v for k, v in spec.fixed.items()},
               **{f"settings.{k}": v for k, v in spec.settings.items()}}
-    with tracking.run("sweep", params, enabled=not args.no_mlflow) as mlflow, \
+    with tracking.chain(A.chain_of(args)), tracking.run("sweep", params, enabled=not args.no_mlflow) as mlflow, \
             tempfile.TemporaryDirectory(prefix="vibro-sweep-") as tmpdir:
         plot = Path(args.plot) if args.plot else (Path(tmpdir) / "sweep_overview.png" if mlflow is not None else None)
         job = SweepJob(spec=spec, out=Path(args.out), scheduler=scheduler, workers=workers,

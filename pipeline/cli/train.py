@@ -63,6 +63,7 @@ def add_parser(sub) -> None:
     p.add_argument("--batch", type=A.count(1, A.MAX_POINTS), help="adaptive: points added per round (default 64)")
     p.add_argument("--budget", type=A.count(1, A.MAX_POINTS), help="adaptive: total simulations (default 768)")
     add_rig(p, "with --adaptive, simulate")
+    A.add_chain(p)
     p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
     add_quiet(p)
     A.add_overwrite(p, "surrogate bundle")
@@ -114,12 +115,16 @@ def run(args) -> int:
         check_out_file(args.metrics, flag="--metrics", kind="json", inputs=[args.dataset, args.params, args.rig, out],
                        overwrite=args.overwrite)
     check_some_rows_usable(data.df, args.dataset)
+    chain = A.chain_of(args)
+    provenance = {"chain": chain, "rig": str(args.rig) if args.rig else None}
     params = {"dataset": str(args.dataset), "model": data.model, "preset": data.preset, "fingerprint": data.fingerprint,
-              "inputs": ",".join(data.inputs), "n_points": len(data.df),
+              "inputs": ",".join(data.inputs), "n_points": len(data.df), "rig": args.rig or "",
               **{f"train.{k}": v for k, v in cfg.to_dict().items()}}
+    tags = {"vibro.rig": str(args.rig)} if args.rig else None
     with prepare_out(out, inputs=[args.dataset, args.params, args.metrics], overwrite=args.overwrite,
-                     marker="train") as tmp, tracking.run("train", params, enabled=not args.no_mlflow) as mlflow:
-        res = run_training(data, cfg, tmp, rig=rig, progress=not args.quiet)
+                     marker="train") as tmp, tracking.chain(chain), \
+            tracking.run("train", params, tags=tags, enabled=not args.no_mlflow) as mlflow:
+        res = run_training(data, cfg, tmp, rig=rig, progress=not args.quiet, provenance=provenance)
         bundle = res.bundle
         if args.metrics:
             atomic_write_text(args.metrics, dump_json(res.headline) + "\n")
@@ -129,7 +134,7 @@ def run(args) -> int:
             for path in res.figures.values():
                 mlflow.log_artifact(path, artifact_path="figures")
             mlflow.log_text(json.dumps(json.loads(dump_json(bundle.report)), indent=2), "report.json")
-            mlflow_model.log(mlflow, bundle, tmp, data.df)
+            mlflow_model.log(mlflow, bundle, tmp, data.df, name=model_name(data.model, chain))
             run_id = mlflow.active_run().info.run_id
     _print_summary(bundle, out, res.adaptive)
     if mlflow is not None:
@@ -150,11 +155,22 @@ def check_some_rows_usable(df, dataset: str) -> None:
         raise UserError(f"{dataset}: every one of its {len(df)} rows has status 'failed'; nothing to train on")
 
 
+def model_name(model: str, chain: str) -> str:
+    """The logged MLflow model's name: ``drill-surrogate-lab``, ``drill-surrogate-corrected``."""
+    return f"{model}-surrogate-{chain}"
+
+
+def describe(report: dict) -> str:
+    """What the surrogate stands for: ``'drill' (preset 'lab', rig my-rig.yaml)``."""
+    rig = f", rig {report['rig']}" if report.get("rig") else ""
+    return f"'{report['model']}' (preset {report['preset']!r}{rig})"
+
+
 def _print_summary(bundle, out: Path, ad: dict | None) -> None:
     r = bundle.report
     c = r["held_out"]["classification"]
-    print(f"surrogate of '{r['model']}' (preset {r['preset']!r}) trained on {r['n_train']} simulations, "
-          f"held out {r['n_test']}; written to {out}")
+    print(f"surrogate of {describe(r)} trained on {r['n_train']} simulations, held out {r['n_test']}; "
+          f"written to {out}")
     print(f"  regime classifier {bundle.classifier_name}: held-out accuracy {c['accuracy']:.4f}")
     constant = r.get("constant_targets") or {}
     for t, m in r["held_out"]["targets"].items():

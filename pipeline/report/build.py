@@ -560,7 +560,7 @@ def build_report(inp: ReportInputs, out: Path) -> ReportResult:
     atomic_write_text(out / "report.html", page)
     from pipeline.report.answer import answer_line
 
-    line = answer_line(summary, out / "report.html")
+    line = answer_line(summary, "report.html")     # beside summary.json: ``out`` may be a temporary folder
     if line:
         summary["answer"] = line
     atomic_write_text(out / "summary.json", dump_json(summary))

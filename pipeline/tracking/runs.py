@@ -7,9 +7,12 @@ its id as ``VIBRO_PARENT_RUN_ID``; every stage's run becomes its child.
 
 Every run carries the tags ``git_commit`` (the repository's HEAD, ``+dirty`` when tracked files
 differ) and ``dvc_exp`` (``$DVC_EXP_NAME``, set by ``dvc exp run``; ``workspace`` otherwise), and a
-run name that tells variants apart (``optimise-rop``, ``diagnose-seed000-published``).  The
-experiment is marked as classic model development (tag ``mlflow.experimentKind``), so the MLflow UI
-lists the surrogate under "Models", not "Agent versions".
+run name that tells variants apart (``optimise-rop``, ``diagnose-seed000-published``).  The tag
+``vibro.chain`` says which chain a run belongs to: ``lab`` (the preset's model) or ``corrected`` (a rig
+file, e.g. the diagnosis's corrected rig); runs of the corrected chain end in ``-corrected``
+(``train-corrected``, ``optimise-rop-corrected``).  The experiment is created as classic model development
+(tag ``mlflow.experimentKind``), so the MLflow UI opens it as a machine-learning experiment, not in the
+GenAI view.
 """
 from __future__ import annotations
 
@@ -38,8 +41,10 @@ def experiment_name() -> str:
     return os.environ.get("VIBRO_EXPERIMENT", "vibro")
 
 
+EXPERIMENT_KIND_TAG = "mlflow.experimentKind"
 EXPERIMENT_KIND = "custom_model_development"
-"""MLflow 3's experiment kind for classic ML (the UI's 'Models' tab instead of GenAI 'Agent versions')."""
+"""MLflow 3's experiment kind for classic ML (the UI's 'Machine learning' view; 'genai_development' is the GenAI
+one): the values of the kind selector in mlflow/server/js."""
 
 
 def git_commit(root: str | None = None) -> str:
@@ -73,6 +78,26 @@ def run_tags() -> dict[str, str]:
 
 
 _VARIANT: contextvars.ContextVar[str | None] = contextvars.ContextVar("vibro_run_variant", default=None)
+CHAINS = ("lab", "corrected")
+"""Values of the ``vibro.chain`` tag: the preset's model, or a rig file (the corrected rig)."""
+_CHAIN: contextvars.ContextVar[str] = contextvars.ContextVar("vibro_run_chain", default="lab")
+
+
+@contextlib.contextmanager
+def chain(name: str):
+    """Runs opened inside belong to chain ``name`` (one of :data:`CHAINS`): tag ``vibro.chain``, name suffix."""
+    if name not in CHAINS:
+        raise ValueError(f"chain '{name}': one of {', '.join(CHAINS)}")
+    token = _CHAIN.set(name)
+    try:
+        yield
+    finally:
+        _CHAIN.reset(token)
+
+
+def current_chain() -> str:
+    """The chain of the runs opened here (:func:`chain`; ``lab`` outside one)."""
+    return _CHAIN.get()
 
 
 @contextlib.contextmanager
@@ -85,9 +110,11 @@ def variant(name: str | None):
         _VARIANT.reset(token)
 
 
-def run_name(stage: str, variant: str | None = None) -> str:
-    """``stage`` or ``stage-variant`` (e.g. ``optimise-rop``): distinct names for the variants of a stage."""
-    return f"{stage}-{variant}" if variant and variant != stage else stage
+def run_name(stage: str, variant: str | None = None, chain: str = "lab") -> str:
+    """``stage`` or ``stage-variant`` (e.g. ``optimise-rop``), ending in ``-<chain>`` outside the lab chain
+    (``optimise-rop-corrected``): distinct names for the variants of a stage and for the two chains."""
+    name = f"{stage}-{variant}" if variant and variant != stage else stage
+    return name if chain == "lab" else f"{name}-{chain}"
 
 
 HTTP_DEFAULTS = {"MLFLOW_HTTP_REQUEST_TIMEOUT": "10", "MLFLOW_HTTP_REQUEST_MAX_RETRIES": "1",
@@ -130,14 +157,14 @@ def setup():
         art = project_root() / "mlartifacts"
         uri = tracking_uri()
         kwargs = {"artifact_location": art.as_uri()} if uri.startswith("sqlite:") else {}
-        try:
-            mlflow.create_experiment(experiment_name(), **kwargs)
+        try:          # the kind at creation: the UI never sees the experiment without it
+            mlflow.create_experiment(experiment_name(), tags={EXPERIMENT_KIND_TAG: EXPERIMENT_KIND}, **kwargs)
         except Exception:  # noqa: BLE001 - created concurrently by another process
             pass
     exp = mlflow.set_experiment(experiment_name())
-    if (exp.tags or {}).get("mlflow.experimentKind") != EXPERIMENT_KIND:
+    if (exp.tags or {}).get(EXPERIMENT_KIND_TAG) != EXPERIMENT_KIND:      # created before the tag existed
         try:
-            mlflow.set_experiment_tag("mlflow.experimentKind", EXPERIMENT_KIND)
+            mlflow.set_experiment_tag(EXPERIMENT_KIND_TAG, EXPERIMENT_KIND)
         except Exception:  # noqa: BLE001 - a read-only tracking server: the UI label is cosmetic
             pass
     return mlflow
@@ -149,16 +176,17 @@ def run(stage: str, params: dict | None = None, tags: dict | None = None, enable
     """Context manager: an MLflow run for ``stage`` (child of $VIBRO_PARENT_RUN_ID if set), named
     ``run_name(stage, variant)`` (``variant`` defaults to the enclosing :func:`variant`), tagged with :func:`run_tags`.
 
-    Yields the mlflow module (or None when ``enabled`` is false, e.g. ``--no-mlflow``)."""
+    Tagged ``vibro.chain`` with the enclosing :func:`chain`.  Yields the mlflow module (or None when ``enabled``
+    is false, e.g. ``--no-mlflow``)."""
     if not enabled or os.environ.get("VIBRO_NO_MLFLOW"):
         yield None
         return
     mlflow = setup()
-    all_tags = {"vibro.stage": stage, **run_tags(), **(tags or {})}
+    all_tags = {"vibro.stage": stage, "vibro.chain": current_chain(), **run_tags(), **(tags or {})}
     parent = os.environ.get("VIBRO_PARENT_RUN_ID")
     if parent:
         all_tags["mlflow.parentRunId"] = parent
-    name = run_name(stage, variant or _VARIANT.get())
+    name = run_name(stage, variant or _VARIANT.get(), current_chain())
     with mlflow.start_run(run_name=name, tags=all_tags):
         if params:
             log_params(mlflow, params)

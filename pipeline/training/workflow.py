@@ -74,9 +74,11 @@ class TrainResult:
     headline: dict
 
 
-def run_training(data: TrainingData, cfg, out_dir: str | Path, rig=None, progress: bool = True) -> TrainResult:
+def run_training(data: TrainingData, cfg, out_dir: str | Path, rig=None, progress: bool = True,
+                 provenance: dict | None = None) -> TrainResult:
     """Train the surrogate of ``data`` with ``cfg`` (a ``surrogate.config.TrainConfig``), run the adaptive study
-    when enabled (simulating on ``rig`` if given), save the bundle, report and figures under ``out_dir``."""
+    when enabled (simulating on ``rig`` if given), save the bundle, report and figures under ``out_dir``.
+    ``provenance`` (e.g. the rig file and the chain) is recorded in the bundle's report."""
     from pipeline.core.files import atomic_write_parquet
     from surrogate import adaptive as adaptive_mod
     from surrogate import data as sdata
@@ -101,6 +103,7 @@ def run_training(data: TrainingData, cfg, out_dir: str | Path, rig=None, progres
         design = ad.pop("design")
         atomic_write_parquet(out / "adaptive_design.parquet", design)
         bundle.report["adaptive"] = ad
+    bundle.report.update(provenance or {})
     bundle.save(out)
     figs = report.figures(bundle, test, out, ad)
     r = bundle.report

@@ -222,7 +222,7 @@ def test_cli_train_writes_bundle_report_figures_and_mlflow_run(tmp_path, monkeyp
     pd.testing.assert_frame_equal(b.predict(X), load_bundle(out).predict(X))
     import mlflow
 
-    info = mlflow.models.get_model_info(f"runs:/{run_id}/model")
+    info = mlflow.models.get_model_info(f"runs:/{run_id}/drill-surrogate-lab")   # named by model and chain
     assert [c.name for c in info.signature.inputs.inputs] == b.inputs
     assert "rop_m_s_hi" in [c.name for c in info.signature.outputs.inputs]
 

@@ -1,0 +1,65 @@
+"""The lab chain and the corrected chain are told apart in MLflow: run names, the vibro.chain tag, model names;
+the experiment is created as a classic machine-learning experiment (MLflow 3's experiment kind)."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from pipeline.cli import main
+from pipeline.cli.optimise import surrogate_chain
+from pipeline.cli.train import model_name
+from pipeline.tracking import runs
+
+
+@pytest.fixture
+def store(tmp_path, monkeypatch):
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", f"sqlite:///{tmp_path / 'mlflow.db'}")
+    monkeypatch.setenv("VIBRO_EXPERIMENT", "chains-test")
+    monkeypatch.setenv("VIBRO_HOME", str(tmp_path))
+    for var in ("VIBRO_PARENT_RUN_ID", "VIBRO_NO_MLFLOW", "DVC_EXP_NAME"):
+        monkeypatch.delenv(var, raising=False)
+    return tmp_path
+
+
+def _runs():
+    from mlflow.tracking import MlflowClient
+
+    client = MlflowClient()
+    exp = client.get_experiment_by_name("chains-test")
+    return exp, {r.info.run_name: r.data.tags for r in client.search_runs([exp.experiment_id])}
+
+
+def test_the_two_chains_get_distinct_run_names_and_chain_tags(store):
+    for chain in ("lab", "corrected"):
+        with runs.chain(chain):
+            with runs.run("train", {"a": 1}):
+                pass
+            with runs.variant("rop"), runs.run("optimise"):
+                pass
+    exp, found = _runs()
+    assert sorted(found) == ["optimise-rop", "optimise-rop-corrected", "train", "train-corrected"]
+    assert {n: t["vibro.chain"] for n, t in found.items()} == {
+        "train": "lab", "optimise-rop": "lab", "train-corrected": "corrected", "optimise-rop-corrected": "corrected"}
+    assert exp.tags["mlflow.experimentKind"] == "custom_model_development"
+    with pytest.raises(ValueError):
+        with runs.chain("rig"):
+            pass
+
+
+def test_a_sweep_on_a_rig_file_is_the_corrected_chain(store, capsys):
+    rig = store / "rig.yaml"
+    rig.write_text("model: drill\npreset: lab\nparameters: {K1: 6.2e8}\n")
+    common = ["--n-points", "4", "--vary", "frequency_hz=200:300", "--quiet"]
+    assert main(["sweep", "--out", str(store / "lab"), *common]) == 0, capsys.readouterr().err
+    assert main(["sweep", "--rig", str(rig), "--out", str(store / "rig"), *common]) == 0, capsys.readouterr().err
+    _, found = _runs()
+    assert found["sweep"]["vibro.chain"] == "lab" and found["sweep-corrected"]["vibro.chain"] == "corrected"
+
+
+def test_model_names_and_the_surrogates_chain(tmp_path):
+    assert model_name("drill", "lab") != model_name("drill", "corrected")
+    assert model_name("drill", "corrected") == "drill-surrogate-corrected"
+    (tmp_path / "report.json").write_text(json.dumps({"chain": "corrected"}))
+    assert surrogate_chain(tmp_path) == "corrected"             # optimise inherits the chain it was trained in
+    assert surrogate_chain(tmp_path / "missing") is None
