@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any, Iterator, Mapping
 
 from sim.errors import ParameterError
 from sim.registry import get_model, model_names
@@ -60,10 +60,16 @@ class Rig:
             if not isinstance(vals, Mapping):
                 raise ParameterError(f"rig: effect '{eff}' must map its parameters to values, e.g. "
                                      f"{{{spec.effects[eff][0]}: value}}; got {vals!r}")
+            if not vals:        # its parameters would keep their defaults (off): the effect would be ignored
+                raise ParameterError(f"rig: effect '{eff}' gives no parameters, so it would stay off; give "
+                                     f"{{{', '.join(f'{n}: value' for n in spec.effects[eff])}}} or remove it")
             for name in vals:
                 if name not in spec.effects[eff]:
                     raise ParameterError(f"rig: effect '{eff}' has no parameter '{name}'; "
                                          f"its parameters: {', '.join(spec.effects[eff])}")
+        for what, v in self._values():
+            if isinstance(v, bool):     # YAML's true/false would pass float() as 1/0
+                raise ParameterError(f"rig: {what} must be a number, got {str(v).lower()} (a yes/no, not a value)")
         for name, sd in self.uncertainty.items():
             if name not in known:
                 raise ParameterError(f"rig: uncertainty of unknown parameter '{name}' for model '{self.model}'")
@@ -74,6 +80,13 @@ class Rig:
             if not ok:
                 raise ParameterError(f"rig: uncertainty of '{name}' must be a finite number >= 0, got {sd!r}")
         spec.resolve(self.preset, **self.overrides())   # every value validated by its Param
+
+    def _values(self) -> Iterator[tuple[str, Any]]:
+        """(what, value) of every value the rig gives, ``what`` naming it for a message."""
+        yield from ((f"parameter '{n}'", v) for n, v in self.parameters.items())
+        for eff, vals in self.effects.items():
+            yield from ((f"effect '{eff}' parameter '{n}'", v) for n, v in vals.items())
+        yield from ((f"uncertainty of '{n}'", v) for n, v in self.uncertainty.items())
 
     @staticmethod
     def _effect_of(spec, name: str) -> str:

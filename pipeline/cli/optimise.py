@@ -151,6 +151,10 @@ def config_from_args(args):
     for key, (integer, lo, hi) in OPTIMISE_BOUNDS.items():
         if base.get(key) is not None:
             base[key] = A.number(base[key], f"{where}.{key}", integer=integer, lo=lo, hi=hi, lo_open=not integer)
+    if base.get("fixed") is not None:       # a YAML true is no value (float(True) would read it as 1)
+        if not isinstance(base["fixed"], dict):
+            raise UserError(f"{where}.fixed must be a mapping name -> value, got {base['fixed']!r}")
+        base["fixed"] = {k: A.number(v, f"{where}.fixed.{k}") for k, v in base["fixed"].items()}
     if args.simulator:
         base["mode"] = "simulator"
     elif args.surrogate:
@@ -181,9 +185,33 @@ def config_from_args(args):
     if str(base.get("preset", "")).lower() == "none":
         base["preset"] = None
     check_workers(base.get("n_threads"))
+    if base.get("mode") == "simulator" and base.get("ranges"):
+        check_range_values(base["ranges"], base.get("model"))
     _feedback_path(base)
     base["storage"] = real_sqlite_url(base.get("storage"))
     return OptimiseConfig.from_mapping(base)
+
+
+def check_range_values(ranges: dict, model: str | None) -> None:
+    """UserError naming the range whose bound is no valid value of its parameter in ``model`` (e.g. frequency_hz
+    = 0: the model's ``Param`` says > 0); the sampler may draw a bound itself.  Unknown names and malformed
+    ranges are left to the search space's own check."""
+    import sim
+    from pipeline.optimise.space import space_from_mapping
+    from sim.registry import DEFAULT_MODEL
+
+    if (model or DEFAULT_MODEL) not in sim.model_names():
+        return                              # the run's own check names the unknown model
+    spec = sim.get_model(model or DEFAULT_MODEL)
+    by_name = {p.name: p for p in spec.params}
+    for name, (lo, hi) in space_from_mapping(ranges).ranges.items():
+        for end, v in (("low", lo), ("high", hi)):
+            try:
+                if name in by_name:
+                    by_name[name].validate(v)
+            except sim.ParameterError as e:
+                raise UserError(f"range '{name}': its {end} bound {v:g} is outside the parameter's valid values "
+                                f"({e})") from None
 
 
 def real_sqlite_url(url: str | None) -> str | None:
