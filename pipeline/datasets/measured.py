@@ -182,6 +182,24 @@ def _load_series(path: Path, rid: str) -> pd.DataFrame:
     return out
 
 
+DURATION_RTOL = 0.02
+"""A run's duration_s may differ from its series' length (samples x step) by one step plus this fraction."""
+
+
+def _check_durations(runs: pd.DataFrame, series: dict[str, pd.DataFrame]) -> None:
+    """UserError naming runs.csv, the line and 'duration_s' when a run's duration disagrees with its series."""
+    for i, (rid, dur) in enumerate(zip(runs["run_id"], runs["duration_s"])):
+        if rid not in series:
+            continue
+        t = series[rid]["t_s"].to_numpy()
+        dt = float(np.median(np.diff(t)))
+        length = len(t) * dt
+        if abs(float(dur) - length) > dt + DURATION_RTOL * length:
+            raise UserError(f"{_where('runs.csv', i + 2, 'duration_s')}: {float(dur):.6g} s, but series/{rid}.csv "
+                            f"holds {len(t)} samples every {dt:.6g} s = {length:.6g} s (they must agree within one "
+                            f"sample + {DURATION_RTOL:.0%})")
+
+
 def _load_summary(root: Path, run_ids: set[str]) -> pd.DataFrame | None:
     path = root / "summary.csv"
     if not path.exists():
@@ -233,6 +251,7 @@ def load_dataset(path: str | os.PathLike) -> Dataset:
             if f.stem not in ids:
                 raise UserError(f"series/{f.name}: run '{f.stem}' is not in runs.csv")
             series[f.stem] = _load_series(f, f.stem)
+    _check_durations(runs, series)
     summary = _load_summary(root, ids)
     known = known_parameters(runs)
     for i, rid in enumerate(runs["run_id"]):

@@ -63,6 +63,22 @@ def _optimise_zero_hz(d: Path) -> list[str]:
             "--quiet"]
 
 
+# ----------------------------------------------------------------------------- measured data
+def _duration_disagrees(d: Path) -> list[str]:
+    """runs.csv says 0.5 s, its series holds 0.05 s (500 samples at 10 kHz)."""
+    import numpy as np
+
+    ds = d / "data"
+    (ds / "series").mkdir(parents=True)
+    _write(ds / "runs.csv", "run_id,system,frequency_hz,amplitude_n,static_force_n,gap_m,duration_s,preset\n"
+                            "d1,drill,200,2250,1200,0,0.05,lab\nd2,drill,250,2250,1200,0,0.5,lab\n")
+    t = np.arange(500) / 1e4
+    for rid, f in (("d1", 200.0), ("d2", 250.0)):
+        _write(ds / "series" / f"{rid}.csv", "t_s,accel_m_s2\n" + "".join(
+            f"{x:.6g},{np.sin(2 * np.pi * f * x):.6g}\n" for x in t))
+    return ["diagnose", str(ds), "--out", str(d / "out"), "--quiet", "--no-mlflow"]
+
+
 CASES: dict[str, tuple[Callable[[Path], list[str]], tuple[str, ...]]] = {
     "rig K1: true": (_rig_bool, ("rig.yaml", "parameter 'K1'", "must be a number")),
     "rig effect value false": (_rig_effect_bool, ("rig.yaml", "effect 'shaker_coil' parameter 'beta'")),
@@ -70,6 +86,8 @@ CASES: dict[str, tuple[Callable[[Path], list[str]], tuple[str, ...]]] = {
     "params sweep.fixed K1: true": (_params_bool, ("sweep.fixed.K1", "must be a number")),
     "params optimise.fixed K1: true": (_optimise_params_bool, ("optimise.fixed.K1", "expected a number")),
     "optimise --vary frequency_hz=0:400": (_optimise_zero_hz, ("range 'frequency_hz'", "low bound 0", "> 0")),
+    "duration_s against its series": (_duration_disagrees, ("runs.csv line 3, column 'duration_s'", "series/d2.csv",
+                                                            "500 samples")),
 }
 
 

@@ -19,8 +19,9 @@ RUNS = ("run_id,system,frequency_hz,amplitude_n,static_force_n,gap_m,duration_s\
         "r2,indenter-metal,80,650,199,0.001,0.1\n")
 
 
-def _series(f=60.0, spc=100, cycles=4) -> str:
-    t = np.arange(spc * cycles) / (f * spc)
+def _series(f=60.0, spc=100, duration=0.1) -> str:
+    """A sine at ``f`` sampled ``spc`` times a cycle over ``duration`` s (RUNS' duration_s)."""
+    t = np.arange(round(spc * f * duration)) / (f * spc)
     return pd.DataFrame({"t_s": t, "accel_m_s2": np.sin(2 * np.pi * f * t)}).to_csv(index=False)
 
 
@@ -43,7 +44,7 @@ def test_valid_dataset_loads(tmp_path):
     ds = load_dataset(_make(tmp_path))
     assert list(ds.runs["run_id"]) == ["r1", "r2"]
     assert set(ds.series) == {"r1", "r2"}
-    assert ds.series["r1"]["accel_m_s2"].size == 400
+    assert ds.series["r1"]["accel_m_s2"].size == 600
 
 
 def test_published_dataset_loads():

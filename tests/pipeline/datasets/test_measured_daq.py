@@ -78,9 +78,16 @@ def _ds(tmp_path: Path, runs: str, fs: float = 10000.0) -> Path:
     d = tmp_path / "ds"
     (d / "series").mkdir(parents=True)
     (d / "runs.csv").write_text(runs)
-    for line in runs.strip().splitlines()[1:]:
-        rid, f = line.split(",")[0], float(line.split(",")[2])
-        t, x = _signal(f, fs, 5.5)
+    header, *lines = runs.strip().splitlines()
+    for line in lines:
+        row = dict(zip(header.split(","), line.split(",")))
+        f = float(row["frequency_hz"])
+        try:
+            cycles = float(row["duration_s"]) * f          # the record runs.csv says
+        except (KeyError, ValueError):
+            cycles = 5.5                                    # a malformed row: runs.csv's own check names it
+        t, x = _signal(f, fs, cycles)
+        rid = row["run_id"]
         pd.DataFrame({"t_s": t, "accel_m_s2": x}).to_csv(d / "series" / f"{rid}.csv", index=False)
     return d
 
