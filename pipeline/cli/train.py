@@ -23,6 +23,12 @@ examples:
   vibro train data/my-rig --adaptive --rig my-rig.yaml               # adaptive sampling simulates your rig
   vibro train points.parquet --model drill --inputs frequency_hz,amplitude_n
 
+rows checked before training (one bad row refuses the dataset, exit 2 naming the column and the row; no row
+  is dropped, so the trained ranges come only from rows that passed):
+  inputs are parameters or controls, never a MODELS.md section-5 label; input values finite, valid for their
+  parameter (e.g. frequency_hz > 0) and inside the sweep's declared range (metadata 'vary'); labels never
+  negative or infinite (specific_energy_j_m is +inf where rop_m_s is 0, as the simulator writes it)
+
 params.yaml section 'train' (all optional; flags override): test_fraction 0.2, cv_folds 5, seed 0,
   targets [rop_m_s, peak_force_n, impacts_per_cycle, specific_energy_j_m], regressors [gp, gbt, mlp] (also krr),
   classifiers [gbt, mlp, trees], transforms {target: auto|log|identity}, domains {target: progressing|settled|all},

@@ -30,6 +30,7 @@ class TrainingData:
 def load_training_data(dataset: str, model: str | None = None, inputs: list[str] | None = None) -> TrainingData:
     """Load sweep ``dataset``, check its labels, its model against ``model`` and infer the inputs and ranges."""
     from pipeline.datasets.store import load_with_metadata
+    from pipeline.training import rows
     from surrogate import data
 
     df, meta = load_with_metadata(dataset)
@@ -39,7 +40,11 @@ def load_training_data(dataset: str, model: str | None = None, inputs: list[str]
         raise UserError(f"dataset '{dataset}' has no metadata.json naming its model: pass --model")
     if model and meta.get("model") and model != meta["model"]:
         raise UserError(f"--model {model} but dataset '{dataset}' was simulated with model '{meta['model']}'")
+    where = f"dataset '{dataset}'"
+    rows.check_not_labels(list(inputs or meta.get("vary") or []), where)
     names, ranges = data.infer_inputs(df, meta, inputs)
+    rows.check_inputs(df, names, meta, name, where)      # refused before the ranges are trusted
+    rows.check_labels(df, where)
     fp = meta.get("fingerprint") or data.fingerprint_frame(df)
     return TrainingData(str(dataset), df, meta, name, meta.get("preset"), names, ranges, fp)
 

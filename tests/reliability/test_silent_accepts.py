@@ -79,6 +79,30 @@ def _duration_disagrees(d: Path) -> list[str]:
     return ["diagnose", str(ds), "--out", str(d / "out"), "--quiet", "--no-mlflow"]
 
 
+# ----------------------------------------------------------------------------- training sets
+def _training_set(d: Path, column: str | None = None, value: float = 0.0) -> Path:
+    """A bare 12-row training table of the drill (no metadata: every row's own values), row 5 of ``column``
+    set to ``value``."""
+    import numpy as np
+    import pandas as pd
+
+    n = 12
+    f = np.linspace(150.0, 450.0, n)
+    df = pd.DataFrame({"point_id": np.arange(n), "frequency_hz": f, "amplitude_n": np.linspace(1800.0, 2700.0, n),
+                       "rop_m_s": 1e-5 * f, "peak_force_n": 10.0 * f, "impacts_per_cycle": np.ones(n),
+                       "specific_energy_j_m": 1e5 + f, "status": ["ok"] * n, "reason": [""] * n})
+    if column is not None:
+        df.loc[5, column] = value
+    path = d / "points.parquet"
+    df.to_parquet(path)
+    return path
+
+
+def _train(d: Path, path: Path, inputs: str = "frequency_hz,amplitude_n") -> list[str]:
+    return ["train", str(path), "--model", "drill", "--inputs", inputs, "--out", str(d / "out"), "--no-mlflow",
+            "--quiet"]
+
+
 CASES: dict[str, tuple[Callable[[Path], list[str]], tuple[str, ...]]] = {
     "rig K1: true": (_rig_bool, ("rig.yaml", "parameter 'K1'", "must be a number")),
     "rig effect value false": (_rig_effect_bool, ("rig.yaml", "effect 'shaker_coil' parameter 'beta'")),
@@ -86,6 +110,16 @@ CASES: dict[str, tuple[Callable[[Path], list[str]], tuple[str, ...]]] = {
     "params sweep.fixed K1: true": (_params_bool, ("sweep.fixed.K1", "must be a number")),
     "params optimise.fixed K1: true": (_optimise_params_bool, ("optimise.fixed.K1", "expected a number")),
     "optimise --vary frequency_hz=0:400": (_optimise_zero_hz, ("range 'frequency_hz'", "low bound 0", "> 0")),
+    "train on a label as input": (lambda d: _train(d, _training_set(d), "frequency_hz,rop_m_s"),
+                                  ("input 'rop_m_s' is a label",)),
+    "train input inf Hz": (lambda d: _train(d, _training_set(d, "frequency_hz", float("inf"))),
+                                       ("column 'frequency_hz', row 5 (point_id 5)", "not a finite number")),
+    "train input 0 Hz": (lambda d: _train(d, _training_set(d, "frequency_hz", 0.0)),
+                         ("column 'frequency_hz', row 5", "must be > 0")),
+    "train negative label": (lambda d: _train(d, _training_set(d, "peak_force_n", -3.0)),
+                             ("column 'peak_force_n', row 5", "negative")),
+    "train infinite label": (lambda d: _train(d, _training_set(d, "rop_m_s", float("inf"))),
+                             ("column 'rop_m_s', row 5", "infinite")),
     "duration_s against its series": (_duration_disagrees, ("runs.csv line 3, column 'duration_s'", "series/d2.csv",
                                                             "500 samples")),
 }
@@ -100,3 +134,31 @@ def test_silent_accept_is_one_line_exit_2_writing_nothing(tmp_path, capsys, case
     _one_line_exit_2(rc, capsys.readouterr().err, *words)
     after = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
     assert after == inputs                          # nothing written, nothing changed
+
+
+def test_rows_outside_the_declared_space_are_refused_before_ranges():
+    """A sweep's row at 1e300 Hz (its metadata declares 100..450 Hz) never reaches the trained range."""
+    import pandas as pd
+
+    from pipeline.core.errors import UserError
+    from pipeline.training.rows import check_inputs
+
+    df = pd.DataFrame({"point_id": [0, 1, 2], "frequency_hz": [153.0, 1e300, 400.0]})
+    meta = {"vary": {"frequency_hz": {"low": 100.0, "high": 450.0}}}
+    check_inputs(df.iloc[[0, 2]], ["frequency_hz"], meta, "drill", "sweep")
+    with pytest.raises(UserError, match=r"column 'frequency_hz', row 1 \(point_id 1\): 1e\+300 is outside the "
+                                        r"sweep's declared range \[100, 450\]"):
+        check_inputs(df, ["frequency_hz"], meta, "drill", "sweep")
+
+
+def test_infinite_specific_energy_without_progress_is_a_label_the_simulator_writes():
+    import pandas as pd
+
+    from pipeline.core.errors import UserError
+    from pipeline.training.rows import check_labels
+
+    df = pd.DataFrame({"rop_m_s": [0.0, 2e-3], "specific_energy_j_m": [float("inf"), 5e5]})
+    check_labels(df, "sweep")
+    df.loc[1, "specific_energy_j_m"] = float("inf")
+    with pytest.raises(UserError, match="column 'specific_energy_j_m', row 1: inf is infinite"):
+        check_labels(df, "sweep")
