@@ -180,6 +180,9 @@ def run(args) -> int:
         if args.plot and res.plot is not None:
             record_out_file(res.plot, command="sweep", kind="figure")
         print("\n".join(summary.lines()))
+        if args.plot and res.plot is None:      # the figure is ROP over two varied parameters
+            print(f"no overview figure written to {args.plot}: it needs two varied parameters, this sweep varies "
+                  f"only {', '.join(spec.vary)}")
         if args.metrics:
             atomic_write_json(Path(args.metrics), summary.metrics())
             record_out_file(args.metrics, command="sweep", kind="json")

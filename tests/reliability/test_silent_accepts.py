@@ -162,3 +162,14 @@ def test_infinite_specific_energy_without_progress_is_a_label_the_simulator_writ
     df.loc[1, "specific_energy_j_m"] = float("inf")
     with pytest.raises(UserError, match="column 'specific_energy_j_m', row 1: inf is infinite"):
         check_labels(df, "sweep")
+
+
+def test_sweep_plot_skipped_says_why_in_one_line(tmp_path, capsys):
+    """--plot with one varied parameter: the sweep runs, no figure is written, and one line says why."""
+    out, png = tmp_path / "s", tmp_path / "s.png"
+    rc = main(["sweep", "--model", "drill", "--preset", "lab", "--vary", "frequency_hz=100:200", "--n-points", "2",
+               "--out", str(out), "--plot", str(png), "--no-mlflow", "--quiet"])
+    assert rc == 0 and not png.exists() and list(out.glob("part-*.parquet"))
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if "overview figure" in ln]
+    assert lines == [f"no overview figure written to {png}: it needs two varied parameters, this sweep varies "
+                     "only frequency_hz"]
