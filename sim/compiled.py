@@ -72,7 +72,8 @@ def _kernel_dir() -> Path:
 def _digest(model_module: str, exact: str | None = None) -> str:
     h = hashlib.sha256()
     files = [_SIM_DIR / "layout.py", _SIM_DIR / "integrator.py", _SIM_DIR / "kernel.py", _SIM_DIR / "compiled.py",
-             _SIM_DIR / "_kernel_template.py", _SIM_DIR / "jit.py"]
+             _SIM_DIR / "_kernel_template.py", _SIM_DIR / "jit.py",
+             _SIM_DIR / "models" / "contact.py", _SIM_DIR / "models" / "terms.py"]   # the laws the models inline
     for name in (model_module, exact):
         if name is not None:       # located without importing (a fresh worker may not have imported it yet)
             files.append(Path(importlib.util.find_spec(name).origin))

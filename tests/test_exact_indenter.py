@@ -18,6 +18,7 @@ import sim
 from sim.exact import indenter as hy
 from sim.exact import indenter_metal, indenter_sandstone
 from sim.exact.taylor import NT
+from sim.models import contact
 from sim.models import indenter as ind
 from tests.reference_solutions import reference_run
 
@@ -152,8 +153,9 @@ def test_friction_band_edge_follows_the_tolerance():
     assert math.tanh(hy.V_EXACT) == 1.0 and math.tanh(-hy.V_EXACT) == -1.0
     assert hy.V_HYST > 0.0
     veps = 1e-4
-    assert ind._sgn(hy.V_EXACT * veps, veps) == 1.0 and ind._sgn(-hy.V_EXACT * veps, veps) == -1.0
-    assert ind._sgn.py_func(hy.V_EXACT * veps, veps) == 1.0
+    sgn = contact.coulomb_sign
+    assert sgn(hy.V_EXACT * veps, veps) == 1.0 and sgn(-hy.V_EXACT * veps, veps) == -1.0
+    assert contact.coulomb_sign.py_func(hy.V_EXACT * veps, veps) == 1.0
 
 
 def test_friction_sign_is_tanh():
@@ -161,17 +163,17 @@ def test_friction_sign_is_tanh():
     # within 2.3e-16 absolute everywhere, odd, 0 at 0, monotone, ±1 exactly from |x| = 18.72 (e < 2^-54) on
     x = np.concatenate([np.linspace(-25.0, 25.0, 200_001), np.logspace(-12.0, 1.5, 20_001)])
     veps = 1.0                      # x / veps = x exactly
-    f = np.array([ind._sgn(v * veps, veps) for v in x])
+    f = np.array([contact.coulomb_sign(v * veps, veps) for v in x])
     assert np.max(np.abs(f - np.tanh(x))) <= 2.3e-16
-    assert np.all(np.array([ind._sgn(-v * veps, veps) for v in x]) == -f)
-    assert ind._sgn(0.0, veps) == 0.0
+    assert np.all(np.array([contact.coulomb_sign(-v * veps, veps) for v in x]) == -f)
+    assert contact.coulomb_sign(0.0, veps) == 0.0
     grid = f[:200_001]
     assert np.all(np.diff(grid) >= 0.0)
-    assert ind._sgn(18.72 * veps, veps) == 1.0 and ind._sgn(18.70 * veps, veps) < 1.0
+    assert contact.coulomb_sign(18.72 * veps, veps) == 1.0 and contact.coulomb_sign(18.70 * veps, veps) < 1.0
     # beyond V_ONE it returns ± 1 without the exp: the values the exp form has there (and far out, where exp underflows)
-    e = math.exp(-2.0 * ind.V_ONE)
-    assert (1.0 - e) / (1.0 + e) == 1.0 and ind.V_ONE < hy.V_EXACT
-    assert ind._sgn(1e3, veps) == 1.0 and ind._sgn(-1e300, veps) == -1.0
+    e = math.exp(-2.0 * contact.V_ONE)
+    assert (1.0 - e) / (1.0 + e) == 1.0 and contact.V_ONE < hy.V_EXACT
+    assert contact.coulomb_sign(1e3, veps) == 1.0 and contact.coulomb_sign(-1e300, veps) == -1.0
 
 
 def test_step_hint_plans_the_approach_to_a_reversal():

@@ -29,7 +29,9 @@ import numpy as np
 from sim.jit import interpreted, njit  # numba is imported on first use (sim/jit.py)
 
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
+from sim.models.contact import kelvin_voigt, rock_slider
 from sim.models.sensor import sensor_lowpass
+from sim.models.terms import coil_force, hardened_spring, rate_stiffened, tip_blunted
 
 # parameter vector layout
 (M1, M2, M3, K1, K2, K3, C1, C2, C3, PR, GAP, FS, F0, FREQ, GAMMA,
@@ -47,13 +49,13 @@ GUARD_STATES = (IX1, IV1, IXT, IXB)     # the states the guards read (x1, v1, xt
 @njit(cache=True, inline="always")
 def _pr_at(pr, gamma, gap, xb):
     """Rock threshold [N], raised by tip blunting (MODELS.md §6 `tip_blunting`), from scalars."""
-    return pr * (1.0 + gamma * (xb - gap) / 1e-3)
+    return tip_blunted(pr, gamma, xb - gap)
 
 
 @njit(cache=True, inline="always")
 def _pc_at(k1, alpha, c1, x1, v1, xb):
     """Phase-II contact force expression [N] from scalars; rate_stiffening: K1 → K1 (1 + α max(ẋ1, 0))."""
-    return k1 * (1.0 + alpha * max(v1, 0.0)) * (x1 - xb) + c1 * v1
+    return kelvin_voigt(rate_stiffened(k1, alpha, v1), c1, x1 - xb, v1)
 
 
 @njit(cache=True, inline="always")
@@ -82,28 +84,13 @@ def _rhs_at(t, y, ph, p, dy):
     c1, c2, c3 = p[C1], p[C2], p[C3]
     pr, gap, fs, f0, freq, gamma = p[PR], p[GAP], p[FS], p[F0], p[FREQ], p[GAMMA]
     tau, beta, alpha, mu, kappa, veps = p[TAU], p[BETA], p[ALPHA], p[MU], p[KAPPA], p[VEPS]
-    if tau > 0.0:            # harmonic force on M1: the shaker coil's state Fh, or F0 cos Ωt (algebraic coil for τ = 0)
-        fh = fh_y
-        dfh = (f0 * math.cos(2.0 * math.pi * freq * t) - beta * (v1 - v2) - fh_y) / tau
-    else:
-        fh = f0 * math.cos(2.0 * math.pi * freq * t) - beta * (v1 - v2)
-        dfh = 0.0
-    if ph == 0:
-        pc = 0.0
-        dxt = -(k1 / c1) * (xt - xb)
-        dxb = 0.0
-    elif ph == 1:
-        pc = _pc_at(k1, alpha, c1, x1, v1, xb)
-        dxt = v1
-        dxb = 0.0
-    else:
-        pc = _pr_at(pr, gamma, gap, xb)
-        dxt = v1
-        dxb = (_pc_at(k1, alpha, c1, x1, v1, xb) - pc) / c1
+    # harmonic force on M1: F0 cos Ωt, or the shaker coil's
+    fh, dfh = coil_force(f0 * math.cos(2.0 * math.pi * freq * t), beta, v1 - v2, tau, fh_y)
+    pc, dxt, dxb = rock_slider(ph, _pc_at(k1, alpha, c1, x1, v1, xb), _pr_at(pr, gamma, gap, xb), k1, c1, v1, xt, xb)
     d12 = x1 - x2
     # bit-exciter link: damper, (hardening) spring, guide friction; each effect term is exactly 0 when off (the
     # friction's tanh, a libm call per stage, is then not evaluated)
-    s12 = c2 * (v1 - v2) + k2 * d12 * (1.0 + kappa * d12 * d12)
+    s12 = c2 * (v1 - v2) + hardened_spring(k2, d12, kappa)
     if mu != 0.0:
         s12 += mu * math.tanh((v1 - v2) / veps)
     s23 = c3 * (v2 - v3) + k3 * (x2 - x3)

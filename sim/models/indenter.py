@@ -23,7 +23,9 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import FitBound, ModelSpec, Param, SynthRig
+from sim.models.contact import branch_depth, branch_force, coulomb_sign, kelvin_voigt, released_force
 from sim.models.sensor import sensor_lowpass
+from sim.models.terms import coil_force, guide_friction, hardened_spring, rate_stiffened, tip_blunted
 
 (M1, M2, M3, K2, C2, K3, C3, PM, GAP, FP, FA, FREQ, VEPS, K1, C1, KL, KU, NL, NU,
  TAU, BETA, ALPHA, MU, GAMMA, KAPPA, FC) = range(26)
@@ -48,24 +50,6 @@ def pneumatic_force(p_bar: float, d_m: float) -> float:
 
 
 # ----------------------------------------------------------------------------- shared body
-V_ONE = 19.0
-"""|v| / v_eps from which ``_sgn`` returns ± 1 directly (its exp form is ± 1 from 18.72 on: the same values)."""
-
-
-@njit(cache=True, inline="always")
-def _sgn(v, veps):
-    """tanh(v / veps), the regularised sign of the Coulomb terms, as (1 − e) / (1 + e) with e = exp(−2 |v| / veps): one
-    exp instead of libm's tanh, which goes through the slower expm1.  It differs from tanh by at most a few units
-    of 1e-16 (absolute; the relative difference grows as |v| / veps → 0, where the friction does too), is odd, exactly
-    0 at v = 0 and exactly ± 1 from |v| / veps ≥ 18.72 (where e < 2^-54), as tanh is from about 19.  From V_ONE on
-    it is ± 1 without the exp, whose underflow far out (e below 1e-308 from |v| / veps ≈ 354) is libm's slow path."""
-    a = abs(v / veps)
-    if a >= V_ONE:
-        return math.copysign(1.0, v)
-    e = math.exp(-2.0 * a)
-    return math.copysign((1.0 - e) / (1.0 + e), v)
-
-
 @njit(cache=True, inline="always")
 def _body(t, y, p, fr, dy):
     """Equations of motion given the sample's reaction fr on m1.
@@ -101,41 +85,23 @@ def _body(t, y, p, fr, dy):
     dphi1 = v1 - v2
     phi2 = x2 - x3
     dphi2 = v2 - v3
-    if tau > 0.0:               # shaker_coil: the force is a state
-        fem = fem_y
-        dfem = (fa * math.sin(om * t) - beta * dphi1 - fem_y) / tau
-    else:
-        fem = fa * math.sin(om * t) - beta * dphi1
-        dfem = 0.0
-    spring = k2 * phi1 * (1.0 + kappa * phi1 * phi1)
-    guide = mu * _sgn(dphi1, veps) if mu != 0.0 else 0.0     # no tanh call while the effect is off
-    inner = c2 * dphi1 + spring + guide
+    fem, dfem = coil_force(fa * math.sin(om * t), beta, dphi1, tau, fem_y)
+    inner = c2 * dphi1 + hardened_spring(k2, phi1, kappa) + guide_friction(mu, dphi1, veps)
     dy[IX1] = v1
     dy[IV1] = (fem - inner - fr) / m1
     dy[IX2] = v2
     dy[IV2] = (-fem + inner - c3 * dphi2 - k3 * phi2) / m2
     dy[IX3] = v3
-    dy[IV3] = (fp + c3 * dphi2 + k3 * phi2 - pm * _sgn(v2, veps)) / m3
+    dy[IV3] = (fp + c3 * dphi2 + k3 * phi2 - pm * coulomb_sign(v2, veps)) / m3
     dy[IFEM] = dfem
     dy[IW] = fem * dphi1
-
-
-@njit(cache=True, inline="always")
-def _stiff_at(alpha, v1):
-    """rate_stiffening: k -> k (1 + α max(δ̇, 0)), from scalars."""
-    return 1.0 + alpha * max(v1, 0.0)
-
-
-@njit(cache=True, inline="always")
-def _stiff_factor(v1, p):
-    """``_stiff_at`` with α from the parameter vector."""
-    return _stiff_at(p[ALPHA], v1)
 
 
 # ----------------------------------------------------------------------------- metal sample
 @njit(cache=True, inline="always")
 def _metal_expr(y, p):
-    return p[K1] * _stiff_factor(y[IV1], p) * (y[IX1] - p[GAP]) + p[C1] * y[IV1]
+    """Kelvin–Voigt force expression of the metal sample [N] (unclamped), with rate stiffening."""
+    return kelvin_voigt(rate_stiffened(p[K1], p[ALPHA], y[IV1]), p[C1], y[IX1] - p[GAP], y[IV1])
 
 
 @njit(cache=True, inline="always")
@@ -164,7 +130,7 @@ def metal_on_event(t, y, z, ph, p, k):
 @njit(cache=True)
 def metal_observe(t, y, z, ph, p, obs, dy):
     fe = _metal_rhs_at(t, y, ph, p, dy)     # the force expression, computed once with the derivatives
-    obs[0] = max(fe, 0.0) if ph > 0 else 0.0
+    obs[0] = released_force(fe, ph)
     obs[1] = dy[IV1]
     obs[2] = y[IX1]
     obs[3] = 0.0
@@ -181,56 +147,40 @@ def metal_bounded(t, y, z, ph, p, b):
 
 # ----------------------------------------------------------------------------- sandstone sample
 @njit(cache=True, inline="always")
-def _blunt_at(gamma, xp):
-    """tip_blunting: kl, ku -> (1 + γ xp / 1 mm), from scalars; xp is the crater floor at the current impact's start."""
-    return 1.0 + gamma * xp / 1e-3
-
-
-@njit(cache=True, inline="always")
-def _blunt(z, p):
-    """``_blunt_at`` of the crater floor z[IXP] and γ from the parameter vector."""
-    return _blunt_at(p[GAMMA], z[IXP])
-
-
-@njit(cache=True, inline="always")
-def _power(x, n):
-    """x ** n without a pow call for the linear law n = 1 (the default; the same value, bit for bit)."""
-    return x if n == 1.0 else x ** n
-
-
-@njit(cache=True, inline="always")
-def _branch_force(k, blunt, stiff, depth, n):
-    """k (1 + γ xp/1 mm)(1 + α max(ẋ1, 0)) max(depth, 0)^n [N] of one sandstone branch, from scalars."""
-    return k * blunt * stiff * _power(max(depth, 0.0), n)
+def _branch_k(k, gamma, xp, alpha, v1):
+    """Branch stiffness k (1 + γ xp / 1 mm)(1 + α max(ẋ1, 0)): tip blunting (xp: the crater floor at the current
+    impact's start) and rate stiffening, from scalars."""
+    return rate_stiffened(tip_blunted(k, gamma, xp), alpha, v1)
 
 
 @njit(cache=True, inline="always")
 def _load_force(y, z, p):
     """Loading branch [N] of the state ``y`` (penetration below the crater floor xp)."""
-    return _branch_force(p[KL], _blunt(z, p), _stiff_factor(y[IV1], p), y[IX1] - p[GAP] - z[IXP], p[NL])
+    return branch_force(_branch_k(p[KL], p[GAMMA], z[IXP], p[ALPHA], y[IV1]), y[IX1] - p[GAP] - z[IXP], p[NL])
 
 
 @njit(cache=True, inline="always")
 def _sand_force(y, z, ph, p):
     """Sample reaction [N] on phase ph: loading (1), unloading (2) or none.
 
-    Written on local scalars read before the branches (``_branch_force``, ``_body``): an inlined helper that takes
-    arrays costs numba a reference-count increment and decrement per array where its branches split the code (8 %
-    of a sandstone run before; the expressions, and so every result bit, are those of ``_load_force`` and of its
-    unloading twin)."""
+    Written on local scalars read before the branches (``_body``): an inlined helper that takes arrays costs numba
+    a reference-count increment and decrement per array where its branches split the code (the expressions are those
+    of ``_load_force`` and of its unloading twin)."""
     d = y[IX1] - p[GAP]
-    blunt = _blunt_at(p[GAMMA], z[IXP])
-    stiff = _stiff_at(p[ALPHA], y[IV1])
-    dl = d - z[IXP]
+    xp = z[IXP]
+    v1 = y[IV1]
+    gamma = p[GAMMA]
+    alpha = p[ALPHA]
+    dl = d - xp
     du = d - z[IXF]
     kl = p[KL]
     ku = p[KU]
     nl = p[NL]
     nu = p[NU]
     if ph == 1:
-        return _branch_force(kl, blunt, stiff, dl, nl)
+        return branch_force(_branch_k(kl, gamma, xp, alpha, v1), dl, nl)
     if ph == 2:
-        return _branch_force(ku, blunt, stiff, du, nu)
+        return branch_force(_branch_k(ku, gamma, xp, alpha, v1), du, nu)
     return 0.0
 
 
@@ -238,10 +188,8 @@ def _sand_force(y, z, ph, p):
 def _xp_unloading_at(e, v1, xp, xf, kl, ku, nl, nu, gamma, alpha):
     """Crater floor [m] that keeps the loading branch through the current (depth, force) point, from scalars: e = x1 − G,
     v1 = ẋ1, the crater floor xp and unloading end point xf and the branches' parameters."""
-    blunt = _blunt_at(gamma, xp)
-    stiff = _stiff_at(alpha, v1)
-    f = _branch_force(ku, blunt, stiff, e - xf, nu)
-    return e - _power(f / (kl * blunt * stiff), 1.0 / nl)
+    f = branch_force(_branch_k(ku, gamma, xp, alpha, v1), e - xf, nu)
+    return e - branch_depth(f, _branch_k(kl, gamma, xp, alpha, v1), nl)
 
 
 @njit(cache=True, inline="always")
@@ -310,8 +258,8 @@ def sand_on_event(t, y, z, ph, p, k):
     if ph == 1:
         if k == 0:   # reversal: fix the end point of the unloading branch
             f = _load_force(y, z, p)
-            ku = p[KU] * _blunt(z, p) * _stiff_factor(y[IV1], p)
-            z[IXF] = y[IX1] - p[GAP] - _power(f / ku, 1.0 / p[NU])
+            ku = _branch_k(p[KU], p[GAMMA], z[IXP], p[ALPHA], y[IV1])
+            z[IXF] = y[IX1] - p[GAP] - branch_depth(f, ku, p[NU])
             return 2
         return 0
     if k == 0:       # fully unloaded: the crater floor has moved to xf

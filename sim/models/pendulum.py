@@ -29,7 +29,9 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
+from sim.models.contact import kelvin_voigt, released_force
 from sim.models.sensor import sensor_lowpass
+from sim.models.terms import rate_stiffened
 
 # parameter vector layout
 MASS, LEN, A0, KI, CI, ZETA, GAP, FREQ, GRAV, MCART, ALPHA = range(11)
@@ -48,7 +50,7 @@ GUARD_STATES = (ITH, IOM)     # the states the guards read (θ, θ̇): the only 
 @njit(cache=True, inline="always")
 def _force_at(ki, alpha, ci, d, dd):
     """Spring–dashpot force expression ki (1 + α max(δ̇,0)) δ + ci δ̇ [N] (unclamped), from scalars."""
-    return ki * (1.0 + alpha * max(dd, 0.0)) * d + ci * dd
+    return kelvin_voigt(rate_stiffened(ki, alpha, dd), ci, d, dd)
 
 
 @njit(cache=True, inline="always")
@@ -124,7 +126,7 @@ def observe(t, y, z, ph, p, obs, dy):
     s, c = math.sin(y[ITH]), math.cos(y[ITH])
     sin_wt = math.sin(om * t)
     fi = _rhs_at(y, ph, p, dy, s, c, sin_wt)      # rhs, with the sines and cosines computed here once
-    obs[0] = max(fi, 0.0) if ph > 0 else 0.0
+    obs[0] = released_force(fi, ph)
     obs[1] = p[LEN] * (dy[IOM] * c - y[IOM] * y[IOM] * s) - p[A0] * om * om * sin_wt
     obs[2] = p[LEN] * s + p[A0] * sin_wt
     obs[3] = 0.0

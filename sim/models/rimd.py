@@ -28,7 +28,9 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
+from sim.models.contact import hunt_crossley, hunt_crossley_damping
 from sim.models.sensor import sensor_lowpass
+from sim.models.terms import hardened_spring, rate_stiffened
 
 M1, K1, C1, M2, K2, C2, KI, LAM, NI, F0, GAP, FREQ, ALPHA, KAPPA = range(14)
 IX1, IV1, IX2, IV2, IW = range(5)
@@ -43,14 +45,13 @@ LS = 1e-3   # length scale [m] turning the dimensionless indicator 1 + λi ẋ2 
 @njit(cache=True, inline="always")
 def _hc_factor(y, p):
     """Hunt–Crossley damping factor 1 + λi ẋ2 [-] (second contact indicator)."""
-    return 1.0 + p[LAM] * y[IV2]
+    return hunt_crossley_damping(p[LAM], y[IV2])
 
 
 @njit(cache=True, inline="always")
 def _force_at(ki, alpha, ni, lam, gap, x2, v2):
-    """ki (1 + α max(ẋ2,0)) max(δ,0)^ni (1 + λi ẋ2) [N] (not clamped in the damping factor), from scalars."""
-    d = max(x2 - gap, 0.0)
-    return ki * (1.0 + alpha * max(v2, 0.0)) * d ** ni * (1.0 + lam * v2)
+    """Hunt–Crossley force expression [N] with rate stiffening, from scalars (``sim.models.contact.hunt_crossley``)."""
+    return hunt_crossley(rate_stiffened(ki, alpha, v2), ni, lam, x2 - gap, v2)
 
 
 @njit(cache=True, inline="always")
@@ -66,7 +67,7 @@ def _rhs_at(t, y, ph, p, dy):
     fi = _force_at(ki, alpha, ni, lam, gap, x2, v2) if ph > 0 else 0.0
     phi = x2 - x1
     dphi = v2 - v1
-    inner = c2 * dphi + k2 * phi * (1.0 + kappa * phi * phi)
+    inner = c2 * dphi + hardened_spring(k2, phi, kappa)
     f = f0 * math.sin(om * t)
     dy[IX1] = v1
     dy[IV1] = (f - c1 * v1 - k1 * x1 + inner) / m1

@@ -1,0 +1,83 @@
+"""Contact laws of the models (MODELS.md §1-4): inlineable scalar functions, composed by the models' right-hand sides.
+
+Each takes and returns floats only (no arrays: an inlined helper that takes an array and branches costs numba a
+reference-count pair per array).  A stiffness passed in is the effective one, with the §6 terms already applied
+(``sim.models.terms``).  A contact that ends when its force expression falls to zero (two-indicator release,
+MODELS.md §1a) locates its switches with ``sim.integrator.two_indicator_guard`` / ``two_indicator_phase``.
+"""
+from __future__ import annotations
+
+import math
+
+from sim.jit import njit  # numba is imported on first use (sim/jit.py)
+
+V_ONE = 19.0
+"""|v| / v_eps from which ``coulomb_sign`` returns ± 1 directly (its exp form is ± 1 from 18.72 on: the same values)."""
+
+
+@njit(cache=True, inline="always")
+def kelvin_voigt(k, c, d, dd):
+    """Spring-dashpot force expression k δ + c δ̇ [N] (unclamped: its sign is the release indicator); k [N/m],
+    c [N s/m], penetration δ [m] and its rate δ̇ [m/s]."""
+    return k * d + c * dd
+
+
+@njit(cache=True, inline="always")
+def released_force(expr, ph):
+    """Force [N] of a two-indicator contact in phase ph: the expression clamped at 0 in contact (ph > 0), else 0."""
+    return max(expr, 0.0) if ph > 0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def hunt_crossley_damping(lam, dd):
+    """Hunt-Crossley damping factor 1 + λ δ̇ [-] (λ [s/m]); its sign is the contact's second indicator."""
+    return 1.0 + lam * dd
+
+
+@njit(cache=True, inline="always")
+def hunt_crossley(k, n, lam, d, dd):
+    """Hunt-Crossley force expression k max(δ, 0)^n (1 + λ δ̇) [N] (k [N/m^n]; not clamped in the damping factor)."""
+    return k * max(d, 0.0) ** n * hunt_crossley_damping(lam, dd)
+
+
+@njit(cache=True, inline="always")
+def power(x, n):
+    """x ** n without a pow call for the linear law n = 1 (the same value, bit for bit)."""
+    return x if n == 1.0 else x ** n
+
+
+@njit(cache=True, inline="always")
+def branch_force(k, depth, n):
+    """Force k max(depth, 0)^n [N] of a power-law loading or unloading branch (sandstone, MODELS.md §1b)."""
+    return k * power(max(depth, 0.0), n)
+
+
+@njit(cache=True, inline="always")
+def branch_depth(f, k, n):
+    """Depth (f / k)^(1/n) [m] at which the branch k depth^n carries the force f [N] (its inverse)."""
+    return power(f / k, 1.0 / n)
+
+
+@njit(cache=True, inline="always")
+def rock_slider(ph, pc_expr, pr, k1, c1, v1, xt, xb):
+    """Drill rock (MODELS.md §2): bit force Pc [N] and the rates of the surface xt and slider base xb [m/s] in phase
+    ph (0 no contact: the surface relaxes to xb; 1 contact: Pc = pc_expr; 2 progression: Pc = Pr, the slider moves at
+    (pc_expr − Pr)/C1).  pc_expr: the phase-II force expression [N]; pr: the threshold Pr [N]."""
+    if ph == 0:
+        return 0.0, -(k1 / c1) * (xt - xb), 0.0
+    if ph == 1:
+        return pc_expr, v1, 0.0
+    return pr, v1, (pc_expr - pr) / c1
+
+
+@njit(cache=True, inline="always")
+def coulomb_sign(v, veps):
+    """tanh(v / veps), the regularised sign of a Coulomb friction (MODELS.md §1), as (1 − e) / (1 + e) with
+    e = exp(−2 |v| / veps): one exp instead of libm's tanh (which goes through the slower expm1).  Within a few 1e-16
+    of tanh (absolute), odd, exactly 0 at v = 0 and exactly ± 1 from |v| / veps ≥ 18.72; from V_ONE on ± 1 without the
+    exp, whose underflow far out is libm's slow path."""
+    a = abs(v / veps)
+    if a >= V_ONE:
+        return math.copysign(1.0, v)
+    e = math.exp(-2.0 * a)
+    return math.copysign((1.0 - e) / (1.0 + e), v)
