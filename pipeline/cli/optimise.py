@@ -46,6 +46,7 @@ examples:
 from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_workers, load_rig,  # noqa: E402
                                parse_assignments, parse_ranges)
 from pipeline.core.errors import UserError  # noqa: E402
+from pipeline.optimise import samplers  # noqa: E402
 
 
 def add_parser(sub) -> None:
@@ -142,7 +143,7 @@ OPTIMISE_BOUNDS = {"n_trials": (True, 1, A.MAX_TRIALS), "batch_size": (True, 1, 
 
 def config_from_args(args):
     """OptimiseConfig from params.yaml's ``optimise`` section overridden by the flags."""
-    from pipeline.optimise.workflow import OptimiseConfig
+    from pipeline.optimise.config import OptimiseConfig
 
     from pipeline.core.params import read_section
 
@@ -236,9 +237,92 @@ def surrogate_chain(surrogate) -> str | None:
     return chain if chain in ("lab", "corrected") else None
 
 
+# ------------------------------------------------------------------ strategies: the one place names become objects
+def _surrogate_study(cfg, sampler, bundle=None):
+    """A study on the surrogate bundle ``bundle``, else the one at ``cfg.surrogate`` (folder or MLflow run id)."""
+    from pipeline.optimise.strategies import surrogate_strategies
+    from pipeline.tracking import load_bundle
+
+    return surrogate_strategies(cfg, load_bundle(str(cfg.surrogate)) if bundle is None else bundle, sampler)
+
+
+def _simulator_study(cfg, sampler, bundle=None):
+    """A study straight on the simulator (no bundle)."""
+    from pipeline.optimise.strategies import simulator_strategies
+
+    return simulator_strategies(cfg, sampler)
+
+
+MODES = {"surrogate": _surrogate_study, "simulator": _simulator_study}
+"""--surrogate / --simulator (config 'mode') -> builder of the study's problem, evaluator, executor and simulator."""
+
+SAMPLERS = {"tpe": samplers.tpe_sampler, "gp": samplers.gp_sampler, "nsga2": samplers.nsga2_sampler,
+            "random": samplers.random_sampler}
+"""--sampler (config 'sampler') -> sampler factory (pipeline/optimise/samplers.py)."""
+
+
+def build_strategies(cfg, bundle=None):
+    """The strategies of ``cfg`` (pipeline.optimise.strategies.Strategies); ``bundle`` replaces loading cfg.surrogate."""
+    return MODES[cfg.mode](cfg, SAMPLERS[cfg.sampler], bundle)
+
+
+def feedback_file(cfg, out: Path) -> str | None:
+    """Where verified points go: ``cfg.feedback``; a surrogate study without one: beside the bundle, else in ``out``."""
+    if cfg.feedback is not None or cfg.mode != "surrogate":
+        return cfg.feedback
+    sur = Path(str(cfg.surrogate))
+    return str(sur / "feedback.parquet") if sur.is_dir() else str(out / "feedback.parquet")
+
+
+def optimise_into(cfg, out_dir, bundle=None, metrics_path: str | None = None, progress: bool = True,
+                  mlflow_enabled: bool = True) -> dict:
+    """Run the study of ``cfg`` in an MLflow run, append the verified points to the feedback file and write the
+    report, tables and figures under ``out_dir``; returns the report.json dict.
+
+    UserError after writing the report when nothing is recommended (the report says what was tried)."""
+    from pipeline import tracking
+    from pipeline.core.files import atomic_write_text
+    from pipeline.core.jsonable import dump_json
+    from pipeline.optimise import outputs
+    from pipeline.optimise.verify import append_feedback
+    from pipeline.optimise.workflow import plan_optimise, run_optimise
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    plan = plan_optimise(cfg, build_strategies(cfg, bundle))
+    with tracking.run("optimise", outputs.run_params(plan), enabled=mlflow_enabled) as mlflow:
+        res = run_optimise(plan, progress=progress)
+        fb, rows = feedback_file(cfg, out), None
+        if fb and res.simulated is not None:
+            rows = append_feedback(res.simulated, fb, source=f"optimise-{cfg.mode}", study=res.study_name,
+                                   wrong=res.verified["surrogate_wrong"].tolist(), inputs=res.problem.space.names)
+        tables = outputs.write_tables(res, out)
+        figs = outputs.write_figures(res, out)
+        rep = outputs.report_dict(res, figs, rows, fb)
+        reports = outputs.write_report(rep, res, out)
+        if metrics_path:
+            atomic_write_text(Path(metrics_path), dump_json(rep["metrics"]))
+        if mlflow is not None:
+            _log_run(mlflow, rep, [*figs, *map(str, reports), *(str(f) for f in tables if f.name == "verified.csv")])
+    if rep["recommendation"] is None:
+        raise UserError(f"{rep['outcome']}; report: {out / 'report.md'}")
+    return rep
+
+
+def _log_run(mlflow, rep: dict, files: list[str]) -> None:
+    """The finite metrics, the recommended controls as params, and the files as artifacts."""
+    import math
+
+    mlflow.log_metrics({k: float(v) for k, v in rep["metrics"].items()
+                        if isinstance(v, (int, float)) and v is not None and math.isfinite(float(v))})
+    if rep["recommendation"]:
+        mlflow.log_params({f"best_{n}": v for n, v in rep["recommendation"]["params"].items()})
+    for f in files:
+        mlflow.log_artifact(f)
+
+
 def run(args) -> int:
     from pipeline import tracking
-    from pipeline.optimise.workflow import run_optimise
 
     from pipeline.core.outdir import prepare_out
 
@@ -260,8 +344,8 @@ def run(args) -> int:
               args.metrics, args.feedback, db]
     with tracking.variant(cfg.objective), tracking.chain(chain), \
             prepare_out(args.out, inputs=inputs, overwrite=args.overwrite, marker="optimise") as tmp:
-        rep = run_optimise(cfg, tmp, metrics_path=args.metrics, progress=not args.quiet,
-                           mlflow_enabled=not args.no_mlflow)
+        rep = optimise_into(cfg, tmp, metrics_path=args.metrics, progress=not args.quiet,
+                            mlflow_enabled=not args.no_mlflow)
     if args.metrics:
         record_out_file(args.metrics, command="optimise", kind="json")
     print(rep["outcome"])

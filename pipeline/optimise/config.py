@@ -1,0 +1,106 @@
+"""``OptimiseConfig``: the ``optimise`` section of params.yaml (CLI flags override it), checked when built."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+from pipeline.core.errors import UserError
+from pipeline.optimise.constraints import Constraints
+from pipeline.optimise.study import DEFAULT_PARETO, OBJECTIVES, SAMPLERS, parse_objectives
+from sim.registry import DEFAULT_MODEL
+
+MODES = ("surrogate", "simulator")
+DEFAULT_TRIALS = {"surrogate": 600, "simulator": 200}
+"""Complete trials of a study when ``n_trials`` is not given (on the simulator: simulator calls)."""
+
+
+@dataclass
+class OptimiseConfig:
+    """Keys of the ``optimise`` section of params.yaml (CLI flags override them); validated when built.
+
+    mode: 'surrogate' (study on the bundle at ``surrogate``, then verification) or 'simulator'
+    (study directly on the simulator).  objective: 'rop' (maximise ROP) or 'pareto' (the front of
+    ``objectives``, default ROP against the mean power: ``["rop_m_s", "power_w"]``; any labels, each with
+    an optional ``max:``/``min:`` prefix, ROP maximised and the rest minimised by default).  max_power_w [W],
+    max_decel_g [g]: the exciter's power rating and the bit's deceleration limit (None = unconstrained).
+    ranges: {name: [low, high]} — default: the surrogate's training ranges / the model's published space
+    (ModelSpec.search_spaces).  n_trials: total complete trials of the study (a resumed study runs only the
+    rest; default 600 on the surrogate, 200 on the simulator = simulator calls).  n_verify: points
+    re-simulated (distinct best / spread along the front).  rel_tol: relative ROP error above which the
+    surrogate is called wrong.
+    """
+
+    mode: str = "surrogate"
+    surrogate: str | None = "models/surrogate"
+    model: str = DEFAULT_MODEL
+    preset: str | None = "lab"
+    objective: str = "rop"
+    ranges: dict = field(default_factory=dict)
+    fixed: dict = field(default_factory=dict)
+    sampler: str = "tpe"
+    n_trials: int | None = None
+    batch_size: int = 8
+    seed: int = 0
+    max_peak_force_n: float | None = None
+    peak_force_static_ratio: float | None = None
+    max_specific_energy_j_m: float | None = None
+    max_power_w: float | None = None
+    max_decel_g: float | None = None
+    objectives: list[str] | None = None
+    allow_not_settled: bool = False
+    n_verify: int = 10
+    rel_tol: float = 0.10
+    storage: str | None = None
+    study_name: str | None = None
+    feedback: str | None = None
+    n_threads: int | None = None
+    settings: dict | None = None
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    @classmethod
+    def from_mapping(cls, d: dict | None) -> "OptimiseConfig":
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(d or {}) - known)
+        if unknown:
+            raise UserError(f"params.yaml optimise: unknown key(s) {unknown}; known: {', '.join(sorted(known))}")
+        return cls(**(d or {}))
+
+    def validate(self) -> "OptimiseConfig":
+        """UserError naming the first bad key; returns self."""
+        if self.mode not in MODES:
+            raise UserError(f"mode must be one of {MODES}, got '{self.mode}'")
+        if self.objective not in OBJECTIVES:
+            raise UserError(f"objective must be one of {OBJECTIVES}, got '{self.objective}'")
+        if self.sampler not in SAMPLERS:
+            raise UserError(f"sampler must be one of {SAMPLERS}, got '{self.sampler}'")
+        for name in ("batch_size", "n_verify"):
+            if int(getattr(self, name)) < 1:
+                raise UserError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.n_trials is not None and int(self.n_trials) < 1:
+            raise UserError(f"n_trials must be >= 1, got {self.n_trials}")
+        if not (self.rel_tol > 0):
+            raise UserError(f"rel_tol must be > 0, got {self.rel_tol}")
+        self.objective_list()
+        if self.mode == "surrogate" and not self.surrogate:
+            raise UserError("mode 'surrogate' needs a surrogate bundle (--surrogate DIR or MLflow run id)")
+        return self
+
+    @property
+    def total_trials(self) -> int:
+        """Complete trials the study ends with: ``n_trials``, else the mode's default."""
+        return int(self.n_trials or DEFAULT_TRIALS[self.mode])
+
+    def objective_list(self) -> list[tuple[str, str]]:
+        """[(label, 'maximize'|'minimize')] of the study: ROP alone, or the Pareto objectives."""
+        from sim import LABELS
+
+        if self.objective == "rop":
+            return [("rop_m_s", "maximize")]
+        return parse_objectives(self.objectives or list(DEFAULT_PARETO), LABELS)
+
+    def constraints(self) -> Constraints:
+        return Constraints(max_peak_force_n=self.max_peak_force_n, peak_force_static_ratio=self.peak_force_static_ratio,
+                           max_specific_energy_j_m=self.max_specific_energy_j_m, max_power_w=self.max_power_w,
+                           max_decel_g=self.max_decel_g,
+                           require_settled=not self.allow_not_settled, require_progress=self.objective == "pareto")

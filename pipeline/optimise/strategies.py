@@ -1,0 +1,132 @@
+"""The objects a study runs with: the problem, the sampler, the evaluator it asks, the executor, the simulator.
+
+The command builds them from the config's names (``pipeline/cli/optimise.py``: ``MODES`` and ``SAMPLERS``) with
+:func:`surrogate_strategies` or :func:`simulator_strategies` and hands them to ``workflow.plan_optimise``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Protocol
+
+import pandas as pd
+
+import sim
+from pipeline.core.errors import UserError
+from pipeline.optimise.config import OptimiseConfig
+from pipeline.optimise.constraints import UPPER_LIMITS, Constraints
+from pipeline.optimise.evaluators import SimulatorEvaluator, SurrogateEvaluator
+from pipeline.optimise.samplers import SamplerFactory
+from pipeline.optimise.space import Space, default_space, space_from_mapping
+from pipeline.optimise.study import run_study, run_study_buffered
+
+Evaluator = Callable[[pd.DataFrame], pd.DataFrame]
+"""Inputs (one row per point) -> label rows in the same order (pipeline/optimise/evaluators.py)."""
+
+
+class Executor(Protocol):
+    """Runs the ask/evaluate/tell loop until the study holds ``n_trials``; returns (study, trials run now)."""
+
+    def __call__(self, study, sampler, evaluate: Evaluator, space: Space, constraints: Constraints,
+                 objectives: list[tuple[str, str]], n_trials: int, batch_size: int, *, progress: bool, desc: str,
+                 sampler_factory: Callable[[int], object], guard) -> tuple[object, int]: ...
+
+
+def run_direct(study, sampler, evaluate: Evaluator, space: Space, constraints: Constraints,
+               objectives: list[tuple[str, str]], n_trials: int, batch_size: int, *, progress: bool = True,
+               desc: str = "study", sampler_factory: Callable[[int], object] | None = None,
+               guard=None) -> tuple[object, int]:
+    """Executor for costly evaluators (the simulator): every trial goes straight to the storage."""
+    ran = run_study(study, evaluate, space, constraints, objectives, n_trials, batch_size, progress=progress,
+                    desc=desc, sampler_factory=sampler_factory, guard=guard)
+    return study, ran
+
+
+def run_buffered(study, sampler, evaluate: Evaluator, space: Space, constraints: Constraints,
+                 objectives: list[tuple[str, str]], n_trials: int, batch_size: int, *, progress: bool = True,
+                 desc: str = "study", sampler_factory: Callable[[int], object] | None = None,
+                 guard=None) -> tuple[object, int]:
+    """Executor for cheap evaluators (the surrogate): trials run in memory, stored every 100."""
+    return run_study_buffered(study, sampler, evaluate, space, constraints, objectives, n_trials, batch_size,
+                              progress=progress, desc=desc, sampler_factory=sampler_factory, guard=guard)
+
+
+@dataclass(frozen=True)
+class Problem:
+    """What a study searches: the model and preset, the fixed values [SI], the search space, simulator settings."""
+    model: str
+    preset: str | None
+    fixed: dict
+    space: Space
+    settings: dict | None
+
+
+@dataclass(frozen=True)
+class Strategies:
+    """The problem and the objects that solve it, injected into ``workflow.plan_optimise``.
+
+    ``evaluator`` labels the study's trials; ``simulator`` re-simulates the candidates (and counts simulator
+    calls).  When they are the same object the study's trials already hold the simulator's labels."""
+    problem: Problem
+    sampler: SamplerFactory
+    evaluator: Evaluator
+    executor: Executor
+    simulator: SimulatorEvaluator
+    fingerprint: str | None = None      # the surrogate's dataset fingerprint, part of the study's signature
+
+
+def _check_problem(problem: Problem) -> None:
+    """UserError for a space that names unknown parameters, or a parameter both fixed and searched."""
+    problem.space.validate(sim.get_model(problem.model).param_names)
+    clash = sorted(set(problem.fixed) & set(problem.space.ranges))
+    if clash:
+        raise UserError(f"parameter(s) {clash} are both fixed and searched; drop one")
+
+
+def _check_surrogate_labels(evaluate: Evaluator, space: Space, objectives: list[str], cons: Constraints,
+                            ref) -> None:
+    """UserError naming the label when the surrogate predicts no value for an objective or a constrained label."""
+    needed = list(objectives) + [label for key, (label, attr) in UPPER_LIMITS.items() if getattr(cons, attr) is not None]
+    centre = pd.DataFrame([{n: 0.5 * (lo + hi) for n, (lo, hi) in space.ranges.items()}])
+    have = set(evaluate(centre).columns)
+    missing = [n for n in dict.fromkeys(needed) if n not in have]
+    if missing:
+        raise UserError(f"the surrogate {ref} predicts no {', '.join(missing)}: retrain it (vibro train) with "
+                        f"{', '.join(missing)} among train.targets, or optimise with --simulator")
+
+
+def surrogate_strategies(cfg: OptimiseConfig, bundle, sampler: SamplerFactory) -> Strategies:
+    """A study on ``bundle`` (its model, preset, fixed values and training ranges, narrowed by ``cfg``), verified by
+    the simulator under the bundle's conditions."""
+    fixed = {**bundle.fixed, **cfg.fixed}     # the sweep's conditions, overridden by the user's
+    full = Space({n: (float(bundle.ranges[n][0]), float(bundle.ranges[n][1])) for n in bundle.inputs})
+    space = space_from_mapping(cfg.ranges) if cfg.ranges else full
+    if cfg.ranges:
+        for n in bundle.inputs:     # inputs the user did not restrict keep the surrogate's range
+            if n not in space.ranges:
+                space.ranges[n] = full.ranges[n]
+        outside = full.contains(space)
+        if outside:
+            raise UserError(f"range(s) {outside} leave the surrogate's training ranges "
+                            f"{ {n: full.ranges[n] for n in outside if n in full.ranges} }: "
+                            f"the surrogate cannot be trusted there (sweep and train on a wider space)")
+    settings = cfg.settings if cfg.settings is not None else (bundle.settings or None)
+    problem = Problem(bundle.model, bundle.preset, fixed, space, settings)
+    _check_problem(problem)
+    simulator = SimulatorEvaluator(problem.model, problem.preset, fixed, settings=settings, n_threads=cfg.n_threads)
+    evaluator = SurrogateEvaluator(bundle, fixed)
+    _check_surrogate_labels(evaluator, space, [n for n, _ in cfg.objective_list()], cfg.constraints(), cfg.surrogate)
+    return Strategies(problem, sampler, evaluator, run_buffered, simulator, getattr(bundle, "fingerprint", None))
+
+
+def simulator_strategies(cfg: OptimiseConfig, sampler: SamplerFactory) -> Strategies:
+    """A study straight on the simulator: ``cfg``'s model, preset, fixed values and ranges (else the published
+    space of the model's preset)."""
+    space = space_from_mapping(cfg.ranges) if cfg.ranges else default_space(cfg.model, cfg.preset)
+    if space is None:
+        raise UserError(f"no search space: give ranges (--range NAME=LOW:HIGH) — model '{cfg.model}' preset "
+                        f"'{cfg.preset}' publishes no default space")
+    problem = Problem(cfg.model, cfg.preset, dict(cfg.fixed), space, cfg.settings)
+    _check_problem(problem)
+    simulator = SimulatorEvaluator(problem.model, problem.preset, problem.fixed, settings=cfg.settings,
+                                   n_threads=cfg.n_threads)
+    return Strategies(problem, sampler, simulator, run_direct, simulator)

@@ -1,0 +1,99 @@
+"""The optimise driver is thin: config and strategies in, a frozen ``OptimiseResult`` out, no file written; the command
+(``pipeline/cli/optimise.py``) writes report.json with the keys it always had."""
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pytest
+
+from pipeline.cli import optimise as command
+from pipeline.core.errors import UserError
+from pipeline.optimise.config import MODES, OptimiseConfig
+from pipeline.optimise.study import SAMPLERS
+from pipeline.optimise.workflow import OptimiseResult, plan_optimise, run_optimise
+
+from .test_optimise import SMALL, ToyBundle
+
+REPORT_KEYS = ["study_name", "inputs", "created", "tried", "recommendation", "feedback_rows", "feedback_file",
+               "surrogate_note", "outcome", "pareto_verified", "objectives", "figures", "metrics"]
+TRIED_KEYS = ["mode", "objective", "objectives", "sampler", "seed", "model", "preset", "fixed", "space", "constraints",
+              "n_trials", "n_trials_run_now", "n_feasible", "status_counts", "storage", "simulator_calls_study",
+              "n_verified", "simulator_calls"]
+METRIC_KEYS = ["feasible", "n_trials", "n_feasible_trials", "simulator_calls", "n_verified", "n_surrogate_wrong",
+               "n_pareto_verified", "best_rop_m_s", "best_rop_m_s_predicted", "best_rop_rel_error", "best_power_w",
+               "best_peak_decel_g", "best_n_on_bounds", "best_frequency_hz", "best_amplitude_n", "best_static_force_n"]
+REC_KEYS = ["params", "rop_m_s_sim", "rop_m_s_pred", "rop_m_s_lo", "rop_m_s_hi", "peak_force_n_sim",
+            "specific_energy_j_m_sim", "impacts_per_cycle_sim", "power_w_sim", "power_w_pred", "peak_decel_g_sim",
+            "peak_decel_g_pred", "rop_rel_error", "status_sim", "surrogate_wrong", "on_bounds", "binding"]
+
+
+@pytest.fixture()
+def dirs(tmp_path, monkeypatch):
+    """An empty current folder, a project root and a folder for the optuna storage, apart."""
+    cwd, home, db = tmp_path / "cwd", tmp_path / "home", tmp_path / "db"
+    for d in (cwd, home, db):
+        d.mkdir()
+    monkeypatch.chdir(cwd)
+    monkeypatch.setenv("VIBRO_HOME", str(home))
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", f"sqlite:///{tmp_path / 'mlflow.db'}")
+    return tmp_path
+
+
+def test_lookup_tables_cover_every_name_the_config_accepts():
+    assert set(command.SAMPLERS) == set(SAMPLERS) and set(command.MODES) == set(MODES)
+
+
+def test_config_validates_itself():
+    with pytest.raises(UserError, match="mode must be one of"):
+        OptimiseConfig(mode="annealing")
+    with pytest.raises(UserError, match="sampler must be one of"):
+        OptimiseConfig(sampler="cmaes")
+    with pytest.raises(UserError, match="at least two"):
+        OptimiseConfig(objective="pareto", objectives=["rop_m_s"])
+
+
+@pytest.mark.parametrize("mode", ["simulator", "surrogate"])
+def test_run_optimise_returns_a_frozen_result_and_writes_nothing(dirs, mode):
+    fb = dirs / "cwd" / "feedback.parquet"
+    cfg = OptimiseConfig(mode=mode, surrogate=str(dirs / "home"), preset="lab", ranges=SMALL, n_trials=8, n_verify=2,
+                         batch_size=4, storage=f"sqlite:///{dirs / 'db' / 'optuna.db'}", study_name=f"t-{mode}",
+                         feedback=str(fb))
+    plan = plan_optimise(cfg, command.build_strategies(cfg, ToyBundle() if mode == "surrogate" else None))
+    res = run_optimise(plan, progress=False)
+    assert isinstance(res, OptimiseResult)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.outcome = "changed"
+    assert res.recommendation is not None and res.outcome.startswith("recommended point verified")
+    assert len(res.trials) == 8 and res.n_verified == 2 and len(res.verified) == 2
+    assert res.simulator_calls == res.simulator_calls_study + 2 == (8 if mode == "simulator" else 0) + 2
+    assert res.metrics()["best_rop_m_s"] == res.recommendation["rop_m_s_sim"]
+    # nothing written but the study's storage: no report, figure, feedback file or MLflow store
+    assert list((dirs / "cwd").iterdir()) == [] and list((dirs / "home").iterdir()) == []
+    assert not (dirs / "mlflow.db").exists()
+    assert {p.name for p in (dirs / "db").iterdir()} <= {"optuna.db", "optuna.db.lock", "optuna.db.workers",
+                                                        "optuna.db-wal", "optuna.db-shm"}
+
+
+def test_command_writes_the_report_keys_it_always_wrote(dirs):
+    fb = dirs / "fb.parquet"
+    cfg = OptimiseConfig(mode="surrogate", surrogate=str(dirs / "home"), objective="pareto", ranges=SMALL,
+                         n_trials=40, n_verify=4, storage=f"sqlite:///{dirs / 'db' / 'optuna.db'}", feedback=str(fb))
+    rep = command.optimise_into(cfg, dirs / "out", bundle=ToyBundle(), progress=False, mlflow_enabled=False)
+    on_disk = json.loads((dirs / "out" / "report.json").read_text())
+    assert list(on_disk) == REPORT_KEYS and list(rep) == REPORT_KEYS
+    assert list(on_disk["tried"]) == TRIED_KEYS and list(on_disk["metrics"]) == METRIC_KEYS
+    assert list(on_disk["recommendation"]) == REC_KEYS
+    assert on_disk["feedback_file"] == str(fb) and on_disk["feedback_rows"] == 4 and fb.exists()
+    assert on_disk["objectives"] == ["rop_m_s", "power_w"] and on_disk["pareto_verified"]
+    assert {p.name for p in (dirs / "out").iterdir()} == {"report.json", "report.md", "verified.csv", "trials.csv",
+                                                          "history.png", "importances.png", "verification.png",
+                                                          "pareto.png"}
+    # a ROP study on the simulator: no feedback, no surrogate note, no front
+    cfg = OptimiseConfig(mode="simulator", preset="lab", ranges=SMALL, n_trials=4, n_verify=1, batch_size=4,
+                         storage=f"sqlite:///{dirs / 'db' / 'optuna.db'}")
+    rep = command.optimise_into(cfg, dirs / "sim", progress=False, mlflow_enabled=False)
+    want = [k for k in REPORT_KEYS if k not in ("feedback_rows", "feedback_file", "surrogate_note", "pareto_verified",
+                                                "objectives")]
+    assert list(json.loads((dirs / "sim" / "report.json").read_text())) == want == list(rep)
+    assert list(rep["metrics"]) == [k for k in METRIC_KEYS if k != "n_pareto_verified"]
