@@ -66,25 +66,6 @@ def default_storage() -> str:
     return f"sqlite:///{project_root() / 'optuna.db'}"
 
 
-def make_sampler(name: str, seed: int, n_objectives: int, n_startup: int = 20):
-    import optuna
-
-    if name == "tpe":
-        return optuna.samplers.TPESampler(seed=seed, multivariate=True, constant_liar=True,
-                                          n_startup_trials=n_startup)
-    if name == "random":
-        return optuna.samplers.RandomSampler(seed=seed)
-    if name == "nsga2":
-        return optuna.samplers.NSGAIISampler(seed=seed)
-    if name == "gp":
-        try:
-            import torch  # noqa: F401
-        except ImportError:
-            raise UserError("sampler 'gp' needs PyTorch (pip install torch); use --sampler tpe") from None
-        return optuna.samplers.GPSampler(seed=seed, n_startup_trials=n_startup)
-    raise UserError(f"unknown sampler '{name}' (choose from {', '.join(SAMPLERS)})")
-
-
 def open_storage(url: str | None):
     """Optuna storage for ``url`` (default: :func:`default_storage`).  A SQLite file is opened in WAL
     mode with synchronous=NORMAL: the same file and semantics, several times fewer fsyncs per trial."""

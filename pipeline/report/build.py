@@ -300,33 +300,33 @@ def section_train(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
     _stage_figures(doc, figs, path, "train")
 
 
+OPTIMISE_REPORT = "report.json"
+"""What ``vibro optimise`` writes in each study folder (pipeline/optimise/outputs.py, keys ``REPORT_KEYS``)."""
+
+
+def _optimise_reports(folder: Path) -> list[Path]:
+    """The optimise report.json files under ``folder``: the ROP study's (``rop/``) first, then the rest."""
+    first = [folder / "rop" / OPTIMISE_REPORT, folder / OPTIMISE_REPORT]
+    return [p for p in dict.fromkeys(first + sorted(folder.rglob(OPTIMISE_REPORT))) if p.exists()]
+
+
 def _pareto_frame(folder: Path) -> pd.DataFrame | None:
-    """The verified Pareto front (``pareto_verified`` of an optimise report.json), else a pareto*.csv."""
-    for p in sorted(folder.rglob("*.json")):
-        data = _read_json(p)
-        front = _find_key(data, ("pareto_verified", "pareto", "pareto_front", "front"))
+    """The verified Pareto front: ``pareto_verified`` of the first optimise report.json that has one."""
+    for p in sorted(folder.rglob(OPTIMISE_REPORT)):
+        front = (_read_json(p) or {}).get("pareto_verified")
         if isinstance(front, list) and front and isinstance(front[0], dict):
             df = pd.json_normalize(front)
             return df.rename(columns=lambda c: c.replace("params.", ""))
-    for pattern in ("pareto*.csv", "pareto*.parquet"):
-        for p in sorted(folder.rglob(pattern)):
-            return pd.read_csv(p) if p.suffix == ".csv" else pd.read_parquet(p)
     return None
 
 
 def _recommendation(folder: Path) -> tuple[Path, dict] | None:
-    """(file, recommendation) from the ROP study's report.json (``rop/`` first), else any report."""
-    files = [folder / "rop" / "report.json", folder / "report.json"] + sorted(folder.rglob("*.json"))
-    for p in files:
-        if not p.exists():
-            continue
-        rec = _find_key(_read_json(p) or {}, ("recommendation", "recommended", "best"))
+    """(file, ``recommendation``) of the ROP study's report.json (``rop/`` first), else of any optimise report."""
+    for p in _optimise_reports(folder):
+        rec = (_read_json(p) or {}).get("recommendation")
         if isinstance(rec, dict):
             return p, rec
     return None
-
-
-VERIFIED_KEYS = ("rop_m_s_sim", "verified_rop_m_s", "rop_m_s_verified")
 
 
 def _base_name(key: str) -> str:
@@ -357,7 +357,7 @@ def section_optimise(doc: Document, figs: _Figs, inp: ReportInputs, summary: dic
     found = _recommendation(path)
     if found:
         p, rec = found
-        verified = _find_key(rec, VERIFIED_KEYS)
+        verified = rec.get("rop_m_s_sim")
         summary["optimise"] = {"recommended": rec, "verified_rop_m_s": verified}
         v = _num(verified)
         where = p.relative_to(inp.root) if p.is_relative_to(inp.root) else p

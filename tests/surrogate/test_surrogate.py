@@ -282,7 +282,9 @@ def test_adaptive_sampling_runs_and_reports_savings(tmp_path):
 def test_bundle_carries_the_sweeps_fixed_parameters_and_settings(tmp_path):
     """The sweep's fixed parameters and simulator settings travel with the bundle (saved, loaded, in
     bundle.json) and optimisation re-simulates under them (issue 11: before, they were always empty)."""
-    from pipeline.optimise.workflow import OptimiseConfig, _setup
+    from pipeline.optimise.config import OptimiseConfig
+    from pipeline.optimise.samplers import tpe_sampler
+    from pipeline.optimise.strategies import surrogate_strategies
 
     fixed, settings = {"Pr": 3000.0}, {"window": 8}
     b = train_bundle(synthetic(), list(RANGES), RANGES, "drill", None, FAST, fixed=fixed, settings=settings)
@@ -290,8 +292,8 @@ def test_bundle_carries_the_sweeps_fixed_parameters_and_settings(tmp_path):
     assert json.loads((tmp_path / "b" / "bundle.json").read_text())["fixed"] == fixed
     b2 = load_bundle(tmp_path / "b")
     assert b2.fixed == fixed and b2.settings == settings
-    _, _, used_fixed, _, simulator, _ = _setup(OptimiseConfig(mode="surrogate", surrogate=str(tmp_path / "b")), b2)
-    assert used_fixed == fixed and simulator.fixed == fixed and simulator.settings == settings
+    s = surrogate_strategies(OptimiseConfig(mode="surrogate", surrogate=str(tmp_path / "b")), b2, tpe_sampler)
+    assert s.problem.fixed == fixed and s.simulator.fixed == fixed and s.simulator.settings == settings
 
 
 # ---- target scale and constant targets (issue 13) -------------------------------------------------------------

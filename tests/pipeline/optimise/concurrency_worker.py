@@ -12,7 +12,8 @@ import pandas as pd
 from pipeline.optimise.constraints import Constraints
 from pipeline.optimise.coordination import StudyGuard, batch_seed
 from pipeline.optimise.space import Space
-from pipeline.optimise.study import make_sampler, open_study, run_study, run_study_buffered
+from pipeline.optimise.samplers import tpe_sampler
+from pipeline.optimise.study import open_study, run_study, run_study_buffered
 
 SPACE = Space({"x": (0.0, 1.0), "y": (0.0, 1.0)})
 BATCH = 4
@@ -33,7 +34,7 @@ def run(db: str, n_trials: int, seed: int, delay_s: float, buffered: bool = Fals
     n_start = 8
 
     def factory(n_done: int):
-        return make_sampler("tpe", batch_seed(seed, n_done), 1, n_startup=n_start)
+        return tpe_sampler(batch_seed(seed, n_done), 1, n_startup=n_start)
 
     study = open_study(url, "s", [("rop_m_s", "maximize")], factory(0), {"test": 1})
     print("opened", flush=True)
