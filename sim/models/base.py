@@ -8,6 +8,8 @@ from typing import Callable, Mapping
 import numpy as np
 
 from sim.errors import ParameterError  # noqa: F401  (re-exported: the models and sim.api raise it from here)
+from sim.models.effects import EFFECT_FIT_BOUNDS
+from sim.models.fitbound import FitBound  # noqa: F401  (re-exported: the models build their bounds from here)
 
 
 @dataclass(frozen=True)
@@ -34,28 +36,6 @@ class Param:
         if self.nonnegative and v < 0.0:
             raise ParameterError(f"parameter '{self.name}' must be >= 0 [{self.unit}], got {v:g}")
         return v
-
-
-@dataclass(frozen=True)
-class FitBound:
-    """Fit bounds of a calibratable or effect parameter [SI]; fitted in log10 when log=True."""
-
-    name: str
-    lo: float
-    hi: float
-    unit: str
-    log: bool = True
-
-    def __post_init__(self):
-        if not self.lo < self.hi:
-            raise ValueError(f"fit bound '{self.name}': lo {self.lo!r} must be < hi {self.hi!r}")
-        if self.log and not self.lo > 0.0:
-            raise ValueError(f"fit bound '{self.name}': a log10 fit needs lo > 0, got {self.lo!r}")
-
-    @property
-    def bounds(self) -> tuple[float, float]:
-        """(lo, hi) in the fitted coordinate (log10 when ``log``)."""
-        return (math.log10(self.lo), math.log10(self.hi)) if self.log else (self.lo, self.hi)
 
 
 DIAGNOSE_FIT_KEYS = ("candidate_starts", "max_nfev")
@@ -188,8 +168,6 @@ class ModelSpec:
         where = f"model '{self.name}'"
         effect_params = [p for ps in self.effects.values() for p in ps]
         if effect_params:
-            from sim.models.effects import EFFECT_FIT_BOUNDS
-
             filled = {p: EFFECT_FIT_BOUNDS[p] for p in effect_params if p not in self.effect_bounds and p in EFFECT_FIT_BOUNDS}
             if filled:
                 object.__setattr__(self, "effect_bounds", {**filled, **self.effect_bounds})

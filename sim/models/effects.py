@@ -6,7 +6,7 @@ own ``ModelSpec.effect_bounds``; a new effect parameter must be added here or th
 """
 from __future__ import annotations
 
-from sim.models.base import FitBound
+from sim.models.fitbound import FitBound
 
 EFFECT_FIT_BOUNDS: dict[str, FitBound] = {b.name: b for b in (
     FitBound("tau", 1e-5, 1e-2, "s"),          # shaker_coil: coil current lag
