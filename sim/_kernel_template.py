@@ -10,7 +10,7 @@ on disk and release the GIL.
 import numpy as np
 
 from sim.integrator import *  # noqa: F401,F403  constants and helpers
-from sim.integrator import _crossed, _dense, _dense_some, _track, window_switch
+from sim.integrator import _crossed, _dense, _dense_some, track_maxima, window_switch
 from sim.kernel import N_ACC, _rel_close, settled_period
 
 # after the star import, which re-exports sim.jit's lazy njit: this module is imported only to compile the kernel,
@@ -462,7 +462,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                     window_switch(acc, old, ph)
                     # the state just after the switch (force may jump, e.g. the damper at onset)
                     observe(t, y, z, ph, p, obs, dyd)
-                    _track(acc, obs, ph > 0)
+                    track_maxima(acc, obs, ph > 0)
                 rhs(t, y, z, ph, p, k1)
                 guards(t, y, z, ph, p, g0)
                 f_prev = -np.inf

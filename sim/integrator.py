@@ -128,7 +128,7 @@ def window_switch(acc, old, ph):
 
 
 @njit(cache=True, inline="always")
-def _track(acc, obs, in_contact):
+def track_maxima(acc, obs, in_contact):
     """Update the window maxima with one observation (force counts only in contact); acc: the kernel's window
     accumulator (sim/_kernel_template.py ``integrate_cycles``)."""
     if in_contact:

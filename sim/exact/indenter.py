@@ -31,7 +31,7 @@ import numpy as np
 from sim.exact import effects_handled
 from sim.exact.taylor import (NT, eval_state, first_rise, flow_tables, min_onset, pack_rows, poly_max, row_dot,
                                row_times, series, work_integral)
-from sim.integrator import N_OBS, S_RTOL, _track, widen_extremes, window_switch
+from sim.integrator import N_OBS, S_RTOL, track_maxima, widen_extremes, window_switch
 from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.layout import GK_ROWS, WK_ROWS
 from sim.models.indenter import (C1, C2, C3, FA, FP, FREQ, GAP, IV1, IV2, IV3, IW, IX1, IX2, IX3, IXF, IXP, K1, K2,
@@ -642,7 +642,7 @@ def exact_free(p, y, z, ph, t, t_end, period, s, atol, record, acc, bmin, bmax, 
                     sand_observe(t_cur, y, z, ph, p, obs, dy)
                 else:
                     metal_observe(t_cur, y, z, ph, p, obs, dy)
-                _track(acc, obs, ph > 0)
+                track_maxima(acc, obs, ph > 0)
             b, r, eta_a, eta_b, mode = _enter(gk, p, z, ph, sand, atol, rtol, sig, zz, z1, sv, bc)
     return t_end, ph
 

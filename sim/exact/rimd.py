@@ -23,7 +23,7 @@ import numpy as np
 from sim.exact import effects_handled
 from sim.exact.taylor import (NT, eval_state, flow_tables, max_on, min_onset, pack_rows, row_dot, row_poly, row_times,
                                series, work_integral)
-from sim.integrator import N_OBS, S_RTOL, _track, widen_extremes
+from sim.integrator import N_OBS, S_RTOL, track_maxima, widen_extremes
 from sim.layout import GK_ROWS, WK_ROWS
 from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.models.rimd import (C1, C2, F0, FREQ, GAP, IV1, IV2, IW, IX1, IX2, K1, K2, LAM, LS, M1, M2, N_BOUNDED,
@@ -235,6 +235,6 @@ def exact_free(p, y, z, ph, t, t_end, period, s, atol, record, acc, bmin, bmax, 
                 acc[3] += 1.0
                 acc[5] = 0.0
                 observe(t_cur, y, z, ph, p, obs, dy)     # the state just after the switch (the damper's force jump)
-                _track(acc, obs, True)
+                track_maxima(acc, obs, True)
             return t_cur, ph
     return t_end, 0
