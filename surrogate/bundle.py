@@ -21,9 +21,9 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
-from pipeline.core.errors import UserError
-from pipeline.core.files import atomic_write_bytes, atomic_write_text
+from sim.files import atomic_write_bytes, atomic_write_text
 from surrogate.candidates import SubsampledGP
+from surrogate.errors import BundleError, DataError
 from surrogate.features import InputScaler, TargetTransform
 from surrogate.intervals import ConformalInterval
 from surrogate.tree_check import CHECKED_TYPES, TreeStorageError, check_trees
@@ -84,9 +84,9 @@ class Bundle:
 
     # ---- checks ---------------------------------------------------------------------------
     def check_model(self, model: str | None) -> None:
-        """UserError unless this bundle was trained on ``model``'s data (None = no check)."""
+        """BundleError unless this bundle was trained on ``model``'s data (None = no check)."""
         if model is not None and model != self.model:
-            raise UserError(f"surrogate was trained on model '{self.model}' data (preset {self.preset!r}); "
+            raise BundleError(f"surrogate was trained on model '{self.model}' data (preset {self.preset!r}); "
                             f"it cannot be used for model '{model}'")
 
     def _inputs_array(self, X) -> np.ndarray:
@@ -94,13 +94,13 @@ class Bundle:
             X = pd.DataFrame(X)
         missing = [n for n in self.inputs if n not in X.columns]
         if missing:
-            raise UserError(f"predict: missing input column(s) {missing}; the surrogate needs {self.inputs}")
+            raise DataError(f"predict: missing input column(s) {missing}; the surrogate needs {self.inputs}")
         A = np.empty((len(X), len(self.inputs)))
         for j, n in enumerate(self.inputs):
             col = pd.to_numeric(X[n], errors="coerce").to_numpy(dtype=float)
             bad = np.flatnonzero(~np.isfinite(col))
             if bad.size:
-                raise UserError(f"predict: column '{n}' row {int(bad[0])} is not a finite number")
+                raise DataError(f"predict: column '{n}' row {int(bad[0])} is not a finite number")
             A[:, j] = col
         return A
 
@@ -120,13 +120,13 @@ class Bundle:
     def predict(self, X, strict: bool = False, conditional: bool = False) -> pd.DataFrame:
         """Predict at the rows of X (a DataFrame holding the input columns; other columns ignored).
 
-        Outside the trained ranges: ExtrapolationWarning, or UserError when ``strict``."""
+        Outside the trained ranges: ExtrapolationWarning, or DataError when ``strict``."""
         A = self._inputs_array(X)
         msgs = self.out_of_range(A)
         if msgs:
             text = "surrogate extrapolation: " + "; ".join(msgs)
             if strict:
-                raise UserError(text)
+                raise DataError(text)
             warnings.warn(text, ExtrapolationWarning, stacklevel=2)
         with threadpool_limits(1):   # OpenMP threads spin on a shared machine; 1 is faster for these sizes
             return self._predict(X, self.scaler.transform(A), conditional)
@@ -170,7 +170,7 @@ class Bundle:
         never verifies."""
         import skops.io as sio
 
-        from pipeline.core.jsonable import dump_json
+        from sim.jsonable import dump_json
 
         d = Path(path)
         d.mkdir(parents=True, exist_ok=True)
@@ -213,73 +213,73 @@ def _versions() -> dict:
 
 def verify_bundle(path: str | os.PathLike) -> dict:
     """Check a bundle directory's manifest and every file's size and sha256 WITHOUT deserialising
-    anything; returns the manifest.  UserError (one line naming the file) when corrupt, foreign,
+    anything; returns the manifest.  BundleError (one line naming the file) when corrupt, foreign,
     tampered or of an old format.  This catches damage and mix-ups, not a deliberate attacker
     (who can rewrite the manifest too): that is what the skops trusted-type check in
     :func:`load_bundle` is for."""
     d = Path(path)
     mpath = d / MANIFEST
     if not d.is_dir() or not (mpath.is_file() or (d / "bundle.joblib").is_file()):
-        raise UserError(f"'{path}' is not a surrogate bundle directory (no {MANIFEST})")
+        raise BundleError(f"'{path}' is not a surrogate bundle directory (no {MANIFEST})")
     if not mpath.is_file():
-        raise UserError(f"{d}: an old-format surrogate bundle (bundle.joblib, a pickle without a manifest); it is not "
+        raise BundleError(f"{d}: an old-format surrogate bundle (bundle.joblib, a pickle without a manifest); it is not "
                         f"loaded because unpickling runs code: retrain it with 'vibro train'")
     try:
         man = json.loads(mpath.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise UserError(f"{mpath}: unreadable bundle manifest ({type(e).__name__})") from None
+        raise BundleError(f"{mpath}: unreadable bundle manifest ({type(e).__name__})") from None
     if not isinstance(man, dict) or man.get("kind") != MANIFEST_KIND:
-        raise UserError(f"{mpath}: not a vibro surrogate bundle manifest")
+        raise BundleError(f"{mpath}: not a vibro surrogate bundle manifest")
     if man.get("format") != FORMAT:
-        raise UserError(f"{mpath}: bundle format {man.get('format')!r}, this vibro reads format {FORMAT}; "
+        raise BundleError(f"{mpath}: bundle format {man.get('format')!r}, this vibro reads format {FORMAT}; "
                         f"retrain with 'vibro train'")
     files = man.get("files")
     if not isinstance(files, dict) or man.get("payload") != PAYLOAD or PAYLOAD not in files:
-        raise UserError(f"{mpath}: malformed bundle manifest (no '{PAYLOAD}' entry)")
+        raise BundleError(f"{mpath}: malformed bundle manifest (no '{PAYLOAD}' entry)")
     for name, rec in files.items():
         f = d / str(name)
         if "/" in str(name) or not isinstance(rec, dict):
-            raise UserError(f"{mpath}: malformed entry {name!r}")
+            raise BundleError(f"{mpath}: malformed entry {name!r}")
         if not f.is_file():
-            raise UserError(f"{f}: missing (listed in the bundle manifest)")
+            raise BundleError(f"{f}: missing (listed in the bundle manifest)")
         if f.stat().st_size != rec.get("size"):
-            raise UserError(f"{f}: {f.stat().st_size} bytes, the manifest says {rec.get('size')} (truncated or replaced)")
+            raise BundleError(f"{f}: {f.stat().st_size} bytes, the manifest says {rec.get('size')} (truncated or replaced)")
         if hashlib.sha256(f.read_bytes()).hexdigest() != rec.get("sha256"):
-            raise UserError(f"{f}: sha256 differs from the bundle manifest (damaged or tampered with)")
+            raise BundleError(f"{f}: sha256 differs from the bundle manifest (damaged or tampered with)")
     return man
 
 
 def load_bundle(ref: str | os.PathLike, model: str | None = None) -> Bundle:
-    """Load a bundle from its directory (pipeline.tracking.load_bundle also resolves MLflow run ids).
+    """Load a bundle from its directory (a caller resolves other references, e.g. MLflow run ids, to one).
 
     Order: manifest and hashes (:func:`verify_bundle`), then the skops payload's types against
     :data:`TRUSTED_TYPES` and the tree storage types, and only then are objects constructed; every
-    tree's node arrays are bounds-checked before the bundle is returned.  ``model``: raise UserError unless
+    tree's node arrays are bounds-checked before the bundle is returned.  ``model``: raise BundleError unless
     the bundle was trained on that model's data."""
     import skops.io as sio
 
     path = Path(ref)
     if not path.is_dir():
-        raise UserError(f"'{ref}' is not a surrogate bundle directory")
+        raise BundleError(f"'{ref}' is not a surrogate bundle directory")
     verify_bundle(path)
     f = path / PAYLOAD
     data = f.read_bytes()
     try:
         untrusted = sio.get_untrusted_types(data=data)
     except Exception as e:  # noqa: BLE001 - not a skops file
-        raise UserError(f"{f}: cannot be read ({type(e).__name__})") from None
+        raise BundleError(f"{f}: cannot be read ({type(e).__name__})") from None
     foreign = sorted(set(untrusted) - set(TRUSTED_TYPES) - set(CHECKED_TYPES))
     if foreign:
-        raise UserError(f"{f}: holds type(s) a vibro bundle never contains ({', '.join(foreign[:3])}); refusing to load")
+        raise BundleError(f"{f}: holds type(s) a vibro bundle never contains ({', '.join(foreign[:3])}); refusing to load")
     try:
         b = sio.loads(data, trusted=list(untrusted))
     except Exception as e:  # noqa: BLE001 - damaged content of a verified file: a foreign writer
-        raise UserError(f"{f}: cannot be read ({type(e).__name__}: {str(e)[:120]})") from None
+        raise BundleError(f"{f}: cannot be read ({type(e).__name__}: {str(e)[:120]})") from None
     if not isinstance(b, Bundle) or not isinstance(b.inputs, list):
-        raise UserError(f"{f}: not a vibro surrogate bundle")
+        raise BundleError(f"{f}: not a vibro surrogate bundle")
     try:
         check_trees(b, len(b.inputs))
     except TreeStorageError as e:
-        raise UserError(f"{f}: a tree model is malformed ({e}); refusing to use it") from None
+        raise BundleError(f"{f}: a tree model is malformed ({e}); refusing to use it") from None
     b.check_model(model)
     return b

@@ -15,7 +15,7 @@ from sklearn.kernel_ridge import KernelRidge
 from sklearn.neural_network import MLPClassifier, MLPRegressor
 from sklearn.preprocessing import StandardScaler
 
-from pipeline.core.errors import UserError
+from surrogate.errors import ConfigError
 
 REGRESSORS = ("gp", "gbt", "mlp", "krr")
 CLASSIFIERS = ("gbt", "mlp", "trees")
@@ -72,7 +72,7 @@ def regressor(name: str, seed: int = 0, max_gp_points: int = 600):
                                       random_state=seed))
     if name == "krr":
         return _scaled_y(KernelRidge(kernel="rbf", alpha=1e-3, gamma=8.0))
-    raise UserError(f"train.regressors: unknown candidate '{name}' (choose from {', '.join(REGRESSORS)})")
+    raise ConfigError(f"train.regressors: unknown candidate '{name}' (choose from {', '.join(REGRESSORS)})")
 
 
 def classifier(name: str, seed: int = 0):
@@ -85,7 +85,7 @@ def classifier(name: str, seed: int = 0):
                              early_stopping=True, n_iter_no_change=40, random_state=seed)
     if name == "trees":
         return ExtraTreesClassifier(n_estimators=300, min_samples_leaf=1, random_state=seed, n_jobs=1)
-    raise UserError(f"train.classifiers: unknown candidate '{name}' (choose from {', '.join(CLASSIFIERS)})")
+    raise ConfigError(f"train.classifiers: unknown candidate '{name}' (choose from {', '.join(CLASSIFIERS)})")
 
 
 def fresh(est):

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields
 
-from pipeline.core.errors import UserError
-from pipeline.core.names import TARGETS
 from surrogate.data import DEFAULT_DOMAINS
+from surrogate.errors import ConfigError
+from surrogate.names import TARGETS
 
 
 @dataclass
@@ -50,12 +50,12 @@ class TrainConfig:
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - known)
         if unknown:
-            raise UserError(f"train: unknown key(s) {unknown}; known: {', '.join(sorted(known))}")
+            raise ConfigError(f"train: unknown key(s) {unknown}; known: {', '.join(sorted(known))}")
         ad = d.pop("adaptive", None) or {}
         aknown = {f.name for f in fields(AdaptiveConfig)}
         bad = sorted(set(ad) - aknown)
         if bad:
-            raise UserError(f"train.adaptive: unknown key(s) {bad}; known: {', '.join(sorted(aknown))}")
+            raise ConfigError(f"train.adaptive: unknown key(s) {bad}; known: {', '.join(sorted(aknown))}")
         cfg = cls(**d, adaptive=AdaptiveConfig(**ad))
         merged = dict(DEFAULT_DOMAINS)
         merged.update(cfg.domains)
@@ -65,33 +65,33 @@ class TrainConfig:
 
     def validate(self) -> None:
         if not 0.05 <= self.test_fraction <= 0.5:
-            raise UserError(f"train.test_fraction must be in [0.05, 0.5], got {self.test_fraction}")
+            raise ConfigError(f"train.test_fraction must be in [0.05, 0.5], got {self.test_fraction}")
         if self.workers is not None and not (isinstance(self.workers, int) and self.workers >= 1):
-            raise UserError(f"train.workers must be a whole number >= 1 or null (all cores), got {self.workers!r}")
+            raise ConfigError(f"train.workers must be a whole number >= 1 or null (all cores), got {self.workers!r}")
         if self.cv_folds < 2:
-            raise UserError(f"train.cv_folds must be >= 2, got {self.cv_folds}")
+            raise ConfigError(f"train.cv_folds must be >= 2, got {self.cv_folds}")
         if not 0.5 < self.interval < 1:
-            raise UserError(f"train.interval must be in (0.5, 1), got {self.interval}")
+            raise ConfigError(f"train.interval must be in (0.5, 1), got {self.interval}")
         for t in self.targets:
             if t not in TARGETS:
-                raise UserError(f"train.targets: unknown target '{t}' (choose from {', '.join(TARGETS)})")
+                raise ConfigError(f"train.targets: unknown target '{t}' (choose from {', '.join(TARGETS)})")
         for t, k in self.transforms.items():
             if k not in ("auto", "log", "identity"):
-                raise UserError(f"train.transforms.{t}: '{k}' is not auto, log or identity")
+                raise ConfigError(f"train.transforms.{t}: '{k}' is not auto, log or identity")
         from surrogate.candidates import CLASSIFIERS, REGRESSORS
 
         for key, names, known in (("regressors", self.regressors, REGRESSORS),
                                   ("classifiers", self.classifiers, CLASSIFIERS)):
             for n in names:
                 if n not in known:
-                    raise UserError(f"train.{key}: unknown candidate '{n}' (choose from {', '.join(known)})")
+                    raise ConfigError(f"train.{key}: unknown candidate '{n}' (choose from {', '.join(known)})")
         if not self.regressors or not self.classifiers:
-            raise UserError("train.regressors and train.classifiers need at least one candidate each")
+            raise ConfigError("train.regressors and train.classifiers need at least one candidate each")
         if any(not 0 < f <= 1 for f in self.learning_curve):
-            raise UserError("train.learning_curve: fractions of the training split must be in (0, 1]")
+            raise ConfigError("train.learning_curve: fractions of the training split must be in (0, 1]")
         a = self.adaptive
         if a.initial < 16 or a.batch < 1 or a.budget <= a.initial or a.pool < a.budget:
-            raise UserError("train.adaptive: need initial >= 16, batch >= 1, initial < budget <= pool")
+            raise ConfigError("train.adaptive: need initial >= 16, batch >= 1, initial < budget <= pool")
 
     def to_dict(self) -> dict:
         return asdict(self)

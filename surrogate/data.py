@@ -11,9 +11,9 @@ import hashlib
 import numpy as np
 import pandas as pd
 
-from pipeline.core.errors import UserError
-
-from pipeline.core.names import BOUNDED_STATUSES, CONTROLS, REGIMES, SETTLED_STATUSES
+from sim.statuses import BOUNDED_STATUSES, SETTLED_STATUSES
+from surrogate.errors import ConfigError, DataError
+from surrogate.names import CONTROLS, REGIMES
 
 # Points a regressor of each target is trained and scored on.  ROP and specific energy
 # only exist as numbers inside the progressing regime (elsewhere ROP is 0 and specific
@@ -32,7 +32,7 @@ def regime_of(df: pd.DataFrame) -> pd.Series:
     out[(status == "ok") & (rop > 0)] = "progressing"
     unknown = sorted(set(out) - set(REGIMES))
     if unknown:
-        raise UserError(f"column 'status' has unknown value(s) {unknown}; expected ok, no_contact, runaway, "
+        raise DataError(f"column 'status' has unknown value(s) {unknown}; expected ok, no_contact, runaway, "
                         "not_settled or failed")
     return out
 
@@ -47,7 +47,7 @@ def domain_mask(df: pd.DataFrame, target: str, domain: str) -> np.ndarray:
         return df["status"].isin(list(BOUNDED_STATUSES)).to_numpy() & finite
     if domain == "all":
         return finite
-    raise UserError(f"train.domains.{target}: unknown domain '{domain}' (progressing, settled or all)")
+    raise ConfigError(f"train.domains.{target}: unknown domain '{domain}' (progressing, settled or all)")
 
 
 def fingerprint_frame(df: pd.DataFrame) -> str:
@@ -58,11 +58,11 @@ def fingerprint_frame(df: pd.DataFrame) -> str:
 
 
 def check_frame(df: pd.DataFrame, name: str = "dataset") -> pd.DataFrame:
-    """A sweep frame ready for training: the ``status`` and ``rop_m_s`` columns present (UserError naming
+    """A sweep frame ready for training: the ``status`` and ``rop_m_s`` columns present (DataError naming
     ``name`` otherwise), rows ordered by ``point_id`` when there is one."""
     for col in ("status", "rop_m_s"):
         if col not in df.columns:
-            raise UserError(f"{name} has no column '{col}' (is it a vibro sweep dataset?)")
+            raise DataError(f"{name} has no column '{col}' (is it a vibro sweep dataset?)")
     if "point_id" in df.columns:
         df = df.sort_values("point_id", kind="stable").reset_index(drop=True)
     return df
@@ -78,21 +78,21 @@ def infer_inputs(df: pd.DataFrame, meta: dict, inputs: list[str] | None = None) 
     else:
         names = [c for c in CONTROLS if c in df.columns and df[c].nunique() > 1]
     if not names:
-        raise UserError("no inputs: the dataset has no metadata 'vary' and no varying control column; "
+        raise DataError("no inputs: the dataset has no metadata 'vary' and no varying control column; "
                         "name them with --inputs")
     ranges = {}
     for n in names:
         if n not in df.columns:
-            raise UserError(f"input '{n}' is not a column of the dataset")
+            raise DataError(f"input '{n}' is not a column of the dataset")
         col = pd.to_numeric(df[n], errors="coerce")
         if col.isna().any():
-            raise UserError(f"column '{n}' has missing or non-numeric values (row {int(np.flatnonzero(col.isna())[0])})")
+            raise DataError(f"column '{n}' has missing or non-numeric values (row {int(np.flatnonzero(col.isna())[0])})")
         if n in vary and "low" in vary[n] and "high" in vary[n]:
             ranges[n] = (float(vary[n]["low"]), float(vary[n]["high"]))
         else:
             ranges[n] = (float(col.min()), float(col.max()))
         if not ranges[n][1] > ranges[n][0]:
-            raise UserError(f"input '{n}' does not vary in the dataset (range {ranges[n]})")
+            raise DataError(f"input '{n}' does not vary in the dataset (range {ranges[n]})")
     return names, ranges
 
 

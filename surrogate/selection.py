@@ -56,10 +56,10 @@ def _cv_regressor(name: str, X: np.ndarray, z: np.ndarray, tr: np.ndarray, te: n
 
 
 class _OrphanFreeParallel(Parallel):
-    """joblib Parallel whose worker processes die with this process (pipeline.core.lifetime)."""
+    """joblib Parallel whose worker processes die with this process (surrogate.lifetime)."""
 
     def __call__(self, iterable):
-        from pipeline.core.lifetime import in_worker
+        from surrogate.lifetime import in_worker
 
         me = os.getpid()
         return super().__call__((in_worker, (me, fn, *args), kwargs) for fn, args, kwargs in iterable)

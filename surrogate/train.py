@@ -8,7 +8,7 @@ from joblib import delayed
 from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
-from pipeline.core.errors import UserError
+from surrogate.errors import DataError
 from surrogate import metrics, selection
 from surrogate.bundle import Bundle, TargetModel
 from surrogate.config import TrainConfig
@@ -232,7 +232,7 @@ def _train_bundle(df, inputs, ranges, model, preset, cfg: TrainConfig, scale, fi
     fingerprint = fingerprint or fingerprint_frame(df)
     regimes = regime_of(df).to_numpy()
     if len(df) < 4 * MIN_POINTS:
-        raise UserError(f"dataset has {len(df)} points; the surrogate needs at least {4 * MIN_POINTS}")
+        raise DataError(f"dataset has {len(df)} points; the surrogate needs at least {4 * MIN_POINTS}")
     train, test = split_frame(df, cfg)
     bundle, info = fit(train, inputs, ranges, scale, model, preset, cfg, fingerprint, progress)
     held = evaluate(bundle, test)

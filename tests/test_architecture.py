@@ -3,10 +3,11 @@ lazy import inside a function counts as well.
 
 sim            imports nothing of the project
 pipeline.core  imports sim at most
-surrogate      imports sim and pipeline.core at most (the library never imports the application)
+surrogate      imports sim at most (the library never imports the application, and raises its own errors)
 workflows      pipeline.datasets / optimise / diagnosis / maps / report / tracking / training never import pipeline.cli
 pipeline.cli   imported by nobody but itself (the console entry ``vibro = pipeline.cli:main``)
-and the graph between packages has no cycle.
+and the graph between packages has no cycle.  Within sim and surrogate no two modules import each other (directly
+or round a longer loop), and no module imports a private name (``_name``) of another package.
 """
 from __future__ import annotations
 
@@ -72,7 +73,7 @@ WORKFLOWS = ("pipeline.datasets", "pipeline.optimise", "pipeline.diagnosis", "pi
 ALLOWED = {
     "sim": set(),
     "pipeline.core": {"sim"},
-    "surrogate": {"sim", "pipeline.core"},
+    "surrogate": {"sim"},
 }
 
 
@@ -121,6 +122,122 @@ def test_the_check_sees_a_violation(tmp_path):
         elif isinstance(node, ast.Import):
             ast_mods |= {a.name for a in node.names}
     assert {"pipeline.cli", "surrogate.bundle"} <= ast_mods and p.exists()
+
+
+
+# --- modules: no import cycle within sim and surrogate; no private name of another package -----------------------
+MODULES = {module_name(f): f for top in PROJECT for f in sorted((ROOT / top).rglob("*.py"))}
+"""Every project module by dotted name (packages by their own name)."""
+
+
+def module_named(name: str) -> str:
+    """The module an imported dotted name is: itself when a module, else its parent (``sim.api.simulate``)."""
+    return name if name in MODULES else name.rpartition(".")[0]
+
+
+def package_of(module: str) -> str:
+    """The package a module belongs to: a package is its own, a module file its parent's."""
+    is_pkg = module in MODULES and MODULES[module].name == "__init__.py"
+    return module if is_pkg else module.rpartition(".")[0]
+
+
+def imported_names(source: str, module: str) -> list[tuple[int, str]]:
+    """(line, dotted name) of everything ``module`` (source ``source``) imports, anywhere in it: ``import a.b``
+    gives ``a.b``, ``from a import b`` gives ``a.b`` (a module or a name of ``a``); relative imports resolved."""
+    pkg = package_of(module).split(".")
+    out = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                base = ".".join(pkg[:len(pkg) - (node.level - 1)] + ([base] if base else []))
+            out += [(node.lineno, f"{base}.{a.name}") for a in node.names]
+    return out
+
+
+def module_graph(top: str) -> dict[str, set[str]]:
+    """module -> the modules of ``top`` it imports (a lazy import inside a function counts)."""
+    graph = {}
+    for mod, f in MODULES.items():
+        if mod.split(".")[0] == top:
+            deps = {module_named(name) for _, name in imported_names(f.read_text(), mod)}
+            graph[mod] = {d for d in deps if d.split(".")[0] == top} - {mod}
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One import loop of ``graph`` (module -> modules it imports) as [a, b, ..., a], or None."""
+    state: dict[str, int] = {}          # 1: on the current path, 2: done
+
+    def visit(u: str, path: list[str]) -> list[str] | None:
+        state[u] = 1
+        for v in sorted(graph.get(u, ())):
+            if state.get(v) == 1:
+                return (path + [u])[(path + [u]).index(v):] + [v]
+            if not state.get(v) and (loop := visit(v, path + [u])):
+                return loop
+        state[u] = 2
+        return None
+
+    for u in sorted(graph):
+        if not state.get(u) and (loop := visit(u, [])):
+            return loop
+    return None
+
+
+@pytest.mark.parametrize("top", ("sim", "surrogate"))
+def test_no_import_cycle_between_modules(top):
+    """A lazy import inside a function counts: it hides a loop from Python, not from a reader."""
+    loop = find_cycle(module_graph(top))
+    assert loop is None, "import cycle: " + " -> ".join(loop or [])
+
+
+def test_the_model_spec_and_the_effect_table_do_not_import_each_other():
+    graph = module_graph("sim")
+    assert "sim.models.fitbound" in graph["sim.models.effects"] and "sim.models.effects" in graph["sim.models.base"]
+    assert "sim.models.base" not in graph["sim.models.effects"]
+
+
+def test_the_cycle_check_sees_a_loop():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b", "c"}, "b": {"c"}, "c": set()}) is None
+    assert module_named("sim.layout") == "sim.layout" and module_named("sim.api.simulate") == "sim.api"
+
+
+def private_imports(source: str, module: str) -> list[tuple[int, str]]:
+    """(line, dotted name) of every private name (``_name``, or a name in a ``_private`` module) that ``module``
+    imports from another package."""
+    own = package_of(module)
+    found = []
+    for line, name in imported_names(source, module):
+        parts = name.split(".")
+        first = next((i for i, p in enumerate(parts) if p.startswith("_") and not p.startswith("__")), None)
+        if parts[0] not in PROJECT or first is None:
+            continue
+        owner = ".".join(parts[:first])            # the package or module that holds the private part
+        if (package_of(owner) if owner in MODULES else owner) != own:
+            found.append((line, name))
+    return found
+
+
+PRIVATE_IMPORTS_TODAY: dict[str, str] = {}
+"""Files allowed to import another package's private name for now (path -> why); a new one fails the test."""
+
+
+def test_no_private_name_of_another_package():
+    found = [f"{f.relative_to(ROOT)}:{line}: {name}" for mod, f in MODULES.items()
+             for line, name in private_imports(f.read_text(), mod) if str(f.relative_to(ROOT)) not in PRIVATE_IMPORTS_TODAY]
+    assert found == [], "private names imported from another package (make them public there):\n" + "\n".join(found)
+
+
+def test_the_private_name_scan_sees_a_violation():
+    """Another package's private name or module is found; a private name of the module's own package is not."""
+    src = ("from pipeline.diagnosis.features import _summary\nfrom pipeline.maps.compute import _x\n"
+           "def f():\n    import sim._kernel_template\n    from . import _y\n    from ..core import _z\n")
+    assert private_imports(src, "pipeline.maps.probe") == [(1, "pipeline.diagnosis.features._summary"),
+                                                          (4, "sim._kernel_template"), (6, "pipeline.core._z")]
 
 
 # --- no module outside sim/models names a model (issue 11: ModelSpec owns everything about a model) -------------

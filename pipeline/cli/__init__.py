@@ -89,6 +89,14 @@ def _done(args, wall: float) -> None:
           file=sys.stderr, flush=True)
 
 
+def user_errors() -> tuple[type[BaseException], ...]:
+    """The errors reported as one line (exit 2): USER_ERRORS, plus the surrogate library's SurrogateError once
+    a command has loaded the surrogate (a command that never did cannot raise it, and importing it up front would
+    load the surrogate into every command)."""
+    loaded = sys.modules.get("surrogate.errors")
+    return USER_ERRORS + ((loaded.SurrogateError,) if loaded is not None else ())
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -100,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
         rc = args.func(args)
         _done(args, time.perf_counter() - t0)
         return int(rc or 0)
-    except USER_ERRORS as e:
+    except user_errors() as e:          # evaluated when an exception arrives, after the command ran
         if args.debug:
             raise
         msg = str(e) if not isinstance(e, OSError) or not e.filename else f"{e.strerror}: {e.filename}"

@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
-from pipeline.core.unitcube import from_unit
+from sim.unitcube import from_unit
 
 FORMAT_VERSION = 1
 """Version of the dataset format (part of every spec fingerprint)."""

@@ -11,8 +11,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
-
-from pipeline.core.names import REGIME_TO_STATUS
+from surrogate.names import REGIME_TO_STATUS
 
 
 class SimulatorEvaluator:

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
-from pipeline.core.unitcube import to_unit
+from sim.unitcube import to_unit
 
 
 ON_BOUND_RTOL = 0.02

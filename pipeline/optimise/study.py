@@ -23,9 +23,10 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
-from pipeline.core.names import MAXIMISED, TARGETS
+from pipeline.core.names import MAXIMISED
 from pipeline.optimise.constraints import Constraints
 from pipeline.optimise.space import Space
+from surrogate.names import TARGETS
 
 SAMPLERS = ("tpe", "gp", "nsga2", "random")
 OBJECTIVES = ("rop", "pareto")

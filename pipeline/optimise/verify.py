@@ -14,7 +14,7 @@ from pipeline.core.errors import UserError
 from pipeline.core.bounded import MAX_CSV_BYTES, check_size
 from pipeline.optimise.constraints import Constraints
 from pipeline.core.files import atomic_write_parquet
-from pipeline.core.names import REGIME_TO_STATUS, TARGETS  # noqa: F401 (TARGETS re-exported)
+from surrogate.names import REGIME_TO_STATUS, TARGETS  # noqa: F401 (TARGETS re-exported)
 
 COMPARED = TARGETS
 """Labels whose prediction is set next to the simulation (every surrogate target)."""

@@ -250,6 +250,7 @@ def section_train(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
         doc.add(Para(f"No surrogate bundle at `{inp.surrogate}`: the train stage has not run."))
         return
     from surrogate.bundle import MANIFEST, PAYLOAD, verify_bundle
+    from surrogate.errors import SurrogateError
 
     if any((path / f).exists() for f in (MANIFEST, PAYLOAD, "bundle.joblib")):
         verify_bundle(path)    # a corrupt / foreign / tampered bundle is the user's error (exit 2), never skipped
@@ -259,7 +260,7 @@ def section_train(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
             from surrogate import load_bundle  # the shared contract's reader (unpickles the models)
 
             report = getattr(load_bundle(path), "report", None)
-        except (ImportError, UserError):
+        except (ImportError, SurrogateError):
             report = None
     if not report:
         for m in _metrics_files(inp, "train"):

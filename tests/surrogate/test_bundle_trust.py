@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.core.errors import UserError
 from surrogate import load_bundle, train_bundle
 from surrogate.bundle import MANIFEST, PAYLOAD, verify_bundle
+from surrogate.errors import BundleError
 
 from tests.surrogate.test_surrogate import FAST, RANGES, synthetic
 
@@ -70,7 +70,7 @@ def test_flipped_byte_in_payload_is_refused(bundle_dir, tmp_path):
     data = bytearray((d / PAYLOAD).read_bytes())
     data[len(data) // 2] ^= 0x01
     (d / PAYLOAD).write_bytes(bytes(data))
-    with pytest.raises(UserError, match=r"bundle.skops: sha256 differs from the bundle manifest"):
+    with pytest.raises(BundleError, match=r"bundle.skops: sha256 differs from the bundle manifest"):
         load_bundle(d)
 
 
@@ -86,7 +86,7 @@ def test_flipped_byte_in_payload_is_refused(bundle_dir, tmp_path):
 def test_damaged_bundle_is_a_one_line_user_error(bundle_dir, tmp_path, damage, words):
     d = _copy(bundle_dir, tmp_path / "b")
     damage(d)
-    with pytest.raises(UserError, match=words) as e:
+    with pytest.raises(BundleError, match=words) as e:
         load_bundle(d)
     assert "\n" not in str(e.value)
 
@@ -97,7 +97,7 @@ def test_old_pickle_bundle_is_never_unpickled(tmp_path):
     d.mkdir()
     flag = tmp_path / "ran"
     (d / "bundle.joblib").write_bytes(pickle.dumps(Payload(str(flag))))
-    with pytest.raises(UserError, match="old-format surrogate bundle.*unpickling runs code"):
+    with pytest.raises(BundleError, match="old-format surrogate bundle.*unpickling runs code"):
         load_bundle(d)
     assert not flag.exists()
 
@@ -111,7 +111,7 @@ def test_tampered_payload_with_matching_manifest_is_refused_by_type_check(bundle
     (d / PAYLOAD).write_bytes(sio.dumps({"bundle": Payload(str(flag))}))
     _rehash(d)
     verify_bundle(d)                                   # the hashes match now
-    with pytest.raises(UserError, match=r"holds type\(s\) a vibro bundle never contains "
+    with pytest.raises(BundleError, match=r"holds type\(s\) a vibro bundle never contains "
                                         r"\(tests.surrogate.test_bundle_trust.Payload\)"):
         load_bundle(d)
     assert not flag.exists()
@@ -121,7 +121,7 @@ def test_not_a_skops_payload_is_refused(bundle_dir, tmp_path):
     d = _copy(bundle_dir, tmp_path / "b")
     (d / PAYLOAD).write_bytes(b"PK\x03\x04 garbage")
     _rehash(d)
-    with pytest.raises(UserError, match="bundle.skops: cannot be read"):
+    with pytest.raises(BundleError, match="bundle.skops: cannot be read"):
         load_bundle(d)
 
 

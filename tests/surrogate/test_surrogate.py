@@ -15,6 +15,7 @@ from pipeline.core.errors import UserError
 from pipeline.tracking import load_bundle
 from surrogate import Bundle, ExtrapolationWarning, train_bundle
 from surrogate.data import infer_inputs, regime_of
+from surrogate.errors import BundleError, ConfigError, DataError
 from surrogate.intervals import ConformalInterval
 
 FAST = {"regressors": ["krr"], "classifiers": ["trees"], "cv_folds": 3, "learning_curve": [0.5, 1.0]}
@@ -47,7 +48,7 @@ def test_regime_labels_follow_status_and_rop():
     df = pd.DataFrame({"status": ["ok", "ok", "no_contact", "runaway", "not_settled", "failed"],
                        "rop_m_s": [1e-3, 0.0, 0.0, None, 2e-3, None]})
     assert list(regime_of(df)) == ["progressing", "no_progress", "no_progress", "runaway", "not_settled", "failed"]
-    with pytest.raises(UserError, match="status"):
+    with pytest.raises(DataError, match="status"):
         regime_of(pd.DataFrame({"status": ["exploded"], "rop_m_s": [0.0]}))
 
 
@@ -100,9 +101,9 @@ def test_extrapolation_warns_or_raises(syn_bundle):
     X = pd.DataFrame({"frequency_hz": [450.0], "amplitude_n": [100.0]})
     with pytest.warns(ExtrapolationWarning, match="frequency_hz = 450"):
         syn_bundle.predict(X)
-    with pytest.raises(UserError, match=r"frequency_hz = 450 .*\[10, 400\]"):
+    with pytest.raises(DataError, match=r"frequency_hz = 450 .*\[10, 400\]"):
         syn_bundle.predict(X, strict=True)
-    with pytest.raises(UserError, match="amplitude_n"):
+    with pytest.raises(DataError, match="amplitude_n"):
         syn_bundle.predict(pd.DataFrame({"frequency_hz": [100.0]}))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -116,9 +117,9 @@ def test_save_load_roundtrip_and_model_check(syn_bundle, tmp_path):
     b2 = load_bundle(tmp_path / "b", model="drill")
     X = synthetic(30, seed=3)[list(RANGES)]
     pd.testing.assert_frame_equal(syn_bundle.predict(X), b2.predict(X))
-    with pytest.raises(UserError, match="trained on model 'drill'.*'indenter-metal'"):
+    with pytest.raises(BundleError, match="trained on model 'drill'.*'indenter-metal'"):
         load_bundle(tmp_path / "b", model="indenter-metal")
-    with pytest.raises(UserError, match="not a surrogate bundle"):
+    with pytest.raises(BundleError, match="not a surrogate bundle"):
         load_bundle(tmp_path)
 
 
@@ -162,9 +163,9 @@ def test_same_seed_same_bundle():
 
 
 def test_config_errors_name_the_key():
-    with pytest.raises(UserError, match="unknown key.*'bogus'"):
+    with pytest.raises(ConfigError, match="unknown key.*'bogus'"):
         train_bundle(synthetic(100), list(RANGES), RANGES, "drill", None, {"bogus": 1})
-    with pytest.raises(UserError, match="train.regressors: unknown candidate 'svm'"):
+    with pytest.raises(ConfigError, match="train.regressors: unknown candidate 'svm'"):
         train_bundle(synthetic(100), list(RANGES), RANGES, "drill", None, {**FAST, "regressors": ["svm"]})
 
 
