@@ -3,7 +3,7 @@ suspension_hardening) against the independent reference (tests/reference_solutio
 rtol 1e-10, event location), on the `lab` preset.
 
 Adding an effect = one entry in sim.models.drill.EFFECT_VISIBLE (and its bounds in EFFECT_FIT_BOUNDS): the
-parametrised checks below then run on it.  Tolerances are those of tests/test_validation.py (issue 2's
+parametrised checks below then run on it.  Tolerances are those of tests/sim/test_validation.py (issue 2's
 acceptance: ROP, forces, deceleration, energy within 1 %; impacts per cycle and period equal).  Both runs use
 the same fixed transient and window so they integrate the same trajectory; 240 transient cycles put the base
 lab point past its settling (232 cycles with the default settings), so the period is compared too.
@@ -20,7 +20,7 @@ from sim.models import drill
 from tests.reference_solutions import reference_run
 
 TRANSIENT, WINDOW = 240, 16
-REL = 1e-2                      # tests/test_validation.py
+REL = 1e-2                      # tests/sim/test_validation.py
 VISIBLE = 3 * REL               # an effect "clearly visible": ROP or peak deceleration moves > 3x the tolerance
 ALL_OFF = {name: 0.0 for names in drill.SPEC.effects.values() for name in names}   # every effect parameter off
 
