@@ -9,7 +9,7 @@ faster core); the medians of process CPU time and of wall time are kept, with th
 Label error = max relative error over rop_m_s (drill, sandstone), peak_force_n, impacts_per_cycle and
 peak_decel_g against the independent reference (tests/reference_solutions.py, DOP853 rtol 1e-10 -- so
 errors below ~1e-9 are the reference's own and are reported as "<= 1e-9"); on the drill also against the
-exact propagator (itself checked against the reference and DOPRI5 in tests/test_exact_drill.py), which
+exact propagator (itself checked against the reference and DOPRI5 in tests/sim/test_exact_drill.py), which
 resolves errors down to ~1e-12.
 
 Methods: the simulator's DOPRI5 kernel (``method="dopri5"``) at rtol 1e-6 ... 1e-11 (drill also 1e-12, for
