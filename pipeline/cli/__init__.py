@@ -105,7 +105,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     t0 = time.perf_counter()
     try:
-        rc = args.func(args)
+        with warnings.catch_warnings(record=True) as caught:     # shown after success, never before an error
+            warnings.simplefilter("default")
+            rc = args.func(args)
+        show_warnings(caught)
         _done(args, time.perf_counter() - t0)
         return int(rc or 0)
     except user_errors() as e:          # evaluated when an exception arrives, after the command ran

@@ -5,11 +5,32 @@ import argparse
 import os
 import sys
 import time
+from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
-PIPELINE_MODELS = ("drill", "indenter-metal", "indenter-sandstone")
-"""Models `make run`'s pipeline simulates (params.yaml sweep.model; diagnose's drill rig and the published
-indenter logs): compiled first, so a pipeline started early finds its kernels built."""
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def pipeline_models(root: Path = ROOT) -> tuple[str, ...]:
+    """Models `make run`'s pipeline simulates, read from the repository (params.yaml ``sweep.model``, then the
+    ``system`` column of every measured/*/runs.csv it diagnoses): compiled first, so a pipeline started early
+    finds its kernels built.  Empty outside a checkout."""
+    import csv
+
+    import yaml
+
+    names: list[str] = []
+    try:
+        names.append(str(yaml.safe_load((root / "params.yaml").read_text())["sweep"]["model"]))
+    except (OSError, KeyError, TypeError, yaml.YAMLError):
+        pass
+    for runs in sorted((root / "measured").glob("*/runs.csv")):
+        try:
+            with runs.open(newline="") as fh:
+                names += [row["system"] for row in csv.DictReader(fh) if row.get("system")]
+        except (OSError, KeyError, csv.Error):
+            continue
+    return tuple(dict.fromkeys(names))
 
 Job = tuple[str, "str | None", bool]               # (model, exact propagator or None, also fill the JIT cache)
 Result = tuple[str, str, "str | None", "float | None"]   # (label, path, error or None, seconds or None: up to date)
@@ -27,7 +48,7 @@ def add_parser(sub) -> None:
                     "change to sim/ the old modules go unused and simulate falls back to the JIT kernel until this "
                     "is rerun.  'make install' runs it.  An existing module is not rebuilt.  Set VIBRO_NO_AOT=1 to "
                     "ignore the modules.  Kernels are built in parallel processes, those of the models the pipeline "
-                    "uses (" + ", ".join(PIPELINE_MODELS) + ") first; one line per kernel as it finishes, with the "
+                    "uses (params.yaml's sweep model, then the systems of measured/*/runs.csv) first; one line per kernel as it finishes, with the "
                     "elapsed time and an estimate of the time left, and the total at the end.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
@@ -45,9 +66,10 @@ def add_parser(sub) -> None:
 
 
 def pipeline_first(names: Iterable[str]) -> list[str]:
-    """``names`` with the pipeline's models (in :data:`PIPELINE_MODELS` order) ahead of the others."""
+    """``names`` with the pipeline's models (in :func:`pipeline_models` order) ahead of the others."""
     names = list(dict.fromkeys(names))
-    return [n for n in PIPELINE_MODELS if n in names] + [n for n in names if n not in PIPELINE_MODELS]
+    first = pipeline_models()
+    return [n for n in first if n in names] + [n for n in names if n not in first]
 
 
 def _mmss(seconds: float) -> str:

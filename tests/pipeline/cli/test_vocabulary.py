@@ -159,11 +159,13 @@ def test_optimise_rig_needs_simulator_and_sets_the_config(tmp_path, capsys):
 
 def test_optimise_feedback_never_goes_into_the_surrogate_folder(tmp_path, capsys):
     from pipeline.cli.optimise import DEFAULT_FEEDBACK, config_from_args
+    from pipeline.tracking.runs import project_root
 
     sur = tmp_path / "models" / "surrogate"
     sur.mkdir(parents=True)
     cfg = config_from_args(build_parser().parse_args(["optimise", "--surrogate", str(sur)]))
-    assert cfg.feedback == DEFAULT_FEEDBACK and not Path(DEFAULT_FEEDBACK).is_relative_to("models")
+    assert cfg.feedback == str(project_root() / DEFAULT_FEEDBACK)       # beside optuna.db, whatever the cwd
+    assert not Path(DEFAULT_FEEDBACK).is_relative_to("models")
     assert main(["optimise", "--surrogate", str(sur), "--feedback", str(sur / "feedback.parquet"),
                  "--no-mlflow"]) == 2
     assert "inside the surrogate folder" in capsys.readouterr().err
