@@ -41,28 +41,30 @@ def cases(system: str) -> list[str]:
     from tests.independent.rigs import RIGS
 
     rig = RIGS[system]
-    return [*rig.effects, "control", *(f"outside:{o}" for o in rig.outside)]
+    return ["control", *(f"outside:{o}" for o in rig.outside), *rig.effects]
 
 
-def spec_of(system: str, case: str, noise: str, seed: int):
+def spec_of(system: str, case: str, noise: str, seed: int, n_runs: int | None = None):
+    """The log of one case; ``n_runs``: the first n runs spread over the rig's grid (None: the whole grid)."""
     from tests.independent.generator import LogSpec
 
     if case == "control":
-        return LogSpec(system, noise=noise, seed=seed)
+        return LogSpec(system, noise=noise, seed=seed, n_runs=n_runs)
     if case.startswith("outside:"):
-        return LogSpec(system, outside=case.split(":", 1)[1], noise=noise, seed=seed)
-    return LogSpec(system, effect=case, noise=noise, seed=seed)
+        return LogSpec(system, outside=case.split(":", 1)[1], noise=noise, seed=seed, n_runs=n_runs)
+    return LogSpec(system, effect=case, noise=noise, seed=seed, n_runs=n_runs)
 
 
 def expected(case: str) -> str:
     return "nothing missing" if case == "control" else ("unexplained" if case.startswith("outside:") else "selected")
 
 
-def run_case(system: str, case: str, noise: str, seed: int, threads: int, settings: dict | None = None) -> dict:
+def run_case(system: str, case: str, noise: str, seed: int, threads: int, settings: dict | None = None,
+             n_runs: int | None = None) -> dict:
     """Generate (or reuse) the log and diagnose it; the row of the matrix with every statistic of the verdict."""
     from tests.independent.generator import generate
 
-    spec = spec_of(system, case, noise, seed)
+    spec = spec_of(system, case, noise, seed, n_runs)
     data = WORK / "logs" / spec.name
     truth_file = WORK / "logs" / f"{spec.name}.truth.json"
     if not truth_file.exists():
@@ -207,6 +209,15 @@ def rule_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _interleaved(systems: list[str], only: list[str] | None) -> list[tuple[str, str]]:
+    """(case, system) pairs taking one case of each system in turn, so a partial run covers every system."""
+    per = {s: [c for c in cases(s) if only is None or c in only] for s in systems}
+    out = []
+    for k in range(max((len(v) for v in per.values()), default=0)):
+        out += [(per[s][k], s) for s in systems if k < len(per[s])]
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--systems", nargs="+", default=["drill", "indenter-metal", "indenter-sandstone", "pendulum", "rimd"])
@@ -214,6 +225,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--noise", nargs="+", default=list(NOISE))
     p.add_argument("--seeds", nargs="+", type=int, default=list(SEEDS))
     p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--n-runs", type=int, default=None,
+                   help="shorter logs: the first N runs spread over each rig's grid (default: the whole grid)")
     p.add_argument("--quick", action="store_true", help="seed 0 and the first noise model only")
     p.add_argument("--fresh", action="store_true", help="diagnose every case again (the logs are kept)")
     p.add_argument("--replay", action="store_true", help="recompute verdicts from stored statistics only")
@@ -224,11 +237,10 @@ def main(argv: list[str] | None = None) -> int:
     WORK.mkdir(parents=True, exist_ok=True)
     done_file = WORK / "rows.json"
     done = {r["name"]: r for r in json.loads(done_file.read_text())} if done_file.exists() and not a.fresh else {}
-    todo = [(s, c, n, seed) for s in a.systems for c in (a.cases or cases(s)) if c in cases(s)
-            for n in a.noise for seed in a.seeds]
+    todo = [(s, c, n, seed) for seed in a.seeds for c, s in _interleaved(a.systems, a.cases) for n in a.noise]
     rows = []
     for k, (s, c, n, seed) in enumerate(todo, 1):
-        name = spec_of(s, c, n, seed).name
+        name = spec_of(s, c, n, seed, a.n_runs).name
         if name in done and not a.replay:
             rows.append(done[name])
             continue
@@ -236,7 +248,7 @@ def main(argv: list[str] | None = None) -> int:
             if name in done:
                 rows.append(done[name])
             continue
-        r = run_case(s, c, n, seed, a.threads)
+        r = run_case(s, c, n, seed, a.threads, n_runs=a.n_runs)
         done[name] = r
         rows.append(r)
         done_file.write_text(json.dumps(list(done.values()), indent=1, default=float))

@@ -47,7 +47,8 @@ class LogSpec:
     @property
     def name(self) -> str:
         what = self.effect or (f"outside-{self.outside}" if self.outside else "control")
-        return f"{self.system}-{what}-{self.noise}-s{self.seed}"
+        runs = "" if self.n_runs is None else f"-n{self.n_runs}"
+        return f"{self.system}-{what}-{self.noise}-s{self.seed}{runs}"
 
 
 def true_parameters(rig: Rig, spec: LogSpec) -> dict:
