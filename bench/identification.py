@@ -79,7 +79,7 @@ def run_case(system: str, case: str, noise: str, seed: int, threads: int, settin
         gen_s = None
     info = json.loads(truth_file.read_text())
     from pipeline.datasets.measured import load_dataset
-    from pipeline.diagnosis.driver import diagnose
+    from pipeline.diagnosis.outputs import diagnose_into
     from pipeline.diagnosis.run import DiagnoseConfig
 
     ds = load_dataset(data)
@@ -89,7 +89,7 @@ def run_case(system: str, case: str, noise: str, seed: int, threads: int, settin
 
         shutil.rmtree(out)
     t0, c0 = time.time(), time.process_time()
-    rep = diagnose(ds, out, DiagnoseConfig(n_threads=threads, **(settings or {})), log=lambda s: None)
+    rep = diagnose_into(ds, out, DiagnoseConfig(n_threads=threads, **(settings or {})), log=lambda s: None).report
     wall, cpu = time.time() - t0, time.process_time() - c0
     r = rep["systems"][system]
     truth = info["truth"]

@@ -92,20 +92,12 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
-# integer settings: (low, high) — the highs bound the work (fits x starts x iterations)
-INT_BOUNDS = {"holdout_every": (1, 1000), "min_runs_holdout": (1, 100_000), "n_starts": (1, 100), "grid": (1, 100),
-              "profile_points": (1, 100), "profile_nfev": (0, 1000),
-              "candidate_starts": (1, 2), "max_nfev": (1, 10_000), "seed": (0, 2**32 - 1), "n_threads": (1, A.MAX_THREADS),
-              "record_window": (0, 10_000)}
-FLOAT_BOUNDS = {"max_harmonic_hz": 1e6, "diff_step": 1.0, "bic_margin": 1e12, "explained_nrms": 1e6, "fs_sim_hz": 1e7,
-                "test_margin": 1e12, "systematic_tol": 1.0, "model_floor": 1.0, "summary_floor": 1.0}
-
-
 def load_config(path: str | None, sets: dict, effects: list[str] | None, threads: int | None):
-    """DiagnoseConfig from params.yaml's 'diagnose' section + overrides (UserError naming bad keys)."""
-    from pipeline.diagnosis.run import DiagnoseConfig
-
+    """DiagnoseConfig from params.yaml's 'diagnose' section + overrides (UserError naming bad keys); numbers
+    given as text or 6.0 become the config's types here, and the config checks its bounds when built."""
     from pipeline.core.params import read_section
+    from pipeline.diagnosis.config import FLOAT_BOUNDS, INT_BOUNDS, ZERO_ALLOWED
+    from pipeline.diagnosis.run import DiagnoseConfig
 
     values: dict = read_section(path, "diagnose")
     values.update(sets)
@@ -120,13 +112,10 @@ def load_config(path: str | None, sets: dict, effects: list[str] | None, threads
     for k, v in list(values.items()):
         if k in INT_BOUNDS and v is not None:
             lo, hi = INT_BOUNDS[k]
+            hi = A.MAX_THREADS if k == "n_threads" else hi
             values[k] = A.number(v, f"diagnose setting '{k}'", integer=True, lo=lo, hi=hi)
         elif k in FLOAT_BOUNDS and v is not None:
-            values[k] = A.number(v, f"diagnose setting '{k}'", lo=0.0, lo_open=k not in ("model_floor", "summary_floor"),
-                                 hi=FLOAT_BOUNDS[k])
-    if values.get("effects") is not None and (not isinstance(values["effects"], list)
-                                              or not all(isinstance(e, str) for e in values["effects"])):
-        raise UserError(f"diagnose setting 'effects' must be a list of effect names, got {values['effects']!r}")
+            values[k] = A.number(v, f"diagnose setting '{k}'", lo=0.0, lo_open=k not in ZERO_ALLOWED, hi=FLOAT_BOUNDS[k])
     if values.get("sim_settings") is not None:
         values["sim_settings"] = A.check_settings(values["sim_settings"], "diagnose setting 'sim_settings'")
     return DiagnoseConfig(**values)
@@ -140,8 +129,9 @@ def run(args) -> int:
     from pipeline.core.files import atomic_write_text
     from pipeline.core.jsonable import dump_json
     from pipeline.core.outdir import check_out_file, prepare_out, record_out_file
-    from pipeline.diagnosis.driver import diagnose
     from pipeline.datasets.measured import load_dataset
+    from pipeline.diagnosis.driver import diagnose
+    from pipeline.diagnosis.outputs import write_outputs
 
     cfg = load_config(args.params, parse_assignments(args.sets, "--setting"), args.effects, check_workers(args.threads))
     ds = load_dataset(args.dataset)
@@ -164,8 +154,10 @@ def run(args) -> int:
         bar = tqdm(total=n_steps, desc="diagnose (folds)", disable=args.quiet, unit="fold", file=sys.stderr)
         with tracking.run("diagnose", {"dataset": args.dataset, **asdict(cfg)}, enabled=not args.no_mlflow,
                           variant=Path(args.dataset).resolve().name) as mlflow:
-            report = diagnose(ds, tmp, cfg, log=log, progress=lambda: bar.update(1))
+            result = diagnose(ds, cfg, log=log, progress=lambda: bar.update(1))
             bar.close()
+            report = result.report
+            write_outputs(result, tmp)
             check_report(report)
             headline = _headline(report)
             if mlflow is not None:

@@ -1,9 +1,13 @@
-"""Model diagnosis against measured data (issue 7, ``vibro diagnose``).
+"""Model diagnosis against measured data (``vibro diagnose``).
 
 features.py  measured and simulated features (harmonics of the signals, summary labels) with noise
 model.py     calibratable parameters, candidate effects, parallel evaluation of the simulator
 fit.py       multi-start least squares with a parallel finite-difference Jacobian, uncertainty
-run.py       splitting, calibration, candidate ranking and selection for one system
+config.py    bounds of the settings, checked by DiagnoseConfig when built
+run.py       splitting, calibration, candidate ranking and selection for one system (a SystemDiagnosis)
+rigout.py    the corrected rig of one system's diagnosis
 report.py    residual structure, figures and report.md
-driver.py    the whole dataset: every system, report.json / report.md written atomically
+result.py    the typed results: SystemDiagnosis, SimulatedRuns, DiagnoseResult
+driver.py    the whole dataset: every system diagnosed into a DiagnoseResult; writes nothing
+outputs.py   rig files, figures, report.json and report.md of a DiagnoseResult, written atomically
 """

@@ -1,15 +1,13 @@
-"""Whole-dataset diagnosis: every system, figures, report.json and report.md written atomically."""
+"""Whole-dataset diagnosis: every system diagnosed, its runs simulated for the figures, its corrected rig and the
+combined report built.  Nothing is written (``pipeline.diagnosis.outputs`` does that)."""
 from __future__ import annotations
 
-import json
-import os
 import time
-from pathlib import Path
+from dataclasses import asdict, replace
 
-from pipeline.core.files import atomic_directory
-from pipeline.core.jsonable import to_jsonable
 from pipeline.diagnosis.features import simulated_features
-from pipeline.diagnosis.report import figures, markdown, residual_structure
+from pipeline.diagnosis.report import figure_names, residual_structure
+from pipeline.diagnosis.result import DiagnoseResult, SimulatedRuns, SystemDiagnosis
 from pipeline.diagnosis.rigout import corrected_rig, rig_file_name
 from pipeline.diagnosis.run import DiagnoseConfig, build_targets, diagnose_system
 
@@ -18,64 +16,60 @@ SUMMARY_NOTE = ("summary data: the measurement sd is assumed (summary.csv '<feat
                 "assumption")
 
 
-def diagnose(ds, out: str | os.PathLike, cfg: DiagnoseConfig, log=print, progress=None) -> dict:
-    """Diagnose ``ds`` into directory ``out`` (report.json, report.md, PNG figures, and the corrected rig:
-    rig.yaml, or rig-<system>.yaml per system of a several-system dataset); returns the report.
+def diagnose(ds, cfg: DiagnoseConfig, log=print, progress=None) -> DiagnoseResult:
+    """Diagnose every system of the measured dataset ``ds``; writes nothing.
     BLAS runs one thread meanwhile: the simulations run in threads of their own, and OpenBLAS threads beside
     them spin for the cores (its least-squares feature fits took ~40x longer)."""
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(1):
-        return _diagnose(ds, out, cfg, log, progress)
+        return _diagnose(ds, cfg, log, progress)
 
 
-def _diagnose(ds, out: str | os.PathLike, cfg: DiagnoseConfig, log=print, progress=None) -> dict:
+def simulate_runs(diag: SystemDiagnosis) -> SimulatedRuns:
+    """Every run of ``diag``'s system simulated at the default, calibrated base and final parameters."""
+    ev = diag.evaluator
+    idx = list(range(len(ev.targets)))
+    sets = [{}, diag.fits["base"].values, diag.fits[diag.final].values]
+    rows = [[{"run": i, "residual": ev.residual_of(i, r), "result": r,
+              "model": simulated_features(ev.targets[i], r),
+              "peak_velocity_m_s": (float(r.history["vel_m_s"].max()) if r.history is not None else None)}
+             for i, r in zip(idx, row)] for row in ev.simulate(sets, idx)]
+    return SimulatedRuns(default=rows[0], base=rows[1], final=rows[2])
+
+
+def _presets(ds, system: str) -> list[str | None]:
+    """The runs' ``preset`` column of ``system`` (None where a run names none)."""
+    rows = ds.runs[ds.runs["system"] == system]
+    return [str(p).strip() if isinstance(p, str) and p.strip() else None
+            for p in (rows["preset"] if "preset" in rows else [None] * len(rows))]
+
+
+def _diagnose(ds, cfg: DiagnoseConfig, log=print, progress=None) -> DiagnoseResult:
     t0 = time.time()
-    out = Path(out)
     targets = build_targets(ds, cfg)
-    per = []
+    diags, runs = [], []
     for system, tgs in targets.items():
-        rep = diagnose_system(system, tgs, cfg, log, progress)
-        ev = rep["_ev"]
-        idx = list(range(len(tgs)))
-        sets = [{}, rep["_fits"]["base"].values, rep["_fits"][rep["_final"]].values]
-        sims = ev.simulate(sets, idx)
-        runs = [[{"run": i, "residual": ev.residual_of(i, r), "result": r,
-                  "model": simulated_features(ev.targets[i], r),
-                  "peak_velocity_m_s": (float(r.history["vel_m_s"].max()) if r.history is not None else None)}
-                 for i, r in zip(idx, row)] for row in sims]
-        rep["residual_structure"] = residual_structure(rep, runs[1], runs[2])
-        rep["notes"] = [SUMMARY_NOTE] if "summary" in rep["data"] else []
-        rep["_runs"] = runs
-        per.append(rep)
+        diag = diagnose_system(system, tgs, cfg, log, progress)
+        sim_runs = simulate_runs(diag)
+        notes = [SUMMARY_NOTE] if "summary" in diag.report["data"] else []
+        diag = replace(diag, report={**diag.report, "residual_structure": residual_structure(diag, sim_runs.base,
+                                                                                             sim_runs.final),
+                                     "notes": notes})
+        diags.append(diag)
+        runs.append(sim_runs)
     dataset = str(ds.path) if ds.path else "dataset"
-    rigs = []
-    for rep in per:
-        rows = ds.runs[ds.runs["system"] == rep["system"]]
-        presets = [str(p).strip() if isinstance(p, str) and p.strip() else None
-                   for p in (rows["preset"] if "preset" in rows else [None] * len(rows))]
-        rig, info = corrected_rig(rep, ev_targets(rep), presets, dataset)
-        info["file"] = rig_file_name(rep["system"], len(per))
-        rep["rig"] = info
+    systems, rigs = [], []
+    for diag in diags:
+        rig, info = corrected_rig(diag, _presets(ds, diag.system), dataset)
+        info["file"] = rig_file_name(diag.system, len(diags))
         rigs.append((info["file"], rig))
-    with atomic_directory(out) as tmp:
-        from pipeline.core.rigfile import write_rig
-
-        for name, rig in rigs:
-            write_rig(tmp / name, rig, comment="the corrected rig of this diagnosis (report.json 'rig')")
-        for rep in per:
-            rep["figures"] = figures(rep, ds, rep["_runs"][1], rep["_runs"][2], rep["_runs"][0], tmp)
-        public = [{k: v for k, v in r.items() if not k.startswith("_")} for r in per]
-        report = _combine(public, dataset, cfg)
-        report["wall_time_s"] = round(time.time() - t0, 1)
-        (tmp / "report.json").write_text(json.dumps(to_jsonable(report), indent=2))
-        (tmp / "report.md").write_text(markdown(report, public, report["wall_time_s"]))
-    return report
-
-
-def ev_targets(rep: dict) -> list:
-    """The targets (runs.csv order) a system's diagnosis was evaluated on."""
-    return list(rep["_ev"].targets)
+        diag = replace(diag, report={**diag.report, "rig": info})
+        systems.append(replace(diag, report={**diag.report, "figures": figure_names(diag)}))
+    report = _combine([d.report for d in systems], dataset, cfg)
+    report["wall_time_s"] = round(time.time() - t0, 1)
+    return DiagnoseResult(systems=tuple(systems), report=report, runs=tuple(runs), rigs=tuple(rigs),
+                          series=dict(ds.series))
 
 
 KEYS = ("verdict", "calibrated", "noise_floor", "default_error", "base_error", "candidates", "selected", "final_error",
@@ -85,8 +79,6 @@ KEYS = ("verdict", "calibrated", "noise_floor", "default_error", "base_error", "
 def _combine(per: list[dict], dataset: str, cfg: DiagnoseConfig) -> dict:
     """One system: its keys at the top level.  Several: `system` is the list and every key maps system ->
     value (`explained` is true only if every system is explained)."""
-    from dataclasses import asdict
-
     base = {"dataset": dataset, "config": asdict(cfg)}
     if len(per) == 1:
         return {**base, **per[0], "systems": {per[0]["system"]: per[0]}}

@@ -13,6 +13,7 @@ from scipy.stats import spearmanr  # noqa: E402
 
 from pipeline.core.files import atomic_write_figure  # noqa: E402
 from pipeline.diagnosis.features import harmonic_fit, model_record, record_time  # noqa: E402
+from pipeline.diagnosis.result import SimulatedRuns, SystemDiagnosis  # noqa: E402
 
 
 CONTROL_KEYS = ("frequency_hz", "amplitude_n", "amplitude_m", "static_force_n", "gap_m")
@@ -27,17 +28,17 @@ def _nrms(r: np.ndarray) -> float:
     return float(np.sqrt(np.mean(r ** 2))) if r.size else float("nan")
 
 
-def residual_structure(rep: dict, base_runs: list[dict], final_runs: list[dict]) -> dict:
+def residual_structure(diag: SystemDiagnosis, base_runs: list[dict], final_runs: list[dict]) -> dict:
     """How the calibrated base model's residual depends on frequency, amplitude, static force, peak
     indenter velocity, harmonic frequency and time within the run (all runs; Spearman correlations)."""
-    ev = rep["_ev"]
+    ev = diag.evaluator
     rows = []
     for b, f in zip(base_runs, final_runs):
         tg = ev.targets[b["run"]]
         rows.append({"run_id": tg.run_id, **{k: tg.controls.get(k) for k in CONTROL_KEYS}, **tg.controls,
                      "peak_velocity_m_s": b["peak_velocity_m_s"],
                      "base_nrms": _nrms(b["residual"]), "final_nrms": _nrms(f["residual"]),
-                     "held_out": b["run"] in rep["_test_idx"]})
+                     "held_out": b["run"] in diag.held_out})
     corr = {}
     y = [r["base_nrms"] for r in rows]
     for key in (*CONTROL_KEYS, "peak_velocity_m_s"):
@@ -80,19 +81,36 @@ def _save(fig, path: Path) -> str:
     return path.name
 
 
-def figures(rep: dict, ds, base_runs: list[dict], final_runs: list[dict], default_runs: list[dict],
-            out: Path) -> list[str]:
-    """Residual before/after, residual structure, measured vs simulated time histories and spectra."""
-    ev, sysname = rep["_ev"], rep["system"]
+def _timehist_runs(diag: SystemDiagnosis) -> list[int]:
+    """Target indices of the runs drawn measured against simulated: the first two held out, if series."""
+    return [i for i in diag.held_out[:2] if diag.evaluator.targets[i].kind == "series"]
+
+
+def _has_summary(diag: SystemDiagnosis) -> bool:
+    return any(tg.kind == "summary" for tg in diag.evaluator.targets)
+
+
+def figure_names(diag: SystemDiagnosis) -> list[str]:
+    """The PNG files :func:`figures` draws for ``diag``, in its order (report.json 'figures')."""
+    tag = _tag(diag.system)
+    return ([f"residual_{tag}.png"] + [f"timehist_{diag.evaluator.targets[i].run_id}.png" for i in _timehist_runs(diag)]
+            + ([f"summary_{tag}.png"] if _has_summary(diag) else []))
+
+
+def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path) -> list[str]:
+    """Residual before/after, residual structure, measured vs simulated time histories and spectra, drawn into
+    directory ``out`` from the measured ``series`` (run id -> DataFrame); the file names."""
+    ev, sysname, final = diag.evaluator, diag.system, diag.final
+    base_runs, final_runs, default_runs = runs.base, runs.final, runs.default
     tag = _tag(sysname)
     files = []
-    st = rep["residual_structure"]
+    st = diag.report["residual_structure"]
     rows = st["by_run"]
     fig, ax = plt.subplots(2, 3, figsize=(13, 7))
     keys = [k for k in (*CONTROL_KEYS, "peak_velocity_m_s")
             if len({r.get(k) for r in rows if r.get(k) is not None}) > 1][:4]
     for key, a in zip(keys, ax.ravel()):
-        for col, lab, mk in (("base_nrms", "calibrated base (before)", "o"), ("final_nrms", f"with {rep['_final']} (after)", "s")):
+        for col, lab, mk in (("base_nrms", "calibrated base (before)", "o"), ("final_nrms", f"with {final} (after)", "s")):
             x = [r[key] for r in rows]
             a.scatter(x, [r[col] for r in rows], marker=mk, label=lab, alpha=0.7)
         ho = [r for r in rows if r["held_out"]]
@@ -119,14 +137,13 @@ def figures(rep: dict, ds, base_runs: list[dict], final_runs: list[dict], defaul
     fig.suptitle(f"{sysname}: residual structure before/after")
     files.append(_save(fig, out / f"residual_{tag}.png"))
     # measured vs simulated for up to two held-out runs
-    shown = [i for i in rep["_test_idx"]][:2]
-    for i in shown:
+    for i in _timehist_runs(diag):
         tg = ev.targets[i]
         k = [d["run"] for d in base_runs].index(i)
-        runs = {"default": default_runs[k]["result"], "base": base_runs[k]["result"], rep["_final"]: final_runs[k]["result"]}
+        results = {"default": default_runs[k]["result"], "base": base_runs[k]["result"], final: final_runs[k]["result"]}
         f = tg.controls["frequency_hz"]
         if tg.kind == "series":
-            df = ds.series[tg.run_id]
+            df = series[tg.run_id]
             sigs = [s for s in ("accel_m_s2", "force_n") if s in df.columns]
             fig, ax = plt.subplots(len(sigs), 2, figsize=(12, 3.4 * len(sigs)), squeeze=False)
             for r_, sig in enumerate(sigs):
@@ -137,7 +154,7 @@ def figures(rep: dict, ds, base_runs: list[dict], final_runs: list[dict], defaul
                 spec_m = np.abs(hm)
                 kk = np.arange(1, tg.k_max + 1) * f
                 ax[r_, 1].plot(kk, spec_m, "ko-", lw=2, label="measured")
-                for name, res in runs.items():
+                for name, res in results.items():
                     if res is None or res.history is None:
                         continue
                     t, hr = model_record(tg, res.history)
@@ -153,12 +170,12 @@ def figures(rep: dict, ds, base_runs: list[dict], final_runs: list[dict], defaul
             fig.suptitle(f"{tg.run_id} (held out): measured vs simulated")
             files.append(_save(fig, out / f"timehist_{tg.run_id}.png"))
     summ = [i for i in range(len(ev.targets)) if ev.targets[i].kind == "summary"]
-    if summ:
+    if _has_summary(diag):
         feats = sorted({n for i in summ for n in ev.targets[i].names})
         fig, ax = plt.subplots(1, len(feats), figsize=(4 * len(feats), 3.6), squeeze=False)
         for a, feat in zip(ax[0], feats):
             for lab, runs_, mk in (("measured", None, "ko"), ("default", default_runs, "x"), ("base", base_runs, "o"),
-                                   (rep["_final"], final_runs, "s")):
+                                   (final, final_runs, "s")):
                 xs, ys = [], []
                 for k_, i in enumerate(range(len(ev.targets))):
                     tg = ev.targets[i]

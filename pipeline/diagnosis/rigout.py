@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import math
 
+from pipeline.diagnosis.result import SystemDiagnosis
+
 UNEXPLAINED_PREFIX = "UNEXPLAINED"
 """First word of a rig's ``source`` when the diagnosis left the residual unexplained."""
 
@@ -34,11 +36,12 @@ def _common(values: list, what: str) -> tuple[object, str | None]:
     return first, f"{what} differs between runs; the rig uses the first run's"
 
 
-def corrected_rig(rep: dict, targets: list, presets: list[str | None], dataset: str):
-    """(``sim.Rig``, info dict for report.json) of one system's diagnosis ``rep`` (with its private ``_fits``
-    and ``_final``), its ``targets`` (known parameters per run) and the runs' ``presets``."""
+def corrected_rig(diag: SystemDiagnosis, presets: list[str | None], dataset: str):
+    """(``sim.Rig``, info dict for report.json) of one system's diagnosis ``diag`` (its final fit, and its targets'
+    known parameters per run), the runs' ``presets`` and the ``dataset`` named in the rig's source."""
     import sim
 
+    rep, targets = diag.report, diag.targets
     system = rep["system"]
     spec = sim.get_model(system)
     notes = []
@@ -54,7 +57,7 @@ def corrected_rig(rep: dict, targets: list, presets: list[str | None], dataset: 
             notes.append(note)
         if v is not None and not math.isclose(float(v), float(base[name]), rel_tol=1e-12, abs_tol=0.0):
             params[name] = float(v)
-    fr = rep["_fits"][rep["_final"]]
+    fr = diag.fits[diag.final]
     effect_params = {p for ps in spec.effects.values() for p in ps}
     effects: dict[str, dict[str, float]] = {}
     for name in fr.free:

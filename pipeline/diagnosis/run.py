@@ -18,8 +18,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pipeline.diagnosis.config import check_config
 from pipeline.diagnosis.features import CONTROL_NAMES, Target, series_target, summary_target
 from pipeline.diagnosis.fit import FitResult, fit
+from pipeline.diagnosis.result import SystemDiagnosis
 from pipeline.diagnosis.verdict import UNEXPLAINED, ModelStats, Verdict, VerdictRule, closeness, decide
 from pipeline.diagnosis.model import (Evaluator, FreeParam, calibratable, candidates, default_fit_settings,
                                       default_max_harmonic_hz, supported_systems)
@@ -58,6 +60,9 @@ class DiagnoseConfig:
     summary_sd: dict = field(default_factory=dict)   # e.g. {"peak_decel_g": ["rel", 0.05]}
     seed: int = 0
     n_threads: int | None = None
+
+    def __post_init__(self) -> None:
+        check_config(self)
 
 
 def build_targets(ds, cfg: DiagnoseConfig) -> dict[str, list[Target]]:
@@ -270,9 +275,10 @@ def _param_report(fr: FitResult) -> dict:
     return {n: {"value": fr.values[n], "sd": fr.sd[n], "ci95": list(fr.ci95[n])} for n in fr.free}
 
 
-def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log=print, progress=None) -> dict:
-    """Diagnose one system's runs; returns the per-system report dictionary (plus private '_' keys
-    holding the evaluator and fitted parameter sets for the figures)."""
+def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log=print,
+                    progress=None) -> SystemDiagnosis:
+    """Diagnose one system's runs: its report entry, with the evaluator, the reported fits, the held-out runs
+    and the final model the figures and the corrected rig need."""
     from dataclasses import replace
 
     cfg = replace(cfg, **{k: v for k, v in default_fit_settings(system).items() if getattr(cfg, k) is None})
@@ -327,7 +333,7 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
                   "score": bic[m], "delta_score": bic[m] - bic["base"], "delta_chi2_heldout": v.checks[m]["delta_chi2"],
                   "improves": v.checks[m]["improves"], "adequate": v.checks[m]["adequate"],
                   "calibration_chi2": cal_chi2[m]} for m in sorted(cands, key=lambda m: bic[m])]
-    return {
+    report = {
         "system": system,
         "n_runs": len(targets),
         "data": sorted({t.kind for t in targets}),
@@ -357,5 +363,5 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
         "absorbed": absorbed_parameters(final_fits, v, cal_names),
         "call": closeness(v, stats, VerdictRule(cfg.explained_nrms, cfg.systematic_tol, cfg.bic_margin, cfg.test_margin)),
         "n_simulations": ev.n_sims,
-        "_ev": ev, "_fits": final_fits, "_test_idx": test_idx, "_final": final,
     }
+    return SystemDiagnosis(report=report, evaluator=ev, fits=final_fits, held_out=test_idx, final=final)

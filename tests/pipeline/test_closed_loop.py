@@ -45,7 +45,7 @@ def test_corrected_recommendation_reaches_the_truths_best(tmp_path, effect, seed
     from pipeline.core.rigfile import read_rig
     from pipeline.datasets.measured import load_dataset, write_dataset
     from pipeline.datasets.synth import SynthConfig, resolve_effects, synthesize
-    from pipeline.diagnosis.driver import diagnose
+    from pipeline.diagnosis.outputs import diagnose_into
     from sim import Rig
 
     ds, info = synthesize(SynthConfig(system="drill", effects=resolve_effects("drill", {effect: None}), seed=seed))
@@ -56,7 +56,7 @@ def test_corrected_recommendation_reaches_the_truths_best(tmp_path, effect, seed
     from pipeline.cli.diagnose import load_config
 
     cfg = load_config(str(Path(__file__).resolve().parents[2] / "params.yaml"), {}, None, None)
-    rep = diagnose(load_dataset(tmp_path / "log"), tmp_path / "diag", cfg, log=lambda s: None)
+    rep = diagnose_into(load_dataset(tmp_path / "log"), tmp_path / "diag", cfg, log=lambda s: None).report
     corrected = read_rig(tmp_path / "diag" / "rig.yaml")
     assert rep["selected"] == effect, rep["rig"]["source"]
     point_c, _ = _best(corrected)

@@ -2,10 +2,13 @@
 ``source`` — on hand-made diagnosis results (the end-to-end case is in test_diagnose.py)."""
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import pytest
 
 from pipeline.diagnosis.features import Target
 from pipeline.diagnosis.fit import FitResult
+from pipeline.diagnosis.result import SystemDiagnosis
 from pipeline.diagnosis.rigout import UNEXPLAINED_PREFIX, corrected_rig, rig_file_name
 
 
@@ -14,9 +17,12 @@ def _fit(values: dict, sd: dict) -> FitResult:
                      free=list(values), nfev=1)
 
 
-def _rep(selected, explained, fits, final):
-    return {"system": "drill", "selected": selected, "explained": explained, "final_error": 0.21,
-            "noise_floor": 0.042, "final_nrms": 35.0, "_fits": fits, "_final": final}
+def _diag(selected, explained, fits, final, targets) -> SystemDiagnosis:
+    """A diagnosis of ``targets`` (an evaluator stand-in holding only them) with these ``fits``."""
+    report = {"system": "drill", "selected": selected, "explained": explained, "final_error": 0.21,
+              "noise_floor": 0.042, "final_nrms": 35.0}
+    return SystemDiagnosis(report=report, evaluator=SimpleNamespace(targets=targets), fits=fits, held_out=[],
+                           final=final)
 
 
 def _targets(known_m1=(12.0, 12.0)):
@@ -34,7 +40,7 @@ def test_selected_effect_goes_under_effects_with_the_jointly_fitted_base():
     joint = {"K1": 5.5e8, "C1": 3.1e5, "Pr": 2900.0, "tau": 1.1e-4, "beta": 2900.0}
     fits = {"base": _fit(BASE, {k: 0.1 * v for k, v in BASE.items()}),
             "shaker_coil": _fit(joint, {k: 0.05 * v for k, v in joint.items()})}
-    rig, info = corrected_rig(_rep("shaker_coil", True, fits, "shaker_coil"), _targets((lab["M1"], lab["M1"])),
+    rig, info = corrected_rig(_diag("shaker_coil", True, fits, "shaker_coil", _targets((lab["M1"], lab["M1"]))),
                               ["lab", "lab"], "measured/drill-rig")
     assert rig.preset == "lab" and rig.effects == {"shaker_coil": {"tau": 1.1e-4, "beta": 2900.0}}
     assert rig.parameters["K1"] == 5.5e8 and rig.parameters["Pr"] == 2900.0     # the joint fit, not the base fit
@@ -48,7 +54,7 @@ def test_selected_effect_goes_under_effects_with_the_jointly_fitted_base():
 def test_unexplained_writes_the_calibrated_base_and_says_how_wrong():
     fits = {"base": _fit(BASE, {k: 0.1 * v for k, v in BASE.items()}),
             "shaker_coil": _fit({**BASE, "tau": 1e-4, "beta": 1e3}, {})}
-    rig, info = corrected_rig(_rep(None, False, fits, "base"), _targets(), ["lab", "lab"], "d")
+    rig, info = corrected_rig(_diag(None, False, fits, "base", _targets()), ["lab", "lab"], "d")
     assert rig.effects == {} and rig.parameters["K1"] == 5e8
     assert rig.source.startswith(f"vibro diagnose d (drill): {UNEXPLAINED_PREFIX}")
     assert "0.21" in rig.source and "0.042" in rig.source     # held-out error against the noise floor
@@ -57,7 +63,7 @@ def test_unexplained_writes_the_calibrated_base_and_says_how_wrong():
 
 def test_runs_that_disagree_on_a_known_parameter_are_noted():
     fits = {"base": _fit(BASE, {k: 0.1 * v for k, v in BASE.items()})}
-    rig, info = corrected_rig(_rep(None, True, fits, "base"), _targets((12.0, 13.0)), ["lab", None], "d")
+    rig, info = corrected_rig(_diag(None, True, fits, "base", _targets((12.0, 13.0))), ["lab", None], "d")
     assert rig.parameters["M1"] == 12.0
     assert any("M1" in n for n in info["notes"]) and any("preset" in n for n in info["notes"])
 

@@ -1,0 +1,45 @@
+"""What ``vibro diagnose`` writes of a :class:`~pipeline.diagnosis.result.DiagnoseResult`: the corrected rig
+(rig.yaml, or rig-<system>.yaml per system), the PNG figures, report.json and report.md, atomically into one folder.
+
+Called by the command (``pipeline/cli/diagnose.py``), which picks the folder and logs it to MLflow.
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+from pipeline.core.files import atomic_directory
+from pipeline.core.jsonable import to_jsonable
+from pipeline.diagnosis.driver import diagnose
+from pipeline.diagnosis.report import figures, markdown
+from pipeline.diagnosis.result import DiagnoseResult
+from pipeline.diagnosis.run import DiagnoseConfig
+
+RIG_COMMENT = "the corrected rig of this diagnosis (report.json 'rig')"
+
+
+def write_outputs(result: DiagnoseResult, out: str | os.PathLike) -> Path:
+    """Write ``result`` into directory ``out`` (replaced as a whole, only once every file is written); returns it."""
+    from pipeline.core.rigfile import write_rig
+
+    out = Path(out)
+    with atomic_directory(out) as tmp:
+        for name, rig in result.rigs:
+            write_rig(tmp / name, rig, comment=RIG_COMMENT)
+        for diag, runs in zip(result.systems, result.runs):
+            drawn = figures(diag, runs, result.series, tmp)
+            if drawn != diag.report["figures"]:     # report.json names the figures before they are drawn
+                raise RuntimeError(f"{diag.system}: figures drawn {drawn} differ from those reported "
+                                   f"{diag.report['figures']}")
+        report = result.report
+        (tmp / "report.json").write_text(json.dumps(to_jsonable(report), indent=2))
+        (tmp / "report.md").write_text(markdown(report, [d.report for d in result.systems], report["wall_time_s"]))
+    return out
+
+
+def diagnose_into(ds, out: str | os.PathLike, cfg: DiagnoseConfig, log=print, progress=None) -> DiagnoseResult:
+    """Diagnose ``ds`` (:func:`~pipeline.diagnosis.driver.diagnose`) and write the result into directory ``out``."""
+    result = diagnose(ds, cfg, log, progress)
+    write_outputs(result, out)
+    return result

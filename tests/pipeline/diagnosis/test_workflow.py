@@ -1,0 +1,99 @@
+"""The diagnose driver is thin: a self-checking config in, a frozen ``DiagnoseResult`` out, no file written; the command
+(``pipeline/cli/diagnose.py``, through ``pipeline.diagnosis.outputs``) writes report.json with the keys it always had."""
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pytest
+
+from pipeline.core.errors import UserError
+from pipeline.diagnosis.run import DiagnoseConfig
+
+SYSTEM_KEYS = ["system", "n_runs", "data", "split", "verdict", "calibrated", "calibrated_uncertainty", "noise_floor",
+               "noise_sd", "default_error", "base_error", "final_error", "default_nrms", "base_nrms", "final_nrms",
+               "base_systematic", "final_systematic", "heldout_n", "error_by_group", "base_score", "candidates",
+               "selected", "leader", "runner_up", "selected_params", "explained", "best_partial_candidate", "absorbed",
+               "call", "n_simulations", "residual_structure", "notes", "rig", "figures"]
+REPORT_KEYS = ["dataset", "config", *SYSTEM_KEYS, "systems", "wall_time_s"]
+RIG_KEYS = ["explained", "selected", "source", "verdict", "absorbed", "model_error", "noise_floor", "nrms", "notes",
+            "file"]
+# a small, quick diagnosis: 6 short runs, one candidate, one start (seconds on one core)
+SETTINGS = dict(effects=["sensor_lowpass"], min_runs_holdout=6, holdout_every=3, n_starts=1, candidate_starts=1,
+                max_nfev=4, refine_nfev=0, n_threads=2)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    """A written 6-run indenter-metal dataset with a sensor low-pass (``vibro synth``)."""
+    from pipeline.cli import main
+
+    out = tmp_path_factory.mktemp("data") / "lp"
+    assert main(["synth", "--out", str(out), "--system", "indenter-metal", "--effect", "sensor_lowpass",
+                 "--cycles", "8", "--frequencies", "60", "80", "100", "--seed", "4"]) == 0
+    return out
+
+
+def _private_keys(d, path=""):
+    """Paths of the keys starting with '_' anywhere in the nested dict ``d``."""
+    out = []
+    if isinstance(d, dict):
+        for k, v in d.items():
+            out += ([f"{path}/{k}"] if str(k).startswith("_") else []) + _private_keys(v, f"{path}/{k}")
+    elif isinstance(d, list):
+        for i, v in enumerate(d):
+            out += _private_keys(v, f"{path}[{i}]")
+    return out
+
+
+def test_diagnose_returns_a_frozen_result_and_writes_nothing(dataset, tmp_path, monkeypatch):
+    from pipeline.datasets.measured import load_dataset
+    from pipeline.diagnosis.driver import diagnose
+    from pipeline.diagnosis.result import DiagnoseResult, SimulatedRuns, SystemDiagnosis
+
+    monkeypatch.chdir(tmp_path)
+    before = sorted(p.relative_to(dataset) for p in dataset.rglob("*"))
+    res = diagnose(load_dataset(dataset), DiagnoseConfig(**SETTINGS), log=lambda s: None)
+    assert list(tmp_path.iterdir()) == []                                     # nothing in the current folder
+    assert sorted(p.relative_to(dataset) for p in dataset.rglob("*")) == before   # nor beside the data
+    assert isinstance(res, DiagnoseResult) and len(res.systems) == len(res.runs) == len(res.rigs) == 1
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.report = {}
+    diag = res.systems[0]
+    assert isinstance(diag, SystemDiagnosis) and isinstance(res.runs[0], SimulatedRuns)
+    assert list(res.report) == REPORT_KEYS and list(diag.report) == SYSTEM_KEYS
+    assert res.report["systems"]["indenter-metal"] is diag.report
+    assert _private_keys(res.report) == []
+    assert set(diag.fits) == {"base", "sensor_lowpass"} and diag.final in diag.fits
+    assert diag.held_out and all(0 <= i < len(diag.targets) for i in diag.held_out)
+    assert res.rigs[0][0] == "rig.yaml" == diag.report["rig"]["file"] and res.rigs[0][1].model == "indenter-metal"
+
+
+def test_the_command_writes_report_json_with_its_keys(dataset, tmp_path):
+    from pipeline.cli import main
+
+    out = tmp_path / "diag"
+    sets = [a for k, v in SETTINGS.items() if k not in ("effects", "n_threads") for a in ("--setting", f"{k}={v}")]
+    assert main(["diagnose", str(dataset), "--out", str(out), "--quiet", "--no-mlflow", "--threads", "2",
+                 "--effects", *SETTINGS["effects"], *sets]) == 0
+    rep = json.loads((out / "report.json").read_text())
+    assert list(rep) == REPORT_KEYS and list(rep["systems"]["indenter-metal"]) == SYSTEM_KEYS
+    assert list(rep["rig"]) == RIG_KEYS
+    assert _private_keys(rep) == []
+    assert rep["figures"][0] == "residual_metal.png" and all((out / f).is_file() for f in rep["figures"])
+    written = {p.name for p in out.iterdir() if not p.name.startswith(".")}     # beside the command's marker
+    assert written == {"report.json", "report.md", "rig.yaml", *rep["figures"]}
+
+
+@pytest.mark.parametrize("bad", [dict(n_starts=0), dict(grid=2.5), dict(candidate_starts=3), dict(explained_nrms=0.0),
+                                 dict(seed=True), dict(systematic_tol=float("nan")), dict(effects="shaker_coil"),
+                                 dict(sim_settings=None)])
+def test_config_checks_itself(bad):
+    with pytest.raises(UserError, match="diagnose setting"):
+        DiagnoseConfig(**bad)
+
+
+def test_config_accepts_its_bounds():
+    cfg = DiagnoseConfig(model_floor=0.0, summary_floor=0.0, profile_nfev=0, record_window=0, explained_nrms=3,
+                         n_threads=1, effects=["shaker_coil"])
+    assert cfg.model_floor == 0.0 and cfg.explained_nrms == 3
