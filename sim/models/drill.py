@@ -89,7 +89,8 @@ def _rhs_at(t, y, ph, p, dy):
     pc, dxt, dxb = rock_slider(ph, _pc_at(k1, alpha, c1, x1, v1, xb), _pr_at(pr, gamma, gap, xb), k1, c1, v1, xt, xb)
     d12 = x1 - x2
     # bit-exciter link: damper, (hardening) spring, guide friction; each effect term is exactly 0 when off (the
-    # friction's tanh, a libm call per stage, is then not evaluated)
+    # friction's tanh, a libm call per stage, is then not evaluated).  The friction keeps libm's tanh: the exp form of
+    # terms.guide_friction differs from it by a few 1e-16 and would move the drill's labels.
     s12 = c2 * (v1 - v2) + hardened_spring(k2, d12, kappa)
     if mu != 0.0:
         s12 += mu * math.tanh((v1 - v2) / veps)

@@ -1,10 +1,14 @@
 """Conformance suite: every registered model (``sim.model_names()``) passes the same checks.
 
 Adding a model = one file in sim/models/ + its reference in tests/reference_solutions.py; this suite then
-runs on it with no edit.  Select it with ``pytest -k conformance``.
+runs on it with no edit.  Adding an effect to a model = its parameters (0 = off), its term from sim/models/terms.py
+in the right-hand side, and one entry in ``ModelSpec.effects`` with a visible strength in ``SynthRig.effect_strengths``;
+``test_conformance_effect_visible_and_off_at_zero`` then checks the pair.  Select the suite with
+``pytest -k conformance``.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -138,6 +142,35 @@ def test_conformance_effects_off_change_nothing(spec):
         pytest.skip(f"{spec.name} has no effects")
     off = {p: 0.0 for ps in spec.effects.values() for p in ps}
     assert sim.simulate(spec.name, settings=SHORT, **off).labels == sim.simulate(spec.name, settings=SHORT).labels
+
+
+EFFECT_PAIRS = [(m, e) for m in MODELS for e in sim.get_model(m).effects]
+LABELS_MOVED = ("rop_m_s", "peak_force_n", "mean_peak_force_n", "peak_decel_g", "energy_per_cycle_j")
+VISIBLE = 1e-3      # an effect at its visible strength moves some label by more than this (relative, short run)
+
+
+@functools.lru_cache(maxsize=None)
+def _base_run(model: str):
+    spec = sim.get_model(model)
+    return sim.simulate(model, preset=spec.synth.preset, settings=SHORT)
+
+
+@pytest.mark.parametrize(("model", "effect"), EFFECT_PAIRS)
+def test_conformance_effect_visible_and_off_at_zero(model, effect):
+    """Every effect a model declares (``ModelSpec.effects``): at its visible strength (``SynthRig.effect_strengths``)
+    it moves the labels; with its parameters at 0 the labels and final state are the base model's, bit for bit."""
+    spec = sim.get_model(model)
+    assert spec.synth is not None, f"{model} declares effects but no visible strengths (SynthRig.effect_strengths)"
+    strength = spec.synth.effect_strengths[effect]
+    base = _base_run(model)
+    off = sim.simulate(model, preset=spec.synth.preset, settings=SHORT, **{p: 0.0 for p in strength})
+    assert off.labels == base.labels
+    assert all(np.array_equal(a, b) for a, b in zip(off.final_state, base.final_state))
+    on = sim.simulate(model, preset=spec.synth.preset, settings=SHORT, **strength).labels
+    assert on["status"] != "failed", on.get("reason")
+    moved = max(abs(on[k] - base.labels[k]) / max(abs(base.labels[k]), 1e-300) for k in LABELS_MOVED
+                if on[k] is not None and base.labels[k] is not None)
+    assert moved > VISIBLE, f"{effect} {strength}: labels move by only {moved:.2e}"
 
 
 def test_conformance_agrees_with_reference(spec):
