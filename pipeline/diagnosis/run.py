@@ -136,10 +136,11 @@ def _errors(ev: Evaluator, idx: list[int], res: list[np.ndarray]) -> dict:
 def systematic_error(ev: Evaluator, idx: list[int], halves: list[np.ndarray | None]) -> float | None:
     """Relative systematic error of a model over the series runs ``idx`` from their records' halves.  Per feature
     group (signal) S/P = Σ r_A·r_B / Σ y² (r_A, r_B = model − measured features of each half: the noise of the two
-    halves is independent and averages out of the product, a model error is in both), combined over the groups with
+    halves is independent and averages out of the product, a model error is in both — with either sign: an error that
+    drifts over the record, as tip blunting's does, can flip sign between the halves), combined over the groups with
     inverse-variance weights (the product's noise, Σ 4 σ⁴ / P² with σ the features' noise sd, so a group the noise
     dominates — a displacement whose harmonics are small beside its drift — does not swamp the others); the square
-    root of the weighted mean, clipped at 0.  None without halves.  A run the model could not simulate counts its
+    root of the weighted mean of the |S|/P.  None without halves.  A run the model could not simulate counts its
     features as the error."""
     num, den, var = {}, {}, {}
     for i, mh in zip(idx, halves):
@@ -156,7 +157,7 @@ def systematic_error(ev: Evaluator, idx: list[int], halves: list[np.ndarray | No
             var[g] = var.get(g, 0.0) + 4.0 * float(np.sum(tg.noise_sd[m] ** 4))
     if not num:
         return None
-    ratio = {g: num[g] / max(den[g], 1e-300) for g in num}
+    ratio = {g: abs(num[g]) / max(den[g], 1e-300) for g in num}    # a drifting error flips sign between halves
     w = {g: 1.0 / max(var[g] / max(den[g], 1e-300) ** 2, 1e-30) for g in num}
     return float(math.sqrt(max(sum(w[g] * ratio[g] for g in num) / sum(w.values()), 0.0)))
 
