@@ -59,15 +59,17 @@ def branch_depth(f, k, n):
 
 
 @njit(cache=True, inline="always")
-def rock_slider(ph, pc_expr, pr, k1, c1, v1, xt, xb):
-    """Drill rock (MODELS.md §2): bit force Pc [N] and the rates of the surface xt and slider base xb [m/s] in phase
-    ph (0 no contact: the surface relaxes to xb; 1 contact: Pc = pc_expr; 2 progression: Pc = Pr, the slider moves at
-    (pc_expr − Pr)/C1).  pc_expr: the phase-II force expression [N]; pr: the threshold Pr [N]."""
-    if ph == 0:
-        return 0.0, -(k1 / c1) * (xt - xb), 0.0
-    if ph == 1:
-        return pc_expr, v1, 0.0
-    return pr, v1, (pc_expr - pr) / c1
+def rock_surface_rate(k1, c1, xt, xb):
+    """Drill rock off contact (MODELS.md §2 phase I): the massless surface relaxes towards the slider base,
+    ẋt = −(K1/C1)(xt − xb) [m/s] (K1 [N/m], C1 [N s/m], xt, xb [m])."""
+    return -(k1 / c1) * (xt - xb)
+
+
+@njit(cache=True, inline="always")
+def rock_slider_rate(pc_expr, pr, c1):
+    """Drill rock progressing (MODELS.md §2 phase III, Pc = Pr): slider base rate ẋb = (Pc − Pr)/C1 [m/s] from the
+    phase-II force expression pc_expr [N] and the threshold Pr [N]."""
+    return (pc_expr - pr) / c1
 
 
 @njit(cache=True, inline="always")

@@ -29,7 +29,7 @@ import numpy as np
 from sim.jit import interpreted, njit  # numba is imported on first use (sim/jit.py)
 
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
-from sim.models.contact import kelvin_voigt, rock_slider
+from sim.models.contact import kelvin_voigt, rock_slider_rate, rock_surface_rate
 from sim.models.sensor import sensor_lowpass
 from sim.models.terms import coil_force, hardened_spring, rate_stiffened, tip_blunted
 
@@ -86,7 +86,18 @@ def _rhs_at(t, y, ph, p, dy):
     tau, beta, alpha, mu, kappa, veps = p[TAU], p[BETA], p[ALPHA], p[MU], p[KAPPA], p[VEPS]
     # harmonic force on M1: F0 cos Ωt, or the shaker coil's
     fh, dfh = coil_force(f0 * math.cos(2.0 * math.pi * freq * t), beta, v1 - v2, tau, fh_y)
-    pc, dxt, dxb = rock_slider(ph, _pc_at(k1, alpha, c1, x1, v1, xb), _pr_at(pr, gamma, gap, xb), k1, c1, v1, xt, xb)
+    if ph == 0:              # each phase computes only its own terms (no threshold division off progression)
+        pc = 0.0
+        dxt = rock_surface_rate(k1, c1, xt, xb)
+        dxb = 0.0
+    elif ph == 1:
+        pc = _pc_at(k1, alpha, c1, x1, v1, xb)
+        dxt = v1
+        dxb = 0.0
+    else:
+        pc = _pr_at(pr, gamma, gap, xb)
+        dxt = v1
+        dxb = rock_slider_rate(_pc_at(k1, alpha, c1, x1, v1, xb), pc, c1)
     d12 = x1 - x2
     # bit-exciter link: damper, (hardening) spring, guide friction; each effect term is exactly 0 when off (the
     # friction's tanh, a libm call per stage, is then not evaluated).  The friction keeps libm's tanh: the exp form of
