@@ -177,11 +177,10 @@ def _sand_force(y, z, ph, p):
     ku = p[KU]
     nl = p[NL]
     nu = p[NU]
-    if ph == 1:
-        return branch_force(_branch_k(kl, gamma, xp, alpha, v1), dl, nl)
-    if ph == 2:
-        return branch_force(_branch_k(ku, gamma, xp, alpha, v1), du, nu)
-    return 0.0
+    if ph == 0:
+        return 0.0
+    k, depth, n = (kl, dl, nl) if ph == 1 else (ku, du, nu)
+    return branch_force(_branch_k(k, gamma, xp, alpha, v1), depth, n)
 
 
 @njit(cache=True, inline="always")
