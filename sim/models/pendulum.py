@@ -213,7 +213,9 @@ SPEC = ModelSpec(
     effect_bounds={"alpha": FitBound("alpha", 1e-2, 100.0, "s/m"), "fc": FitBound("fc", 5.0, 2000.0, "Hz")},
     # the 3-8 Hz impacts are resolved by their first ~25 harmonics
     diagnose_max_harmonic_hz=100.0,
-    diagnose_fit={"candidate_starts": 1, "max_nfev": 10},
+    # candidates start from the calibrated base and from the rig's nominal values: a sensor low-pass or a
+    # stiffening contact is absorbed into ki and the damping so far that the calibrated base is a false valley
+    diagnose_fit={"candidate_starts": 2, "max_nfev": 10},
     # impact-pattern maps over the seed's ranges (seed 001 Figs. 13-14: 1-10 Hz, gaps up to 3 mm)
     map_kind="pattern",
     map_ranges={"frequency_hz": (1.0, 10.0), "gap_m": (0.0, 3.0e-3), "amplitude_m": (0.2e-3, 1.5e-3)},
