@@ -229,7 +229,7 @@ def test_resume_after_interrupt_gives_the_clean_dataset(tmp_path, clean):
     with pytest.raises(UserError, match="incomplete"):
         load_dataset(out)
     assert len(load_dataset(out, allow_partial=True)) == 5
-    (out / ".part-00001.parquet.tmp-99999").write_bytes(b"half-written garbage from a killed run")
+    (out / ".part-00001.parquet.99999-k1ll3d.tmp").write_bytes(b"half-written garbage from a killed run")
     s = run_sweep(spec, out, progress=False)
     assert (s.reused, s.computed) == (5, 7)
     assert not list(out.glob(".part-*"))

@@ -112,7 +112,8 @@ def test_cli_peterka_writes_png_and_parquet(tmp_path, capsys):
     cell = df[(df["gap_m"] == 0.0) & (df["frequency_hz"] == 3.75)].iloc[0]
     assert cell["pattern_name"] == "z=1/1"
     assert "4 points" in capsys.readouterr().out
-    assert not list(tmp_path.glob(".*"))        # no temporary files left behind
+    assert not [p for p in tmp_path.glob(".*") if p.suffix != ".vibro"]   # no temporary files left behind
+    assert {p.name for p in tmp_path.glob(".*.vibro")} == {".pm.png.vibro", ".pm.parquet.vibro"}  # ours, on record
 
 
 def test_cli_bifurcation_and_rop(tmp_path):
