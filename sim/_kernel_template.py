@@ -246,6 +246,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
     hmax = s[S_MAX_STEP_FRAC] * period
     ev_tol = s[S_EVENT_TOL] * period
     max_steps = int(s[S_MAX_STEPS_PER_CYCLE])
+    max_total = int(s[S_MAX_STEPS])
     ph = ph_arr[0]
     t = t0
     h = 1e-3 * period
@@ -269,9 +270,9 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 t = t_end
                 break
             steps_this_cycle += 1
-            if steps_this_cycle > max_steps:
+            if steps_this_cycle > max_steps or counters[0] > max_total:
                 counters[3] = STATUS_FAILED
-                counters[4] = REASON_TOO_MANY_STEPS
+                counters[4] = REASON_TOO_MANY_STEPS if steps_this_cycle > max_steps else REASON_WORK_LIMIT
                 ph_arr[0] = ph
                 return t
             if HYBRID:

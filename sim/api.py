@@ -38,6 +38,8 @@ REASONS = {
     I.REASON_DRIFT: "centre of mass accelerates every cycle: no bounded steady state",
     I.REASON_PRECHECK: "pre-check: static force exceeds the progression threshold",
     I.REASON_NOT_PERIODIC: "no period <= 8 found and the two half-windows disagree: still transient at the cap",
+    I.REASON_WORK_LIMIT: "work limit: more integration steps than the setting max_steps allows for one point "
+                         "(a stiffness or frequency far outside the model's range?)",
 }
 
 NAN_LABELS_REASON = ("label(s) {} not a number: the parameters are outside what the simulator resolves "
@@ -59,7 +61,9 @@ class Settings:
     friction is constant with DOPRI5 across its reversals; else DOPRI5), "exact" (error if unavailable) or
     "dopri5" (always the numerical integrator).  period_tol: tolerance of the periodicity test relative to each
     bounded coordinate's range.  event_tol: switch location tolerance as a fraction of
-    the period.  samples_per_cycle: history sampling when a history is requested.
+    the period.  samples_per_cycle: history sampling when a history is requested.  max_steps_per_cycle / max_steps:
+    work limits, per forcing cycle and for the whole run (accepted steps); past either the run ends ``failed`` with
+    its reason (typical runs take 10^4-10^5 steps in all).
     """
 
     rtol: float = 1e-7
@@ -69,6 +73,7 @@ class Settings:
     period_tol: float = 1e-3
     settle_tol: float = 5e-4
     max_steps_per_cycle: int = 200_000
+    max_steps: int = 5_000_000
     event_tol: float = 1e-10
     max_step_frac: float = 0.05
     stat_tol: float = 0.05
@@ -80,7 +85,8 @@ class Settings:
             "rtol": 0 < self.rtol < 1, "min_transient": self.min_transient >= 0,
             "max_transient": self.max_transient >= self.min_transient, "window": self.window >= 2,
             "period_tol": self.period_tol > 0, "settle_tol": self.settle_tol > 0,
-            "max_steps_per_cycle": self.max_steps_per_cycle > 10, "event_tol": 0 < self.event_tol < 1e-3,
+            "max_steps_per_cycle": self.max_steps_per_cycle > 10, "max_steps": self.max_steps >= 1000,
+            "event_tol": 0 < self.event_tol < 1e-3,
             "max_step_frac": 0 < self.max_step_frac <= 1, "stat_tol": self.stat_tol > 0,
             "samples_per_cycle": self.samples_per_cycle >= 2,
             "method": self.method in METHODS,
@@ -103,6 +109,7 @@ class Settings:
         s[I.S_MAX_STEP_FRAC] = self.max_step_frac
         s[I.S_STAT_TOL] = self.stat_tol
         s[I.S_RUNAWAY_CHECK] = 1.0 if runaway_check else 0.0
+        s[I.S_MAX_STEPS] = self.max_steps
         return s
 
 

@@ -16,7 +16,8 @@ S_EVENT_TOL = 7          # seconds, relative to the forcing period
 S_MAX_STEP_FRAC = 8      # max step as a fraction of the forcing period
 S_STAT_TOL = 9           # relative agreement of half-window statistics for non-periodic steady states
 S_RUNAWAY_CHECK = 10     # 1: a pre-check flagged a possible runaway; confirm it from the drift
-N_SETTINGS = 11
+S_MAX_STEPS = 11         # accepted steps of the whole run: a point's work limit
+N_SETTINGS = 12
 
 # ----------------------------------------------------------------------------- label layout
 L_STATUS, L_ROP, L_PEAK_F, L_MEAN_PEAK_F, L_IMPACTS, L_PERIOD, L_DECEL, L_ENERGY, L_SPEC_E, \
@@ -25,7 +26,7 @@ N_LABELS = 14
 
 STATUS_OK, STATUS_NO_CONTACT, STATUS_RUNAWAY, STATUS_NOT_SETTLED, STATUS_FAILED = 0, 1, 2, 3, 4
 REASON_NONE, REASON_STEP_UNDERFLOW, REASON_TOO_MANY_STEPS, REASON_NONFINITE, REASON_DRIFT, \
-    REASON_PRECHECK, REASON_NOT_PERIODIC = range(7)
+    REASON_PRECHECK, REASON_NOT_PERIODIC, REASON_WORK_LIMIT = range(8)
 
 OBS_FORCE, OBS_ACCEL, OBS_DISP, OBS_PROGRESS, OBS_VEL = 0, 1, 2, 3, 4
 N_OBS = 5

@@ -42,6 +42,7 @@ SETTINGS_BOUNDS: dict[str, tuple[bool, float, float, bool]] = {
     "period_tol": (False, 0.0, 1.0, False),
     "settle_tol": (False, 0.0, 1.0, False),
     "max_steps_per_cycle": (True, 11, 10_000_000, True),
+    "max_steps": (True, 1000, 1_000_000_000, True),
     "event_tol": (False, 0.0, 1e-3, False),
     "max_step_frac": (False, 0.0, 1.0, False),
     "stat_tol": (False, 0.0, 1.0, False),

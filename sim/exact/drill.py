@@ -28,7 +28,8 @@ import math
 import numpy as np
 from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
-from sim.integrator import REASON_TOO_MANY_STEPS, S_MAX_STEPS_PER_CYCLE, S_RTOL, STATUS_FAILED, window_switch
+from sim.integrator import (REASON_TOO_MANY_STEPS, REASON_WORK_LIMIT, S_MAX_STEPS, S_MAX_STEPS_PER_CYCLE, S_RTOL,
+                            STATUS_FAILED, window_switch)
 from sim.models.drill import (C1, C2, C3, F0, FREQ, FS, GAMMA, GAP, IV1, IV2, IV3, IW, IX1, IX2, IX3, IXB,
                               IXT, K1, K2, K3, M1, M2, M3, NY, PR)
 from sim.exact import effects_handled
@@ -237,6 +238,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
     om = 2.0 * math.pi * p[FREQ]
     f0 = p[F0]
     max_ev = int(s[S_MAX_STEPS_PER_CYCLE])
+    max_total = int(s[S_MAX_STEPS])
     # contiguous scratch (typed as C-layout arrays by numba: strided views index slower)
     C = np.empty((NT, NZ))
     zz = np.empty(NZ)
@@ -393,6 +395,11 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                     if bvec[j] > bmax[cyc, j]:
                         bmax[cyc, j] = bvec[j]
                 counters[0] += 1
+                if counters[0] > max_total:
+                    counters[3] = STATUS_FAILED
+                    counters[4] = REASON_WORK_LIMIT
+                    ph_arr[0] = ph
+                    return t_new
                 if k_ev >= 0:
                     counters[1] += 1
                     n_ev += 1

@@ -300,3 +300,25 @@ def test_training_workers_die_with_their_parent():
     got = parallel(2)(delayed(_death_signal)() for _ in range(2))
     assert got == [signal.SIGKILL, signal.SIGKILL]
     assert parallel(1)(delayed(_death_signal)() for _ in range(1)) == [0]    # never armed in this process
+
+
+@pytest.mark.parametrize("model, preset", [("drill", "lab"), ("pendulum", None), ("indenter-metal", None)])
+def test_a_point_past_its_work_limit_fails_with_the_reason(model, preset):
+    """max_steps caps the accepted steps of a whole run (the DOPRI5 kernel and the drill's exact propagator)."""
+    from sim import simulate
+
+    lab = simulate(model, preset=preset, settings={"max_steps": 1000}).labels
+    assert lab["status"] == "failed" and "work limit" in lab["reason"] and "max_steps" in lab["reason"]
+    assert lab["n_steps"] <= 1100
+    ok = simulate(model, preset=preset).labels       # the default limit leaves a normal point alone
+    assert ok["status"] == "ok" and ok["n_steps"] < 5_000_000
+
+
+@pytest.mark.parametrize("setting", ["K1=1e20", "frequency_hz=1e-6"])
+def test_an_extreme_point_ends_failed_within_its_work_limit(setting):
+    """Parameters far outside the model's range end as 'failed' with a reason instead of running for minutes."""
+    from sim import simulate
+
+    name, value = setting.split("=")
+    lab = simulate("drill", preset="lab", **{name: float(value)}).labels
+    assert lab["status"] == "failed" and lab["reason"]
