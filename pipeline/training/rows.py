@@ -15,6 +15,9 @@ INF_WHEN_NO_PROGRESS = ("specific_energy_j_m",)
 
 RANGE_RTOL = 1e-9
 """A value may pass its declared range's ends by this fraction of the range's width (round-off of the design)."""
+OUTLIER_IQR = 100.0
+"""Without a declared range, an input value this many interquartile ranges beyond the middle half is refused: a
+design never puts a point there (1e300 Hz among 150-450 Hz), a damaged row does."""
 
 
 def check_not_labels(inputs: list[str], where: str) -> None:
@@ -52,6 +55,15 @@ def check_inputs(df: pd.DataFrame, inputs: list[str], meta: dict, model: str, wh
                 except sim.ParameterError as e:
                     raise UserError(f"{where}: column '{n}', {_row(df, i)}: {e}") from None
         r = vary.get(n) or {}
+        if not ("low" in r and "high" in r) and x.size >= 8:   # no declared range: a value far outside the rest
+            q1, q3 = np.percentile(x, [25, 75])
+            span = max(q3 - q1, 0.1 * abs(float(np.median(x))), 1e-300)    # a column held mostly at one value
+            out = (x < q1 - OUTLIER_IQR * span) | (x > q3 + OUTLIER_IQR * span)
+            if out.any():
+                i = int(np.argmax(out))
+                raise UserError(f"{where}: column '{n}', {_row(df, i)}: {x[i]:g} lies {OUTLIER_IQR:g} interquartile "
+                                f"ranges outside the other values [{q1:g}, {q3:g}] and no sweep range is declared: "
+                                f"a corrupt row? remove it or train on the sweep's folder")
         if "low" in r and "high" in r:
             lo, hi = float(r["low"]), float(r["high"])
             tol = RANGE_RTOL * (hi - lo)

@@ -173,3 +173,21 @@ def test_sweep_plot_skipped_says_why_in_one_line(tmp_path, capsys):
     lines = [ln for ln in capsys.readouterr().out.splitlines() if "overview figure" in ln]
     assert lines == [f"no overview figure written to {png}: it needs two varied parameters, this sweep varies "
                      "only frequency_hz"]
+
+
+def test_a_far_outlier_is_refused_without_a_declared_range():
+    """A bare training file (no sweep metadata): a row at 1e300 Hz among 150..450 Hz is refused by name, and a
+    design's ordinary spread (log-spaced over a decade) passes."""
+    import numpy as np
+    import pandas as pd
+
+    from pipeline.core.errors import UserError
+    from pipeline.training.rows import check_inputs
+
+    f = list(np.linspace(150.0, 450.0, 12))
+    check_inputs(pd.DataFrame({"frequency_hz": f, "static_force_n": np.geomspace(100.0, 1e4, 12)}),
+                 ["frequency_hz", "static_force_n"], {}, "drill", "data.parquet")
+    bad = pd.DataFrame({"point_id": range(13), "frequency_hz": f[:6] + [1e300] + f[6:]})
+    with pytest.raises(UserError, match=r"column 'frequency_hz', row 6 \(point_id 6\): 1e\+300 lies 100 "
+                                        r"interquartile ranges outside"):
+        check_inputs(bad, ["frequency_hz"], {}, "drill", "data.parquet")
