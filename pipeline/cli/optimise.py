@@ -275,7 +275,7 @@ def feedback_file(cfg, out: Path) -> str | None:
 
 
 def optimise_into(cfg, out_dir, bundle=None, metrics_path: str | None = None, progress: bool = True,
-                  mlflow_enabled: bool = True) -> dict:
+                  mlflow_enabled: bool = True, raise_if_none: bool = True) -> dict:
     """Run the study of ``cfg`` in an MLflow run, append the verified points to the feedback file and write the
     report, tables and figures under ``out_dir``; returns the report.json dict.
 
@@ -304,7 +304,7 @@ def optimise_into(cfg, out_dir, bundle=None, metrics_path: str | None = None, pr
             atomic_write_text(Path(metrics_path), dump_json(rep["metrics"]))
         if mlflow is not None:
             _log_run(mlflow, rep, [*figs, *map(str, reports), *(str(f) for f in tables if f.name == "verified.csv")])
-    if rep["recommendation"] is None:
+    if rep["recommendation"] is None and raise_if_none:
         raise UserError(f"{rep['outcome']}; report: {out / 'report.md'}")
     return rep
 
@@ -345,9 +345,11 @@ def run(args) -> int:
     with tracking.variant(cfg.objective), tracking.chain(chain), \
             prepare_out(args.out, inputs=inputs, overwrite=args.overwrite, marker="optimise") as tmp:
         rep = optimise_into(cfg, tmp, metrics_path=args.metrics, progress=not args.quiet,
-                            mlflow_enabled=not args.no_mlflow)
+                            mlflow_enabled=not args.no_mlflow, raise_if_none=False)
     if args.metrics:
         record_out_file(args.metrics, command="optimise", kind="json")
+    if rep["recommendation"] is None:        # the report is in place: the error names where it stays
+        raise UserError(f"{rep['outcome']}; report: {Path(args.out) / 'report.md'}")
     print(rep["outcome"])
     if rep.get("pareto_verified") is not None:
         print(f"verified Pareto front ({' vs '.join(rep.get('objectives', []))}): {len(rep['pareto_verified'])} "

@@ -335,3 +335,15 @@ def test_real_surrogate_bundle_end_to_end(env):
     # the verified optimum beats every training point but one at most (a surrogate that learnt nothing would not)
     assert rec["rop_m_s_sim"] >= np.sort(df["rop_m_s"].dropna())[-2]
     assert len(pd.read_parquet(env / "sur" / "feedback.parquet")) == 5
+
+
+def test_cli_no_feasible_point_names_the_report_it_kept(tmp_path, capsys):
+    """The error of an infeasible study names the report at --out, and the report is there (not in a temporary
+    folder that is removed with the failure)."""
+    out = tmp_path / "o"
+    rc = cli_main(["optimise", "--simulator", "--preset", "lab", "--n-trials", "4", "--n-verify", "2",
+                   "--max-specific-energy-j-m", "1e-6", "--storage", f"sqlite:///{tmp_path / 'o.db'}",
+                   "--feedback", str(tmp_path / "fb.parquet"), "--out", str(out), "--no-mlflow", "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and f"report: {out / 'report.md'}" in err[0], err
+    assert "What was tried" in (out / "report.md").read_text()
