@@ -130,7 +130,7 @@ def run(args) -> int:
     from pipeline.core.jsonable import dump_json
     from pipeline.core.outdir import check_out_file, prepare_out, record_out_file
     from pipeline.datasets.measured import load_dataset
-    from pipeline.diagnosis.driver import diagnose
+    from pipeline.diagnosis.workflow import diagnose
     from pipeline.diagnosis.outputs import write_outputs
 
     cfg = load_config(args.params, parse_assignments(args.sets, "--setting"), args.effects, check_workers(args.threads))

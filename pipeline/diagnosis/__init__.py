@@ -8,6 +8,6 @@ run.py       splitting, calibration, candidate ranking and selection for one sys
 rigout.py    the corrected rig of one system's diagnosis
 report.py    residual structure, figures and report.md
 result.py    the typed results: SystemDiagnosis, SimulatedRuns, DiagnoseResult
-driver.py    the whole dataset: every system diagnosed into a DiagnoseResult; writes nothing
+workflow.py  the whole dataset: every system diagnosed into a DiagnoseResult; writes nothing
 outputs.py   rig files, figures, report.json and report.md of a DiagnoseResult, written atomically
 """

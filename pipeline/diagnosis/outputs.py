@@ -11,7 +11,7 @@ from pathlib import Path
 
 from pipeline.core.files import atomic_directory
 from pipeline.core.jsonable import to_jsonable
-from pipeline.diagnosis.driver import diagnose
+from pipeline.diagnosis.workflow import diagnose
 from pipeline.diagnosis.report import figures, markdown
 from pipeline.diagnosis.result import DiagnoseResult
 from pipeline.diagnosis.run import DiagnoseConfig
@@ -39,7 +39,7 @@ def write_outputs(result: DiagnoseResult, out: str | os.PathLike) -> Path:
 
 
 def diagnose_into(ds, out: str | os.PathLike, cfg: DiagnoseConfig, log=print, progress=None) -> DiagnoseResult:
-    """Diagnose ``ds`` (:func:`~pipeline.diagnosis.driver.diagnose`) and write the result into directory ``out``."""
+    """Diagnose ``ds`` (:func:`~pipeline.diagnosis.workflow.diagnose`) and write the result into directory ``out``."""
     result = diagnose(ds, cfg, log, progress)
     write_outputs(result, out)
     return result

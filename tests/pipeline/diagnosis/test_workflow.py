@@ -48,7 +48,7 @@ def _private_keys(d, path=""):
 
 def test_diagnose_returns_a_frozen_result_and_writes_nothing(dataset, tmp_path, monkeypatch):
     from pipeline.datasets.measured import load_dataset
-    from pipeline.diagnosis.driver import diagnose
+    from pipeline.diagnosis.workflow import diagnose
     from pipeline.diagnosis.result import DiagnoseResult, SimulatedRuns, SystemDiagnosis
 
     monkeypatch.chdir(tmp_path)
