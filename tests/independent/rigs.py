@@ -109,7 +109,7 @@ RIGS: dict[str, Rig] = {
         frequencies_hz=(2.5, 3.0, 3.5, 3.75, 5.5, 6.5, 7.25), levels=(0.0, 1.0e-3),
         fs_hz=(10000.0, 5000.0), record_cycles=(12.4, 15.1), settle_cycles=150,
         signals=("accel_m_s2", "force_n", "disp_m"),
-        effects={"rate_stiffening": {"alpha": 1.0}, "sensor_lowpass": {"fc": 100.0}},
+        effects={"rate_stiffening": {"alpha": 8.0}, "sensor_lowpass": {"fc": 100.0}},
         outside={"mount_resonance": {"fr_hz": 40.0, "zeta_r": 0.08}, "quadratic_damping": {"cq": 6.0}}),
     "rimd": Rig(
         system="rimd", known=dict(RIMD), calibratable=("ki", "lambda_i", "c1"),
@@ -117,7 +117,7 @@ RIGS: dict[str, Rig] = {
         frequencies_hz=(5.0, 6.0, 6.5, 7.0, 7.5, 8.0, 9.0), levels=(0.5, 1.0),
         fs_hz=(10000.0, 5000.0), record_cycles=(16.3, 12.8), settle_cycles=250,
         signals=("accel_m_s2", "force_n", "disp_m"),
-        effects={"rate_stiffening": {"alpha": 2.0}, "suspension_hardening": {"kappa": 1.0e5},
+        effects={"rate_stiffening": {"alpha": 20.0}, "suspension_hardening": {"kappa": 1.0e5},
                  "sensor_lowpass": {"fc": 100.0}},
         outside={"mount_resonance": {"fr_hz": 60.0, "zeta_r": 0.08}, "quadratic_damping": {"cq": 30.0}}),
 }
