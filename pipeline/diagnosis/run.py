@@ -159,7 +159,7 @@ def systematic_error(ev: Evaluator, idx: list[int], halves: list[np.ndarray | No
         return None
     ratio = {g: abs(num[g]) / max(den[g], 1e-300) for g in num}    # a drifting error flips sign between halves
     w = {g: 1.0 / max(var[g] / max(den[g], 1e-300) ** 2, 1e-30) for g in num}
-    return float(math.sqrt(max(sum(w[g] * ratio[g] for g in num) / sum(w.values()), 0.0)))
+    return float(math.sqrt(sum(w[g] * ratio[g] for g in num) / sum(w.values())))    # every |S|/P >= 0
 
 
 def _random_starts(free: list[FreeParam], defaults: dict, n: int, rng) -> list[dict]:
