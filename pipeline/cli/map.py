@@ -72,7 +72,8 @@ def add_parser(sub) -> None:
     add_set(p, help="fix another parameter (repeatable; over the rig), e.g. --set static_force_n=700")
     p.add_argument("--setting", dest="settings", action="append", metavar="NAME=VALUE",
                    help="simulator setting (repeatable): rtol, min_transient, max_transient, window, period_tol, "
-                        "settle_tol, event_tol, max_step_frac, stat_tol, method = auto | exact | dopri5")
+                        "settle_tol, max_steps_per_cycle, max_steps, event_tol, max_step_frac, stat_tol, "
+                        "method = auto | exact | dopri5")
     add_workers(p, dest="threads", help="worker threads (default: all cores)")
     p.add_argument("--out", metavar="PREFIX", help="output prefix: writes PREFIX.png and PREFIX.parquet")
     p.add_argument("--overwrite", action="store_true",

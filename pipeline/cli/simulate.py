@@ -31,7 +31,8 @@ def add_parser(sub) -> None:
     add_set(p)
     p.add_argument("--setting", dest="settings", action="append", metavar="NAME=VALUE",
                    help="simulator setting (repeatable): rtol, min_transient, max_transient, window, period_tol, "
-                        "settle_tol, event_tol, max_step_frac, stat_tol, samples_per_cycle, and method = auto | exact "
+                        "settle_tol, max_steps_per_cycle, max_steps (work limit of one point, steps), event_tol, "
+                        "max_step_frac, stat_tol, samples_per_cycle, and method = auto | exact "
                         "| dopri5 (auto: the exact propagator where it applies -- every phase of the drill, the RIMD's free "
                         "flight, every phase of the indenters while the seal friction is +/- pm -- else the DOPRI5 "
                         "integrator)")
