@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pipeline.diagnosis.config import check_config
-from pipeline.diagnosis.features import CONTROL_NAMES, Target, series_target, summary_target
+from pipeline.diagnosis.features import CONTROL_NAMES, Target, series_target, simulated_features, summary_target
 from pipeline.diagnosis.fit import FitResult, fit
 from pipeline.diagnosis.result import SystemDiagnosis
 from pipeline.diagnosis.verdict import UNEXPLAINED, ModelStats, Verdict, VerdictRule, closeness, decide
@@ -272,6 +272,35 @@ def absorbed_parameters(fits: dict[str, FitResult], v: Verdict, cal_names: list[
     return out
 
 
+REPRODUCIBLE_RTOL_FACTOR = 0.01
+"""A run is checked by solving its equations again at this × the settings' rtol."""
+
+
+def unreproducible_runs(ev: Evaluator, cfg: DiagnoseConfig) -> dict[str, float]:
+    """Series runs whose model response at the rig's nominal parameters is not reproducible: solved again at a
+    hundredth of the tolerance, its features move by more than the noise (nrms > 1).  Such a response is chaotic
+    or sits between coexisting orbits (the pendulum at 7.25 Hz, gap 1 mm); no trajectory of the model can be
+    compared with the rig's cycle by cycle, and the fit may bend the parameters to hit one realisation: the report
+    names these runs so the user can leave them out.  Run id -> nrms of the difference."""
+    idx = [i for i, t in enumerate(ev.targets) if t.kind == "series"]
+    if not idx:
+        return {}
+    tight = dict(cfg.sim_settings)
+    tight["rtol"] = float(tight.get("rtol", 1e-7)) * REPRODUCIBLE_RTOL_FACTOR
+    ev_tight = Evaluator(ev.system, ev.targets, tight, cfg.fs_sim_hz, ev.n_threads)
+    a, b = ev.simulate([{}], idx)[0], ev_tight.simulate([{}], idx)[0]
+    ev.n_sims += ev_tight.n_sims
+    out = {}
+    for i, ra, rb in zip(idx, a, b):
+        fa, fb = simulated_features(ev.targets[i], ra), simulated_features(ev.targets[i], rb)
+        if fa is None or fb is None:
+            continue
+        nrms = float(np.sqrt(np.mean(((fa - fb) / ev.targets[i].sd) ** 2)))
+        if nrms > 1.0:
+            out[ev.targets[i].run_id] = nrms
+    return out
+
+
 def _param_report(fr: FitResult) -> dict:
     return {n: {"value": fr.values[n], "sd": fr.sd[n], "ci95": list(fr.ci95[n])} for n in fr.free}
 
@@ -284,6 +313,9 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
 
     cfg = replace(cfg, **{k: v for k, v in default_fit_settings(system).items() if getattr(cfg, k) is None})
     ev = Evaluator(system, targets, dict(cfg.sim_settings), cfg.fs_sim_hz, cfg.n_threads)
+    unreproducible = unreproducible_runs(ev, cfg)
+    if unreproducible:
+        log(f"{system}: model response not reproducible (chaotic or multi-stable): {', '.join(unreproducible)}")
     cands = candidates(system)
     if cfg.effects is not None:
         unknown = [e for e in cfg.effects if e not in cands]
@@ -337,6 +369,7 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
     report = {
         "system": system,
         "n_runs": len(targets),
+        "unreproducible": unreproducible,
         "data": sorted({t.kind for t in targets}),
         "split": {"scheme": scheme, "held_out": [targets[i].run_id for i in sorted(set(test_idx))],
                   "folds": [{"calibration": [targets[i].run_id for i in c], "held_out": [targets[i].run_id for i in t]}

@@ -14,6 +14,10 @@ from pipeline.diagnosis.run import DiagnoseConfig, build_targets, diagnose_syste
 SUMMARY_NOTE = ("summary data: the measurement sd is assumed (summary.csv '<feature>_sd' columns or the defaults of "
                 "pipeline/diagnosis/features.py), not estimated from the data, so 'explained' is only as good as that "
                 "assumption")
+UNREPRODUCIBLE_NOTE = ("run {run}: the model's response there is chaotic or multi-stable (solved again at a hundredth "
+                       "of the tolerance, its features move by nrms {nrms:.3g}), so no trajectory of the model can be "
+                       "compared with the record cycle by cycle and the fit may bend parameters to match it; consider "
+                       "leaving it out of runs.csv")
 
 
 def diagnose(ds, cfg: DiagnoseConfig, log=print, progress=None) -> DiagnoseResult:
@@ -53,6 +57,7 @@ def _diagnose(ds, cfg: DiagnoseConfig, log=print, progress=None) -> DiagnoseResu
         diag = diagnose_system(system, tgs, cfg, log, progress)
         sim_runs = simulate_runs(diag)
         notes = [SUMMARY_NOTE] if "summary" in diag.report["data"] else []
+        notes += [UNREPRODUCIBLE_NOTE.format(run=r, nrms=x) for r, x in diag.report["unreproducible"].items()]
         diag = replace(diag, report={**diag.report, "residual_structure": residual_structure(diag, sim_runs.base,
                                                                                              sim_runs.final),
                                      "notes": notes})
