@@ -63,11 +63,13 @@ def compare(uncorrected: Mapping, corrected: Mapping, rig, diagnosis: Mapping | 
     spread = rop_spread(rig, points["corrected"], n_samples=n_samples, seed=seed, settings=settings, n_threads=n_threads)
     out = {"recommendations": table, "worth_mm_s": worth * 1e3,
            "uncorrected_model": models["uncorrected"].to_mapping(), "corrected_rig": rig.to_mapping(),
-           "spread": spread.to_dict(), "explained": True, "warning": None}
+           "spread": spread.to_dict(), "explained": True, "warning": None,
+           "corrected_surrogate_note": corrected.get("surrogate_note")}
     if diagnosis is not None and not diagnosis.get("explained", True):
         err, noise = float(diagnosis["model_error"]), float(diagnosis["noise_floor"])
         out["explained"] = False
         out["warning"] = UNEXPLAINED_WARNING.format(error=err, noise=noise, ratio=err / max(noise, 1e-300))
+        out["model_error_ratio"] = err / max(noise, 1e-300)
     return out
 
 

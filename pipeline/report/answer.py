@@ -1,6 +1,9 @@
-"""The pipeline's answer in one line: the recommended operating point, its verified ROP and power.
+"""The pipeline's answer: the recommended operating point, its verified ROP and power.
 
-Read from the report's ``summary.json`` (``vibro report``), printed at the end of ``make run``.
+When the pipeline diagnosed a rig log, the answer is the corrected rig's recommendation (its ROP on the corrected
+rig with the 5-95 % spread over the fitted parameters, and what it is worth against the lab model's point on the
+same rig); the lab model's answer follows on a second line, named as such.  Read from the report's
+``summary.json`` (``vibro report``), printed at the end of ``make run``.
 """
 from __future__ import annotations
 
@@ -27,25 +30,60 @@ def _find(d, names: tuple[str, ...]):
     return None
 
 
-def answer_line(summary: dict, report_path: str | Path | None = None) -> str | None:
-    """``Answer: f = 262 Hz, F0 = 2.70 kN, Fs = 1.79 kN -> verified ROP 8.03 mm/s, power 1.20 kW; report: ...``
-    (None when the summary has no recommended point)."""
-    opt = summary.get("optimise") or {}
-    rec = opt.get("recommended")
-    rop = opt.get("verified_rop_m_s")
-    if not isinstance(rec, dict):
-        return None
+def _point(rec: dict) -> str:
     point = []
     for key, sym, unit, k, f in CONTROLS:
         v = _find(rec, (key,))
         if v is not None:
             point.append(f"{sym} = {f.format(v * k)} {unit}")
-    text = "Answer: " + (", ".join(point) or "recommended point")
-    if isinstance(rop, (int, float)) and math.isfinite(rop):
-        text += f" -> verified ROP {rop * 1e3:.2f} mm/s"
-    power = _find(rec, POWER_KEYS)
-    if power is not None:
-        text += f", power {power * 1e-3:.2f} kW" if power >= 1e3 else f", power {power:.1f} W"   # lab rig: ~18 W
+    return ", ".join(point) or "recommended point"
+
+
+def _corrected(cl: dict) -> str | None:
+    """The corrected rig's recommendation in words (None without one)."""
+    pt, rop = cl.get("corrected_point"), cl.get("corrected_rop_mm_s")
+    if not isinstance(pt, dict) or not isinstance(rop, (int, float)) or not math.isfinite(rop):
+        return None
+    text = f"Answer (corrected rig): {_point(pt)} -> ROP {rop:.2f} mm/s on the corrected rig"
+    spread = cl.get("spread_mm_s")
+    if isinstance(spread, list) and len(spread) == 2:
+        text += f" (5-95 %: {spread[0]:.2f}-{spread[1]:.2f})"
+    lab = cl.get("uncorrected_rop_on_corrected_mm_s")
+    if isinstance(lab, (int, float)) and math.isfinite(lab):
+        text += f"; the lab model's point gives {lab:.2f} mm/s there ({cl.get('worth_mm_s', rop - lab):+.2f} mm/s)"
+    if cl.get("explained") is False:
+        ratio = cl.get("model_error_ratio")
+        how = f" (held-out error {ratio:.3g}x the noise floor)" if isinstance(ratio, (int, float)) else ""
+        text += f". CAUTION: the diagnosis left the rig's residual unexplained{how}: this rests on a model known to be wrong"
+    note = cl.get("surrogate_note")
+    if isinstance(note, str) and "was wrong at" in note:
+        text += (". The corrected-rig surrogate failed part of its verification; the point is the best the simulator "
+                 "verified, not the surrogate's optimum")
+    return text
+
+
+def answer_line(summary: dict, report_path: str | Path | None = None) -> str | None:
+    """``Answer: f = 262 Hz, F0 = 2.70 kN, Fs = 1.79 kN -> verified ROP 8.03 mm/s, power 1.20 kW; report: ...``
+    (None when the summary has no recommended point).  With a closed loop in the summary: the corrected rig's
+    answer first, then ``Lab model's answer: ...`` on a second line."""
+    opt = summary.get("optimise") or {}
+    rec = opt.get("recommended")
+    rop = opt.get("verified_rop_m_s")
+    lab = None
+    if isinstance(rec, dict):
+        lab = _point(rec)
+        if isinstance(rop, (int, float)) and math.isfinite(rop):
+            lab += f" -> verified ROP {rop * 1e3:.2f} mm/s"
+        power = _find(rec, POWER_KEYS)
+        if power is not None:
+            lab += f", power {power * 1e-3:.2f} kW" if power >= 1e3 else f", power {power:.1f} W"   # lab rig: ~18 W
+    corrected = _corrected(summary.get("closed_loop") or {})
+    if corrected is None and lab is None:
+        return None
+    if corrected is None:
+        text = "Answer: " + lab
+    else:
+        text = corrected + ("" if lab is None else "\nLab model's answer (before the diagnosis): " + lab + " on the lab model")
     if report_path:
         text += f"; report: {report_path}"
     return text

@@ -555,12 +555,15 @@ def build_report(inp: ReportInputs, out: Path) -> ReportResult:
     summary: dict = {}
     for section in SECTIONS:
         section(doc, figs, inp, summary)
+    from pipeline.report.answer import answer_line
+
+    top = answer_line(summary)
+    if top:     # the answer above the evidence: the corrected rig's first when the loop was closed
+        doc.blocks[1:1] = [Heading("Answer")] + [Para(f"**{ln}**") for ln in top.split("\n")]
     md = to_markdown(doc, out)
     page = to_html(doc)
     atomic_write_text(out / "report.md", md)
     atomic_write_text(out / "report.html", page)
-    from pipeline.report.answer import answer_line
-
     line = answer_line(summary, "report.html")     # beside summary.json: ``out`` may be a temporary folder
     if line:
         summary["answer"] = line

@@ -123,3 +123,23 @@ def test_dvc_repro_runs_a_stage_from_a_plain_shell(tmp_path):
         p = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True, timeout=300)
         assert p.returncode == 0, (cmd, p.stdout[-2000:], p.stderr[-2000:])
     assert "lab" in (root / "models.txt").read_text()
+
+
+def test_answer_leads_with_the_corrected_rig_when_the_loop_was_closed():
+    """After a diagnosis the corrected rig's recommendation comes first; the lab model's second, named as such."""
+    summary = {"optimise": {"recommended": {"params": {"frequency_hz": 210.0, "amplitude_n": 2700.0,
+                                                       "static_force_n": 1800.0}},
+                            "verified_rop_m_s": 0.00719},
+               "closed_loop": {"corrected_point": {"frequency_hz": 305.0, "amplitude_n": 2700.0, "static_force_n": 1570.0},
+                               "corrected_rop_mm_s": 3.61, "uncorrected_rop_on_corrected_mm_s": 2.15,
+                               "worth_mm_s": 1.46, "spread_mm_s": [3.2, 3.9], "explained": True,
+                               "surrogate_note": "The surrogate was wrong at 12 of 12 verified points (...)"}}
+    first, second = answer_line(summary, "r.html").split("\n")
+    assert first.startswith("Answer (corrected rig): f = 305 Hz, F0 = 2.70 kN, Fs = 1.57 kN -> ROP 3.61 mm/s")
+    assert "5-95 %: 3.20-3.90" in first and "gives 2.15 mm/s there (+1.46 mm/s)" in first
+    assert "failed part of its verification" in first and "CAUTION" not in first
+    assert second.startswith("Lab model's answer (before the diagnosis): f = 210 Hz") and second.endswith("r.html")
+    summary["closed_loop"].update(explained=False, model_error_ratio=25.5, surrogate_note="agreed")
+    first = answer_line(summary).split("\n")[0]
+    assert "unexplained (held-out error 25.5x the noise floor)" in first and "known to be wrong" in first
+    assert "verification" not in first
