@@ -98,6 +98,10 @@ def add_parser(sub) -> None:
                    help="accept not_settled (bounded but aperiodic) points; runaway and failed never are")
     p.add_argument("--n-verify", type=A.count(1, 10_000), help="distinct best points (or front points) re-simulated (default 10)")
     p.add_argument("--rel-tol", type=A.positive, help="ROP relative error above which the surrogate is wrong (default 0.1)")
+    p.add_argument("--fallback-trials", type=A.count(0, 100_000),
+                   help="when the surrogate fails its verification (its recommended point, or more than half of the "
+                        "verified points, wrong), run this many trials straight on the simulator over the same space "
+                        "and recommend from those instead (default 200; 0: off)")
     p.add_argument("--storage", metavar="URL", help="optuna storage URL (default sqlite:///<project root>/optuna.db)")
     p.add_argument("--study-name", help="study name (default derived from mode, objective, model, preset and settings)")
     p.add_argument("--feedback", metavar="FILE.parquet",
@@ -135,7 +139,8 @@ def _feedback_path(base: dict) -> None:
 
 # params.yaml 'optimise' numbers: (integer?, low, high); floats must be > low
 OPTIMISE_BOUNDS = {"n_trials": (True, 1, A.MAX_TRIALS), "batch_size": (True, 1, 10_000), "seed": (True, 0, 2**32 - 1),
-                   "n_verify": (True, 1, 10_000), "n_threads": (True, 1, A.MAX_THREADS), "rel_tol": (False, 0.0, 1e6),
+                   "n_verify": (True, 1, 10_000), "fallback_trials": (True, 0, 100_000),
+                   "n_threads": (True, 1, A.MAX_THREADS), "rel_tol": (False, 0.0, 1e6),
                    "max_peak_force_n": (False, 0.0, None), "peak_force_static_ratio": (False, 0.0, None),
                    "max_specific_energy_j_m": (False, 0.0, None), "max_power_w": (False, 0.0, None),
                    "max_decel_g": (False, 0.0, None)}
@@ -176,8 +181,8 @@ def config_from_args(args):
     if args.objectives:
         base["objectives"] = [s.strip() for s in args.objectives.split(",") if s.strip()]
     for key in ("model", "preset", "objective", "sampler", "n_trials", "batch_size", "seed", "max_peak_force_n",
-                "peak_force_static_ratio", "max_specific_energy_j_m", "max_power_w", "max_decel_g", "n_verify", "rel_tol", "storage", "study_name",
-                "feedback", "n_threads"):
+                "peak_force_static_ratio", "max_specific_energy_j_m", "max_power_w", "max_decel_g", "n_verify",
+                "rel_tol", "fallback_trials", "storage", "study_name", "feedback", "n_threads"):
         v = getattr(args, key)
         if v is not None:
             base[key] = v
@@ -285,7 +290,7 @@ def optimise_into(cfg, out_dir, bundle=None, metrics_path: str | None = None, pr
     from pipeline.core.jsonable import dump_json
     from pipeline.optimise import outputs
     from pipeline.optimise.verify import append_feedback
-    from pipeline.optimise.workflow import plan_optimise, run_optimise
+    from pipeline.optimise.workflow import fallback_config, plan_optimise, run_optimise, surrogate_failed
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -296,9 +301,19 @@ def optimise_into(cfg, out_dir, bundle=None, metrics_path: str | None = None, pr
         if fb and res.simulated is not None:
             rows = append_feedback(res.simulated, fb, source=f"optimise-{cfg.mode}", study=res.study_name,
                                    wrong=res.verified["surrogate_wrong"].tolist(), inputs=res.problem.space.names)
+        failed = None
+        why = surrogate_failed(res)
+        if why and cfg.fallback_trials > 0:     # never recommend from a surrogate the simulator contradicted
+            if progress:
+                import sys
+
+                print(f"vibro optimise: {why}; running {cfg.fallback_trials} trials straight on the simulator",
+                      file=sys.stderr)
+            sim_cfg = fallback_config(res)
+            failed, res = res, run_optimise(plan_optimise(sim_cfg, build_strategies(sim_cfg)), progress=progress)
         tables = outputs.write_tables(res, out)
         figs = outputs.write_figures(res, out)
-        rep = outputs.report_dict(res, figs, rows, fb)
+        rep = outputs.report_dict(res, figs, rows, fb, failed=failed)
         reports = outputs.write_report(rep, res, out)
         if metrics_path:
             atomic_write_text(Path(metrics_path), dump_json(rep["metrics"]))
@@ -356,5 +371,7 @@ def run(args) -> int:
               f"distinct non-dominated points")
     if cfg.mode == "surrogate" and rep.get("surrogate_note"):
         print(rep["surrogate_note"])
+    if rep.get("fallback"):
+        print(rep["fallback"]["text"])
     print(f"report: {args.out}/report.md")
     return 0

@@ -64,7 +64,8 @@ def compare(uncorrected: Mapping, corrected: Mapping, rig, diagnosis: Mapping | 
     out = {"recommendations": table, "worth_mm_s": worth * 1e3,
            "uncorrected_model": models["uncorrected"].to_mapping(), "corrected_rig": rig.to_mapping(),
            "spread": spread.to_dict(), "explained": True, "warning": None,
-           "corrected_surrogate_note": corrected.get("surrogate_note")}
+           "corrected_surrogate_note": corrected.get("surrogate_note"),
+           "corrected_fallback": (corrected.get("fallback") or {}).get("text")}
     if diagnosis is not None and not diagnosis.get("explained", True):
         err, noise = float(diagnosis["model_error"]), float(diagnosis["noise_floor"])
         out["explained"] = False

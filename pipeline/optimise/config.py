@@ -26,7 +26,9 @@ class OptimiseConfig:
     (ModelSpec.search_spaces).  n_trials: total complete trials of the study (a resumed study runs only the
     rest; default 600 on the surrogate, 200 on the simulator = simulator calls).  n_verify: points
     re-simulated (distinct best / spread along the front).  rel_tol: relative ROP error above which the
-    surrogate is called wrong.
+    surrogate is called wrong.  fallback_trials: when a surrogate fails its verification (the recommended point,
+    or more than half of the verified points, wrong) a study of this many trials straight on the simulator, over
+    the same space with the same model, rig and constraints, makes the recommendation instead (0: off).
     """
 
     mode: str = "surrogate"
@@ -49,6 +51,7 @@ class OptimiseConfig:
     allow_not_settled: bool = False
     n_verify: int = 10
     rel_tol: float = 0.10
+    fallback_trials: int = 200
     storage: str | None = None
     study_name: str | None = None
     feedback: str | None = None
@@ -77,6 +80,8 @@ class OptimiseConfig:
         for name in ("batch_size", "n_verify"):
             if int(getattr(self, name)) < 1:
                 raise UserError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if int(self.fallback_trials) < 0:
+            raise UserError(f"fallback_trials must be >= 0, got {self.fallback_trials}")
         if self.n_trials is not None and int(self.n_trials) < 1:
             raise UserError(f"n_trials must be >= 1, got {self.n_trials}")
         if not (self.rel_tol > 0):

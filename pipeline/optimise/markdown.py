@@ -35,6 +35,9 @@ def markdown(rep: dict, table: pd.DataFrame | None) -> str:
     """report.md of the report dict ``rep`` (outputs.report_dict) and the verified table (None when nothing was)."""
     t = rep["tried"]
     lines = [f"# Optimisation report — {rep['study_name']}", "", f"**Outcome:** {rep['outcome']}", ""]
+    if rep.get("fallback"):
+        lines += [f"**Surrogate failed its verification:** {rep['fallback']['text']}.  The surrogate study "
+                  f"({rep['fallback']['surrogate_study']}) said: {rep['fallback']['surrogate_outcome']}.", ""]
     rec = rep.get("recommendation")
     if rec:
         labels = [k for k in ("rop_m_s", "power_w", "peak_decel_g", "peak_force_n", "specific_energy_j_m")

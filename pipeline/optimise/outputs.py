@@ -17,12 +17,12 @@ from pipeline.core.jsonable import dump_json
 from pipeline.optimise import plots
 from pipeline.optimise.markdown import markdown
 from pipeline.optimise.study import pareto_mask, value_columns
-from pipeline.optimise.workflow import OptimisePlan, OptimiseResult
+from pipeline.optimise.workflow import OptimisePlan, OptimiseResult, surrogate_failed
 
 REPORT_KEYS = ("study_name", "inputs", "created", "tried", "recommendation", "feedback_rows", "feedback_file",
-               "surrogate_note", "outcome", "pareto_verified", "objectives", "figures", "metrics")
-"""Keys of report.json in their order; feedback_rows/feedback_file, surrogate_note, pareto_verified/objectives only
-when they apply."""
+               "surrogate_note", "fallback", "outcome", "pareto_verified", "objectives", "figures", "metrics")
+"""Keys of report.json in their order; feedback_rows/feedback_file, surrogate_note, fallback,
+pareto_verified/objectives only when they apply."""
 
 
 def run_params(plan: OptimisePlan) -> dict:
@@ -63,22 +63,31 @@ def surrogate_note(res: OptimiseResult, feedback_file: str | None) -> str:
 
 
 def report_dict(res: OptimiseResult, figures: list[str], feedback_rows: int | None = None,
-                feedback_file: str | None = None) -> dict:
-    """report.json of ``res``: keys :data:`REPORT_KEYS`; ``feedback_rows`` rows now in ``feedback_file``."""
+                feedback_file: str | None = None, failed: OptimiseResult | None = None) -> dict:
+    """report.json of ``res``: keys :data:`REPORT_KEYS`; ``feedback_rows`` rows now in ``feedback_file``.
+    ``failed``: the surrogate study that failed its verification, when ``res`` is the simulator study replacing it."""
     rep = {"study_name": res.study_name, "inputs": res.problem.space.names, "created": res.created,
            "tried": tried(res), "recommendation": res.recommendation}
-    if res.verified is not None:
+    first = failed or res
+    if first.verified is not None:
         if feedback_file:
             rep["feedback_rows"] = feedback_rows
             rep["feedback_file"] = feedback_file
-        if res.config.mode == "surrogate":
-            rep["surrogate_note"] = surrogate_note(res, feedback_file)
+        if first.config.mode == "surrogate":
+            rep["surrogate_note"] = surrogate_note(first, feedback_file)
+    if failed is not None:
+        rep["fallback"] = {"reason": surrogate_failed(failed), "surrogate_study": failed.study_name,
+                           "surrogate_outcome": failed.outcome, "simulator_study": res.study_name,
+                           "n_trials": int(len(res.trials)),
+                           "text": f"{surrogate_failed(failed)}: the recommendation comes from a study of "
+                                   f"{len(res.trials)} trials straight on the simulator ({res.study_name}), not "
+                                   f"from the surrogate"}
     rep["outcome"] = res.outcome
     if res.pareto_verified is not None:
         rep["pareto_verified"] = res.pareto_verified
         rep["objectives"] = res.objective_names
     rep["figures"] = figures
-    rep["metrics"] = res.metrics()
+    rep["metrics"] = {**res.metrics(), "surrogate_fallback": failed is not None}
     return rep
 
 

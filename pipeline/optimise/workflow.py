@@ -25,8 +25,8 @@ from pipeline.optimise.strategies import Problem, Strategies
 from pipeline.optimise.study import default_storage, open_study, pareto_mask, pick_candidates, trials_frame
 from pipeline.optimise.verify import best_verified, compare
 
-__all__ = ["DEFAULT_TRIALS", "MODES", "OptimiseConfig", "OptimisePlan", "OptimiseResult", "plan_optimise",
-           "run_optimise"]
+__all__ = ["DEFAULT_TRIALS", "MODES", "OptimiseConfig", "OptimisePlan", "OptimiseResult", "fallback_config",
+           "plan_optimise", "run_optimise", "surrogate_failed"]
 
 
 @dataclass(frozen=True)
@@ -221,3 +221,26 @@ def run_optimise(plan: OptimisePlan, progress: bool = True) -> OptimiseResult:
             front = _verified_front(table, objectives, space)
     return OptimiseResult(cfg, s.problem, cons, objectives, plan.study_name, created, study, trials, ran,
                           study_sim_calls, s.simulator.calls, table, simres, rec, outcome, front, closest)
+
+
+def surrogate_failed(res: OptimiseResult) -> str | None:
+    """Why a surrogate study failed its verification (its recommended point, or more than half of the verified
+    points, wrong), None when it did not or was no surrogate study."""
+    if res.config.mode != "surrogate" or res.verified is None or not len(res.verified):
+        return None
+    n, wrong = len(res.verified), res.n_surrogate_wrong
+    rec_wrong = bool(res.recommendation and res.recommendation.get("surrogate_wrong"))
+    if not (rec_wrong or wrong > n / 2):
+        return None
+    return (f"the surrogate was wrong at {wrong} of {n} verified points"
+            + (", the recommended one among them" if rec_wrong else ""))
+
+
+def fallback_config(res: OptimiseResult) -> OptimiseConfig:
+    """The study straight on the simulator that replaces a failed surrogate's: the same model, preset, fixed values
+    (the rig), space, constraints and objective, ``fallback_trials`` trials."""
+    p = res.problem
+    ranges = {n: {"low": lo, "high": hi, "scale": "log" if n in p.space.log else "linear"}
+              for n, (lo, hi) in p.space.ranges.items()}
+    return replace(res.config, mode="simulator", surrogate=None, model=p.model, preset=p.preset, fixed=dict(p.fixed),
+                   ranges=ranges, n_trials=res.config.fallback_trials, study_name=None)

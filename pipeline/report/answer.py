@@ -56,9 +56,11 @@ def _corrected(cl: dict) -> str | None:
         how = f" (held-out error {ratio:.3g}x the noise floor)" if isinstance(ratio, (int, float)) else ""
         text += f". CAUTION: the diagnosis left the rig's residual unexplained{how}: this rests on a model known to be wrong"
     note = cl.get("surrogate_note")
-    if isinstance(note, str) and "was wrong at" in note:
-        text += (". The corrected-rig surrogate failed part of its verification; the point is the best the simulator "
-                 "verified, not the surrogate's optimum")
+    if isinstance(cl.get("fallback"), str):
+        text += f". Corrected-rig surrogate: {cl['fallback']}"
+    elif isinstance(note, str) and "was wrong at" in note:
+        text += (". The corrected-rig surrogate was wrong at some verified points; the point is the best the "
+                 "simulator verified, not the surrogate's optimum")
     return text
 
 

@@ -148,7 +148,8 @@ def test_surrogate_study_verifies_flags_wrong_predictions_and_closes_the_loop(en
     bundle = ToyBundle(rop_scale=3.0)   # deliberately ~3x too optimistic
     fb = env / "feedback.parquet"
     cfg = OptimiseConfig(mode="surrogate", surrogate=str(env), ranges=SMALL, n_trials=40, n_verify=3,
-                         storage=f"sqlite:///{env / 'optuna.db'}", study_name="t-sur", feedback=str(fb))
+                         storage=f"sqlite:///{env / 'optuna.db'}", study_name="t-sur", feedback=str(fb),
+                         fallback_trials=0)     # the surrogate study's own verification (the fallback: test_workflow)
     rep = optimise_into(cfg, env / "out", bundle=bundle, progress=False, mlflow_enabled=False)
     table = pd.read_csv(env / "out" / "verified.csv")
     assert len(table) == 3
@@ -244,7 +245,9 @@ def test_power_limit_moves_the_optimum_off_the_corner(env):
     # without a limit the toy's best point is the corner F0 = 2700 N, Fs = 1800 N; its power is 5e-5·F0² W
     # (ToyBundle), so 320 W allows F0 <= sqrt(320 / 5e-5) = 2530 N
     base = dict(mode="surrogate", surrogate=str(env), ranges=SMALL, n_trials=60, n_verify=3,
-                storage=f"sqlite:///{env / 'optuna.db'}", feedback=str(env / "fb.parquet"))
+                storage=f"sqlite:///{env / 'optuna.db'}", feedback=str(env / "fb.parquet"),
+                fallback_trials=0)      # the toy's own power model sets the limit: no simulator study instead
+
     free = optimise_into(OptimiseConfig(**base, study_name="free"), env / "free", bundle=ToyBundle(), progress=False,
                          mlflow_enabled=False)
     assert ("amplitude_n", "high") in [(h["name"], h["side"]) for h in free["recommendation"]["on_bounds"]]

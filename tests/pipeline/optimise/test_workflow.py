@@ -16,13 +16,14 @@ from pipeline.optimise.workflow import OptimiseResult, plan_optimise, run_optimi
 from .test_optimise import SMALL, ToyBundle
 
 REPORT_KEYS = ["study_name", "inputs", "created", "tried", "recommendation", "feedback_rows", "feedback_file",
-               "surrogate_note", "outcome", "pareto_verified", "objectives", "figures", "metrics"]
+               "surrogate_note", "fallback", "outcome", "pareto_verified", "objectives", "figures", "metrics"]
 TRIED_KEYS = ["mode", "objective", "objectives", "sampler", "seed", "model", "preset", "fixed", "space", "constraints",
               "n_trials", "n_trials_run_now", "n_feasible", "status_counts", "storage", "simulator_calls_study",
               "n_verified", "simulator_calls"]
 METRIC_KEYS = ["feasible", "n_trials", "n_feasible_trials", "simulator_calls", "n_verified", "n_surrogate_wrong",
                "n_pareto_verified", "best_rop_m_s", "best_rop_m_s_predicted", "best_rop_rel_error", "best_power_w",
-               "best_peak_decel_g", "best_n_on_bounds", "best_frequency_hz", "best_amplitude_n", "best_static_force_n"]
+               "best_peak_decel_g", "best_n_on_bounds", "best_frequency_hz", "best_amplitude_n", "best_static_force_n",
+               "surrogate_fallback"]
 REC_KEYS = ["params", "rop_m_s_sim", "rop_m_s_pred", "rop_m_s_lo", "rop_m_s_hi", "peak_force_n_sim",
             "specific_energy_j_m_sim", "impacts_per_cycle_sim", "power_w_sim", "power_w_pred", "peak_decel_g_sim",
             "peak_decel_g_pred", "rop_rel_error", "status_sim", "surrogate_wrong", "on_bounds", "binding"]
@@ -78,10 +79,12 @@ def test_run_optimise_returns_a_frozen_result_and_writes_nothing(dirs, mode):
 def test_command_writes_the_report_keys_it_always_wrote(dirs):
     fb = dirs / "fb.parquet"
     cfg = OptimiseConfig(mode="surrogate", surrogate=str(dirs / "home"), objective="pareto", ranges=SMALL,
-                         n_trials=40, n_verify=4, storage=f"sqlite:///{dirs / 'db' / 'optuna.db'}", feedback=str(fb))
+                         n_trials=40, n_verify=4, storage=f"sqlite:///{dirs / 'db' / 'optuna.db'}", feedback=str(fb),
+                         fallback_trials=0)
     rep = command.optimise_into(cfg, dirs / "out", bundle=ToyBundle(), progress=False, mlflow_enabled=False)
     on_disk = json.loads((dirs / "out" / "report.json").read_text())
-    assert list(on_disk) == REPORT_KEYS and list(rep) == REPORT_KEYS
+    keys = [k for k in REPORT_KEYS if k != "fallback"]
+    assert list(on_disk) == keys and list(rep) == keys
     assert list(on_disk["tried"]) == TRIED_KEYS and list(on_disk["metrics"]) == METRIC_KEYS
     assert list(on_disk["recommendation"]) == REC_KEYS
     assert on_disk["feedback_file"] == str(fb) and on_disk["feedback_rows"] == 4 and fb.exists()
@@ -93,7 +96,28 @@ def test_command_writes_the_report_keys_it_always_wrote(dirs):
     cfg = OptimiseConfig(mode="simulator", preset="lab", ranges=SMALL, n_trials=4, n_verify=1, batch_size=4,
                          storage=f"sqlite:///{dirs / 'db' / 'optuna.db'}")
     rep = command.optimise_into(cfg, dirs / "sim", progress=False, mlflow_enabled=False)
-    want = [k for k in REPORT_KEYS if k not in ("feedback_rows", "feedback_file", "surrogate_note", "pareto_verified",
-                                                "objectives")]
+    want = [k for k in REPORT_KEYS if k not in ("feedback_rows", "feedback_file", "surrogate_note", "fallback",
+                                                "pareto_verified", "objectives")]
     assert list(json.loads((dirs / "sim" / "report.json").read_text())) == want == list(rep)
     assert list(rep["metrics"]) == [k for k in METRIC_KEYS if k != "n_pareto_verified"]
+
+
+def test_a_surrogate_the_simulator_contradicts_never_makes_the_recommendation(dirs):
+    """A surrogate 3x too optimistic is wrong at every verified point: the command runs a study straight on the
+    simulator over the same space and recommends from it, and the report and metrics say so."""
+    store = f"sqlite:///{dirs / 'db' / 'optuna.db'}"
+    cfg = OptimiseConfig(mode="surrogate", surrogate=str(dirs / "home"), ranges=SMALL, n_trials=16, n_verify=3,
+                         batch_size=4, storage=store, fallback_trials=8)
+    rep = command.optimise_into(cfg, dirs / "out", bundle=ToyBundle(rop_scale=3.0), progress=False,
+                                mlflow_enabled=False)
+    assert list(rep) == [k for k in REPORT_KEYS if k not in ("pareto_verified", "objectives")]
+    fb = rep["fallback"]
+    assert fb["reason"].startswith("the surrogate was wrong at 3 of 3 verified points") and fb["n_trials"] == 8
+    assert rep["tried"]["mode"] == "simulator" and rep["study_name"] == fb["simulator_study"] != fb["surrogate_study"]
+    assert rep["metrics"]["surrogate_fallback"] is True and rep["recommendation"]["surrogate_wrong"] is False
+    assert "The surrogate was wrong at 3 of 3" in rep["surrogate_note"]
+    md = (dirs / "out" / "report.md").read_text()
+    assert "Surrogate failed its verification" in md
+    # the simulator study recommends from its own trials: its best ROP is among what it simulated
+    trials = json.loads((dirs / "out" / "report.json").read_text())["tried"]
+    assert trials["simulator_calls_study"] == 8

@@ -137,9 +137,11 @@ def test_answer_leads_with_the_corrected_rig_when_the_loop_was_closed():
     first, second = answer_line(summary, "r.html").split("\n")
     assert first.startswith("Answer (corrected rig): f = 305 Hz, F0 = 2.70 kN, Fs = 1.57 kN -> ROP 3.61 mm/s")
     assert "5-95 %: 3.20-3.90" in first and "gives 2.15 mm/s there (+1.46 mm/s)" in first
-    assert "failed part of its verification" in first and "CAUTION" not in first
+    assert "wrong at some verified points" in first and "CAUTION" not in first
     assert second.startswith("Lab model's answer (before the diagnosis): f = 210 Hz") and second.endswith("r.html")
     summary["closed_loop"].update(explained=False, model_error_ratio=25.5, surrogate_note="agreed")
     first = answer_line(summary).split("\n")[0]
     assert "unexplained (held-out error 25.5x the noise floor)" in first and "known to be wrong" in first
-    assert "verification" not in first
+    assert "surrogate" not in first
+    summary["closed_loop"]["fallback"] = "the surrogate was wrong at 12 of 12 verified points: the recommendation comes"
+    assert "Corrected-rig surrogate: the surrogate was wrong at 12 of 12" in answer_line(summary)
