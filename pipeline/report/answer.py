@@ -91,6 +91,44 @@ def answer_line(summary: dict, report_path: str | Path | None = None) -> str | N
     return text
 
 
+def _binding_words(text: str) -> str:
+    """``power_w 17.68 of its limit 18`` -> ``power 17.7 W of its 18 W limit`` (pipeline.core.units)."""
+    import re
+
+    from pipeline.core.units import ENGINEERING
+
+    m = re.fullmatch(r"(\S+) (\S+) of its limit (\S+)", text.strip())
+    if not m or m.group(1) not in ENGINEERING:
+        return text
+    name, unit, k = ENGINEERING[m.group(1)]
+    return f"{name} {float(m.group(2)) * k:.3g} {unit} of its {float(m.group(3)) * k:g} {unit} limit"
+
+
+def _diagnosis_words(r: dict) -> str | None:
+    """One diagnosis row of the summary (report section 4) in words."""
+    base, final, floor = r.get("base_error"), r.get("final_error"), r.get("noise_floor")
+    if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (base, final, floor)):
+        return None
+    sel = r.get("selected")
+    verdict = (f"{sel} selected" if sel and sel != "none" else
+               "nothing missing" if r.get("explained") else "UNEXPLAINED (no §6 effect accounts for the residual)")
+    after = f" -> {final:.1%} with {sel}" if sel and sel != "none" else ""
+    return (f"Diagnosis of {r.get('dataset')} ({r.get('system')}): {verdict}; held-out feature error of the "
+            f"calibrated model {base:.1%}{after} (noise floor {floor:.1%})")
+
+
+def summary_lines(summary: dict) -> list[str]:
+    """The report's opening box: the answer (corrected rig first), the limits that bind, each diagnosis's verdict
+    with its error before and after."""
+    top = answer_line(summary)
+    lines = top.split("\n") if top else []
+    rec = (summary.get("optimise") or {}).get("recommended") or {}
+    if rec.get("binding"):
+        lines.append("Limits that bind at the lab model's point: " + "; ".join(map(_binding_words, rec["binding"])))
+    lines += [w for w in map(_diagnosis_words, summary.get("diagnose") or []) if w]
+    return lines
+
+
 def answer_from_report(report_dir: str | Path) -> str | None:
     """:func:`answer_line` of ``report_dir/summary.json`` (None when absent or without a recommendation)."""
     d = Path(report_dir)

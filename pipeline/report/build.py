@@ -555,11 +555,11 @@ def build_report(inp: ReportInputs, out: Path) -> ReportResult:
     summary: dict = {}
     for section in SECTIONS:
         section(doc, figs, inp, summary)
-    from pipeline.report.answer import answer_line
+    from pipeline.report.answer import answer_line, summary_lines
 
-    top = answer_line(summary)
+    top = summary_lines(summary)
     if top:     # the answer above the evidence: the corrected rig's first when the loop was closed
-        doc.blocks[1:1] = [Heading("Answer")] + [Para(f"**{ln}**") for ln in top.split("\n")]
+        doc.blocks[1:1] = [Heading("Answer")] + [Para(f"**{ln}**" if ln.startswith("Answer") else ln) for ln in top]
     md = to_markdown(doc, out)
     page = to_html(doc)
     atomic_write_text(out / "report.md", md)

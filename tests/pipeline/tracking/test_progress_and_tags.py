@@ -145,3 +145,21 @@ def test_answer_leads_with_the_corrected_rig_when_the_loop_was_closed():
     assert "surrogate" not in first
     summary["closed_loop"]["fallback"] = "the surrogate was wrong at 12 of 12 verified points: the recommendation comes"
     assert "Corrected-rig surrogate: the surrogate was wrong at 12 of 12" in answer_line(summary)
+
+
+def test_summary_box_names_binding_limits_and_each_diagnosis_in_engineering_words():
+    from pipeline.report.answer import summary_lines
+
+    summary = {"optimise": {"recommended": {"params": {"frequency_hz": 210.0}, "binding": [
+                   "power_w 17.68 of its limit 18", "peak_decel_g 3.851 of its limit 4"]}, "verified_rop_m_s": 0.00719},
+               "diagnose": [{"dataset": "drill-rig", "system": "drill", "base_error": 0.1806, "final_error": 0.0214,
+                             "noise_floor": 0.044, "selected": "shaker_coil", "explained": True},
+                            {"dataset": "seed000", "system": "indenter-metal", "base_error": 0.465,
+                             "final_error": 0.465, "noise_floor": 0.0965, "selected": "none", "explained": False}]}
+    lines = summary_lines(summary)
+    assert lines[0].startswith("Answer: f = 210 Hz")
+    assert lines[1] == ("Limits that bind at the lab model's point: power 17.7 W of its 18 W limit; "
+                        "peak deceleration 3.85 g of its 4 g limit")
+    assert lines[2] == ("Diagnosis of drill-rig (drill): shaker_coil selected; held-out feature error of the calibrated "
+                        "model 18.1% -> 2.1% with shaker_coil (noise floor 4.4%)")
+    assert lines[3].startswith("Diagnosis of seed000 (indenter-metal): UNEXPLAINED") and "46.5%" in lines[3]
