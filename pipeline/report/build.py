@@ -492,25 +492,36 @@ def _param_info(system: str) -> dict[str, tuple[float | None, str]]:
         return {}
 
 
+UNIDENTIFIABLE_SPAN = 100.0
+"""A parameter whose 95 % interval spans more than this factor (two decades) is flagged "not identifiable"."""
+
+
 def calibrated_rows(rep: dict, system: str) -> list[list]:
-    """Rows (parameter, role, default, calibrated, ± sd, 95 % interval, unit) of one system's diagnosis:
-    the calibrated base parameters, then the selected effect's parameters."""
+    """Rows (parameter, role, default, calibrated, ± sd, 95 % interval, unit) of one system's diagnosis, every value
+    from the selected model's fit (the calibrated base parameters fitted together with the selected effect, then the
+    effect's own), else from the base fit; an interval wider than UNIDENTIFIABLE_SPAN says "not identifiable"."""
     info = _param_info(system)
+    cal = rep.get("calibrated") or {}
+    block = rep.get("selected_params") if isinstance(rep.get("selected_params"), dict) else None
+    with_effect = block is not None
+    if block is None:
+        block = rep.get("calibrated_uncertainty")
+    if not isinstance(block, dict):
+        block = {n: {"value": v} for n, v in cal.items()} if isinstance(cal, dict) else {}
     rows = []
-    for role, key in (("calibrated", "calibrated_uncertainty"), ("selected effect", "selected_params")):
-        block = rep.get(key)
-        if not isinstance(block, dict):
-            if role == "calibrated" and isinstance(rep.get("calibrated"), dict):
-                block = {n: {"value": v} for n, v in rep["calibrated"].items()}
-            else:
-                continue
-        for name, d in block.items():
-            if not isinstance(d, dict) or role == "selected effect" and name in (rep.get("calibrated") or {}):
-                continue
-            default, unit = info.get(name, (None, ""))
-            ci = d.get("ci95") if isinstance(d.get("ci95"), list) and len(d["ci95"]) == 2 else None
-            rows.append([name, role, default, d.get("value"), d.get("sd"),
-                         f"{fmt(ci[0])} .. {fmt(ci[1])}" if ci else None, unit])
+    for name, d in block.items():
+        if not isinstance(d, dict):
+            continue
+        role = ("calibrated (with the effect)" if name in cal else "selected effect") if with_effect else "calibrated"
+        default, unit = info.get(name, (None, ""))
+        ci = d.get("ci95") if isinstance(d.get("ci95"), list) and len(d["ci95"]) == 2 else None
+        span = None
+        if ci:
+            span = f"{fmt(ci[0])} .. {fmt(ci[1])}"
+            lo, hi = (float(x) for x in ci)
+            if lo <= 0 or hi / lo > UNIDENTIFIABLE_SPAN:
+                span = f"not identifiable ({span})"
+        rows.append([name, role, default, d.get("value"), d.get("sd"), span, unit])
     return rows
 
 

@@ -40,8 +40,14 @@ def test_calibrated_rows_list_base_and_effect_parameters_with_defaults():
            "selected_params": {"k1": {"value": 2.1e6, "sd": 1e5, "ci95": [1.9e6, 2.3e6]},
                                "tau": {"value": 1e-4, "sd": 1e-5, "ci95": [8e-5, 1.2e-4]}}}
     rows = calibrated_rows(rep, "indenter-metal")
-    assert [r[:2] for r in rows] == [["k1", "calibrated"], ["pm", "calibrated"], ["tau", "selected effect"]]
+    # every value from the selected model's fit: k1 fitted with the effect, not the base-only 2.0e6
+    assert [r[:2] for r in rows] == [["k1", "calibrated (with the effect)"], ["tau", "selected effect"]]
     import sim
 
     spec = {p.name: p for p in sim.get_model("indenter-metal").params}
-    assert rows[0][2] == spec["k1"].default and rows[0][6] == spec["k1"].unit and rows[0][3] == 2.0e6
+    assert rows[0][2] == spec["k1"].default and rows[0][6] == spec["k1"].unit and rows[0][3] == 2.1e6
+    del rep["selected_params"]
+    rep["calibrated_uncertainty"]["pm"]["ci95"] = [1.6e-44, 4.2e44]       # a parameter the data cannot fix
+    rows = calibrated_rows(rep, "indenter-metal")
+    assert [r[:2] for r in rows] == [["k1", "calibrated"], ["pm", "calibrated"]] and rows[0][3] == 2.0e6
+    assert rows[1][5].startswith("not identifiable (") and not rows[0][5].startswith("not")
