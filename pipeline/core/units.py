@@ -19,9 +19,10 @@ ENGINEERING: dict[str, tuple[str, str, float]] = {
     "specific_energy_j_m": ("specific energy", "kJ/m", 1e-3),
     "impacts_per_cycle": ("impacts per cycle", "", 1.0),
     "period": ("period", "cycles", 1.0),
+    "spectral_ratio": ("spectral ratio", "", 1.0),
     "Pr": ("Pr (progression threshold)", "kN", 1e-3),
 }
-SUFFIXES = ("_sim", "_pred", "_lo", "_hi", "_verified")
+SUFFIXES = ("_sim", "_pred", "_predicted", "_lo", "_hi", "_verified")
 """Name suffixes kept after the label: ``rop_m_s_sim`` -> ``ROP (sim) [mm/s]``."""
 
 
@@ -37,7 +38,11 @@ def split(name: str) -> tuple[str, str]:
 
 
 def label(name: str) -> str:
-    """Human label with unit, e.g. ``rop_m_s_sim`` -> ``ROP (sim) [mm/s]``; unknown names unchanged."""
+    """Human label with unit, e.g. ``rop_m_s_sim`` -> ``ROP (sim) [mm/s]``, ``best_rop_m_s`` -> ``best ROP
+    [mm/s]``; unknown names unchanged."""
+    leaf = name.rsplit(".", 1)[-1]
+    if leaf.startswith("best_") and split(leaf[5:])[0] in ENGINEERING:
+        return name[: len(name) - len(leaf)] + "best " + label(leaf[5:])
     base, suf = split(name)
     if base not in ENGINEERING:
         return name
@@ -48,6 +53,9 @@ def label(name: str) -> str:
 
 def factor(name: str) -> float:
     """Factor from SI to the engineering unit of ``name`` (1 for unknown names)."""
+    leaf = name.rsplit(".", 1)[-1]
+    if leaf.startswith("best_") and split(leaf[5:])[0] in ENGINEERING:
+        return factor(leaf[5:])
     base, _ = split(name)
     return ENGINEERING[base][2] if base in ENGINEERING else 1.0
 

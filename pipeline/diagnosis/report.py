@@ -12,6 +12,7 @@ import numpy as np  # noqa: E402
 from scipy.stats import spearmanr  # noqa: E402
 
 from pipeline.core.files import atomic_write_figure  # noqa: E402
+from pipeline.core.units import ENGINEERING, factor, label  # noqa: E402
 from pipeline.diagnosis.features import harmonic_fit, model_record, record_time  # noqa: E402
 from pipeline.diagnosis.result import SimulatedRuns, SystemDiagnosis  # noqa: E402
 
@@ -97,6 +98,11 @@ def figure_names(diag: SystemDiagnosis) -> list[str]:
             + ([f"summary_{tag}.png"] if _has_summary(diag) else []))
 
 
+SIGNALS = {"accel_m_s2": "acceleration [m/s²]", "force_n": "contact force [N]", "disp_m": "displacement [m]",
+           "progression_m": "progression [m]"}
+"""Measured signals in words (figure axes)."""
+
+
 def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path) -> list[str]:
     """Residual before/after, residual structure, measured vs simulated time histories and spectra, drawn into
     directory ``out`` from the measured ``series`` (run id -> DataFrame); the file names."""
@@ -106,41 +112,52 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
     files = []
     st = diag.report["residual_structure"]
     rows = st["by_run"]
-    fig, ax = plt.subplots(2, 3, figsize=(13, 7))
     keys = [k for k in (*CONTROL_KEYS, "peak_velocity_m_s")
             if len({r.get(k) for r in rows if r.get(k) is not None}) > 1][:4]
-    for key, a in zip(keys, ax.ravel()):
-        for col, lab, mk in (("base_nrms", "calibrated base (before)", "o"), ("final_nrms", f"with {final} (after)", "s")):
-            x = [r[key] for r in rows]
-            a.scatter(x, [r[col] for r in rows], marker=mk, label=lab, alpha=0.7)
-        ho = [r for r in rows if r["held_out"]]
-        a.scatter([r[key] for r in ho], [r["base_nrms"] for r in ho], facecolors="none", edgecolors="k", s=90,
-                  label="held-out run")
-        a.axhline(1.0, color="grey", ls="--", lw=1)
-        a.set_yscale("log")
-        a.set_xlabel(key)
-        a.set_ylabel("residual / noise (nrms)")
-    ax[0, 0].legend(fontsize=7)
     hz = st["by_harmonic_hz"]
-    if hz:
-        ax[1, 1].bar([float(k) for k in hz], list(hz.values()), width=40)
-        ax[1, 1].set_xlabel("harmonic frequency [Hz] (accel, 50 Hz bins)")
-        ax[1, 1].set_ylabel("base |residual| / noise")
-        ax[1, 1].set_yscale("log")
-    if st["by_time_segment"]:
-        ax[1, 2].plot(range(1, len(st["by_time_segment"]) + 1), st["by_time_segment"], "o-")
-        ax[1, 2].set_xlabel("time segment of the record")
-        ax[1, 2].set_ylabel("base residual / noise")
-        ax[1, 2].ticklabel_format(axis="y", useOffset=False)
-    else:
-        ax[1, 2].axis("off")
+    panels = [("control", k) for k in keys] + ([("harmonics", None)] if hz else []) + \
+        ([("segments", None)] if st["by_time_segment"] else [])
+    ncol = min(3, max(len(panels), 1))
+    nrow = max(1, math.ceil(len(panels) / ncol))
+    fig, ax = plt.subplots(nrow, ncol, figsize=(4.4 * ncol, 3.6 * nrow), squeeze=False)
+    series_ = [("base_nrms", "calibrated base (before)", "o")]
+    if final != "base":          # nothing selected: the base is the final model, drawn once
+        series_.append(("final_nrms", f"with {final} (after)", "s"))
+    for (kind, key), a in zip(panels, ax.ravel()):
+        if kind == "control":
+            k = factor(key) if key in ENGINEERING else 1.0
+            for col, lab, mk in series_:
+                a.scatter([r[key] * k for r in rows], [r[col] for r in rows], marker=mk, label=lab, alpha=0.7)
+            ho = [r for r in rows if r["held_out"]]
+            a.scatter([r[key] * k for r in ho], [r["base_nrms"] for r in ho], facecolors="none", edgecolors="k", s=90,
+                      label="held-out run")
+            a.axhline(1.0, color="grey", ls="--", lw=1)
+            a.set_yscale("log")
+            a.set_xlabel(label(key) if key in ENGINEERING else "peak velocity [m/s]")
+            a.set_ylabel("residual / noise (nrms)")
+        elif kind == "harmonics":
+            a.bar([float(k) for k in hz], list(hz.values()), width=40)
+            a.set_xlabel("harmonic frequency [Hz] (acceleration, 50 Hz bins)")
+            a.set_ylabel("calibrated base |residual| / noise")
+            a.set_yscale("log")
+        else:
+            a.plot(range(1, len(st["by_time_segment"]) + 1), st["by_time_segment"], "o-")
+            a.set_xlabel("time segment of the record")
+            a.set_ylabel("calibrated base residual / noise")
+            a.ticklabel_format(axis="y", useOffset=False)
+    for a in ax.ravel()[len(panels):]:
+        a.axis("off")
+    if keys:
+        ax[0, 0].legend(fontsize=7)
     fig.suptitle(f"{sysname}: residual structure before/after")
     files.append(_save(fig, out / f"residual_{tag}.png"))
     # measured vs simulated for up to two held-out runs
     for i in _timehist_runs(diag):
         tg = ev.targets[i]
         k = [d["run"] for d in base_runs].index(i)
-        results = {"default": default_runs[k]["result"], "base": base_runs[k]["result"], final: final_runs[k]["result"]}
+        results = {"model defaults": default_runs[k]["result"], "calibrated base": base_runs[k]["result"]}
+        if final != "base":
+            results[f"with {final}"] = final_runs[k]["result"]
         f = tg.controls["frequency_hz"]
         if tg.kind == "series":
             df = series[tg.run_id]
@@ -162,9 +179,9 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
                     ax[r_, 0].plot(ph, (basis @ c).real, lw=1, label=name)
                     ax[r_, 1].plot(kk, np.abs(c), ".-", lw=1, label=name)
                 ax[r_, 0].set_xlabel("forcing phase [cycles]")
-                ax[r_, 0].set_ylabel(f"{sig} (mean removed)")
+                ax[r_, 0].set_ylabel(f"{SIGNALS.get(sig, sig)}, mean removed")
                 ax[r_, 1].set_xlabel("harmonic frequency [Hz]")
-                ax[r_, 1].set_ylabel(f"|{sig}| harmonic amplitude")
+                ax[r_, 1].set_ylabel(f"harmonic amplitude of {SIGNALS.get(sig, sig)}")
                 ax[r_, 1].set_yscale("log")
             ax[0, 0].legend(fontsize=7)
             fig.suptitle(f"{tg.run_id} (held out): measured vs simulated")
@@ -174,8 +191,10 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
         feats = sorted({n for i in summ for n in ev.targets[i].names})
         fig, ax = plt.subplots(1, len(feats), figsize=(4 * len(feats), 3.6), squeeze=False)
         for a, feat in zip(ax[0], feats):
-            for lab, runs_, mk in (("measured", None, "ko"), ("default", default_runs, "x"), ("base", base_runs, "o"),
-                                   (final, final_runs, "s")):
+            models = [("measured", None, "ko"), ("model defaults", default_runs, "x"), ("calibrated base", base_runs, "o")]
+            if final != "base":
+                models.append((f"with {final}", final_runs, "s"))
+            for lab, runs_, mk in models:
                 xs, ys = [], []
                 for k_, i in enumerate(range(len(ev.targets))):
                     tg = ev.targets[i]
@@ -195,7 +214,7 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
                 else:
                     a.plot(xs, ys, mk, label=lab, alpha=0.8)
             a.set_xlabel("frequency [Hz]")
-            a.set_title(feat)
+            a.set_title(label(feat))
         ax[0, 0].legend(fontsize=7)
         fig.suptitle(f"{sysname}: summary features, measured vs model")
         files.append(_save(fig, out / f"summary_{tag}.png"))

@@ -381,7 +381,10 @@ def section_optimise(doc: Document, figs: _Figs, inp: ReportInputs, summary: dic
     mfiles = _metrics_files(inp, "optimise")
     if mfiles:
         data = {m.stem: (_read_json(m) or {}) for m in mfiles}
-        doc.add(dict_table(data, "Optimisation metrics per study"))
+        keys = [k for d in data.values() for k in d if not isinstance(d[k], (dict, list))]
+        keys = list(dict.fromkeys(keys))
+        doc.add(Table(["quantity", *data], [[label(k), *[convert(k, d.get(k)) for d in data.values()]] for k in keys],
+                      "Optimisation metrics per study (engineering units)"))
     doc.add(Heading("Pareto front", 3))
     front = _pareto_frame(path)
     if front is None or front.empty:
