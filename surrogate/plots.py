@@ -15,6 +15,9 @@ from surrogate.data import domain_mask  # noqa: E402
 
 UNITS = {"rop_m_s": "m/s", "peak_force_n": "N", "impacts_per_cycle": "-", "specific_energy_j_m": "J/m", "power_w": "W",
          "peak_decel_g": "g"}
+NAMES = {"rop_m_s": "ROP", "peak_force_n": "peak impact force", "impacts_per_cycle": "impacts per cycle",
+         "specific_energy_j_m": "specific energy", "power_w": "power", "peak_decel_g": "peak deceleration"}
+"""Targets in words (figure titles)."""
 
 
 def _save(fig, path: Path) -> str:
@@ -25,29 +28,44 @@ def parity(bundle, test: pd.DataFrame, path: Path) -> str:
     """Predicted vs simulated value on the held-out split, one panel per target, with 90 % bars."""
     pred = bundle.predict(test, conditional=True)
     ts = list(bundle.regressors)
-    fig, axes = plt.subplots(1, len(ts), figsize=(4.2 * len(ts), 4.2), squeeze=False)
-    for ax, t in zip(axes[0], ts):
+    ncol = min(3, max(len(ts), 1))
+    nrow = -(-len(ts) // ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(5.0 * ncol, 4.8 * nrow), squeeze=False)
+    for ax in axes.ravel()[len(ts):]:
+        ax.axis("off")
+    for ax, t in zip(axes.ravel(), ts):
         tm = bundle.regressors[t]
         m = domain_mask(test, t, tm.domain)
         y = test[t].to_numpy(float)[m]
         p, lo, hi = (pred[c].to_numpy(float)[m] for c in (t, f"{t}_lo", f"{t}_hi"))
+        r2 = bundle.report.get("held_out", {}).get("targets", {}).get(t, {}).get("r2")
+        name = f"{NAMES.get(t, t)} ({tm.name} on {tm.domain} points)"
+        if y.size and np.ptp(y) <= 1e-9 * max(abs(float(y[0])), 1e-300):     # e.g. the peak force capped at Pr
+            ax.text(0.5, 0.5, f"constant {y[0]:.4g} {UNITS.get(t, '')} on every held-out point\n"
+                    f"surrogate {np.nanmin(p):.4g} .. {np.nanmax(p):.4g}", ha="center", va="center",
+                    transform=ax.transAxes, fontsize=10)
+            ax.set_title(name, fontsize=10)
+            ax.set_xticks([])
+            ax.set_yticks([])
+            continue
         inside = (y >= lo) & (y <= hi)
         ax.errorbar(y, p, yerr=[np.maximum(p - lo, 0), np.maximum(hi - p, 0)], fmt="none", ecolor="0.8", lw=0.6,
                     zorder=1)
-        ax.scatter(y[inside], p[inside], s=6, c="C0", label="inside 90 % interval", zorder=2)
-        ax.scatter(y[~inside], p[~inside], s=8, c="C3", label="outside", zorder=3)
+        ax.scatter(y[inside], p[inside], s=10, c="C0", label="inside its 90 % interval", zorder=2)
+        ax.scatter(y[~inside], p[~inside], s=14, c="C3", label="outside", zorder=3)
         if y.size:
             a, b = np.nanmin([y.min(), p.min()]), np.nanmax([y.max(), p.max()])
             ax.plot([a, b], [a, b], "k--", lw=0.8)
         if tm.transform.kind == "log":
             ax.set_xscale("log")
             ax.set_yscale("log")
-        r2 = bundle.report.get("held_out", {}).get("targets", {}).get(t, {}).get("r2")
-        ax.set_title(f"{t} ({tm.name}, {tm.domain})\nheld-out R² = {r2:.4f}" if r2 is not None else t, fontsize=9)
+        ax.set_title(name + (f"\nheld-out R² = {r2:.4f}" if r2 is not None else ""), fontsize=10)
         ax.set_xlabel(f"simulated [{UNITS.get(t, '')}]")
         ax.set_ylabel(f"surrogate [{UNITS.get(t, '')}]")
         ax.grid(alpha=0.3)
-    axes[0][0].legend(fontsize=7)
+    handles = [a for a in axes.ravel() if a.get_legend_handles_labels()[0]]
+    if handles:
+        handles[0].legend(fontsize=8)
     fig.tight_layout()
     return _save(fig, path)
 
