@@ -290,7 +290,8 @@ def optimise_into(cfg, out_dir, bundle=None, metrics_path: str | None = None, pr
     from pipeline.core.jsonable import dump_json
     from pipeline.optimise import outputs
     from pipeline.optimise.verify import append_feedback
-    from pipeline.optimise.workflow import fallback_config, plan_optimise, run_optimise, surrogate_failed
+    from pipeline.optimise.workflow import (fallback_config, plan_optimise, run_optimise, seed_with_verified,
+                                           surrogate_failed)
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -310,7 +311,9 @@ def optimise_into(cfg, out_dir, bundle=None, metrics_path: str | None = None, pr
                 print(f"vibro optimise: {why}; running {cfg.fallback_trials} trials straight on the simulator",
                       file=sys.stderr)
             sim_cfg = fallback_config(res)
-            failed, res = res, run_optimise(plan_optimise(sim_cfg, build_strategies(sim_cfg)), progress=progress)
+            sim_plan = plan_optimise(sim_cfg, build_strategies(sim_cfg))
+            seed_with_verified(sim_plan, res)       # the study starts from the points already verified
+            failed, res = res, run_optimise(sim_plan, progress=progress)
         tables = outputs.write_tables(res, out)
         figs = outputs.write_figures(res, out)
         rep = outputs.report_dict(res, figs, rows, fb, failed=failed)

@@ -28,7 +28,8 @@ class OptimiseConfig:
     re-simulated (distinct best / spread along the front).  rel_tol: relative ROP error above which the
     surrogate is called wrong.  fallback_trials: when a surrogate fails its verification (the recommended point,
     or more than half of the verified points, wrong) a study of this many trials straight on the simulator, over
-    the same space with the same model, rig and constraints, makes the recommendation instead (0: off).
+    the same space with the same model, rig and constraints, starting from the points already verified, makes the
+    recommendation instead (0: off).
     """
 
     mode: str = "surrogate"

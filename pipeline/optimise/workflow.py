@@ -26,7 +26,7 @@ from pipeline.optimise.study import default_storage, open_study, pareto_mask, pi
 from pipeline.optimise.verify import best_verified, compare
 
 __all__ = ["DEFAULT_TRIALS", "MODES", "OptimiseConfig", "OptimisePlan", "OptimiseResult", "fallback_config",
-           "plan_optimise", "run_optimise", "surrogate_failed"]
+           "plan_optimise", "run_optimise", "seed_with_verified", "surrogate_failed"]
 
 
 @dataclass(frozen=True)
@@ -234,6 +234,20 @@ def surrogate_failed(res: OptimiseResult) -> str | None:
         return None
     return (f"the surrogate was wrong at {wrong} of {n} verified points"
             + (", the recommended one among them" if rec_wrong else ""))
+
+
+def seed_with_verified(plan: OptimisePlan, failed: OptimiseResult) -> int:
+    """Queue the failed surrogate study's verified points as the first trials of ``plan``'s simulator study (once:
+    a resumed study skips those it holds), so the fallback's answer is never worse than what was verified."""
+    from pipeline.optimise.coordination import WORKER_ATTR, worker_id
+
+    if failed.verified is None:
+        return 0
+    pts = failed.verified[failed.problem.space.names].to_dict("records")
+    for pt in pts:      # tagged as this worker's: an untagged waiting trial is a dead worker's to the study guard
+        plan.study.enqueue_trial({k: float(v) for k, v in pt.items()}, user_attrs={WORKER_ATTR: worker_id()},
+                                 skip_if_exists=True)
+    return len(pts)
 
 
 def fallback_config(res: OptimiseResult) -> OptimiseConfig:

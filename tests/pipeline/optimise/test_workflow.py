@@ -118,6 +118,12 @@ def test_a_surrogate_the_simulator_contradicts_never_makes_the_recommendation(di
     assert "The surrogate was wrong at 3 of 3" in rep["surrogate_note"]
     md = (dirs / "out" / "report.md").read_text()
     assert "Surrogate failed its verification" in md
-    # the simulator study recommends from its own trials: its best ROP is among what it simulated
+    # the simulator study starts from the 3 points the surrogate study verified, so it is never worse than them
     trials = json.loads((dirs / "out" / "report.json").read_text())["tried"]
     assert trials["simulator_calls_study"] == 8
+    import pandas as pd
+
+    study = pd.read_csv(dirs / "out" / "trials.csv")
+    surrogate_verified = pd.read_parquet(dirs / "home" / "feedback.parquet")
+    assert rep["recommendation"]["rop_m_s_sim"] >= surrogate_verified["rop_m_s"].max() - 1e-15
+    assert set(surrogate_verified["frequency_hz"].round(9)) <= set(study["frequency_hz"].round(9))
