@@ -65,7 +65,9 @@ def compare(uncorrected: Mapping, corrected: Mapping, rig, diagnosis: Mapping | 
            "uncorrected_model": models["uncorrected"].to_mapping(), "corrected_rig": rig.to_mapping(),
            "spread": spread.to_dict(), "explained": True, "warning": None,
            "corrected_surrogate_note": corrected.get("surrogate_note"),
-           "corrected_fallback": (corrected.get("fallback") or {}).get("text")}
+           "corrected_fallback": (corrected.get("fallback") or {}).get("text"),
+           "corrected_limits": {k: corrected["recommendation"].get(k) for k in ("power_w_sim", "peak_decel_g_sim",
+                                                                              "binding")}}
     if diagnosis is not None and not diagnosis.get("explained", True):
         err, noise = float(diagnosis["model_error"]), float(diagnosis["noise_floor"])
         out["explained"] = False

@@ -48,6 +48,14 @@ def _corrected(cl: dict) -> str | None:
     spread = cl.get("spread_mm_s")
     if isinstance(spread, list) and len(spread) == 2:
         text += f" (5-95 %: {spread[0]:.2f}-{spread[1]:.2f})"
+    lim = cl.get("limits") or {}
+    power, decel = lim.get("power_w_sim"), lim.get("peak_decel_g_sim")
+    if isinstance(power, (int, float)) and math.isfinite(power):
+        text += f", power {power * 1e-3:.2f} kW" if power >= 1e3 else f", power {power:.1f} W"
+    if isinstance(decel, (int, float)) and math.isfinite(decel):
+        text += f", peak deceleration {decel:.2f} g"
+    if lim.get("binding"):
+        text += " (binding: " + "; ".join(map(_binding_words, lim["binding"])) + ")"
     lab = cl.get("uncorrected_rop_on_corrected_mm_s")
     if isinstance(lab, (int, float)) and math.isfinite(lab):
         text += f"; the lab model's point gives {lab:.2f} mm/s there ({cl.get('worth_mm_s', rop - lab):+.2f} mm/s)"

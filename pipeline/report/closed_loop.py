@@ -44,4 +44,5 @@ def section_closed_loop(doc, figs, inp, summary: dict) -> None:
                               "spread_mm_s": [s["p5_rop_m_s"] * 1e3, s["p95_rop_m_s"] * 1e3],
                               "model_error_ratio": cmp.get("model_error_ratio"),
                               "surrogate_note": cmp.get("corrected_surrogate_note"),
-                              "fallback": cmp.get("corrected_fallback")}
+                              "fallback": cmp.get("corrected_fallback"),
+                              "limits": cmp.get("corrected_limits") or {}}
