@@ -21,6 +21,7 @@ def add_parser(sub) -> None:
                     "params.yaml section 'report': title (str), max_rows (rows of long tables, default 15), "
                     "dpi (figure resolution, default 100). Logs an MLflow run 'report' with the pages as artifacts.",
         epilog="Examples:\n  vibro report --out results/report\n"
+               "  vibro report --out results/report --metrics results/answer.json\n"
                "  vibro report --out /tmp/rep --sweep data/sweep --surrogate models/surrogate --no-mlflow",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", default="results/report", help="output folder (default: results/report)")
@@ -32,6 +33,9 @@ def add_parser(sub) -> None:
     p.add_argument("--verify", default="results/verify", help="verify output folder (default: results/verify)")
     p.add_argument("--diagnose", default="results/diagnose", help="diagnose output folder (default: results/diagnose)")
     p.add_argument("--metrics-dir", default="metrics", help="folder of the stages' metrics JSON (default: metrics)")
+    p.add_argument("--metrics", default=None,
+                   help="also write the answer as a few flat numbers to this JSON file (the pipeline's dvc metric: "
+                        "point, ROP and its 5-95 %% spread, worth, explained, surrogate_fallback)")
     p.add_argument("--title", default=None, help="report title (overrides params.yaml report.title)")
     p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
     A.add_overwrite(p, "report")
@@ -51,7 +55,7 @@ def read_report_section(params_path: Path, missing_ok: bool = True) -> dict:
 
 def run(args) -> int:
     from pipeline import tracking
-    from pipeline.core.outdir import prepare_out
+    from pipeline.core.outdir import check_out_file, prepare_out, record_out_file
     from pipeline.report.build import ReportInputs, build_report
 
     if Path(args.surrogate).exists() and not Path(args.surrogate).is_dir():
@@ -65,6 +69,9 @@ def run(args) -> int:
                        max_rows=sec.get("max_rows", 15), dpi=sec.get("dpi", 100))
     inputs = [params, args.sweep, args.surrogate, args.optimise, args.verify, args.diagnose, args.metrics_dir]
     out = Path(args.out)
+    if args.metrics:
+        check_out_file(args.metrics, flag="--metrics", kind="json", inputs=[*inputs, args.out],
+                       overwrite=args.overwrite)
     with prepare_out(out, inputs=inputs, overwrite=args.overwrite, marker="report") as tmp, \
             tracking.run("report", {"out": args.out, **{f"report.{k}": v for k, v in sec.items()}},
                          enabled=not args.no_mlflow) as mlflow:
@@ -75,5 +82,12 @@ def run(args) -> int:
             for fig in res.figures:
                 mlflow.log_artifact(str(fig), artifact_path="report/figures")
             mlflow.log_metric("report.n_figures", len(res.figures))
+    if args.metrics:
+        from pipeline.core.files import atomic_write_text
+        from pipeline.core.jsonable import dump_json
+        from pipeline.report.answer import headline
+
+        atomic_write_text(args.metrics, dump_json(headline(res.summary)))
+        record_out_file(args.metrics, command="report", kind="json")
     print(f"report: {out / res.html.name} ({len(res.figures)} figures) and {out / res.markdown.name}")
     return 0

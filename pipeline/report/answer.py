@@ -137,6 +137,27 @@ def summary_lines(summary: dict) -> list[str]:
     return lines
 
 
+def headline(summary: dict) -> dict:
+    """The pipeline's answer as a few flat numbers (SI, as every metric): ``vibro report --metrics``, the one file
+    ``dvc metrics show`` lists.  The corrected rig's point when the loop was closed, else the lab model's."""
+    cl = summary.get("closed_loop") or {}
+    opt = summary.get("optimise") or {}
+    rec = opt.get("recommended") or {}
+    corrected = isinstance(cl.get("corrected_point"), dict)
+    point = cl["corrected_point"] if corrected else (rec.get("params") or {})
+    out: dict = {k: point.get(k) for k in ("frequency_hz", "amplitude_n", "amplitude_m", "static_force_n") if k in point}
+    out["rop_m_s"] = (cl.get("corrected_rop_mm_s", math.nan) * 1e-3 if corrected else opt.get("verified_rop_m_s"))
+    if corrected:
+        spread = cl.get("spread_mm_s") or [None, None]
+        out.update(rop_m_s_p5=None if spread[0] is None else spread[0] * 1e-3,
+                   rop_m_s_p95=None if spread[1] is None else spread[1] * 1e-3,
+                   worth_m_s=None if cl.get("worth_mm_s") is None else cl["worth_mm_s"] * 1e-3,
+                   explained=int(bool(cl.get("explained"))), surrogate_fallback=int(bool(cl.get("fallback"))))
+    out["lab_rop_m_s"] = opt.get("verified_rop_m_s")
+    return {k: (float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v) for k, v in out.items()
+            if v is not None and not (isinstance(v, float) and math.isnan(v))}
+
+
 def answer_from_report(report_dir: str | Path) -> str | None:
     """:func:`answer_line` of ``report_dir/summary.json`` (None when absent or without a recommendation)."""
     d = Path(report_dir)

@@ -4,6 +4,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from pipeline.cli import main
 from pipeline.report.answer import answer_from_report
 
@@ -42,3 +44,26 @@ def test_report_opens_with_the_answer(tmp_path: Path, monkeypatch, capsys):
     assert main(["report", "--out", "results/report", "--no-mlflow"]) == 0, capsys.readouterr().err
     md = (tmp_path / "results/report/report.md").read_text()
     assert md.index("## Answer") < md.index("## 1.") and "**Answer: f = 210 Hz" in md
+
+
+def test_report_metrics_is_the_answer_in_a_few_flat_numbers(tmp_path: Path, monkeypatch, capsys):
+    """``--metrics``: the pipeline's one dvc metric, flat and small so ``dvc metrics show`` fits a terminal."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("VIBRO_HOME", str(tmp_path))
+    rec = {"params": {"frequency_hz": 210.0, "amplitude_n": 2700.0, "static_force_n": 1800.0}, "rop_m_s_sim": 7.19e-3}
+    (tmp_path / "results/optimise/rop").mkdir(parents=True)
+    (tmp_path / "results/optimise/rop/report.json").write_text(json.dumps({"recommendation": rec}))
+    assert main(["report", "--out", "results/report", "--no-mlflow", "--metrics", "results/answer.json"]) == 0, \
+        capsys.readouterr().err
+    m = json.loads((tmp_path / "results/answer.json").read_text())
+    assert m == {"frequency_hz": 210.0, "amplitude_n": 2700.0, "static_force_n": 1800.0, "rop_m_s": 7.19e-3,
+                 "lab_rop_m_s": 7.19e-3}
+    from pipeline.report.answer import headline
+
+    cl = {"corrected_point": {"frequency_hz": 307.0, "amplitude_n": 2700.0, "static_force_n": 1575.0},
+          "corrected_rop_mm_s": 3.6, "spread_mm_s": [3.5, 3.7], "worth_mm_s": 1.45, "explained": True,
+          "fallback": "the surrogate was wrong at 12 of 12 verified points"}
+    h = headline({"optimise": {"recommended": rec, "verified_rop_m_s": 7.19e-3}, "closed_loop": cl})
+    assert h["frequency_hz"] == 307.0 and h["rop_m_s"] == pytest.approx(3.6e-3) and h["worth_m_s"] == pytest.approx(1.45e-3)
+    assert h["surrogate_fallback"] == 1.0 and h["explained"] == 1.0 and len(h) <= 12
+    assert all(isinstance(v, float) for v in h.values())
