@@ -16,24 +16,21 @@ CONTROLS = (("frequency_hz", "f", "Hz", 1.0, "{:.0f}"), ("amplitude_n", "F0", "k
 POWER_KEYS = ("power_w_sim", "power_w", "power_w_pred")
 
 
-def _find(d, names: tuple[str, ...]):
-    """First finite number under one of ``names`` in a nested dict (depth-first)."""
-    if isinstance(d, dict):
-        for n in names:
-            v = d.get(n)
-            if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
-                return float(v)
-        for v in d.values():
-            found = _find(v, names)
-            if found is not None:
-                return found
+def _number(d: dict, names: tuple[str, ...]) -> float | None:
+    """The first finite number of ``d`` under one of ``names``."""
+    for n in names:
+        v = d.get(n)
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+            return float(v)
     return None
 
 
 def _point(rec: dict) -> str:
+    """The controls of a recommendation (optimise report.json 'recommendation': under 'params') or of a point."""
+    params = rec.get("params") if isinstance(rec.get("params"), dict) else rec
     point = []
     for key, sym, unit, k, f in CONTROLS:
-        v = _find(rec, (key,))
+        v = _number(params, (key,))
         if v is not None:
             point.append(f"{sym} = {f.format(v * k)} {unit}")
     return ", ".join(point) or "recommended point"
@@ -84,7 +81,7 @@ def answer_line(summary: dict, report_path: str | Path | None = None) -> str | N
         lab = _point(rec)
         if isinstance(rop, (int, float)) and math.isfinite(rop):
             lab += f" -> verified ROP {rop * 1e3:.2f} mm/s"
-        power = _find(rec, POWER_KEYS)
+        power = _number(rec, POWER_KEYS)
         if power is not None:
             lab += f", power {power * 1e-3:.2f} kW" if power >= 1e3 else f", power {power:.1f} W"   # lab rig: ~18 W
     corrected = _corrected(summary.get("closed_loop") or {})

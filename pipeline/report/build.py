@@ -122,19 +122,6 @@ def frame_table(df: pd.DataFrame, caption: str) -> Table:
     return Table([label(c) for c in cols], rows, caption)
 
 
-def _find_key(d, names: tuple[str, ...]):
-    """First value whose key is one of ``names``, searching a nested dict depth-first."""
-    if isinstance(d, dict):
-        for n in names:
-            if n in d:
-                return d[n]
-        for v in d.values():
-            found = _find_key(v, names)
-            if found is not None:
-                return found
-    return None
-
-
 def _pngs(folder: Path) -> list[Path]:
     return sorted(folder.rglob("*.png")) if folder.is_dir() else []
 
@@ -201,8 +188,7 @@ def section_sweep(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
     n = len(df)
     status = df["status"].value_counts().to_dict() if "status" in df else {}
     ok = df[df["status"] == "ok"] if "status" in df else df
-    model = meta.get("model") or _find_key(meta, ("model",))
-    preset = meta.get("preset") if "preset" in meta else _find_key(meta, ("preset",))
+    model, preset = meta.get("model"), meta.get("preset")     # sweep metadata.json (pipeline/datasets/store.py)
     expected = meta.get("n_points")
     partial = "" if meta.get("complete", True) and (expected in (None, n)) else \
         f" **Incomplete sweep: {n} of {expected} points.**"
