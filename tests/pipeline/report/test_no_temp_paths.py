@@ -35,24 +35,29 @@ def test_summary_answer_names_the_final_report_not_the_temporary_folder(tmp_path
     assert line.endswith(f"report: {tmp_path / 'results/report/report.html'}")
 
 
-def test_report_opens_with_the_answer(tmp_path: Path, monkeypatch, capsys):
+REC = {"params": {"frequency_hz": 210.0, "amplitude_n": 2700.0, "static_force_n": 1800.0}, "rop_m_s_sim": 7.19e-3}
+
+
+@pytest.fixture()
+def project(tmp_path: Path, monkeypatch) -> Path:
+    """A project folder holding only the lab optimisation's report.json (recommendation REC)."""
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("VIBRO_HOME", str(tmp_path))
-    rec = {"params": {"frequency_hz": 210.0, "amplitude_n": 2700.0, "static_force_n": 1800.0}, "rop_m_s_sim": 7.19e-3}
     (tmp_path / "results/optimise/rop").mkdir(parents=True)
-    (tmp_path / "results/optimise/rop/report.json").write_text(json.dumps({"recommendation": rec}))
+    (tmp_path / "results/optimise/rop/report.json").write_text(json.dumps({"recommendation": REC}))
+    return tmp_path
+
+
+def test_report_opens_with_the_answer(project: Path, capsys):
+    tmp_path = project
     assert main(["report", "--out", "results/report", "--no-mlflow"]) == 0, capsys.readouterr().err
     md = (tmp_path / "results/report/report.md").read_text()
     assert md.index("## Answer") < md.index("## 1.") and "**Answer: f = 210 Hz" in md
 
 
-def test_report_metrics_is_the_answer_in_a_few_flat_numbers(tmp_path: Path, monkeypatch, capsys):
+def test_report_metrics_is_the_answer_in_a_few_flat_numbers(project: Path, capsys):
     """``--metrics``: the pipeline's one dvc metric, flat and small so ``dvc metrics show`` fits a terminal."""
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.setenv("VIBRO_HOME", str(tmp_path))
-    rec = {"params": {"frequency_hz": 210.0, "amplitude_n": 2700.0, "static_force_n": 1800.0}, "rop_m_s_sim": 7.19e-3}
-    (tmp_path / "results/optimise/rop").mkdir(parents=True)
-    (tmp_path / "results/optimise/rop/report.json").write_text(json.dumps({"recommendation": rec}))
+    tmp_path, rec = project, REC
     assert main(["report", "--out", "results/report", "--no-mlflow", "--metrics", "results/answer.json"]) == 0, \
         capsys.readouterr().err
     m = json.loads((tmp_path / "results/answer.json").read_text())
