@@ -20,6 +20,9 @@ what it writes under --out:
   feedback: verified points are appended to feedback/optimise.parquet at the project root, beside optuna.db
   (or --feedback FILE; never inside the surrogate's dvc-managed folder), from whichever folder it runs, so that
   training can include them (closing the loop).
+  fallback: a surrogate wrong at its recommended point, or at more than half of the verified points, never
+  recommends: a study of --fallback-trials trials straight on the simulator (same model, rig, space and limits,
+  started from the verified points) does, and report.json 'fallback' and report.md say so.
 
 studies persist in optuna storage (default: sqlite file optuna.db at the project root); rerunning the same
 command resumes the study and only runs the missing trials (--n-trials is the total).  Several workers on
@@ -39,6 +42,7 @@ examples:
   vibro optimise --simulator --preset lab --vary frequency_hz=150:350 --set static_force_n=1200 --out results/f-scan
   vibro optimise --simulator --rig my-rig.yaml --n-trials 200 --out results/my-rig      # your own rig
   vibro optimise --params params.yaml --metrics metrics/optimise.json
+  vibro optimise --surrogate models/surrogate --out results/optimise --fallback-trials 0   # report a failed surrogate, no fallback
   vibro optimise --simulator --storage postgresql://user@host/optuna --study-name rig-a --n-trials 400
 """
 
