@@ -125,7 +125,7 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
         series_.append(("final_nrms", f"with {final} (after)", "s"))
     for (kind, key), a in zip(panels, ax.ravel()):
         if kind == "control":
-            k = factor(key) if key in ENGINEERING else 1.0
+            k = factor(key)         # 1 for names without an engineering unit (peak velocity, m/s)
             for col, lab, mk in series_:
                 a.scatter([r[key] * k for r in rows], [r[col] for r in rows], marker=mk, label=lab, alpha=0.7)
             ho = [r for r in rows if r["held_out"]]

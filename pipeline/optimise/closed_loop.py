@@ -64,15 +64,15 @@ def compare(uncorrected: Mapping, corrected: Mapping, rig, diagnosis: Mapping | 
     out = {"recommendations": table, "worth_mm_s": worth * 1e3,
            "uncorrected_model": models["uncorrected"].to_mapping(), "corrected_rig": rig.to_mapping(),
            "spread": spread.to_dict(), "explained": True, "warning": None,
-           "corrected_surrogate_note": corrected.get("surrogate_note"),
+           "corrected_surrogate_wrong": (corrected.get("metrics") or {}).get("n_surrogate_wrong"),
            "corrected_fallback": (corrected.get("fallback") or {}).get("text"),
            "corrected_limits": {k: corrected["recommendation"].get(k) for k in ("power_w_sim", "peak_decel_g_sim",
                                                                               "binding")}}
     if diagnosis is not None and not diagnosis.get("explained", True):
         err, noise = float(diagnosis["model_error"]), float(diagnosis["noise_floor"])
-        out["explained"] = False
-        out["warning"] = UNEXPLAINED_WARNING.format(error=err, noise=noise, ratio=err / max(noise, 1e-300))
-        out["model_error_ratio"] = err / max(noise, 1e-300)
+        ratio = err / max(noise, 1e-300)
+        out.update(explained=False, model_error_ratio=ratio,
+                   warning=UNEXPLAINED_WARNING.format(error=err, noise=noise, ratio=ratio))
     return out
 
 

@@ -76,10 +76,11 @@ def report_dict(res: OptimiseResult, figures: list[str], feedback_rows: int | No
         if first.config.mode == "surrogate":
             rep["surrogate_note"] = surrogate_note(first, feedback_file)
     if failed is not None:
-        rep["fallback"] = {"reason": surrogate_failed(failed), "surrogate_study": failed.study_name,
+        why = surrogate_failed(failed)
+        rep["fallback"] = {"reason": why, "surrogate_study": failed.study_name,
                            "surrogate_outcome": failed.outcome, "simulator_study": res.study_name,
                            "n_trials": int(len(res.trials)),
-                           "text": f"{surrogate_failed(failed)}: the recommendation comes from a study of "
+                           "text": f"{why}: the recommendation comes from a study of "
                                    f"{len(res.trials)} trials straight on the simulator ({res.study_name}), not "
                                    f"from the surrogate"}
     rep["outcome"] = res.outcome

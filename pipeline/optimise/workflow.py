@@ -254,7 +254,5 @@ def fallback_config(res: OptimiseResult) -> OptimiseConfig:
     """The study straight on the simulator that replaces a failed surrogate's: the same model, preset, fixed values
     (the rig), space, constraints and objective, ``fallback_trials`` trials."""
     p = res.problem
-    ranges = {n: {"low": lo, "high": hi, "scale": "log" if n in p.space.log else "linear"}
-              for n, (lo, hi) in p.space.ranges.items()}
     return replace(res.config, mode="simulator", surrogate=None, model=p.model, preset=p.preset, fixed=dict(p.fixed),
-                   ranges=ranges, n_trials=res.config.fallback_trials, study_name=None)
+                   ranges=p.space.to_dict(), n_trials=res.config.fallback_trials, study_name=None)

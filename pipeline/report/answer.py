@@ -36,34 +36,38 @@ def _point(rec: dict) -> str:
     return ", ".join(point) or "recommended point"
 
 
+def _power_words(power: float) -> str:
+    """``power 17.7 W`` (the lab rig's exciter: tens of watts) or ``power 1.23 kW``."""
+    return f"power {power * 1e-3:.2f} kW" if power >= 1e3 else f"power {power:.1f} W"
+
+
 def _corrected(cl: dict) -> str | None:
     """The corrected rig's recommendation in words (None without one)."""
-    pt, rop = cl.get("corrected_point"), cl.get("corrected_rop_mm_s")
-    if not isinstance(pt, dict) or not isinstance(rop, (int, float)) or not math.isfinite(rop):
+    pt, rop = cl.get("corrected_point"), _number(cl, ("corrected_rop_mm_s",))
+    if not isinstance(pt, dict) or rop is None:
         return None
     text = f"Answer (corrected rig): {_point(pt)} -> ROP {rop:.2f} mm/s on the corrected rig"
     spread = cl.get("spread_mm_s")
     if isinstance(spread, list) and len(spread) == 2:
         text += f" (5-95 %: {spread[0]:.2f}-{spread[1]:.2f})"
     lim = cl.get("limits") or {}
-    power, decel = lim.get("power_w_sim"), lim.get("peak_decel_g_sim")
-    if isinstance(power, (int, float)) and math.isfinite(power):
-        text += f", power {power * 1e-3:.2f} kW" if power >= 1e3 else f", power {power:.1f} W"
-    if isinstance(decel, (int, float)) and math.isfinite(decel):
+    power, decel = _number(lim, ("power_w_sim",)), _number(lim, ("peak_decel_g_sim",))
+    if power is not None:
+        text += ", " + _power_words(power)
+    if decel is not None:
         text += f", peak deceleration {decel:.2f} g"
     if lim.get("binding"):
         text += " (binding: " + "; ".join(map(_binding_words, lim["binding"])) + ")"
-    lab = cl.get("uncorrected_rop_on_corrected_mm_s")
-    if isinstance(lab, (int, float)) and math.isfinite(lab):
+    lab = _number(cl, ("uncorrected_rop_on_corrected_mm_s",))
+    if lab is not None:
         text += f"; the lab model's point gives {lab:.2f} mm/s there ({cl.get('worth_mm_s', rop - lab):+.2f} mm/s)"
     if cl.get("explained") is False:
-        ratio = cl.get("model_error_ratio")
-        how = f" (held-out error {ratio:.3g}x the noise floor)" if isinstance(ratio, (int, float)) else ""
+        ratio = _number(cl, ("model_error_ratio",))
+        how = "" if ratio is None else f" (held-out error {ratio:.3g}x the noise floor)"
         text += f". CAUTION: the diagnosis left the rig's residual unexplained{how}: this rests on a model known to be wrong"
-    note = cl.get("surrogate_note")
     if isinstance(cl.get("fallback"), str):
         text += f". Corrected-rig surrogate: {cl['fallback']}"
-    elif isinstance(note, str) and "was wrong at" in note:
+    elif (_number(cl, ("surrogate_wrong",)) or 0) > 0:
         text += (". The corrected-rig surrogate was wrong at some verified points; the point is the best the "
                  "simulator verified, not the surrogate's optimum")
     return text
@@ -83,7 +87,7 @@ def answer_line(summary: dict, report_path: str | Path | None = None) -> str | N
             lab += f" -> verified ROP {rop * 1e3:.2f} mm/s"
         power = _number(rec, POWER_KEYS)
         if power is not None:
-            lab += f", power {power * 1e-3:.2f} kW" if power >= 1e3 else f", power {power:.1f} W"   # lab rig: ~18 W
+            lab += ", " + _power_words(power)
     corrected = _corrected(summary.get("closed_loop") or {})
     if corrected is None and lab is None:
         return None

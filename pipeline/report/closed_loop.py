@@ -43,6 +43,6 @@ def section_closed_loop(doc, figs, inp, summary: dict) -> None:
                               "uncorrected_rop_on_corrected_mm_s": t["uncorrected"]["rop_m_s_on_corrected"] * 1e3,
                               "spread_mm_s": [s["p5_rop_m_s"] * 1e3, s["p95_rop_m_s"] * 1e3],
                               "model_error_ratio": cmp.get("model_error_ratio"),
-                              "surrogate_note": cmp.get("corrected_surrogate_note"),
+                              "surrogate_wrong": cmp.get("corrected_surrogate_wrong"),
                               "fallback": cmp.get("corrected_fallback"),
                               "limits": cmp.get("corrected_limits") or {}}
