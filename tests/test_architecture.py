@@ -240,7 +240,7 @@ def test_the_private_name_scan_sees_a_violation():
                                                           (4, "sim._kernel_template"), (6, "pipeline.core._z")]
 
 
-# --- no module outside sim/models names a model (issue 11: ModelSpec owns everything about a model) -------------
+# --- no module outside sim/models names a model (ModelSpec owns everything about a model) -------------
 TEXT_KEYWORDS = ("help", "epilog", "description", "usage")
 """argparse keyword texts: they may name models as examples for the user."""
 TEXT_NAMES = re.compile(r"^(EPILOG|DESCRIPTION|HELP|USAGE)(_\w+)?$|^\w+_(EPILOG|DESCRIPTION|HELP)$")

@@ -54,7 +54,7 @@ class DiagnoseConfig:
     effects: list[str] | None = None    # restrict the candidates (default: every §6 effect of the system)
     fs_sim_hz: float = 20000.0          # model sample rate for summary runs (series runs use the data's rate)
     # rtol 1e-7 = the simulator's default (and vibro synth's): at 1e-6 the drill's guide friction (a regularised
-    # sign(v) switch) drifted from the truth by nrms 1.3 on 3 runs, 7.3 on 16 (issue 12); the cost is the same
+    # sign(v) switch) drifted from the truth by nrms 1.3 on 3 runs, 7.3 on 16; the cost is the same
     sim_settings: dict = field(default_factory=lambda: {"rtol": 1e-7, "window": 2, "max_step_frac": 0.05})
     record_window: int = 64             # a steady-state series is compared over its first this many cycles
     summary_sd: dict = field(default_factory=dict)   # e.g. {"peak_decel_g": ["rel", 0.05]}

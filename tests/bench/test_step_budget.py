@@ -1,4 +1,4 @@
-"""bench.step_budget (issue 16 item 2: what limits the DOPRI5 kernel's steps on each model)."""
+"""bench.step_budget (what limits the DOPRI5 kernel's steps on each model)."""
 from __future__ import annotations
 
 import math

@@ -1,4 +1,4 @@
-"""Closing the loop end to end against a known truth (issue 14, item 4).
+"""Closing the loop end to end against a known truth.
 
 A drill rig log is made with `vibro synth` (python API: perturbed rock + a §6 effect the lab model lacks),
 diagnosed (`vibro diagnose`'s driver: calibration, candidate effects, corrected rig), and the operating point

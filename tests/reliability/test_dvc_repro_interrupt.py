@@ -1,4 +1,4 @@
-"""kill -9 / Ctrl-C of ``dvc repro`` (issue 15, item 6): a rerun finishes the stage and its output equals an
+"""kill -9 / Ctrl-C of ``dvc repro``: a rerun finishes the stage and its output equals an
 uninterrupted run's; no lock is left that blocks it.  A one-stage project (a small drill sweep) in a temporary git
 repository, run by the real dvc.  Slow (dvc start-up, numba load): ``pytest -m slow tests/reliability``."""
 from __future__ import annotations

@@ -175,7 +175,7 @@ def test_conformance_effect_visible_and_off_at_zero(model, effect):
 
 def test_conformance_agrees_with_reference(spec):
     """One case per model against the independent scipy reference (DOP853, rtol 1e-10); tolerances as in
-    tests/sim/test_validation.py (issue 2: ROP and peak force within 1 %, impacts per cycle equal)."""
+    tests/sim/test_validation.py (ROP and peak force within 1 %, impacts per cycle equal)."""
     params = {k: v for k, v in spec.resolve().items() if k not in ("P", "D")}
     ref = reference_run(spec.name, params, SHORT["min_transient"], SHORT["window"], method="DOP853", rtol=1e-10)
     got = sim.simulate(spec.name, settings=SHORT).labels

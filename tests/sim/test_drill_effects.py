@@ -3,7 +3,7 @@ suspension_hardening) against the independent reference (tests/reference_solutio
 rtol 1e-10, event location), on the `lab` preset.
 
 Adding an effect = one entry in sim.models.drill.EFFECT_VISIBLE (and its bounds in EFFECT_FIT_BOUNDS): the
-parametrised checks below then run on it.  Tolerances are those of tests/sim/test_validation.py (issue 2's
+parametrised checks below then run on it.  Tolerances are those of tests/sim/test_validation.py (the
 acceptance: ROP, forces, deceleration, energy within 1 %; impacts per cycle and period equal).  Both runs use
 the same fixed transient and window so they integrate the same trajectory; 240 transient cycles put the base
 lab point past its settling (232 cycles with the default settings), so the period is compared too.

@@ -68,7 +68,7 @@ def test_against_reference_slow(case):
     _compare(model, overrides, transient, window)
 
 
-# Window maxima to the integration tolerance (issue 16 item 2).  At rtol 1e-10 the simulator's peak force and
+# Window maxima to the integration tolerance.  At rtol 1e-10 the simulator's peak force and
 # peak deceleration must agree with the reference at rtol 1e-12 (whose own error is below 1e-10) to 1e-7.
 # Before the per-step peak refinement, indenter-metal at 60 Hz (MODELS.md Table 1 point) stayed 1.5e-6 low in
 # peak_decel_g at every rtol: the maximum lay inside a step whose three samples were below the running maximum,

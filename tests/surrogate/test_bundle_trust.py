@@ -1,4 +1,4 @@
-"""Surrogate bundles never run untrusted code (issue 15, item 2): the manifest is checked before
+"""Surrogate bundles never run untrusted code: the manifest is checked before
 anything is deserialised, the skops payload may hold only reviewed types, and a corrupt, foreign or
 tampered bundle is a one-line user error (exit 2), also for `vibro report --surrogate`."""
 from __future__ import annotations

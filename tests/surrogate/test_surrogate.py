@@ -1,4 +1,4 @@
-"""Surrogate (issue 4): regime labels, conformal intervals, bundle contract, persistence, CLI, targets.
+"""Surrogate: regime labels, conformal intervals, bundle contract, persistence, CLI, targets.
 
 Fast tests use a synthetic response with a known regime boundary and a small real drill sweep;
 the 'targets met on the default sweep' check is @pytest.mark.slow."""
@@ -282,7 +282,7 @@ def test_adaptive_sampling_runs_and_reports_savings(tmp_path):
 
 def test_bundle_carries_the_sweeps_fixed_parameters_and_settings(tmp_path):
     """The sweep's fixed parameters and simulator settings travel with the bundle (saved, loaded, in
-    bundle.json) and optimisation re-simulates under them (issue 11: before, they were always empty)."""
+    bundle.json) and optimisation re-simulates under them."""
     from pipeline.optimise.config import OptimiseConfig
     from pipeline.optimise.samplers import tpe_sampler
     from pipeline.optimise.strategies import surrogate_strategies
@@ -297,7 +297,7 @@ def test_bundle_carries_the_sweeps_fixed_parameters_and_settings(tmp_path):
     assert s.problem.fixed == fixed and s.simulator.fixed == fixed and s.simulator.settings == settings
 
 
-# ---- target scale and constant targets (issue 13) -------------------------------------------------------------
+# ---- target scale and constant targets -------------------------------------------------------------------
 
 def test_constant_target_is_reported_as_constant_not_as_a_failed_goal():
     # peak force pinned at one value (as the drill's is at Pr = 3 kN on the lab preset): nothing to learn

@@ -1,4 +1,4 @@
-"""Start-up of the command line (issue 16 item 3), guarded by what a run imports, never by a timing.
+"""Start-up of the command line, guarded by what a run imports, never by a timing.
 
 `vibro --help` and every subcommand's --help import no heavy package (not even numpy): commands import their
 workflow lazily, and ``pipeline.core.errors`` takes ``ParameterError`` from the numpy-free ``sim.errors``.

@@ -1,4 +1,4 @@
-"""pipeline.core.outdir.prepare_out: an --out folder never costs the user a file (issue 15, item 1)."""
+"""pipeline.core.outdir.prepare_out: an --out folder never costs the user a file."""
 from __future__ import annotations
 
 import json

@@ -1,4 +1,4 @@
-"""Measured data as rigs record it (issue 12, MODELS.md §7): any DAQ rate, partial cycles, per-system
+"""Measured data as rigs record it (MODELS.md §7): any DAQ rate, partial cycles, per-system
 controls, presets and parameter columns, record_start_s, and one clear line for every bad input."""
 from __future__ import annotations
 

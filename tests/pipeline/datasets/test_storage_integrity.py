@@ -1,5 +1,5 @@
 """Reliability of the sweep's storage: the exclusive lock under concurrency, per-chunk checksums,
-and --overwrite that never deletes files the sweep did not write (issue 15, items 1 and 4)."""
+and --overwrite that never deletes files the sweep did not write."""
 from __future__ import annotations
 
 import multiprocessing as mp

@@ -1,4 +1,4 @@
-"""Diagnosis (issue 7): features and noise, splits, and end-to-end recovery of undeclared effects
+"""Diagnosis: features and noise, splits, and end-to-end recovery of undeclared effects
 from synthetic data (`vibro synth`).  The every-effect matrix, the control and the 'outside' case
 are slow (several minutes each on 2 shared cores); one small end-to-end case runs by default."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Diagnosis of every system (issue 12): synthetic data recorded as a rig records it (`vibro synth` rig
+"""Diagnosis of every system: synthetic data recorded as a rig records it (`vibro synth` rig
 defaults: DAQ rate not a multiple of f, partial cycles, offsets; the drill from rest with record_start_s and
 summary-only runs) are reproduced by the model at the true parameters to the noise level, and not at the
 defaults; the slow matrix diagnoses every drill effect, a control and physics outside the library."""

@@ -1,4 +1,4 @@
-"""Optimisation that holds under concurrency and interruption (issue 15, item 3): several workers run
+"""Optimisation that holds under concurrency and interruption: several workers run
 exactly --n-trials between them with no duplicates, a new SQLite store can be created by two
 workers at once, trials of a killed or interrupted worker are failed and re-run, and a resumed
 study reaches the same best point as an uninterrupted one with the same seed.
@@ -96,7 +96,7 @@ def _kill_after(db: Path, n_seen: int, sig: int, seed: int = 0, n: int = 24) -> 
 def test_interrupted_study_resumes_to_the_uninterrupted_result(tmp_path, sig):
     """kill -9 / Ctrl-C mid-study: the trials in flight end FAIL (at the latest when the study is
     resumed), the resumed study runs exactly the missing trials and proposes exactly what the
-    uninterrupted study with the same seed proposed (issue 15: 7.922 vs 7.763 mm/s before)."""
+    uninterrupted study with the same seed proposed."""
     ref_db = tmp_path / "ref.db"
     W.run(str(ref_db), 24, 0, 0.0)
     ref = _trials(ref_db)

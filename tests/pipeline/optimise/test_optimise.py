@@ -1,4 +1,4 @@
-"""Tests of `vibro optimise` / `vibro verify` (issue 5): constraints, studies, verification, closing the loop.
+"""Tests of `vibro optimise` / `vibro verify`: constraints, studies, verification, closing the loop.
 
 The simulator runs on the drill `lab` preset over small budgets; `ToyBundle` below is a TEST DOUBLE of the
 surrogate contract (analytic predictions), used where the test is about the optimise logic, not the surrogate.

@@ -10,7 +10,7 @@ REPO = Path(__file__).resolve().parents[3]
 CODE = ("sim", "surrogate", "pipeline")
 WORKFLOW = {"sweep": "pipeline/datasets", "train": "surrogate", "optimise": "pipeline/optimise",
             "verify": "pipeline/optimise", "diagnose": "pipeline/diagnosis", "report": "pipeline/report",
-            # issue 14: the corrected chain
+            # the corrected chain
             "sweep_rig": "pipeline/datasets", "train_rig": "surrogate", "optimise_rig": "pipeline/optimise",
             "compare": "pipeline/optimise"}
 

@@ -1,4 +1,4 @@
-"""The dvc pipeline + MLflow tracking (issue 6).
+"""The dvc pipeline + MLflow tracking.
 
 Fast tests: ``run_main`` on a two-stage toy pipeline (parent/child runs, no-op repro, partial rerun),
 the report on hand-made stage outputs, and an ``mlflow server`` on loopback queried over HTTP.
