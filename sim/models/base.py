@@ -8,34 +8,9 @@ from typing import Callable, Mapping
 import numpy as np
 
 from sim.errors import ParameterError  # noqa: F401  (re-exported: the models and sim.api raise it from here)
-from sim.models.effects import EFFECT_FIT_BOUNDS
+from sim.models.effects import EFFECT_FIT_BOUNDS, EFFECTS, effect
 from sim.models.fitbound import FitBound  # noqa: F401  (re-exported: the models build their bounds from here)
-
-
-@dataclass(frozen=True)
-class Param:
-    """One named model parameter (SI units)."""
-
-    name: str
-    default: float
-    unit: str
-    description: str
-    positive: bool = False
-    nonnegative: bool = False
-    integer: bool = False
-
-    def validate(self, value) -> float:
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            raise ParameterError(f"parameter '{self.name}' must be a number, got {value!r}") from None
-        if not math.isfinite(v):
-            raise ParameterError(f"parameter '{self.name}' must be finite, got {value!r}")
-        if self.positive and not v > 0.0:
-            raise ParameterError(f"parameter '{self.name}' must be > 0 [{self.unit}], got {v:g}")
-        if self.nonnegative and v < 0.0:
-            raise ParameterError(f"parameter '{self.name}' must be >= 0 [{self.unit}], got {v:g}")
-        return v
+from sim.models.param import Param  # noqa: F401  (re-exported: the models declare their parameters from here)
 
 
 DIAGNOSE_FIT_KEYS = ("candidate_starts", "max_nfev")
@@ -138,7 +113,7 @@ class ModelSpec:
     initial: Callable[[np.ndarray], tuple]
     atol: Callable[[np.ndarray], np.ndarray]   # typical magnitude of each state (atol = rtol × this)
     precheck: Callable[[np.ndarray], str | None] = lambda p: None
-    effects: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    effects: dict[str, tuple[str, ...]] = field(default_factory=dict)   # §6 effect -> its parameters; give the names
     impacting_mass: str = ""
     progression: str = ""
     presets: dict[str, dict[str, float]] = field(default_factory=dict)
@@ -166,6 +141,15 @@ class ModelSpec:
         model gives none, then checks every bound, space, range and preset against the parameters."""
         names = set(self.param_names)
         where = f"model '{self.name}'"
+        if not isinstance(self.effects, Mapping):     # the effect names (sim.models.effects): their parameters
+            try:
+                object.__setattr__(self, "effects", {e: effect(e).param_names for e in self.effects})
+            except ValueError as err:
+                raise ValueError(f"{where}: {err}") from None
+        for e, ps in self.effects.items():
+            if e not in EFFECTS or tuple(ps) != EFFECTS[e].param_names:
+                raise ValueError(f"{where}: effect '{e}' must have the parameters of sim.models.effects, "
+                                 f"got {ps!r}")
         effect_params = [p for ps in self.effects.values() for p in ps]
         if effect_params:
             filled = {p: EFFECT_FIT_BOUNDS[p] for p in effect_params if p not in self.effect_bounds and p in EFFECT_FIT_BOUNDS}

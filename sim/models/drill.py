@@ -29,14 +29,14 @@ import numpy as np
 from sim.jit import interpreted, njit  # numba is imported on first use (sim/jit.py)
 
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
+from sim.models.effects import effect_params
+from sim.models.param import index_of
 from sim.models.contact import kelvin_voigt, rock_slider_rate, rock_surface_rate
 from sim.models.sensor import sensor_lowpass
 from sim.models.terms import coil_force, hardened_spring, rate_stiffened, tip_blunted
 
 # parameter vector layout
-(M1, M2, M3, K1, K2, K3, C1, C2, C3, PR, GAP, FS, F0, FREQ, GAMMA,
- TAU, BETA, ALPHA, MU, KAPPA, VEPS, FC) = range(22)
-NP = 22
+(M1, M2, M3, K1, K2, K3, C1, C2, C3, PR, GAP, FS, F0, FREQ, VEPS) = range(15)   # then the effects' (PARAMS)
 # state layout: W stays LAST (the kernel reads the excitation work from y[-1])
 IX1, IV1, IX2, IV2, IX3, IV3, IXT, IXB, IFH, IW = range(10)
 NY = 10
@@ -214,6 +214,10 @@ def _atol(p: np.ndarray) -> np.ndarray:
     return np.array([xs, vs, xs, vs, xs, vs, xs, xs, fsc, fsc * xs])
 
 
+EFFECTS = ("shaker_coil", "rate_stiffening", "guide_friction", "tip_blunting", "suspension_hardening",
+           "sensor_lowpass")
+"""The MODELS.md §6 effects of the drill (sim.models.effects): their parameters end PARAMS."""
+
 PARAMS = (
     Param("M1", 2.0, "kg", "drill-bit mass", positive=True),
     Param("M2", 8.0, "kg", "exciter (RED module) mass", positive=True),
@@ -229,16 +233,16 @@ PARAMS = (
     Param("static_force_n", 700.0, "N", "static force Fs on M2 (gravity folded in)", nonnegative=True),
     Param("amplitude_n", 1500.0, "N", "harmonic force amplitude F0 on M1 (F0 cos Ωt)", nonnegative=True),
     Param("frequency_hz", 200.0, "Hz", "forcing frequency f", positive=True),
-    Param("gamma", 0.0, "-", "tip_blunting: Pr -> Pr (1 + γ (xb - G)/1 mm); 0 = off", nonnegative=True),
-    Param("tau", 0.0, "s", "shaker_coil: electrical time constant L/R (0 with beta=0: ideal force source)",
-          nonnegative=True),
-    Param("beta", 0.0, "N s/m", "shaker_coil: back-EMF damping (Bl)^2/R on ẋ1 - ẋ2", nonnegative=True),
-    Param("alpha", 0.0, "s/m", "rate_stiffening: K1 -> K1 (1 + α max(ẋ1,0)) in phase II", nonnegative=True),
-    Param("mu", 0.0, "N", "guide_friction: Coulomb friction on the bit's guides, on ẋ1 - ẋ2", nonnegative=True),
-    Param("kappa", 0.0, "1/m^2", "suspension_hardening: K2 φ -> K2 φ (1 + κ φ²), φ = x1 - x2", nonnegative=True),
     Param("v_eps", 1e-4, "m/s", "tanh regularisation speed of the Coulomb term (guide_friction)", positive=True),
-    Param("fc", 0.0, "Hz", "sensor_lowpass: accelerometer bandwidth (2nd-order Butterworth); 0 = ideal", nonnegative=True),
+    *effect_params(EFFECTS, {"shaker_coil": "the force F0 cos Ωt on M1, Δv = ẋ1 − ẋ2",
+                             "rate_stiffening": "the rock's K1 in phase II, δ̇ = ẋ1",
+                             "guide_friction": "the bit's guides, Δv = ẋ1 − ẋ2",
+                             "tip_blunting": "the threshold Pr, progression xb − G",
+                             "suspension_hardening": "the bit-exciter spring K2, φ = x1 − x2",
+                             "sensor_lowpass": "the bit's recorded acceleration"}),
 )
+GAMMA, TAU, BETA, ALPHA, MU, KAPPA, FC = index_of(PARAMS, "gamma", "tau", "beta", "alpha", "mu", "kappa", "fc")
+NP = len(PARAMS)
 
 # Fit bounds (lo, hi, unit) of the §6 effect parameters at the `lab` preset's scale: lo = where the effect just
 # becomes measurable (~0.5 % ROP at the default point), hi = large but still simulable (docs/simulate.md).
@@ -345,8 +349,7 @@ SPEC = ModelSpec(
     initial=_initial,
     atol=_atol,
     precheck=_precheck,
-    effects={"shaker_coil": ("tau", "beta"), "rate_stiffening": ("alpha",), "guide_friction": ("mu",),
-             "tip_blunting": ("gamma",), "suspension_hardening": ("kappa",), "sensor_lowpass": ("fc",)},
+    effects=EFFECTS,
     presets=PRESETS,
     postprocess=sensor_lowpass,
     needs_history=lambda values: values.get("fc", 0.0) > 0.0,

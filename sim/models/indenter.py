@@ -23,12 +23,14 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import FitBound, ModelSpec, Param, SynthRig
+from sim.models.effects import effect_params
+from sim.models.param import index_of
 from sim.models.contact import branch_depth, branch_force, coulomb_sign, kelvin_voigt, released_force
 from sim.models.sensor import sensor_lowpass
 from sim.models.terms import coil_force, guide_friction, hardened_spring, rate_stiffened, tip_blunted
 
-(M1, M2, M3, K2, C2, K3, C3, PM, GAP, FP, FA, FREQ, VEPS, K1, C1, KL, KU, NL, NU,
- TAU, BETA, ALPHA, MU, GAMMA, KAPPA, FC) = range(26)
+(M1, M2, M3, K2, C2, K3, C3, PM, GAP, FP, FA, FREQ, VEPS, K1, C1, KL, KU, NL, NU) = range(19)   # then the effects'
+
 IX1, IV1, IX2, IV2, IX3, IV3, IFEM, IW = range(8)
 NY = 8
 IXP, IXF = 0, 1
@@ -298,6 +300,11 @@ def _atol(p: np.ndarray) -> np.ndarray:
     return np.array([xs, xs * om, xs, xs * om, xs, xs * om, max(p[FA], 1.0), max(p[FA], 1.0) * xs])
 
 
+EFFECTS = ("shaker_coil", "rate_stiffening", "guide_friction", "tip_blunting", "suspension_hardening",
+           "sensor_lowpass")
+"""The MODELS.md §6 effects of the indenter rig (sim.models.effects): their parameters end the kernel's vector;
+tip blunting needs a progressing sample (sandstone)."""
+
 COMMON = (
     Param("m1", 3.46, "kg", "armature + load cell + indenter", positive=True),
     Param("m2", 60.0, "kg", "shaker body on carriages", positive=True),
@@ -318,17 +325,17 @@ COMMON = (
     Param("ku", 2.0e7, "N/m^nu", "sandstone unloading stiffness", positive=True),
     Param("nl", 1.0, "-", "sandstone loading exponent", positive=True),
     Param("nu", 1.0, "-", "sandstone unloading exponent", positive=True),
-    Param("tau", 0.0, "s", "shaker_coil: electrical time constant L/R (0 with beta=0: ideal force source)", nonnegative=True),
-    Param("beta", 0.0, "N s/m", "shaker_coil: back-EMF damping (Bl)^2/R", nonnegative=True),
-    Param("alpha", 0.0, "s/m", "rate_stiffening: k -> k (1 + α max(δ̇,0))", nonnegative=True),
-    Param("mu", 0.0, "N", "guide_friction: Coulomb friction on the armature guides", nonnegative=True),
-    Param("gamma", 0.0, "-", "tip_blunting (sandstone): kl, ku -> (1 + γ xp / 1 mm)", nonnegative=True),
-    Param("kappa", 0.0, "1/m^2", "suspension_hardening: k2 φ1 -> k2 φ1 (1 + κ φ1²)", nonnegative=True),
-    Param("fc", 0.0, "Hz", "sensor_lowpass: accelerometer bandwidth (2nd-order Butterworth); 0 = ideal", nonnegative=True),
+    *effect_params(EFFECTS, {"shaker_coil": "the force Fa sin Ωt between armature and body, Δv = ẋ1 − ẋ2",
+                             "rate_stiffening": "the contact's k1 or kl, ku, δ̇ the penetration rate",
+                             "guide_friction": "the armature guides, Δv = ẋ1 − ẋ2",
+                             "tip_blunting": "the sandstone's kl, ku, progression xp",
+                             "suspension_hardening": "the armature suspension k2, φ1 = x1 − x2",
+                             "sensor_lowpass": "the armature's recorded acceleration"}),
     Param("P", 1.0, "bar", "pneumatic pressure", positive=True),
     Param("D", 0.05, "m", "piston diameter", positive=True),
 )
-# The kernel's parameter vector is the first 26 entries; P and D only feed static_force_n.
+TAU, BETA, ALPHA, MU, GAMMA, KAPPA, FC = index_of(COMMON, "tau", "beta", "alpha", "mu", "gamma", "kappa", "fc")
+# The kernel's parameter vector ends with the effects' parameters; P and D only feed static_force_n.
 
 
 def _derive(values: dict) -> dict:
@@ -340,7 +347,7 @@ def _derive(values: dict) -> dict:
     return v
 
 
-def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effects: dict, progression: str,
+def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effects: tuple[str, ...], progression: str,
           calibratable: tuple[FitBound, ...], map_kind: str, synth: SynthRig, exact: str) -> ModelSpec:
     return ModelSpec(
         name=name,
@@ -379,8 +386,7 @@ TABLE1 = {30: 220.0, 40: 300.0, 50: 370.0, 60: 440.0, 70: 540.0, 80: 650.0, 90: 
 """Seed 000 Table 1: forcing amplitude Fa [N] used at each frequency [Hz]."""
 
 _PRESETS = {f"table1-{f}hz": {"frequency_hz": float(f), "amplitude_n": fa} for f, fa in TABLE1.items()}
-_COMMON_EFFECTS = {"shaker_coil": ("tau", "beta"), "rate_stiffening": ("alpha",), "guide_friction": ("mu",),
-                   "suspension_hardening": ("kappa",), "sensor_lowpass": ("fc",)}
+_COMMON_EFFECTS = tuple(e for e in EFFECTS if e != "tip_blunting")
 
 # MODELS.md §1 "Calibratable": metal k1, c1, pm; sandstone kl, ku, pm (bounds: 1-2 decades around the defaults).
 _METAL_FIT = (FitBound("k1", 1e6, 1e8, "N/m"), FitBound("c1", 3.0, 3e3, "N s/m"), FitBound("pm", 0.5, 300.0, "N"))
@@ -424,7 +430,7 @@ SPECS = {
     "indenter-sandstone": _spec("indenter-sandstone",
                                 (sand_rhs, sand_guards, sand_on_event, sand_observe, sand_bounded),
                                 ("xp", "xf"), ("x1-xp", "v1", "x2-xp", "v2"), _PRESETS,
-                                {**_COMMON_EFFECTS, "tip_blunting": ("gamma",)}, "xp (crater floor)",
-                                _SAND_FIT, "rop", _synth({**_COMMON_EFFECTS, "tip_blunting": ("gamma",)}, None),
+                                (*_COMMON_EFFECTS, "tip_blunting"), "xp (crater floor)",
+                                _SAND_FIT, "rop", _synth((*_COMMON_EFFECTS, "tip_blunting"), None),
                                 "sim.exact.indenter_sandstone"),
 }

@@ -29,12 +29,14 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
+from sim.models.effects import effect_params
+from sim.models.param import index_of
 from sim.models.contact import kelvin_voigt, released_force
 from sim.models.sensor import sensor_lowpass
 from sim.models.terms import rate_stiffened
 
 # parameter vector layout
-MASS, LEN, A0, KI, CI, ZETA, GAP, FREQ, GRAV, MCART, ALPHA = range(11)
+MASS, LEN, A0, KI, CI, ZETA, GAP, FREQ, GRAV, MCART = range(10)   # then the effects' parameters (PARAMS)
 ITH, IOM, IW = range(3)
 NY = 3
 N_BOUNDED = 2
@@ -153,6 +155,9 @@ def _atol(p: np.ndarray) -> np.ndarray:
     return np.array([xs / p[LEN], xs * om / p[LEN], fsc * xs])
 
 
+EFFECTS = ("rate_stiffening", "sensor_lowpass")
+"""The MODELS.md §6 effects of the pendulum (sim.models.effects): their parameters end PARAMS."""
+
 PARAMS = (
     Param("m", 0.298, "kg", "hammer mass", positive=True),
     Param("l", 0.075, "m", "wire length (pendulum length)", positive=True),
@@ -165,9 +170,10 @@ PARAMS = (
     Param("frequency_hz", 3.75, "Hz", "cart forcing frequency f", positive=True),
     Param("g", 9.81, "m/s^2", "gravitational acceleration", positive=True),
     Param("M", 5.38, "kg", "cart mass (informational: the cart motion is prescribed)", positive=True),
-    Param("alpha", 0.0, "s/m", "rate_stiffening: ki -> ki (1 + α max(δ̇,0)); 0 = off", nonnegative=True),
-    Param("fc", 0.0, "Hz", "sensor_lowpass: accelerometer bandwidth (2nd-order Butterworth); 0 = ideal", nonnegative=True),
+    *effect_params(EFFECTS, {"rate_stiffening": "the load cell's ki, δ̇ the hammer's penetration rate",
+                             "sensor_lowpass": "the hammer's recorded acceleration"}),
 )
+(ALPHA,) = index_of(PARAMS, "alpha")
 
 STATES = ("theta", "theta_dot", "work")
 BOUNDED = ("theta", "theta_dot")
@@ -199,7 +205,7 @@ SPEC = ModelSpec(
     n_bounded=N_BOUNDED,
     initial=_initial,
     atol=_atol,
-    effects={"rate_stiffening": ("alpha",), "sensor_lowpass": ("fc",)},
+    effects=EFFECTS,
     postprocess=sensor_lowpass,
     needs_history=lambda values: values.get("fc", 0.0) > 0.0,
     impacting_mass="hammer m (absolute x = l sin θ + A0 sin Ωt)",

@@ -28,11 +28,13 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
+from sim.models.param import index_of
+from sim.models.effects import effect_params
 from sim.models.contact import hunt_crossley, hunt_crossley_damping
 from sim.models.sensor import sensor_lowpass
 from sim.models.terms import hardened_spring, rate_stiffened
 
-M1, K1, C1, M2, K2, C2, KI, LAM, NI, F0, GAP, FREQ, ALPHA, KAPPA = range(14)
+M1, K1, C1, M2, K2, C2, KI, LAM, NI, F0, GAP, FREQ = range(12)   # then the effects' parameters (PARAMS)
 IX1, IV1, IX2, IV2, IW = range(5)
 NY = 5
 N_BOUNDED = 4
@@ -121,6 +123,9 @@ def _atol(p: np.ndarray) -> np.ndarray:
     return np.array([xs, xs * om, xs, xs * om, max(abs(p[F0]), 1e-3) * xs])
 
 
+EFFECTS = ("rate_stiffening", "suspension_hardening", "sensor_lowpass")
+"""The MODELS.md §6 effects of the RIMD (sim.models.effects): their parameters end PARAMS."""
+
 PARAMS = (
     Param("m1", 0.368, "kg", "main beam mass", positive=True),
     Param("k1", 2850.0, "N/m", "beam stiffness to ground", positive=True),
@@ -135,11 +140,11 @@ PARAMS = (
           nonnegative=True),
     Param("gap_m", 0.0, "m", "gap between the hammer at rest and the ground-fixed stop", nonnegative=True),
     Param("frequency_hz", 8.0, "Hz", "forcing frequency f", positive=True),
-    Param("alpha", 0.0, "s/m", "rate_stiffening: ki -> ki (1 + α max(ẋ2,0)); 0 = off", nonnegative=True),
-    Param("kappa", 0.0, "1/m^2", "suspension_hardening: k2 φ -> k2 φ (1 + κ φ²), φ = x2 − x1; 0 = off",
-          nonnegative=True),
-    Param("fc", 0.0, "Hz", "sensor_lowpass: accelerometer bandwidth (2nd-order Butterworth); 0 = ideal", nonnegative=True),
+    *effect_params(EFFECTS, {"rate_stiffening": "the stop's ki, δ̇ = ẋ2",
+                             "suspension_hardening": "the hammer's suspension k2, φ = x2 − x1",
+                             "sensor_lowpass": "the hammer's recorded acceleration"}),
 )
+ALPHA, KAPPA = index_of(PARAMS, "alpha", "kappa")
 
 STATES = ("x1", "v1", "x2", "v2", "work")
 BOUNDED = ("x1", "v1", "x2", "v2")
@@ -167,7 +172,7 @@ SPEC = ModelSpec(
     n_bounded=N_BOUNDED,
     initial=_initial,
     atol=_atol,
-    effects={"rate_stiffening": ("alpha",), "suspension_hardening": ("kappa",), "sensor_lowpass": ("fc",)},
+    effects=EFFECTS,
     postprocess=sensor_lowpass,
     needs_history=lambda values: values.get("fc", 0.0) > 0.0,
     impacting_mass="hammer m2 (x2)",

@@ -1,8 +1,9 @@
 """Conformance suite: every registered model (``sim.model_names()``) passes the same checks.
 
 Adding a model = one file in sim/models/ + its reference in tests/reference_solutions.py; this suite then
-runs on it with no edit.  Adding an effect to a model = its parameters (0 = off), its term from sim/models/terms.py
-in the right-hand side, and one entry in ``ModelSpec.effects`` with a visible strength in ``SynthRig.effect_strengths``;
+runs on it with no edit.  Adding an effect to a model = one entry in the model's ``EFFECTS`` list (its parameters follow from
+sim/models/effects.py), its term from sim/models/terms.py in the right-hand side, and a visible strength in
+``SynthRig.effect_strengths``;
 ``test_conformance_effect_visible_and_off_at_zero`` then checks the pair.  Select the suite with
 ``pytest -k conformance``.
 """

@@ -2,7 +2,7 @@
 suspension_hardening) against the independent reference (tests/reference_solutions.py, scipy DOP853,
 rtol 1e-10, event location), on the `lab` preset.
 
-Adding an effect = one entry in sim.models.drill.EFFECT_VISIBLE (and its bounds in EFFECT_FIT_BOUNDS): the
+Adding an effect to the drill = one entry in sim.models.drill.EFFECTS and in EFFECT_VISIBLE (its bounds in EFFECT_FIT_BOUNDS): the
 parametrised checks below then run on it.  Tolerances are those of tests/sim/test_validation.py (the
 acceptance: ROP, forces, deceleration, energy within 1 %; impacts per cycle and period equal).  Both runs use
 the same fixed transient and window so they integrate the same trajectory; 240 transient cycles put the base

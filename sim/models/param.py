@@ -1,0 +1,43 @@
+"""A named model parameter with its unit, default and the check of a value: its own module so that the model
+specification (sim.models.base) and the shared effect table (sim.models.effects) both build on it."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from sim.errors import ParameterError
+
+
+@dataclass(frozen=True)
+class Param:
+    """One named model parameter (SI units)."""
+
+    name: str
+    default: float
+    unit: str
+    description: str
+    positive: bool = False
+    nonnegative: bool = False
+    integer: bool = False
+
+    def validate(self, value) -> float:
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            raise ParameterError(f"parameter '{self.name}' must be a number, got {value!r}") from None
+        if not math.isfinite(v):
+            raise ParameterError(f"parameter '{self.name}' must be finite, got {value!r}")
+        if self.positive and not v > 0.0:
+            raise ParameterError(f"parameter '{self.name}' must be > 0 [{self.unit}], got {v:g}")
+        if self.nonnegative and v < 0.0:
+            raise ParameterError(f"parameter '{self.name}' must be >= 0 [{self.unit}], got {v:g}")
+        return v
+
+
+def index_of(params: tuple[Param, ...], *names: str) -> tuple[int, ...]:
+    """Positions of the parameters ``names`` in the vector ``params`` (the kernel's layout)."""
+    where = {p.name: i for i, p in enumerate(params)}
+    missing = [n for n in names if n not in where]
+    if missing:
+        raise ValueError(f"no parameter {missing} in {[p.name for p in params]}")
+    return tuple(where[n] for n in names)
