@@ -4,7 +4,8 @@ lazy import inside a function counts as well.
 sim            imports nothing of the project
 pipeline.core  imports sim at most
 surrogate      imports sim at most (the library never imports the application, and raises its own errors)
-workflows      pipeline.datasets / optimise / diagnosis / maps / report / tracking / training never import pipeline.cli
+workflows      pipeline.datasets / synthesis / optimise / comparison / diagnosis / maps / report / tracking / training
+               never import pipeline.cli
 pipeline.cli   imported by nobody but itself (the console entry ``vibro = pipeline.cli:main``)
 and the graph between packages has no cycle.  Within sim and surrogate no two modules import each other (directly
 or round a longer loop), and no module imports a private name (``_name``) of another package.
@@ -68,8 +69,8 @@ def graph() -> dict[str, set[str]]:
 
 
 G = graph()
-WORKFLOWS = ("pipeline.datasets", "pipeline.optimise", "pipeline.diagnosis", "pipeline.maps", "pipeline.report",
-             "pipeline.tracking", "pipeline.training")
+WORKFLOWS = ("pipeline.datasets", "pipeline.synthesis", "pipeline.optimise", "pipeline.comparison", "pipeline.diagnosis",
+             "pipeline.maps", "pipeline.report", "pipeline.tracking", "pipeline.training")
 ALLOWED = {
     "sim": set(),
     "pipeline.core": {"sim"},

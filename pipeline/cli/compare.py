@@ -78,7 +78,7 @@ def run(args) -> int:
     from pipeline.core.jsonable import dump_json
     from pipeline.core.outdir import check_out, check_out_file, prepare_out, record_out_file
     from pipeline.core.rigfile import read_rig
-    from pipeline.optimise.closed_loop import compare, markdown
+    from pipeline.comparison.workflow import compare, markdown
 
     if args.samples < 1:
         raise UserError(f"--samples must be >= 1, got {args.samples}")

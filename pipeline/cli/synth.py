@@ -13,7 +13,7 @@ systems: indenter-metal, indenter-sandstone, drill, pendulum, rimd.  Each has ri
   0.15-0.6 s after the start from rest (record_start_s), two summary-only runs, every 5th run without force_n.
 effects (MODELS.md §6): shaker_coil (tau, beta), rate_stiffening (alpha), guide_friction (mu), tip_blunting (gamma),
   suspension_hardening (kappa), sensor_lowpass (fc) -- those of the system.  --effect NAME uses the default
-  strength (pipeline/datasets/synth.py effect_defaults); --effect PARAM=VALUE sets one.
+  strength (pipeline/synthesis/workflow.py effect_defaults); --effect PARAM=VALUE sets one.
 outside physics (for testing an 'unexplained' diagnosis):
   mount_resonance  accelerometer on a resonant mount (--outside-param fr_hz=... --outside-param zeta=0.1)
   contact_hertz    metal only: elastic Hertzian contact kh (x1-G)^1.5 (--outside-param kh=3e8)
@@ -81,7 +81,7 @@ def check_record_size(cfg) -> None:
 def run(args) -> int:
     from pipeline.cli.args import parse_assignments
     from pipeline.datasets.measured import write_dataset
-    from pipeline.datasets.synth import SynthConfig, resolve_effects, synthesize
+    from pipeline.synthesis.workflow import SynthConfig, resolve_effects, synthesize
     from pathlib import Path
 
     from pipeline.core.files import atomic_write_json

@@ -6,6 +6,5 @@ compute.py       one chunk simulated (what a backend runs)
 runner.py        ``run_sweep`` on a backend (``LocalBackend``; any object with ``run(spec, chunks, write)``)
 dask_backend.py  ``DaskBackend``: chunks as tasks on a Dask cluster
 measured.py      measured rig data (MODELS.md §7): reader and writer
-synth.py         synthetic measured data from the simulator (``vibro synth``)
 plot.py          the sweep's overview figure
 """

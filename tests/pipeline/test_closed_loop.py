@@ -44,7 +44,7 @@ def _rop(rig, point) -> float:
 def test_corrected_recommendation_reaches_the_truths_best(tmp_path, effect, seed):
     from pipeline.core.rigfile import read_rig
     from pipeline.datasets.measured import load_dataset, write_dataset
-    from pipeline.datasets.synth import SynthConfig, resolve_effects, synthesize
+    from pipeline.synthesis.workflow import SynthConfig, resolve_effects, synthesize
     from pipeline.diagnosis.outputs import diagnose_into
     from sim import Rig
 

@@ -1,11 +1,11 @@
-"""The side-by-side comparison of two recommendations (pipeline.optimise.closed_loop, `vibro compare`)."""
+"""The side-by-side comparison of two recommendations (pipeline.comparison.workflow, `vibro compare`)."""
 from __future__ import annotations
 
 import json
 
 import pytest
 
-from pipeline.optimise.closed_loop import compare, markdown, model_rig
+from pipeline.comparison.workflow import compare, markdown, model_rig
 from sim import Rig
 
 INPUTS = ["frequency_hz", "amplitude_n", "static_force_n"]

@@ -72,7 +72,7 @@ def test_small_end_to_end_recovers_sensor_lowpass(tmp_path, monkeypatch):
     assert rep["final_error"] < 0.2 * rep["base_error"]
     assert rep["final_nrms"] <= 1.5
     fc = next(c for c in rep["candidates"] if c["effect"] == "sensor_lowpass")["params"]["fc"]
-    assert fc == pytest.approx(350.0, rel=0.05)            # the synthetic truth (pipeline/datasets/synth.py)
+    assert fc == pytest.approx(350.0, rel=0.05)            # the synthetic truth (pipeline/synthesis/workflow.py)
     assert (out / "report.md").exists() and list(out.glob("*.png"))
     import mlflow
 

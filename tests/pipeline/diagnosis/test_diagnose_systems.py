@@ -12,7 +12,7 @@ import pytest
 from pipeline.diagnosis.model import Evaluator, calibratable, candidates, effect_bounds
 from pipeline.diagnosis.run import DiagnoseConfig, build_targets
 from pipeline.datasets.measured import load_dataset, write_dataset
-from pipeline.datasets.synth import SynthConfig, synthesize
+from pipeline.synthesis.workflow import SynthConfig, synthesize
 
 SMALL = {  # two or three frequencies per system, short records: seconds of simulation
     "drill": dict(frequencies_hz=(190.0, 310.0, 430.0), levels=(1200.0,), cycles=12.3, summary_runs=1,

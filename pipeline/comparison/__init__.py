@@ -1,0 +1,1 @@
+"""vibro compare: two recommendations side by side on the models they came from."""

@@ -1,0 +1,1 @@
+"""vibro synth: rig logs in the measured-data format (MODELS.md §7) from the simulator."""
