@@ -203,6 +203,10 @@ def rule_table(rows: list[dict]) -> str:
              f"{_spread([lead(r)['delta_chi2_heldout'] for r in ctl if lead(r)])} | "
              f"{_spread([true_c(r)['delta_chi2_heldout'] for r in eff if true_c(r)])} | "
              f"{_spread([lead(r)['delta_chi2_heldout'] for r in out if lead(r)])} |",
+             f"| best candidate's held-out nrms ÷ the base's (material ≤ nrms_ratio) | "
+             f"{_spread([lead(r)['nrms'] / r['base_nrms'] for r in ctl if lead(r)])} | "
+             f"{_spread([true_c(r)['nrms'] / r['base_nrms'] for r in eff if true_c(r)])} | "
+             f"{_spread([lead(r)['nrms'] / r['base_nrms'] for r in out if lead(r)])} |",
              f"| base systematic error | {_spread([r['base_systematic'] for r in ctl])} | "
              f"{_spread([r['base_systematic'] for r in eff])} | {_spread([r['base_systematic'] for r in out])} |",
              "", f"Logs: {len(ctl)} controls, {len(eff)} effects, {len(out)} outside; min / median / max."]
@@ -258,10 +262,8 @@ def main(argv: list[str] | None = None) -> int:
               flush=True)
     if a.replay:
         from pipeline.diagnosis.run import DiagnoseConfig
-        from pipeline.diagnosis.verdict import VerdictRule
-
         c = DiagnoseConfig()
-        rows = replay(rows, VerdictRule(c.explained_nrms, c.systematic_tol, c.bic_margin, c.test_margin))
+        rows = replay(rows, c.rule())
     text = table(rows)
     print(text)
     summary = {"rows": len(rows), "right": sum(r["correct"] for r in rows),

@@ -28,7 +28,8 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
    a model is adequate when its held-out nrms (residual / noise estimated per signal, record and harmonic,
    with a model floor) is <= explained_nrms or its systematic error (from the two halves of every record,
    free of any noise estimate) is <= systematic_tol; a candidate is selected when it beats the base on BIC
-   (bic_margin), on held-out chi2 (test_margin) and materially (half of systematic_tol), and is adequate;
+   (bic_margin), on held-out chi2 (test_margin) and materially (half of systematic_tol of systematic error, or
+   the held-out nrms cut to nrms_ratio of the base's or to the noise level), and is adequate;
 5. write DIR/report.json, DIR/report.md and PNG figures (residual structure before/after, measured vs
    simulated cycle histories and spectra), and log the run to MLflow;
 6. write the corrected rig DIR/rig.yaml (DIR/rig-<system>.yaml per system of a several-system dataset):
@@ -56,6 +57,7 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
   test_margin [25]         ... and its held-out chi2 by this much
   explained_nrms [2]       held-out residual/noise at or below this counts as adequate ...
   systematic_tol [0.005]   ... and so does a held-out systematic error (record halves) at or below this
+  nrms_ratio [0.5]         a candidate cutting the base's held-out nrms to this fraction gains materially
   model_floor [0.001]      feature sd floor: this x the signal's RMS harmonic amplitude, in quadrature with
                            the noise (what two correct simulations and a rig's sampling may differ by)
   summary_floor [0.01]     summary feature sd floor: this x the value

@@ -15,7 +15,7 @@ INT_BOUNDS: dict[str, tuple[int, int | None]] = {
 
 FLOAT_BOUNDS: dict[str, float] = {
     "max_harmonic_hz": 1e6, "diff_step": 1.0, "bic_margin": 1e12, "explained_nrms": 1e6, "fs_sim_hz": 1e7,
-    "test_margin": 1e12, "systematic_tol": 1.0, "model_floor": 1.0, "summary_floor": 1.0}
+    "test_margin": 1e12, "systematic_tol": 1.0, "nrms_ratio": 1.0, "model_floor": 1.0, "summary_floor": 1.0}
 """Real settings: the high; the low is 0, excluded except for the floors (:data:`ZERO_ALLOWED`)."""
 
 ZERO_ALLOWED = ("model_floor", "summary_floor")

@@ -49,6 +49,7 @@ class DiagnoseConfig:
     test_margin: float = 25.0           # ... and the base's held-out chi2 by this much (5 sd of a 1-parameter gain)
     explained_nrms: float = 2.0         # adequate: held-out nrms at or below this ("at the noise level") ...
     systematic_tol: float = 0.005       # ... or held-out systematic error (split-half) at or below this
+    nrms_ratio: float = 0.5             # a candidate that cuts the base's held-out nrms to this fraction is material
     model_floor: float = 1e-3           # feature sd floor: this x the signal's RMS harmonic amplitude (model error)
     summary_floor: float = 0.01         # summary feature sd floor: this x the value
     effects: list[str] | None = None    # restrict the candidates (default: every §6 effect of the system)
@@ -63,6 +64,10 @@ class DiagnoseConfig:
 
     def __post_init__(self) -> None:
         check_config(self)
+
+    def rule(self) -> VerdictRule:
+        """The verdict's thresholds (pipeline.diagnosis.verdict)."""
+        return VerdictRule(self.explained_nrms, self.systematic_tol, self.bic_margin, self.test_margin, self.nrms_ratio)
 
 
 def build_targets(ds, cfg: DiagnoseConfig) -> dict[str, list[Target]]:
@@ -355,8 +360,7 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
     # reported parameters: the single split's calibration fit, or a fit on all runs (leave-one-out)
     final_fits = fits_per_fold[0] if scheme == "holdout" else warm
     stats = {m: ModelStats(m, bic[m], err[m]["chi2"], err[m]["n"], err[m]["systematic"]) for m in names}
-    v = decide(stats["base"], [stats[m] for m in cands], VerdictRule(cfg.explained_nrms, cfg.systematic_tol,
-                                                                      cfg.bic_margin, cfg.test_margin))
+    v = decide(stats["base"], [stats[m] for m in cands], cfg.rule())
     final = v.selected or "base"
     cal_names = [q.name for q in calibratable(system)]
     cand_list = [{"effect": m, "params": {p: final_fits[m].values[p] for p in final_fits[m].free if p not in cal_names},
@@ -395,7 +399,7 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
         "explained": v.explained,
         "best_partial_candidate": v.leader if v.kind == UNEXPLAINED else None,
         "absorbed": absorbed_parameters(final_fits, v, cal_names),
-        "call": closeness(v, stats, VerdictRule(cfg.explained_nrms, cfg.systematic_tol, cfg.bic_margin, cfg.test_margin)),
+        "call": closeness(v, stats, cfg.rule()),
         "n_simulations": ev.n_sims,
     }
     return SystemDiagnosis(report=report, evaluator=ev, fits=final_fits, held_out=test_idx, final=final)

@@ -19,8 +19,9 @@ The rule (thresholds in ``VerdictRule``; docs/diagnose.md derives them from the 
    held-out runs (delta_chi2 ≥ ``test_margin``), and materially: it removes at least half of ``systematic_tol``
    of systematic error (held-out), so a tiny mismatch between two simulations of the same equations, significant
    only because the records are long and clean, is never assigned to an effect; or it brings a base whose held-out
-   nrms is above ``explained_nrms`` to the noise level (a drift such as tip blunting that the calibrated base
-   matches on average leaves little split-half error but an nrms of 3).
+   nrms is above ``explained_nrms`` to the noise level; or it cuts the base's held-out nrms to ``nrms_ratio`` of
+   it or less (a ratio: the same whatever σ's scale).  A drift such as tip blunting that the calibrated base
+   matches on average leaves little split-half error but an nrms of 2-3 that the effect takes to 0.4-0.6.
 3. Of the improving candidates the one with the lowest BIC is the **leader**: *selected* if adequate, else the
    residual is *unexplained* (the leader is the best partial explanation).  With no improving candidate: *nothing
    missing* if the base is adequate, else *unexplained*.
@@ -43,6 +44,7 @@ class VerdictRule:
     systematic_tol: float = 0.005
     bic_margin: float = 10.0
     test_margin: float = 25.0
+    nrms_ratio: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -88,11 +90,12 @@ def _gain(base: ModelStats, m: ModelStats) -> float | None:
 
 
 def improves(base: ModelStats, m: ModelStats, rule: VerdictRule) -> bool:
-    """Better on calibration (BIC) and held-out (χ²) runs, and materially: by a systematic error, or by bringing a
-    base above the noise level down to it (rule 2)."""
+    """Better on calibration (BIC) and held-out (χ²) runs, and materially: by a systematic error, by bringing a
+    base above the noise level down to it, or by cutting its held-out nrms to ``nrms_ratio`` of it (rule 2)."""
     gain = _gain(base, m)
     material = (gain is None or gain >= 0.5 * rule.systematic_tol
-                or (base.nrms > rule.explained_nrms and m.nrms <= rule.explained_nrms))
+                or (base.nrms > rule.explained_nrms and m.nrms <= rule.explained_nrms)
+                or m.nrms <= rule.nrms_ratio * base.nrms)
     return base.bic - m.bic >= rule.bic_margin and base.chi2 - m.chi2 >= rule.test_margin and material
 
 
