@@ -68,11 +68,15 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
   record_window [64]       a steady-state series is compared over its first this many cycles (0 = all)
   summary_sd [{}]          e.g. {peak_decel_g: [rel, 0.05], impacts_per_cycle: [abs, 0.5]}
   seed [0]                 seed of the random starts
+  scheduler [null]         Dask scheduler (tcp://host:8786) or local:N that runs the fits; null = this process
+                           (--threads simulation threads); not part of the report: the numbers are the same
 examples:
   vibro synth --out data/synth-coil --system indenter-metal --effect shaker_coil
   vibro diagnose data/synth-coil --out results/diagnose-coil
   vibro diagnose measured/seed000-published --out results/diagnose-seed000 --metrics results/diagnose.json
-  vibro diagnose DATA --out DIR --params params.yaml --setting max_nfev=10 --effects shaker_coil sensor_lowpass"""
+  vibro diagnose DATA --out DIR --params params.yaml --setting max_nfev=10 --effects shaker_coil sensor_lowpass
+  vibro diagnose DATA --out DIR --scheduler tcp://10.0.0.5:8786     # the fits on a Dask cluster
+  vibro diagnose DATA --out DIR --scheduler local:2                 # ... on a throw-away 2-worker LocalCluster"""
 
 
 def add_parser(sub) -> None:
@@ -87,7 +91,11 @@ def add_parser(sub) -> None:
     p.add_argument("--effects", nargs="+", metavar="EFFECT", help="only try these candidate effects")
     p.add_argument("--metrics", metavar="FILE.json",
                    help="also write the headline numbers (errors, noise floor, selected effect) to this JSON file")
-    add_workers(p, dest="threads", help="simulation threads (default: all cores)")
+    add_workers(p, dest="threads", help="simulation threads of a local run (default: all cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="send the independent fits (folds x models x starts) to an existing Dask distributed "
+                        "cluster (tcp://host:port), or to a throw-away LocalCluster with local:N (N single-threaded "
+                        "worker processes); the report's numbers are those of a local run, bit for bit (docs/scale.md)")
     A.add_overwrite(p, "diagnosis")
     p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
     add_quiet(p)
@@ -101,7 +109,8 @@ def load_config(path: str | None, sets: dict, effects: list[str] | None, threads
     from pipeline.diagnosis.config import FLOAT_BOUNDS, INT_BOUNDS, ZERO_ALLOWED
     from pipeline.diagnosis.run import DiagnoseConfig
 
-    values: dict = read_section(path, "diagnose")
+    values: dict = dict(read_section(path, "diagnose"))
+    values.pop("scheduler", None)              # where the fits run, not how (scheduler_of)
     values.update(sets)
     if effects:
         values["effects"] = effects
@@ -123,11 +132,28 @@ def load_config(path: str | None, sets: dict, effects: list[str] | None, threads
     return DiagnoseConfig(**values)
 
 
+def scheduler_of(path: str | None, flag: str | None) -> str | None:
+    """The Dask scheduler of the fits: ``--scheduler``, else the params file's 'diagnose.scheduler'; None: this
+    process (UserError for a value that cannot name one)."""
+    from pipeline.core.dask_client import check_address
+    from pipeline.core.params import read_section
+
+    if flag is not None:
+        return check_address(flag)
+    value = read_section(path, "diagnose").get("scheduler")
+    if value is None:
+        return None
+    if not isinstance(value, str):
+        raise UserError(f"{path}: diagnose.scheduler must be tcp://host:port or local:N, got {value!r}")
+    return check_address(value)
+
+
 def run(args) -> int:
     from tqdm import tqdm
 
     from pipeline import tracking
     from pipeline.cli.args import parse_assignments
+    from pipeline.core.executors import open_executor
     from pipeline.core.files import atomic_write_text
     from pipeline.core.jsonable import dump_json
     from pipeline.core.outdir import check_out_file, prepare_out, record_out_file
@@ -136,6 +162,7 @@ def run(args) -> int:
     from pipeline.diagnosis.outputs import write_outputs
 
     cfg = load_config(args.params, parse_assignments(args.sets, "--setting"), args.effects, check_workers(args.threads))
+    scheduler = scheduler_of(args.params, args.scheduler)
     ds = load_dataset(args.dataset)
     check_signals(ds)
     out = Path(args.out)
@@ -152,11 +179,12 @@ def run(args) -> int:
     if args.metrics:
         check_out_file(args.metrics, flag="--metrics", kind="json", inputs=[args.dataset, args.params, out],
                        overwrite=args.overwrite)
-    with prepare_out(out, inputs=inputs, overwrite=args.overwrite, marker="diagnose") as tmp:
+    with open_executor(scheduler) as executor, \
+            prepare_out(out, inputs=inputs, overwrite=args.overwrite, marker="diagnose") as tmp:
         bar = tqdm(total=n_steps, desc="diagnose (folds)", disable=args.quiet, unit="fold", file=sys.stderr)
-        with tracking.run("diagnose", {"dataset": args.dataset, **asdict(cfg)}, enabled=not args.no_mlflow,
-                          variant=Path(args.dataset).resolve().name) as mlflow:
-            result = diagnose(ds, cfg, log=log, progress=lambda: bar.update(1))
+        with tracking.run("diagnose", {"dataset": args.dataset, **asdict(cfg), "scheduler": scheduler or "local"},
+                          enabled=not args.no_mlflow, variant=Path(args.dataset).resolve().name) as mlflow:
+            result = diagnose(ds, cfg, log=log, progress=lambda: bar.update(1), executor=executor)
             bar.close()
             report = result.report
             write_outputs(result, tmp)

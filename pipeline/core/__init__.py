@@ -5,6 +5,8 @@ files.py     the atomic-write helpers (text, bytes, JSON, Parquet, whole directo
 params.py    the one params.yaml section reader
 names.py     sweep statuses (from ``sim.statuses``), the objective's sense and display units
 jsonable.py  JSON-safe conversion and the nested-dict flattener, from ``sim.jsonable``
+dask_client.py  a Dask scheduler address (tcp://host:port or local:N) checked and connected
+executors.py    batches of independent tasks run in this process or on a Dask cluster, results in order
 
 The range <-> unit-interval mapping is ``sim.unitcube``; the surrogate's regimes and targets are
 ``surrogate.names``.  It imports nothing of the project but ``sim`` (for ParameterError and LABELS).

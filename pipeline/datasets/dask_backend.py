@@ -8,55 +8,13 @@ compiles) the numba kernel once.
 """
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
 from typing import Callable, Iterable
 
 import pandas as pd
 
-from pipeline.core.errors import UserError
+from pipeline.core.dask_client import check_address, connect
 from pipeline.datasets.compute import compute_chunk
-
-
-LOCAL_PER_CORE = 4
-"""``local:N`` may start at most this many worker processes per core (more only thrash the machine)."""
-
-
-def local_workers(address: str) -> int:
-    """N of a ``local:N`` address: an integer in [1, LOCAL_PER_CORE x cores] (UserError otherwise)."""
-    import os
-
-    cap = LOCAL_PER_CORE * (os.cpu_count() or 1)
-    try:
-        n = int(address.split(":", 1)[1])
-    except ValueError:
-        raise UserError(f"--scheduler {address}: expected local:N with N an integer") from None
-    if not 1 <= n <= cap:
-        raise UserError(f"--scheduler {address}: N must be in [1, {cap}] ({LOCAL_PER_CORE} worker processes per core)")
-    return n
-
-
-@contextlib.contextmanager
-def connect(address: str):
-    """A ``distributed.Client`` for ``address`` (``tcp://host:port``), or ``local:N`` for a throw-away
-    LocalCluster of N single-threaded worker processes.  UserError when it cannot be reached."""
-    from distributed import Client, LocalCluster
-
-    if address.startswith("local:"):
-        n = local_workers(address)
-        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-                Client(cluster) as client:
-            yield client
-        return
-    _check_reachable(address)
-    try:
-        client = Client(address, timeout="30s")
-    except (OSError, TimeoutError) as e:
-        raise UserError(f"--scheduler {address}: cannot reach the Dask scheduler ({e})") from None
-    try:
-        yield client
-    finally:
-        client.close()
 
 
 @dataclass(frozen=True)
@@ -67,8 +25,7 @@ class DaskBackend:
     extra_packages: tuple[str, ...] = ("dask", "distributed")
 
     def __post_init__(self) -> None:
-        if self.address.startswith("local:"):
-            local_workers(self.address)      # refuse a bad N before anything is written
+        check_address(self.address)      # refuse a bad local:N before anything is written
 
     @property
     def description(self) -> str:
@@ -102,19 +59,3 @@ def run_on_dask(address: str, spec, chunks: Iterable[tuple[int, pd.DataFrame]],
         except BaseException:
             client.cancel(futures)
             raise
-
-
-def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
-    """Fail fast (one line) when nothing listens at a tcp:// scheduler address."""
-    import socket
-    from urllib.parse import urlsplit
-
-    if "://" not in address:
-        address = "tcp://" + address
-    u = urlsplit(address)
-    if u.scheme != "tcp" or not u.hostname or not u.port:
-        return                                    # other protocols: let distributed try
-    try:
-        socket.create_connection((u.hostname, u.port), timeout=timeout_s).close()
-    except OSError as e:
-        raise UserError(f"--scheduler {address}: cannot reach the Dask scheduler ({e})") from None

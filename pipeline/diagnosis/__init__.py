@@ -3,6 +3,7 @@
 features.py  measured and simulated features (harmonics of the signals, summary labels) with noise
 model.py     calibratable parameters, candidate effects, parallel evaluation of the simulator
 fit.py       multi-start least squares with a parallel finite-difference Jacobian, uncertainty
+calibrate.py the base and candidate fits of every fold, stage by stage as batches of tasks on an executor
 config.py    bounds of the settings, checked by DiagnoseConfig when built
 run.py       splitting, calibration, candidate ranking and selection for one system (a SystemDiagnosis)
 rigout.py    the corrected rig of one system's diagnosis

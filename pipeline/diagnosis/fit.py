@@ -40,6 +40,117 @@ POLISH_NFEV = 6
 """Polishing iterations after the main fit."""
 
 
+@dataclass(frozen=True)
+class FitJob:
+    """One fit: ``free`` (log10) on runs ``idx`` with ``fixed`` held, from each of ``starts`` (dict name -> value;
+    clipped to bounds); see :func:`fit`."""
+
+    idx: list[int]
+    free: list[FreeParam]
+    fixed: dict
+    starts: list[dict]
+    max_nfev: int = 20
+    diff_step: float = 0.01
+    polish: bool = True
+    coarse: bool = False
+
+
+@dataclass(frozen=True)
+class StartFit:
+    """One start's solution: x [log10], chi2, the residual and Jacobian at x, simulations spent, and the record of
+    the start for ``FitResult.starts``."""
+
+    x: np.ndarray
+    chi2: float
+    fun: np.ndarray
+    jac: np.ndarray
+    nfev: int
+    tried: dict
+
+
+class _Problem:
+    """Residual and forward-difference Jacobian of a job for ``least_squares``, residuals cached by x."""
+
+    def __init__(self, ev: Evaluator, job: FitJob, step: float):
+        self.ev, self.job, self.step = ev, job, step
+        self.names = [p.name for p in job.free]
+        self.hi = np.array([p.bounds[1] for p in job.free])
+        self.cache: dict[bytes, np.ndarray] = {}
+        self.low = False           # compare the low harmonics only (the coarse stage)
+        self.nfev = 0
+
+    def params(self, x: np.ndarray) -> dict:
+        return {**self.job.fixed, **{n: 10.0 ** v for n, v in zip(self.names, x)}}
+
+    def fun(self, x: np.ndarray) -> np.ndarray:
+        key = x.tobytes() + (b"low" if self.low else b"")
+        if key not in self.cache:
+            self.cache[key] = self.ev.residuals([self.params(x)], self.job.idx, low_only=self.low)[0]
+            self.nfev += 1
+        return self.cache[key]
+
+    def jac(self, x: np.ndarray) -> np.ndarray:
+        """Columns simulated in one parallel batch; a step goes inwards at an upper bound."""
+        f0 = self.fun(x)
+        steps = [self.step if x[j] + self.step <= self.hi[j] else -self.step for j in range(x.size)]
+        xs = [x + np.eye(x.size)[j] * steps[j] for j in range(x.size)]
+        rs = self.ev.residuals([self.params(xj) for xj in xs], self.job.idx, low_only=self.low)
+        self.nfev += x.size
+        return np.column_stack([(r - f0) / h for r, h in zip(rs, steps)])
+
+    def solve(self, x0: np.ndarray, max_nfev: int, xtol: float, ftol: float):
+        lo = np.array([p.bounds[0] for p in self.job.free])
+        return least_squares(self.fun, x0, jac=self.jac, bounds=(lo, self.hi), method="trf", x_scale=1.0,
+                             max_nfev=max_nfev, xtol=xtol, ftol=ftol)
+
+
+def fit_start(ev: Evaluator, job: FitJob, k: int) -> StartFit:
+    """Fit ``job`` from its start ``k`` (a pure function of its inputs: a task of its own)."""
+    pb = _Problem(ev, job, job.diff_step)
+    lo = np.array([p.bounds[0] for p in job.free])
+    s = job.starts[k]
+    x0 = np.clip(np.array([math.log10(max(s[n], 1e-300)) for n in pb.names]), lo + 1e-9, pb.hi - 1e-9)
+    if job.coarse:
+        pb.low = True
+        x0 = pb.solve(x0, job.max_nfev, 1e-5, 1e-6).x
+        pb.low = False
+    sol = pb.solve(x0, job.max_nfev, 1e-5, 1e-6)
+    chi2 = float(2.0 * sol.cost)
+    tried = {"start": {n: float(10 ** v) for n, v in zip(pb.names, x0)}, "chi2": chi2,
+             "end": {n: float(10 ** v) for n, v in zip(pb.names, sol.x)}}
+    return StartFit(x=sol.x, chi2=chi2, fun=sol.fun, jac=sol.jac, nfev=pb.nfev, tried=tried)
+
+
+def finish_fit(ev: Evaluator, job: FitJob, starts: list[StartFit]) -> FitResult:
+    """The best of ``starts`` (the first on a tie), polished (``job.polish``), with its covariance."""
+    best = starts[0]
+    for s in starts[1:]:
+        if s.chi2 < best.chi2:
+            best = s
+    x, chi2, fun, jm = best.x, best.chi2, best.fun, best.jac
+    tried = [s.tried for s in starts]
+    nfev = sum(s.nfev for s in starts)
+    if job.polish and POLISH_NFEV > 0:
+        pb = _Problem(ev, job, POLISH_STEP)
+        pb.cache[x.tobytes()] = fun          # the polish starts where the best start ended
+        sol = pb.solve(x, POLISH_NFEV, 1e-6, 1e-7)
+        nfev += pb.nfev
+        if float(2.0 * sol.cost) < chi2:
+            x, chi2, fun, jm = sol.x, float(2.0 * sol.cost), sol.fun, sol.jac
+            tried.append({"start": "polish", "chi2": chi2, "end": {n: float(10 ** v) for n, v in zip(pb.names, x)}})
+    names = [p.name for p in job.free]
+    n = fun.size
+    dof = max(n - len(names), 1)
+    scale = max(1.0, chi2 / dof)       # inflate when the fit is worse than the noise (model error)
+    cov = np.linalg.pinv(jm.T @ jm) * scale
+    sd_log = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    values = {nm: float(10 ** v) for nm, v in zip(names, x)}
+    sd_log = np.minimum(sd_log, 50.0)   # unidentifiable direction: report a huge but finite interval
+    sd = {nm: float(values[nm] * math.log(10) * s) for nm, s in zip(names, sd_log)}
+    ci = {nm: (float(10 ** (v - 1.96 * s)), float(10 ** (v + 1.96 * s))) for nm, v, s in zip(names, x, sd_log)}
+    return FitResult(values=values, sd=sd, ci95=ci, chi2=chi2, n=n, free=names, nfev=nfev, starts=tried)
+
+
 def fit(ev: Evaluator, idx: list[int], free: list[FreeParam], fixed: dict, starts: list[dict],
         max_nfev: int = 20, diff_step: float = 0.01, polish: bool = True, coarse: bool = False) -> FitResult:
     """Fit ``free`` (log10) on runs ``idx`` from each start (dict name -> value; clipped to bounds), then polish the
@@ -48,71 +159,8 @@ def fit(ev: Evaluator, idx: list[int], free: list[FreeParam], fixed: dict, start
     and finds the valley; there a coarse forward difference is too crude to follow a narrow curved valley to its
     floor (rate stiffening's alpha stopped at 30 s/m of 50), and the finer step finishes the walk.
     ``coarse``: each start is first fitted on the low harmonics only (``features.low_harmonics``), whose misfit has
-    one basin where the high harmonics' has one per 1/k of a cycle of impact timing."""
-    lo = np.array([p.bounds[0] for p in free])
-    hi = np.array([p.bounds[1] for p in free])
-    names = [p.name for p in free]
-    cache: dict[bytes, np.ndarray] = {}
-    nfev = 0
-
-    def params(x: np.ndarray) -> dict:
-        return {**fixed, **{n: 10.0 ** v for n, v in zip(names, x)}}
-
-    low = [False]
-
-    def fun(x: np.ndarray) -> np.ndarray:
-        nonlocal nfev
-        key = x.tobytes() + (b"low" if low[0] else b"")
-        if key not in cache:
-            cache[key] = ev.residuals([params(x)], idx, low_only=low[0])[0]
-            nfev += 1
-        return cache[key]
-
-    step = [diff_step]
-
-    def jac(x: np.ndarray) -> np.ndarray:
-        nonlocal nfev
-        f0 = fun(x)
-        steps = []
-        for j in range(x.size):      # step inwards at an upper bound
-            h = step[0] if x[j] + step[0] <= hi[j] else -step[0]
-            steps.append(h)
-        xs = [x + np.eye(x.size)[j] * steps[j] for j in range(x.size)]
-        rs = ev.residuals([params(xj) for xj in xs], idx, low_only=low[0])
-        nfev += x.size
-        return np.column_stack([(r - f0) / h for r, h in zip(rs, steps)])
-
-    best, tried = None, []
-    for s in starts:
-        x0 = np.clip(np.array([math.log10(max(s[n], 1e-300)) for n in names]), lo + 1e-9, hi - 1e-9)
-        if coarse:
-            low[0] = True
-            x0 = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=max_nfev,
-                               xtol=1e-5, ftol=1e-6).x
-            low[0] = False
-        sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=max_nfev,
-                            xtol=1e-5, ftol=1e-6)
-        chi2 = float(2.0 * sol.cost)
-        tried.append({"start": {n: float(10 ** v) for n, v in zip(names, x0)}, "chi2": chi2,
-                      "end": {n: float(10 ** v) for n, v in zip(names, sol.x)}})
-        if best is None or chi2 < best[1]:
-            best = (sol, chi2)
-    if polish and POLISH_NFEV > 0:
-        step[0] = POLISH_STEP
-        sol = least_squares(fun, best[0].x, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=POLISH_NFEV,
-                            xtol=1e-6, ftol=1e-7)
-        if float(2.0 * sol.cost) < best[1]:
-            best = (sol, float(2.0 * sol.cost))
-            tried.append({"start": "polish", "chi2": best[1], "end": {n: float(10 ** v) for n, v in zip(names, sol.x)}})
-    sol, chi2 = best
-    n = sol.fun.size
-    jm = sol.jac
-    dof = max(n - len(names), 1)
-    scale = max(1.0, chi2 / dof)       # inflate when the fit is worse than the noise (model error)
-    cov = np.linalg.pinv(jm.T @ jm) * scale
-    sd_log = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    values = {nm: float(10 ** v) for nm, v in zip(names, sol.x)}
-    sd_log = np.minimum(sd_log, 50.0)   # unidentifiable direction: report a huge but finite interval
-    sd = {nm: float(values[nm] * math.log(10) * s) for nm, s in zip(names, sd_log)}
-    ci = {nm: (float(10 ** (v - 1.96 * s)), float(10 ** (v + 1.96 * s))) for nm, v, s in zip(names, sol.x, sd_log)}
-    return FitResult(values=values, sd=sd, ci95=ci, chi2=chi2, n=n, free=names, nfev=nfev, starts=tried)
+    one basin where the high harmonics' has one per 1/k of a cycle of impact timing.
+    The starts are independent (:func:`fit_start`) and :func:`finish_fit` combines them: an executor may run the
+    starts of many fits at once (``pipeline.diagnosis.calibrate``)."""
+    job = FitJob(idx, free, fixed, starts, max_nfev, diff_step, polish, coarse)
+    return finish_fit(ev, job, [fit_start(ev, job, k) for k in range(len(starts))])

@@ -6,6 +6,7 @@ lower bound, where it no longer changes the response measurably).
 """
 from __future__ import annotations
 
+import copy
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -128,6 +129,14 @@ class Evaluator:
         self.settings = [run_settings(tg, sim_settings, fs_sim_hz) for tg in targets]
         self.n_sims = 0
         warm(system)
+
+    def for_tasks(self, n_threads: int | None = None) -> Evaluator:
+        """A copy with its own simulation count (0) for a task run elsewhere, on ``n_threads`` threads (None: this
+        one's); it simulates exactly as this one does."""
+        out = copy.copy(self)
+        out.n_threads = n_threads or self.n_threads
+        out.n_sims = 0
+        return out
 
     def simulate(self, param_sets: list[dict], idx: list[int]) -> list[list]:
         """SimulationResults (with history) for every parameter set x run index."""

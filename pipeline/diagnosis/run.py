@@ -20,10 +20,12 @@ import numpy as np
 
 from pipeline.diagnosis.config import check_config
 from pipeline.diagnosis.features import CONTROL_NAMES, Target, series_target, simulated_features, summary_target
-from pipeline.diagnosis.fit import FitResult, fit
+from pipeline.core.executors import Executor, InlineExecutor
+from pipeline.diagnosis.calibrate import fit_models
+from pipeline.diagnosis.fit import FitResult
 from pipeline.diagnosis.result import SystemDiagnosis
 from pipeline.diagnosis.verdict import UNEXPLAINED, ModelStats, Verdict, VerdictRule, closeness, decide
-from pipeline.diagnosis.model import (Evaluator, FreeParam, calibratable, candidates, default_fit_settings,
+from pipeline.diagnosis.model import (Evaluator, calibratable, candidates, default_fit_settings,
                                       default_max_harmonic_hz, supported_systems)
 from pipeline.core.errors import UserError
 
@@ -124,7 +126,7 @@ def _errors(ev: Evaluator, idx: list[int], res: list[np.ndarray]) -> dict:
     for i, r in zip(idx, res):
         tg = ev.targets[i]
         d = r * tg.sd
-        for g in set(tg.group):
+        for g in dict.fromkeys(tg.group):     # first-seen order: sums independent of hashing
             m = np.array([x == g for x in tg.group])
             num[g] = num.get(g, 0.0) + float((d[m] ** 2).sum())
             den[g] = den.get(g, 0.0) + float((tg.y[m] ** 2).sum())
@@ -154,7 +156,7 @@ def systematic_error(ev: Evaluator, idx: list[int], halves: list[np.ndarray | No
             continue
         model = mh if mh is not None else np.zeros_like(tg.y_halves)
         ra, rb = model[0] - tg.y_halves[0], model[1] - tg.y_halves[1]
-        for g in set(tg.group):
+        for g in dict.fromkeys(tg.group):     # first-seen order: sums independent of hashing
             m = np.array([x == g for x in tg.group])
             num[g] = num.get(g, 0.0) + float(ra[m] @ rb[m])
             den[g] = den.get(g, 0.0) + 0.5 * float(tg.y_halves[0][m] @ tg.y_halves[0][m]
@@ -165,99 +167,6 @@ def systematic_error(ev: Evaluator, idx: list[int], halves: list[np.ndarray | No
     ratio = {g: abs(num[g]) / max(den[g], 1e-300) for g in num}    # a drifting error flips sign between halves
     w = {g: 1.0 / max(var[g] / max(den[g], 1e-300) ** 2, 1e-30) for g in num}
     return float(math.sqrt(sum(w[g] * ratio[g] for g in num) / sum(w.values())))    # every |S|/P >= 0
-
-
-def _random_starts(free: list[FreeParam], defaults: dict, n: int, rng) -> list[dict]:
-    starts = [{p.name: defaults[p.name] for p in free}]
-    for _ in range(n - 1):
-        starts.append({p.name: 10 ** rng.uniform(*p.bounds) for p in free})
-    return starts
-
-
-def _candidate_start(ev: Evaluator, idx: list[int], base: dict, eff: tuple[FreeParam, ...], free: list[FreeParam],
-                     cfg: DiagnoseConfig) -> dict:
-    """Starting point of a candidate's fit: a log grid of the effect's parameters (``cfg.grid`` interior points per
-    parameter) at the base parameters ``base`` (one parallel batch of simulations), then, at the best
-    ``cfg.profile_points`` grid points, the base parameters refitted for ``cfg.profile_nfev`` iterations with the
-    effect held there (its profile): a base fit that absorbed the missing effect (the drill's Pr standing in for
-    guide friction) makes the effect look wrong at every grid point until the base parameters move back."""
-    axes = [np.linspace(*p.bounds, cfg.grid + 2)[1:-1] for p in eff]
-    mesh = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(eff), -1).T
-    sets = [{**base, **{p.name: 10 ** v for p, v in zip(eff, row)}} for row in mesh]
-    chi2 = [float(r @ r) for r in ev.residuals(sets, idx)]
-    order = list(np.argsort(chi2))
-    best = sets[order[0]], chi2[order[0]]
-    if cfg.profile_nfev > 0:
-        start = [{p.name: base[p.name] for p in free}]
-        for j in order[:cfg.profile_points]:
-            held = {p.name: sets[j][p.name] for p in eff}
-            fr = fit(ev, idx, free, held, start, cfg.profile_nfev, cfg.diff_step, polish=False)
-            if fr.chi2 < best[1]:
-                best = {**fr.values, **held}, fr.chi2
-    return best[0]
-
-
-def _fit_models(ev: Evaluator, idx: list[int], cfg: DiagnoseConfig, cands: dict, rng, log,
-               warm: dict[str, FitResult] | None = None) -> dict[str, FitResult]:
-    """Base model and every candidate on runs ``idx``.  ``warm``: start each model from these fits
-    (leave-one-run-out folds start from the all-runs fit; each fold is still refitted on its own runs)."""
-    import sim
-
-    system = ev.system
-    free = list(calibratable(system))
-    d = {**sim.get_model(system).defaults(), **ev.targets[idx[0]].known}   # nominal: the rig's known values
-    starts = [warm["base"].values] if warm else _random_starts(free, d, cfg.n_starts, rng)
-    out = {"base": fit(ev, idx, free, {}, starts, cfg.max_nfev, cfg.diff_step, coarse=not warm)}
-    log(f"  base: chi2/n = {out['base'].chi2 / out['base'].n:.4g}")
-    for eff, ps in cands.items():
-        if warm:
-            starts = [warm[eff].values]
-        else:   # grid of the effect at the calibrated base, and at the default base parameters (the base
-            #     fit may have compensated the missing effect with a base parameter, e.g. pm for mu)
-            bases = [out["base"].values, {p.name: d[p.name] for p in free}][:cfg.candidate_starts]
-            starts = [_candidate_start(ev, idx, b, ps, free, cfg) for b in bases]
-        out[eff] = fit(ev, idx, free + list(ps), {}, starts, cfg.max_nfev, cfg.diff_step, coarse=not warm)
-        log(f"  {eff}: chi2/n = {out[eff].chi2 / out[eff].n:.4g}")
-    _refit_base(ev, idx, cfg, free, out, log)
-    _refine_leader(ev, idx, cfg, cands, free, out, log)
-    return out
-
-
-def _refit_base(ev: Evaluator, idx: list[int], cfg: DiagnoseConfig, free: list[FreeParam],
-                out: dict[str, FitResult], log) -> None:
-    """Fit the base model once more from the calibratable values of the best candidate fit, when that fit is
-    better than the base's: a candidate starts from more points and may find the base parameters the base's own
-    iterations did not reach; an effect must not be preferred only because the base fit stopped short."""
-    best = min((m for m in out if m != "base"), key=lambda m: out[m].chi2, default=None)
-    if best is None or out[best].chi2 >= out["base"].chi2 or cfg.refine_nfev <= 0:
-        return
-    start = {p.name: out[best].values[p.name] for p in free}
-    more = fit(ev, idx, free, {}, [start], cfg.max_nfev + cfg.refine_nfev, cfg.diff_step)
-    if more.chi2 < out["base"].chi2:
-        more.nfev += out["base"].nfev
-        more.starts = out["base"].starts + more.starts
-        out["base"] = more
-        log(f"  base (again, from {best}'s values): chi2/n = {more.chi2 / more.n:.4g}")
-
-
-def _refine_leader(ev: Evaluator, idx: list[int], cfg: DiagnoseConfig, cands: dict, free: list[FreeParam],
-                   out: dict[str, FitResult], log) -> None:
-    """Spend ``cfg.refine_nfev`` more iterations on the leading candidate only, when it beats the base but has
-    not reached the noise level (calibration chi2/n above explained_nrms^2).  A strong effect seen from a base
-    fit that compensated for it (drill shaker_coil: K1 fitted 35 % low) needs ~20 iterations; giving every
-    candidate that many would double the time, and the others are not near the data anyway."""
-    if not cands or cfg.refine_nfev <= 0:
-        return
-    lead = min(cands, key=lambda m: out[m].chi2)
-    fr = out[lead]
-    if fr.chi2 >= out["base"].chi2 or fr.chi2 / fr.n <= cfg.explained_nrms ** 2:
-        return
-    more = fit(ev, idx, free + list(cands[lead]), {}, [fr.values], cfg.refine_nfev, cfg.diff_step)
-    if more.chi2 < fr.chi2:
-        more.nfev += fr.nfev
-        more.starts = fr.starts + more.starts
-        out[lead] = more
-    log(f"  {lead} (refined): chi2/n = {out[lead].chi2 / out[lead].n:.4g}")
 
 
 def absorbed_parameters(fits: dict[str, FitResult], v: Verdict, cal_names: list[str]) -> dict:
@@ -311,9 +220,10 @@ def _param_report(fr: FitResult) -> dict:
 
 
 def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log=print,
-                    progress=None) -> SystemDiagnosis:
+                    progress=None, executor: Executor | None = None) -> SystemDiagnosis:
     """Diagnose one system's runs: its report entry, with the evaluator, the reported fits, the held-out runs
-    and the final model the figures and the corrected rig need."""
+    and the final model the figures and the corrected rig need.  The fits run on ``executor`` (default: in this
+    process, on ``cfg.n_threads`` simulation threads)."""
     from dataclasses import replace
 
     cfg = replace(cfg, **{k: v for k, v in default_fit_settings(system).items() if getattr(cfg, k) is None})
@@ -338,12 +248,17 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
     cal_chi2 = {m: 0.0 for m in names}
     fits_per_fold = []
     warm = None
+    executor = executor or InlineExecutor()
     if scheme != "holdout":   # reported parameters: a fit on all runs (also the folds' starting point)
         log(f"{system}: fit on all {len(targets)} runs (reported parameters)")
-        warm = _fit_models(ev, list(range(len(targets))), cfg, cands, rng, log)
-    for fi, (cal, test) in enumerate(folds):
+        [(warm, lines)] = fit_models(ev, [list(range(len(targets)))], cfg, cands, rng, executor)
+        for line in lines:
+            log(line)
+    fold_fits = fit_models(ev, [cal for cal, _ in folds], cfg, cands, rng, executor, warm)
+    for fi, ((cal, test), (fits, lines)) in enumerate(zip(folds, fold_fits)):
         log(f"{system}: fold {fi + 1}/{len(folds)} ({len(cal)} calibration, {len(test)} held-out runs)")
-        fits = _fit_models(ev, cal, cfg, cands, rng, log, warm)
+        for line in lines:
+            log(line)
         fits_per_fold.append(fits)
         sets = [{}] + [fits[m].values for m in names]
         for m, (res, halves) in zip(["default", *names], ev.held_out(sets, test)):

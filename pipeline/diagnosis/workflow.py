@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from dataclasses import asdict, replace
 
+from pipeline.core.executors import Executor, InlineExecutor
 from pipeline.diagnosis.features import simulated_features
 from pipeline.diagnosis.report import figure_names, residual_structure
 from pipeline.diagnosis.result import DiagnoseResult, SimulatedRuns, SystemDiagnosis
@@ -20,14 +21,15 @@ UNREPRODUCIBLE_NOTE = ("run {run}: the model's response there is chaotic or mult
                        "leaving it out of runs.csv")
 
 
-def diagnose(ds, cfg: DiagnoseConfig, log=print, progress=None) -> DiagnoseResult:
-    """Diagnose every system of the measured dataset ``ds``; writes nothing.
+def diagnose(ds, cfg: DiagnoseConfig, log=print, progress=None, executor: Executor | None = None) -> DiagnoseResult:
+    """Diagnose every system of the measured dataset ``ds``; writes nothing.  The independent fits run on
+    ``executor`` (default: in this process; a ``DaskExecutor`` sends them to a cluster, with the same result).
     BLAS runs one thread meanwhile: the simulations run in threads of their own, and OpenBLAS threads beside
     them spin for the cores (its least-squares feature fits took ~40x longer)."""
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(1):
-        return _diagnose(ds, cfg, log, progress)
+        return _diagnose(ds, cfg, log, progress, executor or InlineExecutor())
 
 
 def simulate_runs(diag: SystemDiagnosis) -> SimulatedRuns:
@@ -49,12 +51,12 @@ def _presets(ds, system: str) -> list[str | None]:
             for p in (rows["preset"] if "preset" in rows else [None] * len(rows))]
 
 
-def _diagnose(ds, cfg: DiagnoseConfig, log=print, progress=None) -> DiagnoseResult:
+def _diagnose(ds, cfg: DiagnoseConfig, log, progress, executor: Executor) -> DiagnoseResult:
     t0 = time.time()
     targets = build_targets(ds, cfg)
     diags, runs = [], []
     for system, tgs in targets.items():
-        diag = diagnose_system(system, tgs, cfg, log, progress)
+        diag = diagnose_system(system, tgs, cfg, log, progress, executor)
         sim_runs = simulate_runs(diag)
         notes = [SUMMARY_NOTE] if "summary" in diag.report["data"] else []
         notes += [UNREPRODUCIBLE_NOTE.format(run=r, nrms=x) for r, x in diag.report["unreproducible"].items()]

@@ -162,7 +162,7 @@ def test_text_reader_caps_size(tmp_path):
 
 
 def test_local_scheduler_is_capped(tmp_path, capsys):
-    from pipeline.datasets.dask_backend import LOCAL_PER_CORE, local_workers
+    from pipeline.core.dask_client import LOCAL_PER_CORE, local_workers
 
     assert local_workers("local:1") == 1
     cap = LOCAL_PER_CORE * (os.cpu_count() or 1)

@@ -1,0 +1,186 @@
+"""The fits of one system's diagnosis: the base model and every candidate effect on each fold's calibration runs.
+
+Each stage (base fits, candidate starting points, candidate fits, base refit, leader refinement) is one batch of
+independent tasks (folds x models x starts) on an executor (``pipeline.core.executors``): every task is a pure
+function of its inputs (the seeded starts are drawn here, beforehand), and the results are combined in the order
+the tasks were listed, so a cluster gives the numbers a local run gives.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+
+from pipeline.core.executors import Executor
+from pipeline.diagnosis.fit import FitJob, FitResult, StartFit, finish_fit, fit, fit_start
+from pipeline.diagnosis.model import Evaluator, FreeParam, calibratable
+from sim.registry import warm as sim_warm
+
+if TYPE_CHECKING:
+    from pipeline.diagnosis.run import DiagnoseConfig
+
+
+@dataclass(frozen=True)
+class _Counted:
+    """A task: ``fn(evaluator, item)`` on the task's own copy of the evaluator, BLAS on one thread (as in the
+    driver: the same numbers on every executor); returns (result, simulations run)."""
+
+    fn: Callable
+
+    def __call__(self, ev: Evaluator, item):
+        from threadpoolctl import threadpool_limits
+
+        own = ev.for_tasks()
+        sim_warm(own.system)                  # the kernel loaded before the evaluator's threads use it
+        with threadpool_limits(1):
+            out = self.fn(own, item)
+        return out, own.n_sims
+
+
+def _batch(executor: Executor, ev: Evaluator, shared: Evaluator, fn: Callable, items: list) -> list:
+    """``fn`` over ``items`` on the executor; the simulations counted on ``ev``."""
+    if not items:
+        return []
+    done = executor.map(_Counted(fn), shared, items)
+    ev.n_sims += sum(n for _, n in done)
+    return [r for r, _ in done]
+
+
+def _start_task(ev: Evaluator, item: tuple[FitJob, int]) -> StartFit:
+    return fit_start(ev, *item)
+
+
+def _finish_task(ev: Evaluator, item: tuple[FitJob, list[StartFit]]) -> FitResult:
+    return finish_fit(ev, *item)
+
+
+def _fits(executor: Executor, ev: Evaluator, shared: Evaluator, jobs: list[FitJob]) -> list[FitResult]:
+    """Every start of every job as one batch, then every job's best start polished as another."""
+    pairs = [(j, k) for j, job in enumerate(jobs) for k in range(len(job.starts))]
+    ends = _batch(executor, ev, shared, _start_task, [(jobs[j], k) for j, k in pairs])
+    per_job: list[list[StartFit]] = [[] for _ in jobs]
+    for (j, _), end in zip(pairs, ends):
+        per_job[j].append(end)
+    return _batch(executor, ev, shared, _finish_task, list(zip(jobs, per_job)))
+
+
+def random_starts(free: list[FreeParam], defaults: dict, n: int, rng) -> list[dict]:
+    """The defaults and ``n - 1`` points drawn uniformly in log10 within the bounds."""
+    starts = [{p.name: defaults[p.name] for p in free}]
+    for _ in range(n - 1):
+        starts.append({p.name: 10 ** rng.uniform(*p.bounds) for p in free})
+    return starts
+
+
+def candidate_start(ev: Evaluator, idx: list[int], base: dict, eff: tuple[FreeParam, ...], free: list[FreeParam],
+                    cfg: DiagnoseConfig) -> dict:
+    """Starting point of a candidate's fit: a log grid of the effect's parameters (``cfg.grid`` interior points per
+    parameter) at the base parameters ``base`` (one parallel batch of simulations), then, at the best
+    ``cfg.profile_points`` grid points, the base parameters refitted for ``cfg.profile_nfev`` iterations with the
+    effect held there (its profile): a base fit that absorbed the missing effect (the drill's Pr standing in for
+    guide friction) makes the effect look wrong at every grid point until the base parameters move back."""
+    axes = [np.linspace(*p.bounds, cfg.grid + 2)[1:-1] for p in eff]
+    mesh = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(eff), -1).T
+    sets = [{**base, **{p.name: 10 ** v for p, v in zip(eff, row)}} for row in mesh]
+    chi2 = [float(r @ r) for r in ev.residuals(sets, idx)]
+    order = list(np.argsort(chi2))
+    best = sets[order[0]], chi2[order[0]]
+    if cfg.profile_nfev > 0:
+        start = [{p.name: base[p.name] for p in free}]
+        for j in order[:cfg.profile_points]:
+            held = {p.name: sets[j][p.name] for p in eff}
+            fr = fit(ev, idx, free, held, start, cfg.profile_nfev, cfg.diff_step, polish=False)
+            if fr.chi2 < best[1]:
+                best = {**fr.values, **held}, fr.chi2
+    return best[0]
+
+
+def _candidate_start_task(ev: Evaluator, item: tuple) -> dict:
+    return candidate_start(ev, *item)
+
+
+def fit_models(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, cands: dict, rng, executor: Executor,
+               warm: dict[str, FitResult] | None = None) -> list[tuple[dict[str, FitResult], list[str]]]:
+    """Per fold (its calibration runs' indices): the base model and every candidate fitted, and the lines that
+    report them.  ``warm``: start each model from these fits (leave-one-run-out folds start from the all-runs
+    fit; each fold is still refitted on its own runs); without it the base starts are drawn from ``rng``."""
+    import sim
+
+    free = list(calibratable(ev.system))
+    shared = ev.for_tasks(executor.task_threads)
+    nominal = [{**sim.get_model(ev.system).defaults(), **ev.targets[idx[0]].known} for idx in folds]  # rig's known
+    base_jobs = [FitJob(idx, free, {}, [warm["base"].values] if warm else random_starts(free, d, cfg.n_starts, rng),
+                        cfg.max_nfev, cfg.diff_step, coarse=not warm) for idx, d in zip(folds, nominal)]
+    outs = [{"base": b} for b in _fits(executor, ev, shared, base_jobs)]
+    lines = [[f"  base: chi2/n = {o['base'].chi2 / o['base'].n:.4g}"] for o in outs]
+    keys = [(f, eff) for f in range(len(folds)) for eff in cands]
+    if warm:
+        starts = {key: [warm[key[1]].values] for key in keys}
+    else:   # grid of the effect at the calibrated base, and at the default base parameters (the base
+        #     fit may have compensated the missing effect with a base parameter, e.g. pm for mu)
+        items = [(f, eff, (folds[f], b, cands[eff], free, cfg)) for f, eff in keys
+                 for b in [outs[f]["base"].values, {p.name: nominal[f][p.name] for p in free}][:cfg.candidate_starts]]
+        found = _batch(executor, ev, shared, _candidate_start_task, [it for _, _, it in items])
+        starts = {key: [] for key in keys}
+        for (f, eff, _), s in zip(items, found):
+            starts[(f, eff)].append(s)
+    jobs = [FitJob(folds[f], free + list(cands[eff]), {}, starts[(f, eff)], cfg.max_nfev, cfg.diff_step,
+                   coarse=not warm) for f, eff in keys]
+    for (f, eff), fr in zip(keys, _fits(executor, ev, shared, jobs)):
+        outs[f][eff] = fr
+        lines[f].append(f"  {eff}: chi2/n = {fr.chi2 / fr.n:.4g}")
+    _refit_base(executor, ev, shared, folds, cfg, free, outs, lines)
+    _refine_leader(executor, ev, shared, folds, cfg, cands, free, outs, lines)
+    return list(zip(outs, lines))
+
+
+def _refit_base(executor: Executor, ev: Evaluator, shared: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig,
+                free: list[FreeParam], outs: list[dict[str, FitResult]], lines: list[list[str]]) -> None:
+    """Fit the base model once more from the calibratable values of the best candidate fit, when that fit is
+    better than the base's: a candidate starts from more points and may find the base parameters the base's own
+    iterations did not reach; an effect must not be preferred only because the base fit stopped short."""
+    todo = []
+    for f, out in enumerate(outs):
+        best = min((m for m in out if m != "base"), key=lambda m: out[m].chi2, default=None)
+        if best is None or out[best].chi2 >= out["base"].chi2 or cfg.refine_nfev <= 0:
+            continue
+        start = {p.name: out[best].values[p.name] for p in free}
+        todo.append((f, best, FitJob(folds[f], free, {}, [start], cfg.max_nfev + cfg.refine_nfev, cfg.diff_step)))
+    for (f, best, _), more in zip(todo, _fits(executor, ev, shared, [job for _, _, job in todo])):
+        out = outs[f]
+        if more.chi2 < out["base"].chi2:
+            out["base"] = _extended(out["base"], more)
+            lines[f].append(f"  base (again, from {best}'s values): chi2/n = {more.chi2 / more.n:.4g}")
+
+
+def _refine_leader(executor: Executor, ev: Evaluator, shared: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig,
+                   cands: dict, free: list[FreeParam], outs: list[dict[str, FitResult]], lines: list[list[str]]) -> None:
+    """Spend ``cfg.refine_nfev`` more iterations on the leading candidate only, when it beats the base but has
+    not reached the noise level (calibration chi2/n above explained_nrms^2).  A strong effect seen from a base
+    fit that compensated for it (drill shaker_coil: K1 fitted 35 % low) needs ~20 iterations; giving every
+    candidate that many would double the time, and the others are not near the data anyway."""
+    if not cands or cfg.refine_nfev <= 0:
+        return
+    todo = []
+    for f, out in enumerate(outs):
+        lead = min(cands, key=lambda m: out[m].chi2)
+        fr = out[lead]
+        if fr.chi2 >= out["base"].chi2 or fr.chi2 / fr.n <= cfg.explained_nrms ** 2:
+            continue
+        todo.append((f, lead, FitJob(folds[f], free + list(cands[lead]), {}, [fr.values], cfg.refine_nfev,
+                                     cfg.diff_step)))
+    for (f, lead, _), more in zip(todo, _fits(executor, ev, shared, [job for _, _, job in todo])):
+        out = outs[f]
+        if more.chi2 < out[lead].chi2:
+            out[lead] = _extended(out[lead], more)
+        lines[f].append(f"  {lead} (refined): chi2/n = {out[lead].chi2 / out[lead].n:.4g}")
+
+
+def _extended(before: FitResult, more: FitResult) -> FitResult:
+    """``more``, counting the iterations and starts of the fit it continued."""
+    out = copy.copy(more)
+    out.nfev = more.nfev + before.nfev
+    out.starts = before.starts + more.starts
+    return out
