@@ -53,7 +53,7 @@ class HeartbeatGuard:
     def ask(self, study, distributions: dict):
         """A new trial (or a queued retry), with its first heartbeat recorded at once."""
         with warnings.catch_warnings():     # optuna warns that its heartbeat expects Study.optimize: we beat here
-            warnings.simplefilter("ignore")
+            warnings.filterwarnings("ignore", message="Heartbeat of storage is supposed to be used with Study.optimize")
             trial = study.ask(distributions)
         study._storage.record_heartbeat(trial._trial_id)
         return trial
