@@ -11,7 +11,8 @@ flock files next to the database (pipeline.core.integrity.DirLock; the kernel dr
   trials tagged with a dead pid of this host are failed.
 Other storages (an RDB server, a journal file, shared by several machines) get no file locks:
 :func:`guard_for` gives them a heartbeat.HeartbeatGuard (heartbeats, stale trials re-run, surplus withdrawn).
-Both guards offer one interface to study.run_study: lock, fail_stale, ask, settle, beating, fail_orphans, wait.
+Both guards offer one interface to study.run_study: lock, fail_stale, sampler_key, ask, settle, beating,
+fail_orphans, wait.
 """
 from __future__ import annotations
 
@@ -112,6 +113,11 @@ class StudyGuard:
         if self.db is not None:
             trial.set_user_attr(WORKER_ATTR, worker_id())
         return trial
+
+    def sampler_key(self, n_done: int) -> int:
+        """What seeds the sampler of the batch starting at ``n_done``: ``n_done`` alone (the lock orders the
+        workers), so a resumed study proposes what the uninterrupted one did."""
+        return n_done
 
     def settle(self, study, trials: list, n_trials: int) -> list:
         """The trials to evaluate: all of them (they were counted and asked under the lock)."""

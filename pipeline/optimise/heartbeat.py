@@ -14,6 +14,7 @@ The workers may run on several machines, so no file lock spans them.  What keeps
 from __future__ import annotations
 
 import contextlib
+import os
 import random
 import threading
 import time
@@ -34,6 +35,12 @@ class HeartbeatGuard:
 
     def __init__(self, poll_s: float = 1.0) -> None:
         self.poll_s = poll_s        # seconds between two looks at a study whose last trials run elsewhere
+        self.token = int.from_bytes(os.urandom(4), "little")
+
+    def sampler_key(self, n_done: int) -> int:
+        """What seeds the sampler of the batch starting at ``n_done``: distinct per worker, since two workers that
+        count the study at the same moment would otherwise propose the same points (no lock orders them)."""
+        return n_done + (self.token << 32)
 
     def lock(self):
         return contextlib.nullcontext()

@@ -140,7 +140,8 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
     are re-run).  On a shared storage (heartbeat.HeartbeatGuard) stale trials are those whose heartbeat
     stopped, their queued retries are taken first, a worker withdraws the trials it asked beyond
     ``n_trials`` when another asked at the same moment, and it waits for the others' trials until
-    ``n_trials`` are complete.  Batches start at multiples of ``batch_size`` and,
+    ``n_trials`` are complete (each worker seeds its batches apart, so a shared study is not
+    reproducible).  Batches start at multiples of ``batch_size`` and,
     with ``sampler_factory(n_done)`` (a sampler seeded by coordination.batch_seed), each is
     proposed by a sampler that depends only on the seed and the trials before it, so a resumed
     study proposes what the uninterrupted one did.  Every trial records its labels in
@@ -178,7 +179,7 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
                     if k <= 0:
                         break
                     if sampler_factory is not None:
-                        study.sampler = sampler_factory(live)
+                        study.sampler = sampler_factory(guard.sampler_key(live))
                     for _ in range(k):
                         trials.append(guard.ask(study, dists))
                 trials = guard.settle(study, trials, n_trials)
