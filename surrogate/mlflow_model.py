@@ -24,11 +24,17 @@ def log(mlflow, bundle: Bundle, bundle_dir: Path, example: pd.DataFrame, name: s
     model ``name`` whose signature is inferred from ``example`` (input columns) and its prediction."""
     from mlflow.models import infer_signature
 
+    import shutil
+    import tempfile
+
     mlflow.log_artifacts(str(bundle_dir), artifact_path=ARTIFACT_DIR)
     X = example[bundle.inputs].reset_index(drop=True)
     sig = infer_signature(X, bundle.predict(X))
-    mlflow.pyfunc.log_model(name=name, python_model=BundleModel(), artifacts={"bundle": str(bundle_dir)},
-                            signature=sig, input_example=X.head(3), pip_requirements=_requirements())
+    with tempfile.TemporaryDirectory() as tmp:    # the model's files sit under the folder's name: make it stable
+        named = Path(tmp) / ARTIFACT_DIR
+        shutil.copytree(bundle_dir, named)
+        mlflow.pyfunc.log_model(name=name, python_model=BundleModel(), artifacts={"bundle": str(named)},
+                                signature=sig, input_example=X.head(3), pip_requirements=_requirements())
 
 
 def _requirements() -> list[str]:

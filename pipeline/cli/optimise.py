@@ -26,7 +26,9 @@ what it writes under --out:
 
 studies persist in optuna storage (default: sqlite file optuna.db at the project root); rerunning the same
 command resumes the study and only runs the missing trials (--n-trials is the total).  Several workers on
-several machines: give them the same --storage RDB URL and --study-name.
+one machine share the default SQLite file; on several machines give them the same --storage (a PostgreSQL
+URL, or journal:///PATH on a shared file system) and --study-name: together they run exactly --n-trials
+complete trials, and a killed worker's trials are re-run by the others (heartbeat, --heartbeat-s).
 resume is exact only after an interruption between batches (every --batch-size trials): the rerun then holds
 the trials of the uninterrupted study with the same seed.  An interruption inside a batch keeps that batch's
 finished trials and proposes the rest afresh, so the study (and its recommendation) may differ from an
@@ -44,6 +46,7 @@ examples:
   vibro optimise --params params.yaml --metrics metrics/optimise.json
   vibro optimise --surrogate models/surrogate --out results/optimise --fallback-trials 0   # report a failed surrogate, no fallback
   vibro optimise --simulator --storage postgresql://user@host/optuna --study-name rig-a --n-trials 400
+  vibro optimise --simulator --storage journal:///shared/optuna/rig-a.log --study-name rig-a --n-trials 400 --heartbeat-s 30
 """
 
 
@@ -106,7 +109,15 @@ def add_parser(sub) -> None:
                    help="when the surrogate fails its verification (its recommended point, or more than half of the "
                         "verified points, wrong), run this many trials straight on the simulator over the same space "
                         "and recommend from those instead (default 200; 0: off)")
-    p.add_argument("--storage", metavar="URL", help="optuna storage URL (default sqlite:///<project root>/optuna.db)")
+    p.add_argument("--storage", metavar="URL",
+                   help="optuna storage URL (default sqlite:///<project root>/optuna.db: workers of one machine); "
+                        "postgresql://USER@HOST/DB for workers on several machines (or any SQLAlchemy RDB URL); "
+                        "journal:///PATH/study.log for a journal file on a file system every worker mounts, no "
+                        "server (never a SQLite file on NFS); docs/scale.md says which to choose")
+    p.add_argument("--heartbeat-s", type=A.count(1, 3600), metavar="S",
+                   help="server and journal storages: a running trial records a heartbeat every S seconds; one "
+                        "silent for 3*S (a killed or lost worker's) is marked failed and re-run, at most 3 times "
+                        "(default 10)")
     p.add_argument("--study-name", help="study name (default derived from mode, objective, model, preset and settings)")
     p.add_argument("--feedback", metavar="FILE.parquet",
                    help=f"append verified points here (default <project root>/{DEFAULT_FEEDBACK}, beside optuna.db, "
@@ -144,7 +155,7 @@ def _feedback_path(base: dict) -> None:
 # params.yaml 'optimise' numbers: (integer?, low, high); floats must be > low
 OPTIMISE_BOUNDS = {"n_trials": (True, 1, A.MAX_TRIALS), "batch_size": (True, 1, 10_000), "seed": (True, 0, 2**32 - 1),
                    "n_verify": (True, 1, 10_000), "fallback_trials": (True, 0, 100_000),
-                   "n_threads": (True, 1, A.MAX_THREADS), "rel_tol": (False, 0.0, 1e6),
+                   "n_threads": (True, 1, A.MAX_THREADS), "heartbeat_s": (True, 1, 3600), "rel_tol": (False, 0.0, 1e6),
                    "max_peak_force_n": (False, 0.0, None), "peak_force_static_ratio": (False, 0.0, None),
                    "max_specific_energy_j_m": (False, 0.0, None), "max_power_w": (False, 0.0, None),
                    "max_decel_g": (False, 0.0, None)}
@@ -186,7 +197,7 @@ def config_from_args(args):
         base["objectives"] = [s.strip() for s in args.objectives.split(",") if s.strip()]
     for key in ("model", "preset", "objective", "sampler", "n_trials", "batch_size", "seed", "max_peak_force_n",
                 "peak_force_static_ratio", "max_specific_energy_j_m", "max_power_w", "max_decel_g", "n_verify",
-                "rel_tol", "fallback_trials", "storage", "study_name", "feedback", "n_threads"):
+                "rel_tol", "fallback_trials", "storage", "heartbeat_s", "study_name", "feedback", "n_threads"):
         v = getattr(args, key)
         if v is not None:
             base[key] = v
@@ -350,11 +361,13 @@ def run(args) -> int:
 
     from pipeline.core.outdir import check_out_file, record_out_file
     from pipeline.optimise.coordination import sqlite_path
+    from pipeline.optimise.storages import journal_path
     from pipeline.optimise.study import default_storage
 
     cfg = config_from_args(args)
     chain = A.chain_of(args, surrogate_chain(cfg.surrogate) if cfg.mode == "surrogate" else None)
-    db = sqlite_path(cfg.storage or default_storage())
+    url = cfg.storage or default_storage()
+    db = sqlite_path(url) or (journal_path(url) and Path(journal_path(url)))
     reads = [args.params, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None,
              args.rig, db, db and f"{db}.lock", args.out]
     if args.metrics:

@@ -29,7 +29,9 @@ class OptimiseConfig:
     surrogate is called wrong.  fallback_trials: when a surrogate fails its verification (the recommended point,
     or more than half of the verified points, wrong) a study of this many trials straight on the simulator, over
     the same space with the same model, rig and constraints, starting from the points already verified, makes the
-    recommendation instead (0: off).
+    recommendation instead (0: off).  storage: optuna storage URL (None: the SQLite file optuna.db at the project
+    root); heartbeat_s: seconds between heartbeats of a running trial on a server or journal storage (None:
+    storages.DEFAULT_HEARTBEAT_S; a trial silent for 3 heartbeats is failed and re-run).
     """
 
     mode: str = "surrogate"
@@ -54,6 +56,7 @@ class OptimiseConfig:
     rel_tol: float = 0.10
     fallback_trials: int = 200
     storage: str | None = None
+    heartbeat_s: int | None = None
     study_name: str | None = None
     feedback: str | None = None
     n_threads: int | None = None
@@ -81,6 +84,8 @@ class OptimiseConfig:
         for name in ("batch_size", "n_verify"):
             if int(getattr(self, name)) < 1:
                 raise UserError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.heartbeat_s is not None and int(self.heartbeat_s) < 1:
+            raise UserError(f"heartbeat_s must be >= 1 second, got {self.heartbeat_s}")
         if int(self.fallback_trials) < 0:
             raise UserError(f"fallback_trials must be >= 0, got {self.fallback_trials}")
         if self.n_trials is not None and int(self.n_trials) < 1:

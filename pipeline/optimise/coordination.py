@@ -9,8 +9,10 @@ flock files next to the database (pipeline.core.integrity.DirLock; the kernel dr
   exclusively is the only one alive, so every RUNNING trial it finds is stale (a killed or
   interrupted worker's) and is marked FAIL, then re-run.  With other workers alive, only RUNNING
   trials tagged with a dead pid of this host are failed.
-Other storages (an RDB server shared by several machines) get no file locks: the count check is
-then best effort, and stale trials need optuna's heartbeat (RDBStorage(heartbeat_interval=...)).
+Other storages (an RDB server, a journal file, shared by several machines) get no file locks:
+:func:`guard_for` gives them a heartbeat.HeartbeatGuard (heartbeats, stale trials re-run, surplus withdrawn).
+Both guards offer one interface to study.run_study: lock, fail_stale, sampler_key, ask, settle, beating,
+fail_orphans, wait.
 """
 from __future__ import annotations
 
@@ -44,8 +46,21 @@ def batch_seed(seed: int, n_done: int) -> int:
     return int.from_bytes(hashlib.sha256(f"vibro:{seed}:{n_done}".encode()).digest()[:4], "little")
 
 
+def guard_for(url: str | None):
+    """The guard of the workers of storage ``url``: flock files for a SQLite file, heartbeats for the rest."""
+    from pipeline.optimise.storages import is_sqlite
+
+    if url and not is_sqlite(url):
+        from pipeline.optimise.heartbeat import HeartbeatGuard
+
+        return HeartbeatGuard()
+    return StudyGuard.for_url(url)
+
+
 class StudyGuard:
-    """Locks for the workers of one storage (no-ops when ``db`` is None)."""
+    """Locks for the workers of one SQLite storage (no-ops when ``db`` is None: an in-memory study)."""
+
+    waits = False   # a worker stops when the rest of the study runs in other (live) workers
 
     def __init__(self, db: Path | None) -> None:
         self.db = db
@@ -87,6 +102,36 @@ class StudyGuard:
         if self._reg_fd is not None:
             os.close(self._reg_fd)
             self._reg_fd = None
+
+    def fail_stale(self, study) -> None:
+        """Mark FAIL the trials of dead workers (call with :meth:`lock` held)."""
+        fail_stale_trials(study, self)
+
+    def ask(self, study, distributions: dict):
+        """A new trial, tagged with this worker (before the lock is released) when the storage is a file."""
+        trial = study.ask(distributions)
+        if self.db is not None:
+            trial.set_user_attr(WORKER_ATTR, worker_id())
+        return trial
+
+    def sampler_key(self, n_done: int) -> int:
+        """What seeds the sampler of the batch starting at ``n_done``: ``n_done`` alone (the lock orders the
+        workers), so a resumed study proposes what the uninterrupted one did."""
+        return n_done
+
+    def settle(self, study, trials: list, n_trials: int) -> list:
+        """The trials to evaluate: all of them (they were counted and asked under the lock)."""
+        return trials
+
+    def beating(self, study, trials: list):
+        return contextlib.nullcontext()
+
+    def fail_orphans(self, study) -> None:
+        """After an interruption inside ``ask``: fail the trial no list holds (call with :meth:`lock` held)."""
+        fail_orphan_trials(study, tagged=self.db is not None)
+
+    def wait(self) -> None:
+        pass
 
 
 def _pid_dead(tag: str | None) -> bool:

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 from typing import Callable
 
 import numpy as np
@@ -67,51 +66,26 @@ def default_storage() -> str:
     return f"sqlite:///{project_root() / 'optuna.db'}"
 
 
-def open_storage(url: str | None):
-    """Optuna storage for ``url`` (default: :func:`default_storage`).  A SQLite file is opened in WAL
-    mode with synchronous=NORMAL: the same file and semantics, several times fewer fsyncs per trial."""
-    import optuna
-    from sqlalchemy import event
-
-    url = url or default_storage()
-    if not url.startswith("sqlite:"):
-        return url
-    for attempt in range(5):    # another process (not holding the storage lock) may be creating the schema
-        try:
-            storage = optuna.storages.RDBStorage(url, engine_kwargs={"connect_args": {"timeout": 60}})
-            break
-        except Exception as e:  # noqa: BLE001 - bad path / not a database
-            if attempt < 4 and ("already exists" in str(e) or "UNIQUE constraint" in str(e)):
-                time.sleep(0.2 * (attempt + 1))
-                continue
-            raise UserError(f"optuna storage '{url}': {str(e).splitlines()[0]}") from None
-
-    @event.listens_for(storage.engine, "connect")
-    def _pragmas(dbapi_conn, _record):  # noqa: ANN001
-        cur = dbapi_conn.cursor()
-        cur.execute("PRAGMA journal_mode=WAL")
-        cur.execute("PRAGMA synchronous=NORMAL")
-        cur.close()
-
-    storage.engine.dispose()   # reconnect with the pragmas
-    return storage
-
-
-def open_study(storage: str | None, name: str, objectives: list[tuple[str, str]], sampler, signature: dict):
-    """Create or resume study ``name`` with ``objectives`` [(label, direction)]; a resumed study must have
-    the same ``signature`` (mode, model, preset, space, constraints, objectives) or UserError explains the clash."""
+def open_study(storage: str | None, name: str, objectives: list[tuple[str, str]], sampler, signature: dict,
+               heartbeat_s: int | None = None):
+    """Create or resume study ``name`` with ``objectives`` [(label, direction)] in ``storage`` (URL, default
+    :func:`default_storage`; a shared one beats every ``heartbeat_s`` seconds, default storages.DEFAULT_HEARTBEAT_S).
+    A resumed study must have the same ``signature`` (mode, model, preset, space, constraints, objectives) or
+    UserError explains the clash."""
     import optuna
     import sqlalchemy.exc
+
+    from pipeline.optimise.coordination import guard_for
+    from pipeline.optimise.storages import DEFAULT_HEARTBEAT_S, open_storage
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     directions = [d for _, d in objectives]
     objective = ",".join(n for n, _ in objectives)
-    from pipeline.optimise.coordination import StudyGuard
-
+    url = storage or default_storage()
     try:
-        with StudyGuard.for_url(storage or default_storage()).lock():   # concurrent creation of a new store
-            study = optuna.create_study(storage=open_storage(storage), study_name=name, sampler=sampler,
-                                        directions=directions, load_if_exists=True)
+        with guard_for(url).lock():   # concurrent creation of a new SQLite store
+            study = optuna.create_study(storage=open_storage(url, heartbeat_s or DEFAULT_HEARTBEAT_S),
+                                        study_name=name, sampler=sampler, directions=directions, load_if_exists=True)
     except (sqlalchemy.exc.ArgumentError, sqlalchemy.exc.OperationalError, ValueError, ImportError) as e:
         raise UserError(f"optuna storage '{storage}': {e}".splitlines()[0]) from None
     if len(study.directions) != len(directions):
@@ -161,9 +135,13 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
     in another worker) on ``objectives`` [(label, direction)].  Returns the number of trials run now
     (0 when already complete).
 
-    Each batch is counted and asked under ``guard.lock()`` (pipeline.optimise.coordination), after
-    stale trials of dead workers are marked FAIL (they are re-run): several workers on one SQLite
-    study run exactly ``n_trials`` between them.  Batches start at multiples of ``batch_size`` and,
+    ``guard`` (coordination.guard_for) keeps several workers exact.  On a SQLite file each batch is
+    counted and asked under ``guard.lock()``, after stale trials of dead workers are marked FAIL (they
+    are re-run).  On a shared storage (heartbeat.HeartbeatGuard) stale trials are those whose heartbeat
+    stopped, their queued retries are taken first, a worker withdraws the trials it asked beyond
+    ``n_trials`` when another asked at the same moment, and it waits for the others' trials until
+    ``n_trials`` are complete (each worker seeds its batches apart, so a shared study is not
+    reproducible).  Batches start at multiples of ``batch_size`` and,
     with ``sampler_factory(n_done)`` (a sampler seeded by coordination.batch_seed), each is
     proposed by a sampler that depends only on the seed and the trials before it, so a resumed
     study proposes what the uninterrupted one did.  Every trial records its labels in
@@ -173,13 +151,12 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
     import optuna
     from tqdm import tqdm
 
-    from pipeline.optimise.coordination import WORKER_ATTR, StudyGuard, fail_orphan_trials, fail_stale_trials, worker_id
+    from pipeline.optimise.coordination import StudyGuard
 
     guard = guard or StudyGuard(None)
     guard.register()
     TS = optuna.trial.TrialState
     dists = space.distributions()
-    me = worker_id() if guard.db is not None else None
     ran = 0
     bar = tqdm(total=n_trials, initial=n_complete(study), desc=desc, disable=not progress, unit="trial", leave=False)
     try:
@@ -187,24 +164,40 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
             trials = []
             try:
                 with guard.lock():
-                    fail_stale_trials(study, guard)
-                    live = len(study.get_trials(deepcopy=False, states=(TS.COMPLETE, TS.RUNNING, TS.WAITING)))
+                    guard.fail_stale(study)
+                    states = [t.state for t in study.get_trials(deepcopy=False)]
+                    done, waiting = states.count(TS.COMPLETE), states.count(TS.WAITING)
+                    live = done + waiting + states.count(TS.RUNNING)
                     k = min(batch_size - live % batch_size, n_trials - live)
+                    if k <= 0 and guard.waits:
+                        if done >= n_trials:
+                            break
+                        k = min(waiting, batch_size)     # queued retries; else the rest runs elsewhere
+                        if k == 0:
+                            guard.wait()
+                            continue
                     if k <= 0:
                         break
                     if sampler_factory is not None:
-                        study.sampler = sampler_factory(live)
+                        study.sampler = sampler_factory(guard.sampler_key(live))
                     for _ in range(k):
-                        trials.append(study.ask(dists))
-                        if me:
-                            trials[-1].set_user_attr(WORKER_ATTR, me)
+                        trials.append(guard.ask(study, dists))
+                trials = guard.settle(study, trials, n_trials)
+                if not trials:
+                    continue
                 X = pd.DataFrame([t.params for t in trials], columns=space.names)
-                out = evaluate(X)
+                with guard.beating(study, trials):
+                    out = evaluate(X)
                 for t, row in zip(trials, out.to_dict("records")):
-                    t.set_user_attr("labels", {k: _clean(row[k]) for k in ATTR_KEYS if k in row})
-                    for key, val in constraints.values(row).items():
-                        t.set_constraint(key, val)
-                    study.tell(t, _objective_values(row, objectives))
+                    try:
+                        t.set_user_attr("labels", {k: _clean(row[k]) for k in ATTR_KEYS if k in row})
+                        for key, val in constraints.values(row).items():
+                            t.set_constraint(key, val)
+                        study.tell(t, _objective_values(row, objectives))
+                    except optuna.exceptions.UpdateFinishedTrialError:
+                        continue        # failed as stale meanwhile (a stalled worker): its retry runs instead
+                    ran += 1
+                    bar.update(1)
             except BaseException:
                 for t in trials:
                     try:
@@ -212,10 +205,8 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
                     except Exception:  # noqa: BLE001 - already told
                         pass
                 with guard.lock():      # an interrupt inside study.ask leaves a trial no list holds
-                    fail_orphan_trials(study, tagged=me is not None)
+                    guard.fail_orphans(study)
                 raise
-            ran += k
-            bar.update(k)
     finally:
         bar.close()
         guard.close()
@@ -242,6 +233,12 @@ def run_study_buffered(study, sampler, evaluate, space: Space, constraints: Cons
     from pipeline.optimise.coordination import StudyGuard
 
     guard = guard or StudyGuard(None)
+    if guard.waits:     # a shared storage: no lock spans the workers, so every trial is stored as it runs
+        ran = run_study(study, evaluate, space, constraints, objectives, n_trials, batch_size, progress, desc,
+                        sampler_factory=sampler_factory, guard=guard)
+        final = optuna.create_study(directions=study.directions, sampler=sampler)
+        final.add_trials(study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.COMPLETE,)))
+        return final, ran
     complete = (optuna.trial.TrialState.COMPLETE,)
 
     def stored():

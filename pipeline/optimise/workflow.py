@@ -19,7 +19,7 @@ import pandas as pd
 
 from pipeline.optimise.config import DEFAULT_TRIALS, MODES, OptimiseConfig
 from pipeline.optimise.constraints import UPPER_LIMITS, Constraints, progress_force_floor
-from pipeline.optimise.coordination import StudyGuard, batch_seed
+from pipeline.optimise.coordination import batch_seed, guard_for
 from pipeline.optimise.space import Space, describe_bounds
 from pipeline.optimise.strategies import Problem, Strategies
 from pipeline.optimise.study import default_storage, open_study, pareto_mask, pick_candidates, trials_frame
@@ -181,7 +181,7 @@ def plan_optimise(cfg: OptimiseConfig, strategies: Strategies) -> OptimisePlan:
     digest = hashlib.sha256(json.dumps(sig, sort_keys=True, default=str).encode()).hexdigest()[:10]
     name = cfg.study_name or f"{cfg.mode}-{cfg.objective}-{p.model}-{p.preset}-{digest}"
     sampler = strategies.sampler(cfg.seed, len(objectives), _n_startup(cfg.total_trials))
-    study = open_study(cfg.storage, name, objectives, sampler, sig)
+    study = open_study(cfg.storage, name, objectives, sampler, sig, heartbeat_s=cfg.heartbeat_s)
     return OptimisePlan(cfg, strategies, cons, objectives, name, sig, study, sampler)
 
 
@@ -191,7 +191,7 @@ def run_optimise(plan: OptimisePlan, progress: bool = True) -> OptimiseResult:
     space = s.problem.space
     study, ran = s.executor(plan.study, plan.sampler, s.evaluator, space, cons, objectives, cfg.total_trials,
                             cfg.batch_size, progress=progress, desc=f"optimise {cfg.mode}",
-                            sampler_factory=plan.sampler_for, guard=StudyGuard.for_url(cfg.storage or default_storage()))
+                            sampler_factory=plan.sampler_for, guard=guard_for(cfg.storage or default_storage()))
     study_sim_calls = s.simulator.calls
     trials = trials_frame(study, space)
     created = datetime.now(timezone.utc).isoformat(timespec="seconds")
