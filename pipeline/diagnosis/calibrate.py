@@ -184,3 +184,23 @@ def _extended(before: FitResult, more: FitResult) -> FitResult:
     out.nfev = more.nfev + before.nfev
     out.starts = before.starts + more.starts
     return out
+
+
+def fit_additions(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, first: str, cands: dict,
+                  first_fits: list[FitResult], executor: Executor) -> list[dict[str, FitResult]]:
+    """Per fold: the effect ``first`` plus each other candidate, fitted together (greedy forward selection).  Each
+    pair starts from the fold's fit with ``first`` (``first_fits``) and a grid of the added effect's parameters
+    there (``candidate_start``, the calibratable and ``first``'s parameters refitted at the best grid points).
+    Keys ``"first+other"``."""
+    free = list(calibratable(ev.system)) + list(cands[first])
+    shared = ev.for_tasks(executor.task_threads)
+    adds = [e for e in cands if e != first]
+    keys = [(f, e) for f in range(len(folds)) for e in adds]
+    found = _batch(executor, ev, shared, _candidate_start_task,
+                   [(folds[f], first_fits[f].values, cands[e], free, cfg) for f, e in keys])
+    jobs = [FitJob(folds[f], free + list(cands[e]), {}, [s], cfg.max_nfev + cfg.refine_nfev, cfg.diff_step)
+            for (f, e), s in zip(keys, found)]
+    outs: list[dict[str, FitResult]] = [{} for _ in folds]
+    for (f, e), fr in zip(keys, _fits(executor, ev, shared, jobs)):
+        outs[f][f"{first}+{e}"] = fr
+    return outs

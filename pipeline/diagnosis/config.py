@@ -9,7 +9,7 @@ from pipeline.core.errors import UserError
 INT_BOUNDS: dict[str, tuple[int, int | None]] = {
     "holdout_every": (1, 1000), "min_runs_holdout": (1, 100_000), "n_starts": (1, 100), "grid": (1, 100),
     "profile_points": (1, 100), "profile_nfev": (0, 1000), "candidate_starts": (1, 2), "max_nfev": (1, 10_000),
-    "seed": (0, 2**32 - 1), "n_threads": (1, None), "record_window": (0, 10_000)}
+    "seed": (0, 2**32 - 1), "n_threads": (1, None), "record_window": (0, 10_000), "max_effects": (1, 2)}
 """Integer settings: (low, high); the highs bound the work (fits x starts x iterations).  The command caps
 ``n_threads`` too."""
 

@@ -248,7 +248,9 @@ def markdown(report: dict, per_system: list[dict], seconds: float) -> str:
                    "selected": f"**{rep['selected']}** selected",
                    "unexplained": "**unexplained** (no §6 effect brings the model to the data)"}[rep["verdict"]]
         lines += [f"Verdict: {verdict}.", "", f"How close the call was: {rep['call']['text']}.", ""]
-        shown = [m for m in (rep["leader"], rep["runner_up"]) if m]
+        second = rep.get("second_effect")
+        lead1 = second["first"] if second else rep["leader"]      # the single-effect step's leader
+        shown = [m for m in (lead1, rep["runner_up"]) if m]
         by = {c["effect"]: c for c in rep["candidates"]}
         lines += ["| model | held-out error (noise floor) | held-out nrms | systematic error | ΔBIC vs base | "
                   "held-out Δχ² vs base | adequate | improves |", "|---|---|---|---|---|---|---|---|",
@@ -256,11 +258,23 @@ def markdown(report: dict, per_system: list[dict], seconds: float) -> str:
                   f"{_fmt(rep['base_systematic'])} | 0 | 0 | {'yes' if rep['call']['base']['adequate'] else 'no'} | — |"]
         for m in shown:
             c = by[m]
-            role = "selected" if m == rep["selected"] else ("leader" if m == rep["leader"] else "runner-up")
+            role = "selected" if m == rep["selected"] else ("leader" if m == lead1 else "runner-up")
             lines.append(f"| {m} ({role}) | {_fmt(c['error'])} ({_fmt(rep['noise_floor'])}) | {_fmt(c['nrms'])} | "
                          f"{_fmt(c['systematic'])} | {_fmt(-c['delta_score'])} | {_fmt(c['delta_chi2_heldout'])} | "
                          f"{'yes' if c['adequate'] else 'no'} | {'yes' if c['improves'] else 'no'} |")
         lines.append("")
+        if second:
+            lines += [f"Second effect, each added to {second['first']} and judged against {second['first']} alone: "
+                      f"{second['text']}.", "",
+                      "| model | held-out nrms | systematic error | ΔBIC | held-out Δχ² | adequate | improves |",
+                      "|---|---|---|---|---|---|---|"]
+            lines += [f"| {c['name']} | {_fmt(c['nrms'])} | {_fmt(c['systematic'])} | {_fmt(c['delta_bic'])} | "
+                      f"{_fmt(c['delta_chi2'])} | {'yes' if c['adequate'] else 'no'} | {'yes' if c['improves'] else 'no'} |"
+                      for c in second["candidates"][:3]]
+            lines.append("")
+        if rep.get("indistinguishable"):
+            lines += [f"Indistinguishable on these data from {rep['leader'] if not second else second['first']} "
+                      f"(BIC within the margin): {', '.join(rep['indistinguishable'])}.", ""]
         if rep.get("absorbed"):
             lines += ["Parameters the base fit moved to absorb the missing physics (base fit against the fit with "
                       f"{rep['leader']}): " + ", ".join(f"{n} {a['base']:.4g} vs {a['with']:.4g} ({100 * a['change']:+.0f} %)"

@@ -58,11 +58,11 @@ def corrected_rig(diag: SystemDiagnosis, presets: list[str | None], dataset: str
         if v is not None and not math.isclose(float(v), float(base[name]), rel_tol=1e-12, abs_tol=0.0):
             params[name] = float(v)
     fr = diag.fits[diag.final]
-    effect_params = {p for ps in spec.effects.values() for p in ps}
+    effect_of = {p: eff for eff, ps in spec.effects.items() for p in ps}
     effects: dict[str, dict[str, float]] = {}
     for name in fr.free:
-        if name in effect_params:
-            effects.setdefault(rep["selected"], {})[name] = float(fr.values[name])
+        if name in effect_of:
+            effects.setdefault(effect_of[name], {})[name] = float(fr.values[name])
         else:
             params[name] = float(fr.values[name])
     uncertainty = {n: float(fr.sd[n]) for n in fr.free}

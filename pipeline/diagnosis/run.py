@@ -21,10 +21,11 @@ import numpy as np
 from pipeline.diagnosis.config import check_config
 from pipeline.diagnosis.features import CONTROL_NAMES, Target, series_target, simulated_features, summary_target
 from pipeline.core.executors import Executor, InlineExecutor
-from pipeline.diagnosis.calibrate import fit_models
+from pipeline.diagnosis.calibrate import fit_additions, fit_models
 from pipeline.diagnosis.fit import FitResult
 from pipeline.diagnosis.result import SystemDiagnosis
-from pipeline.diagnosis.verdict import UNEXPLAINED, ModelStats, Verdict, VerdictRule, closeness, decide
+from pipeline.diagnosis.verdict import (SELECTED, UNEXPLAINED, ModelStats, Verdict, VerdictRule, closeness, decide,
+                                        indistinguishable)
 from pipeline.diagnosis.model import (Evaluator, calibratable, candidates, default_fit_settings,
                                       default_max_harmonic_hz, supported_systems)
 from pipeline.core.errors import UserError
@@ -52,6 +53,7 @@ class DiagnoseConfig:
     explained_nrms: float = 2.0         # adequate: held-out nrms at or below this ("at the noise level") ...
     systematic_tol: float = 0.005       # ... or held-out systematic error (split-half) at or below this
     nrms_ratio: float = 0.5             # a candidate that cuts the base's held-out nrms to this fraction is material
+    max_effects: int = 1                # 2: when the leading effect improves but is not adequate, try it with each other
     model_floor: float = 1e-3           # feature sd floor: this x the signal's RMS harmonic amplitude (model error)
     summary_floor: float = 0.01         # summary feature sd floor: this x the value
     effects: list[str] | None = None    # restrict the candidates (default: every §6 effect of the system)
@@ -215,6 +217,61 @@ def unreproducible_runs(ev: Evaluator, cfg: DiagnoseConfig) -> dict[str, float]:
     return out
 
 
+def _second_effect(ev: Evaluator, cfg: DiagnoseConfig, scheme: str, folds: list, first: str, cands: dict,
+                   fits_per_fold: list[dict], warm: dict | None, first_stats: ModelStats, executor: Executor,
+                   log) -> tuple[dict, dict, dict, Verdict]:
+    """Greedy forward selection's second step: ``first`` with each other candidate, fitted on every fold's
+    calibration runs and judged on its held-out runs against ``first`` alone by the same rule.  Returns the reported
+    fits, the held-out errors and statistics of every pair, and the verdict with ``first`` as the base."""
+    warm_pairs = None
+    if scheme != "holdout":
+        [warm_pairs] = fit_additions(ev, [list(range(len(ev.targets)))], cfg, first, cands, [warm[first]], executor)
+    fold_pairs = fit_additions(ev, [cal for cal, _ in folds], cfg, first, cands, [f[first] for f in fits_per_fold],
+                               executor)
+    names = list(fold_pairs[0])
+    res = {m: [] for m in names}
+    halves = {m: [] for m in names}
+    idx: list[int] = []
+    bic = {m: 0.0 for m in names}
+    for (_, test), fits in zip(folds, fold_pairs):
+        for m, (r, h) in zip(names, ev.held_out([fits[m].values for m in names], test)):
+            res[m] += r
+            halves[m] += h
+        idx += test
+        for m in names:
+            bic[m] += fits[m].bic()
+    err = {m: {**_errors(ev, idx, res[m]), "systematic": systematic_error(ev, idx, halves[m])} for m in names}
+    stats = {m: ModelStats(m, bic[m], err[m]["chi2"], err[m]["n"], err[m]["systematic"]) for m in names}
+    for m in names:
+        log(f"  {m}: held-out nrms {err[m]['nrms']:.4g}")
+    v2 = decide(first_stats, [stats[m] for m in names], cfg.rule())
+    return (fold_pairs[0] if scheme == "holdout" else warm_pairs), err, stats, v2
+
+
+def _second_report(first: str, fits: dict, stats: dict, v2: Verdict, rule: VerdictRule,
+                   cal_names: list[str]) -> dict:
+    """report.json ``second_effect``: every pair tried against ``first`` alone, the call, and the pairs the data
+    cannot tell apart."""
+    rows = [{"name": m, "effects": m.split("+"),
+             "params": {p: fits[m].values[p] for p in fits[m].free if p not in cal_names},
+             "param_sd": {p: fits[m].sd[p] for p in fits[m].free if p not in cal_names},
+             **{k: v2.checks[m][k] for k in ("nrms", "systematic", "delta_bic", "delta_chi2", "improves", "adequate")}}
+            for m in sorted(stats, key=lambda m: stats[m].bic)]
+    lead = v2.leader
+    if lead is None:
+        text = (f"no second effect improves on {first} alone (best: {rows[0]['name']}, held-out nrms "
+                f"{rows[0]['nrms']:.3g} against {v2.checks[first]['nrms']:.3g})" if rows else "no other effect to add")
+    else:
+        c = v2.checks[lead]
+        text = (f"{lead}: held-out nrms {v2.checks[first]['nrms']:.3g} → {c['nrms']:.3g}, ΔBIC {c['delta_bic']:.3g} and "
+                f"held-out Δχ² {c['delta_chi2']:.3g} against {first} alone; "
+                + ("adequate: both effects selected" if c["adequate"] else f"still above the noise (limit {rule.explained_nrms:g})"))
+    same = indistinguishable(v2, stats, rule)
+    if same:
+        text += f"; indistinguishable on these data from {', '.join(same)} (ΔBIC < {rule.bic_margin:g})"
+    return {"first": first, "candidates": rows, "leader": lead, "indistinguishable": same, "text": text}
+
+
 def _param_report(fr: FitResult) -> dict:
     return {n: {"value": fr.values[n], "sd": fr.sd[n], "ci95": list(fr.ci95[n])} for n in fr.free}
 
@@ -275,9 +332,23 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
     # reported parameters: the single split's calibration fit, or a fit on all runs (leave-one-out)
     final_fits = fits_per_fold[0] if scheme == "holdout" else warm
     stats = {m: ModelStats(m, bic[m], err[m]["chi2"], err[m]["n"], err[m]["systematic"]) for m in names}
-    v = decide(stats["base"], [stats[m] for m in cands], cfg.rule())
-    final = v.selected or "base"
+    v = first = decide(stats["base"], [stats[m] for m in cands], cfg.rule())
     cal_names = [q.name for q in calibratable(system)]
+    second = None
+    if cfg.max_effects >= 2 and v.kind == UNEXPLAINED and v.leader is not None and len(cands) > 1:
+        log(f"{system}: {v.leader} improves on the base but leaves the residual above the noise: adding a second effect")
+        pair_fits, pair_err, pair_stats, v2 = _second_effect(ev, cfg, scheme, folds, v.leader, cands, fits_per_fold,
+                                                             warm, stats[v.leader], executor, log)
+        second = _second_report(v.leader, pair_fits, pair_stats, v2, cfg.rule(), cal_names)
+        final_fits = {**final_fits, **pair_fits}
+        err.update(pair_err)
+        if v2.leader is not None:
+            kind = SELECTED if v2.checks[v2.leader]["adequate"] else UNEXPLAINED
+            v = replace(v, kind=kind, selected=v2.leader if kind == SELECTED else None, leader=v2.leader)
+    final = v.selected or "base"
+    call = closeness(first, stats, cfg.rule())
+    if second is not None:
+        call["text"] = f"one effect: {call['text']}; two effects: {second['text']}"
     cand_list = [{"effect": m, "params": {p: final_fits[m].values[p] for p in final_fits[m].free if p not in cal_names},
                   "param_sd": {p: final_fits[m].sd[p] for p in final_fits[m].free},
                   "calibrated": final_fits[m].values,
@@ -308,13 +379,16 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
         "base_score": bic["base"],
         "candidates": cand_list,
         "selected": v.selected,
+        "selected_effects": v.selected.split("+") if v.selected else [],
         "leader": v.leader,
         "runner_up": v.runner_up,
         "selected_params": _param_report(final_fits[v.selected]) if v.selected else None,
         "explained": v.explained,
         "best_partial_candidate": v.leader if v.kind == UNEXPLAINED else None,
         "absorbed": absorbed_parameters(final_fits, v, cal_names),
-        "call": closeness(v, stats, cfg.rule()),
+        "call": call,
+        "indistinguishable": indistinguishable(first, stats, cfg.rule()),
+        "second_effect": second,
         "n_simulations": ev.n_sims,
     }
     return SystemDiagnosis(report=report, evaluator=ev, fits=final_fits, held_out=test_idx, final=final)

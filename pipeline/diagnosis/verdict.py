@@ -119,6 +119,16 @@ def decide(base: ModelStats, candidates: list[ModelStats], rule: VerdictRule) ->
     return Verdict(kind, None, None, runner, checks)
 
 
+def indistinguishable(v: Verdict, stats: dict[str, ModelStats], rule: VerdictRule) -> list[str]:
+    """Improving candidates whose BIC is within ``bic_margin`` of the leader's: the data at hand cannot tell them
+    from the leader (empty when nothing leads)."""
+    if v.leader is None:
+        return []
+    lead = stats[v.leader].bic
+    return [m for m, c in v.checks.items()
+            if m != v.leader and c.get("improves") and stats[m].bic - lead < rule.bic_margin]
+
+
 def _ratio(x: float | None, limit: float) -> str:
     return "n/a" if x is None else f"{x:.3g} ({x / limit:.2g}× the limit {limit:g})"
 

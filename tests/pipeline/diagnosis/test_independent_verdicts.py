@@ -78,3 +78,22 @@ def _slow_cases() -> list[LogSpec]:
 def test_verdict_subset_of_the_matrix(tmp_path, spec):
     rep, truth = _diagnose(tmp_path, spec)
     _check(rep, truth, spec)
+
+
+def test_two_effects_at_once_are_both_found(tmp_path):
+    """Shaker coil and guide friction together on the independent drill rig: the coil alone improves on the base but
+    leaves the held-out residual far above the noise (nrms ~14); with ``max_effects: 2`` the greedy second step
+    adds guide friction, the pair is selected, both effects' parameters come out near the truth and the rig file
+    carries both."""
+    import yaml
+
+    spec = LogSpec("drill", effect="shaker_coil", overrides={"mu": 50.0}, noise="rig", seed=0, n_runs=8)
+    rep, truth = _diagnose(tmp_path, spec, "--set", "max_effects=2", "--effects", "shaker_coil", "guide_friction")
+    assert rep["call"]["text"].startswith("one effect: unexplained"), rep["call"]["text"]
+    assert rep["verdict"] == "selected" and rep["selected_effects"] == ["shaker_coil", "guide_friction"]
+    pair = rep["second_effect"]["candidates"][0]
+    assert pair["name"] == rep["selected"] and pair["adequate"] and pair["improves"]
+    for k in ("tau", "beta", "mu"):
+        assert pair["params"][k] == pytest.approx(truth["truth"][k], rel=0.1), (k, pair["params"][k])
+    rig = yaml.safe_load((tmp_path / (spec.name + "-diag") / "rig.yaml").read_text())
+    assert set(rig["effects"]) == {"shaker_coil", "guide_friction"} and set(rig["effects"]["guide_friction"]) == {"mu"}
