@@ -46,6 +46,18 @@ def write_block(path: Path, start: str, end: str, text: str) -> None:
         raise SystemExit(f"{path}: no {start} ... {end} markers")
 
 
+def publish(result: dict, out: Path, text: str, doc: Path | None, markers: tuple[str, str]) -> None:
+    """Write ``result`` to the JSON file ``out``, print ``text`` and, unless ``doc`` is None, write it between the
+    ``markers`` of ``doc``: the end of a benchmark whose table a page quotes."""
+    from pipeline.core.files import atomic_write_json
+
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(Path(out), result)
+    print(text)
+    if doc is not None:
+        write_block(doc, *markers, text)
+
+
 def drill_values(params: dict) -> dict:
     """The drill parameters a peer needs, as floats (``params`` = a complete resolved dict)."""
     on = [k for k in EFFECT_PARAMS if float(params.get(k, 0.0)) != 0.0]

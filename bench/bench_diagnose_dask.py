@@ -148,9 +148,8 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--out", default=str(RESULTS / "diagnose_dask.json"), help="result JSON")
     ap.add_argument("--no-doc", action="store_true", help="do not write the table into docs/scale.md")
     a = ap.parse_args(argv)
-    from bench import write_block
+    from bench import publish
     from pipeline.cli import main as vibro
-    from pipeline.core.files import atomic_write_json
     from pipeline.datasets.measured import load_dataset
     from pipeline.datasets.store import package_versions
     from pipeline.diagnosis.run import DiagnoseConfig
@@ -189,12 +188,7 @@ def main(argv: list[str] | None = None) -> dict:
         "versions": package_versions(("dask", "distributed")),
         "created": time.strftime("%Y-%m-%d"),
     }
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(Path(a.out), out)
-    text = table(out)
-    print(text)
-    if not a.no_doc:
-        write_block(DOC, *MARKERS, text)
+    publish(out, Path(a.out), table(out), None if a.no_doc else DOC, MARKERS)
     return out
 
 

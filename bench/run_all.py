@@ -23,7 +23,9 @@ ARGS = {"bench_optimise": ["--budget", "300", "--grid", "16", "12", "12", "--ini
 QUICK_ARGS = {"bench_optimise": ["--budget", "80", "--grid", "4", "4", "4", "--initial", "60", "--rounds", "1",
                                  "--results", str(BENCH_DIR / "results" / "quick")],
               "bench_sweep": ["--points", "32", "--peer-points", "2",
-                              "--out", str(BENCH_DIR / "results" / "quick" / "sweep.json")]}   # never the full results
+                              "--out", str(BENCH_DIR / "results" / "quick" / "sweep.json")],   # never the full results
+              "bench_sweep_dask": ["--points", "256", "--repeat", "1", "--no-doc",
+                                   "--out", str(BENCH_DIR / "results" / "quick" / "sweep_dask.json")]}
 
 
 def modules() -> list[str]:
