@@ -19,7 +19,7 @@ from pipeline.diagnosis.model import Evaluator, FreeParam, calibratable
 from sim.registry import warm as sim_warm
 
 if TYPE_CHECKING:
-    from pipeline.diagnosis.run import DiagnoseConfig
+    from pipeline.diagnosis.config import DiagnoseConfig
 
 
 @dataclass(frozen=True)

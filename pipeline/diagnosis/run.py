@@ -14,11 +14,10 @@ and whose held-out nrms is <= ``explained_nrms``; if the calibrated base model i
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from pipeline.diagnosis.config import check_config
+from pipeline.diagnosis.config import DiagnoseConfig  # noqa: F401  (re-exported: the commands import it from here)
 from pipeline.diagnosis.features import CONTROL_NAMES, Target, series_target, simulated_features, summary_target
 from pipeline.core.executors import Executor, InlineExecutor
 from pipeline.diagnosis.calibrate import fit_additions, fit_models
@@ -29,49 +28,6 @@ from pipeline.diagnosis.verdict import (SELECTED, UNEXPLAINED, ModelStats, Verdi
 from pipeline.diagnosis.model import (Evaluator, calibratable, candidates, default_fit_settings,
                                       default_max_harmonic_hz, supported_systems)
 from pipeline.core.errors import UserError
-
-
-@dataclass
-class DiagnoseConfig:
-    """Settings of ``vibro diagnose`` (params.yaml section ``diagnose``; README.md)."""
-
-    max_harmonic_hz: float | None = None  # harmonics of f up to this frequency are features (None: per system,
-    #                                       model.default_max_harmonic_hz: indenter 1000, drill 3000, pendulum 100, rimd 200)
-    holdout_every: int = 4              # single split: every n-th run (sorted by static force, f) is held out
-    min_runs_holdout: int = 8           # fewer runs of a system -> leave-one-run-out cross-validation
-    n_starts: int = 2                   # base-model starts: defaults + (n_starts - 1) seeded random points
-    grid: int = 4                       # candidate start search: grid points per effect parameter
-    profile_points: int = 2             # ... at the best of which the base parameters are refitted (profile)
-    profile_nfev: int = 3               # ... for this many iterations (0: no profile, the grid's best point)
-    candidate_starts: int | None = None  # candidate starts: effect grid at the calibrated base (1), also at the
-    #                                      defaults (2); None: per system (model.default_fit_settings)
-    max_nfev: int | None = None         # least_squares iterations per start; None: per system
-    diff_step: float = 0.01             # forward-difference step in log10 of a parameter (2.3 %; polished at 0.46 %)
-    refine_nfev: int = 15               # more iterations for the leading candidate if not yet at the noise level (0: off)
-    bic_margin: float = 10.0            # a candidate must beat the base BIC by this much on the calibration runs
-    test_margin: float = 25.0           # ... and the base's held-out chi2 by this much (5 sd of a 1-parameter gain)
-    explained_nrms: float = 2.0         # adequate: held-out nrms at or below this ("at the noise level") ...
-    systematic_tol: float = 0.005       # ... or held-out systematic error (split-half) at or below this
-    nrms_ratio: float = 0.5             # a candidate that cuts the base's held-out nrms to this fraction is material
-    max_effects: int = 1                # 2: when the leading effect improves but is not adequate, try it with each other
-    model_floor: float = 1e-3           # feature sd floor: this x the signal's RMS harmonic amplitude (model error)
-    summary_floor: float = 0.01         # summary feature sd floor: this x the value
-    effects: list[str] | None = None    # restrict the candidates (default: every §6 effect of the system)
-    fs_sim_hz: float = 20000.0          # model sample rate for summary runs (series runs use the data's rate)
-    # rtol 1e-7 = the simulator's default (and vibro synth's): at 1e-6 the drill's guide friction (a regularised
-    # sign(v) switch) drifted from the truth by nrms 1.3 on 3 runs, 7.3 on 16; the cost is the same
-    sim_settings: dict = field(default_factory=lambda: {"rtol": 1e-7, "window": 2, "max_step_frac": 0.05})
-    record_window: int = 64             # a steady-state series is compared over its first this many cycles
-    summary_sd: dict = field(default_factory=dict)   # e.g. {"peak_decel_g": ["rel", 0.05]}
-    seed: int = 0
-    n_threads: int | None = None
-
-    def __post_init__(self) -> None:
-        check_config(self)
-
-    def rule(self) -> VerdictRule:
-        """The verdict's thresholds (pipeline.diagnosis.verdict)."""
-        return VerdictRule(self.explained_nrms, self.systematic_tol, self.bic_margin, self.test_margin, self.nrms_ratio)
 
 
 def build_targets(ds, cfg: DiagnoseConfig) -> dict[str, list[Target]]:
