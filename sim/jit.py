@@ -18,6 +18,8 @@ import threading
 import types
 from typing import Any, Callable
 
+from sim.cachedir import jit_cache_dir
+
 _LOCK = threading.Lock()
 _DISPATCHER_API = frozenset({"compile", "signatures", "nopython_signatures", "overloads", "get_overload", "stats",
                              "inspect_types", "inspect_llvm", "inspect_asm", "inspect_cfg", "recompile",
@@ -44,8 +46,11 @@ class LazyDispatcher:
         if self._dispatcher is None:
             with _LOCK:
                 if self._dispatcher is None:
+                    import numba
                     from numba import njit as _njit
 
+                    if self.options.get("cache"):    # keyed by every sim source (sim/cachedir.py)
+                        numba.config.CACHE_DIR = str(jit_cache_dir())
                     self._dispatcher = _njit(**self.options)(self.py_func)
         return self._dispatcher
 
