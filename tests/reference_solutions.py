@@ -65,6 +65,28 @@ model does not have is an error)
   300 Hz, x35 at 3 kHz); method="LSODA" (stiff switching) then runs the 3 kHz case 8x faster than DOP853
   with labels within 2e-9 of it.
 
+Discrepancy terms (the simulator's vocabulary for physics the library lacks: ``DISCREPANCY_PARAMS``, applicable
+per model in ``DISCREPANCY``; each a parameter named as the term, >= 0, off at 0 = exactly the base model; a
+non-zero term that does not apply is an error)
+-----------------------------------------------------------------------------------------------------------
+* contact terms, added INSIDE the model's contact force expression, so also in its release / threshold
+  indicators: ``contact_quadratic`` cq [N/m^2] += cq max(d, 0)^2, ``contact_cubic`` cc [N/m^3] += cc max(d, 0)^3,
+  ``contact_rate_product`` cp [N s/m^2] += cp max(d, 0) d'.
+  - drill: P = K1 (1 + alpha max(x1', 0)) (x1 - xb) + C1 x1' + extras, d = x1 - xb, d' = x1': the phase-II force,
+    the II -> I (P = 0) and II <-> III (P = Pr) surfaces, classify (and its dP/dt), the phase-III slider law
+    xb' = (P - Pr) / C1.  The phase-I plate relaxation xt' = -(K1/C1)(xt - xb) and the onset x1 = xt are the
+    base model's.
+  - indenter-metal: k1 (1 + alpha ..) (x1 - G) + c1 x1' + extras, d = x1 - G (its force indicator too).
+  - pendulum: ki (1 + alpha ..) d + ci d' + extras, d = l sin(th) - gap, d' = l th' cos(th) (force indicator too).
+  - rimd: Fi = max(0, HC + extras) in contact, HC the Hunt-Crossley expression, d = x2 - gap, d' = x2'; the
+    contact indicators stay d >= 0 and 1 + lambda_i x2' > 0 (so Fi may be 0 inside contact when cp x2' < 0).
+  - indenter-sandstone: none (a non-zero contact term is an error).
+* tool terms, a force on the impacting mass: ``tool_viscous`` cv [N s/m] -cv v, ``tool_quadratic_drag`` cd
+  [N s^2/m^2] -cd v |v|: drill M1 (v = x1'), indenter m1 (v = x1', both samples), rimd hammer m2 (v = x2');
+  pendulum: tangential on the hammer, v = l th' (relative to the cart): th'' += -(cv th' + cd l th' |th'|) / m.
+  They enter the impacting mass's acceleration everywhere (rhs, classify's free-flow rates, the recorded and
+  filtered acceleration); the excitation work W is unchanged (it is the drive's work).
+
 Tolerances
 ----------
 ``atol_i = rtol * atol_scale * s_i`` with ``s_i`` = 1 for a position in metres (so positions are "atol_scale
@@ -129,6 +151,19 @@ EFFECTS = {
 }
 
 
+# discrepancy terms (the simulator's fixed vocabulary for physics the library lacks): each a parameter named as the
+# term, >= 0, off at 0 (then the model is exactly the base model); the models each applies to
+DISCREPANCY_PARAMS = ("contact_quadratic", "contact_cubic", "contact_rate_product", "tool_viscous",
+                      "tool_quadratic_drag")
+DISCREPANCY = {
+    "drill": DISCREPANCY_PARAMS,
+    "indenter-metal": DISCREPANCY_PARAMS,
+    "indenter-sandstone": ("tool_viscous", "tool_quadratic_drag"),
+    "pendulum": DISCREPANCY_PARAMS,
+    "rimd": DISCREPANCY_PARAMS,
+}
+
+
 def _req(params: dict, names, model: str) -> dict:
     missing = [n for n in names if n not in params]
     if missing:
@@ -148,6 +183,50 @@ def _effect_params(params: dict, model: str) -> dict:
     if bad:
         raise ValueError(f"reference_run({model!r}): effect parameter(s) {bad} must be finite and >= 0")
     return out
+
+
+def _discrepancy_params(params: dict, model: str) -> dict:
+    """The model's discrepancy terms (absent = 0); a non-zero term that does not apply to the model is an error."""
+    own = DISCREPANCY[model]
+    for n in DISCREPANCY_PARAMS:
+        if n not in own and float(params.get(n, 0.0)) != 0.0:
+            raise ValueError(f"reference_run({model!r}): discrepancy term {n!r} = {params[n]!r} does not apply "
+                             f"to this model (its discrepancy terms: {own})")
+    out = {n: float(params.get(n, 0.0)) for n in DISCREPANCY_PARAMS}
+    bad = [n for n, v in out.items() if not (v >= 0.0 and math.isfinite(v))]
+    if bad:
+        raise ValueError(f"reference_run({model!r}): discrepancy term(s) {bad} must be finite and >= 0")
+    return out
+
+
+def _extra(d, dd, cq, cc, cp):
+    """Discrepancy contact terms cq max(d, 0)^2 + cc max(d, 0)^3 + cp max(d, 0) dd, scalar."""
+    if d <= 0.0:
+        return 0.0
+    return d * (cq * d + cc * d * d + cp * dd)
+
+
+def _extra_vec(d, dd, cq, cc, cp):
+    """``_extra`` vectorised."""
+    dp = np.maximum(d, 0.0)
+    return dp * (cq * dp + cc * dp * dp + cp * dd)
+
+
+def _extra_rate(d, dd, ddd, cq, cc, cp):
+    """Forward time derivative of ``_extra`` given dd = d', ddd = d'' (d/dt+ max(d, 0) = max(d', 0) at d = 0)."""
+    if d > 0.0:
+        dpd = dd
+    elif d == 0.0:
+        dpd = max(dd, 0.0)
+    else:
+        return 0.0
+    dp = max(d, 0.0)
+    return dpd * (2.0 * cq * dp + 3.0 * cc * dp * dp + cp * dd) + cp * dp * ddd
+
+
+def _tool(v, cv, cd):
+    """Discrepancy tool terms: force -cv v - cd v |v| on the impacting mass (scalar or vectorised)."""
+    return -cv * v - cd * v * abs(v)
 
 
 # =====================================================================================================
@@ -173,6 +252,16 @@ class _Model:
             raise ValueError("frequency_hz must be > 0")
         self.T = 1.0 / self.f
         self.Om = 2.0 * math.pi * self.f
+
+    def _init_discrepancy(self, params: dict):
+        """Discrepancy terms (``_discrepancy_params``) into p and attributes; dcon / dtool: any contact / tool
+        term on (every use is guarded by them, so with all terms at 0 nothing is computed differently)."""
+        self.p.update(_discrepancy_params(params, self.name))
+        p = self.p
+        self.dq, self.dc, self.dp = p["contact_quadratic"], p["contact_cubic"], p["contact_rate_product"]
+        self.tv, self.td = p["tool_viscous"], p["tool_quadratic_drag"]
+        self.dcon = bool(self.dq or self.dc or self.dp)
+        self.dtool = bool(self.tv or self.td)
 
     def _init_sensor(self):
         """sensor_lowpass: z'' + sqrt(2) wc z' + wc^2 z = wc^2 a(t), two states after W (call once scales is set)."""
@@ -316,6 +405,7 @@ class _Drill(_Model):
         p = _req(params, self.PARAMS + ("v_eps",), self.name)
         p.update(_effect_params(params, self.name))
         super().__init__(p)
+        self._init_discrepancy(params)
         self.G, self.Fs, self.F0 = p["gap_m"], p["static_force_n"], p["amplitude_n"]
         self.coil_state = p["tau"] > 0.0
         fsc = max(abs(self.F0), abs(self.Fs), p["Pr"], 1.0)
@@ -337,9 +427,12 @@ class _Drill(_Model):
         return self.F0 * math.cos(self.Om * t) - self.p["beta"] * (y[1] - y[3])
 
     def _P(self, y):
-        """Phase-II contact expression (rate_stiffening acts on K1)."""
+        """Phase-II contact expression (rate_stiffening acts on K1; discrepancy contact terms, d = x1 - xb)."""
         p = self.p
-        return p["K1"] * (1.0 + p["alpha"] * max(y[1], 0.0)) * (y[0] - y[7]) + p["C1"] * y[1]
+        P = p["K1"] * (1.0 + p["alpha"] * max(y[1], 0.0)) * (y[0] - y[7]) + p["C1"] * y[1]
+        if self.dcon:
+            P += _extra(y[0] - y[7], y[1], self.dq, self.dc, self.dp)
+        return P
 
     def _Pr(self, y):
         return self.p["Pr"] * (1.0 + self.p["gamma"] * (y[7] - self.G) / 1e-3)
@@ -370,6 +463,8 @@ class _Drill(_Model):
         F = self._F(t, y)
         link = self._link(y)
         a1 = (F - link - Pc) / p["M1"]
+        if self.dtool:
+            a1 += _tool(v1, self.tv, self.td) / p["M1"]
         a2 = (self.Fs + link - p["C3"] * (v2 - v3) - p["K3"] * (x2 - x3)) / p["M2"]
         a3 = (-p["C3"] * (v3 - v2) - p["K3"] * (x3 - x2)) / p["M3"]
         if self.coil_state:
@@ -382,7 +477,10 @@ class _Drill(_Model):
         return dy[1]
 
     def _a1(self, t, y, Pc):
-        return (self._F(t, y) - self._link(y) - Pc) / self.p["M1"]
+        a1 = (self._F(t, y) - self._link(y) - Pc) / self.p["M1"]
+        if self.dtool:
+            a1 += _tool(y[1], self.tv, self.td) / self.p["M1"]
+        return a1
 
     def _Pdot(self, t, y, Pc):
         """dP/dt along the phase-II flow (xb fixed) with contact force Pc acting on the bit."""
@@ -391,15 +489,24 @@ class _Drill(_Model):
         v1 = y[1]
         k1 = p["K1"] * (1.0 + p["alpha"] * max(v1, 0.0))
         dk1 = p["K1"] * p["alpha"] * a1 if v1 > 0.0 else 0.0
-        return k1 * v1 + dk1 * (y[0] - y[7]) + p["C1"] * a1
+        r = k1 * v1 + dk1 * (y[0] - y[7]) + p["C1"] * a1
+        if self.dcon:
+            r += _extra_rate(y[0] - y[7], v1, a1, self.dq, self.dc, self.dp)
+        return r
 
     def classify(self, t, y, disc):
         x1, xt = y[0], y[6]
         d = x1 - xt
         if d < -ETA_X:
-            return 0, y, disc
+            return 0, y, None
         # at (or beyond) the plate: d(x1 - xt)/dt in phase I equals the base P/C1; at x1 = xt >= xb the
-        # rate_stiffening term K1 alpha max(v1, 0) (x1 - xb) >= 0 vanishes unless v1 > 0, so P has the same sign
+        # rate_stiffening term K1 alpha max(v1, 0) (x1 - xb) >= 0 vanishes unless v1 > 0, so P has the same sign.
+        # The discrepancy contact terms break that agreement (the plate relaxes by the base law in phase I):
+        # contact is then {x1 >= xt and P > 0} (the two-indicator rule of MODELS.md 1a), the branch follows P, the
+        # full expression, and a state at or beyond the plate with P <= 0 is phase I "overlapping" (disc True):
+        # e.g. right after every release with contact_rate_product, which leaves P_base = -cp (x1 - xb) x1' > 0
+        # there, so the plate relaxes into the bit force-free.  Its events: P rising through 0 (contact again,
+        # the plate on the bit) or x1 falling behind the plate (by 2 eta, so classify then sees d < -eta).
         P = self._P(y)
         Pr = self._Pr(y)
         eP = self.etaP
@@ -416,11 +523,14 @@ class _Drill(_Model):
         if br != 0:
             y = y.copy()
             y[6] = x1          # plate rides on the bit
-        return br, y, disc
+        return br, y, (True if (br == 0 and self.dcon) else None)
 
     def _P_vec(self, Y):
         p = self.p
-        return p["K1"] * (1.0 + p["alpha"] * np.maximum(Y[1], 0.0)) * (Y[0] - Y[7]) + p["C1"] * Y[1]
+        P = p["K1"] * (1.0 + p["alpha"] * np.maximum(Y[1], 0.0)) * (Y[0] - Y[7]) + p["C1"] * Y[1]
+        if self.dcon:
+            P = P + _extra_vec(Y[0] - Y[7], Y[1], self.dq, self.dc, self.dp)
+        return P
 
     def _Pr_vec(self, Y):
         return self.p["Pr"] * (1.0 + self.p["gamma"] * (Y[7] - self.G) / 1e-3)
@@ -429,6 +539,9 @@ class _Drill(_Model):
         eP = self.etaP
         P, Pr = self._P_vec, self._Pr_vec
         if br == 0:
+            if disc:           # overlapping the plate (discrepancy contact terms only; classify)
+                return [(lambda t, y: P(y) - eP, 1.0),
+                        (lambda t, y: y[0] - y[6] + 2.0 * ETA_X, -1.0)]
             return [(lambda t, y: y[0] - y[6] - ETA_X, 1.0)]
         if br == 1:
             return [(lambda t, y: P(y) + eP, -1.0),               # -> I
@@ -463,7 +576,10 @@ class _Drill(_Model):
             F = self.F0 * np.cos(self.Om * t) - p["beta"] * (Y[1] - Y[3])
         d, dv = Y[0] - Y[2], Y[1] - Y[3]
         link = p["C2"] * dv + p["K2"] * d * (1.0 + p["kappa"] * d * d) + p["mu"] * np.tanh(dv / p["v_eps"])
-        return (F - link - Pc) / p["M1"]
+        a1 = (F - link - Pc) / p["M1"]
+        if self.dtool:
+            a1 = a1 + _tool(Y[1], self.tv, self.td) / p["M1"]
+        return a1
 
     def disp(self, t, Y, br, disc):
         return Y[0]
@@ -502,6 +618,7 @@ class _IndenterBase(_Model):
         p = _req(params, self.COMMON + ("v_eps",) + extra, self.name)
         p.update(_effect_params(params, self.name))
         _Model.__init__(self, p)
+        self._init_discrepancy(params)
         self.G, self.Fp, self.Fa = p["gap_m"], p["static_force_n"], p["amplitude_n"]
         self.coil_state = p["tau"] > 0.0
         self.alpha, self.mu, self.kappa, self.beta = p["alpha"], p["mu"], p["kappa"], p["beta"]
@@ -533,6 +650,8 @@ class _IndenterBase(_Model):
             f1 += self.mu * math.tanh(dphi / p["v_eps"])
         f2 = p["c3"] * (v2 - v3) + p["k3"] * (x2 - x3)
         a1 = (Fem - f1 - Fr) / p["m1"]
+        if self.dtool:
+            a1 += _tool(v1, self.tv, self.td) / p["m1"]
         a2 = (-Fem + f1 - f2) / p["m2"]
         a3 = (self.Fp + f2 - p["pm"] * math.tanh(v2 / p["v_eps"])) / p["m3"]
         return [v1, a1, v2, a2, v3, a3, dFem, Fem * dphi]
@@ -547,7 +666,10 @@ class _IndenterBase(_Model):
         f1 = p["c2"] * dphi + p["k2"] * phi * (1.0 + self.kappa * phi * phi)
         if self.mu:
             f1 = f1 + self.mu * np.tanh(dphi / p["v_eps"])
-        return (Fem - f1 - Fr) / p["m1"]
+        a1 = (Fem - f1 - Fr) / p["m1"]
+        if self.dtool:
+            a1 = a1 + _tool(Y[1], self.tv, self.td) / p["m1"]
+        return a1
 
     def disp(self, t, Y, br, disc):
         return Y[0]
@@ -569,24 +691,37 @@ class _IndenterMetal(_TwoIndicatorModel, _IndenterBase):
 
     def _Fr(self, y):
         p = self.p
-        return max(0.0, p["k1"] * (1.0 + self.alpha * max(y[1], 0.0)) * (y[0] - self.G) + p["c1"] * y[1])
+        F = p["k1"] * (1.0 + self.alpha * max(y[1], 0.0)) * (y[0] - self.G) + p["c1"] * y[1]
+        if self.dcon:
+            F += _extra(y[0] - self.G, y[1], self.dq, self.dc, self.dp)
+        return max(0.0, F)
 
     def rhs(self, t, y, br, disc):
         return self._body(t, y, self._Fr(y) if br == 1 else 0.0)
 
     def indicators(self, t, y):
-        return _stiffened_indicators(y[0] - self.G, y[1], self.alpha, self.t_kv)
+        d = y[0] - self.G
+        g1, g2 = _stiffened_indicators(d, y[1], self.alpha, self.t_kv)
+        if self.dcon:
+            g2 = g2 + _extra_vec(d, y[1], self.dq, self.dc, self.dp) / self.p["k1"]
+        return g1, g2
 
     def rates(self, t, y):
         a1 = self._body(t, y, 0.0)[1]
-        return _stiffened_rates(y[0] - self.G, y[1], a1, self.alpha, self.t_kv)
+        d = y[0] - self.G
+        r1, r2 = _stiffened_rates(d, y[1], a1, self.alpha, self.t_kv)
+        if self.dcon:
+            r2 += _extra_rate(d, y[1], a1, self.dq, self.dc, self.dp) / self.p["k1"]
+        return r1, r2
 
     def force(self, t, Y, br, disc):
         if br == 0:
             return np.zeros_like(t)
         p = self.p
-        return np.maximum(p["k1"] * (1.0 + self.alpha * np.maximum(Y[1], 0.0)) * (Y[0] - self.G)
-                          + p["c1"] * Y[1], 0.0)
+        F = p["k1"] * (1.0 + self.alpha * np.maximum(Y[1], 0.0)) * (Y[0] - self.G) + p["c1"] * Y[1]
+        if self.dcon:
+            F = F + _extra_vec(Y[0] - self.G, Y[1], self.dq, self.dc, self.dp)
+        return np.maximum(F, 0.0)
 
     def accel(self, t, Y, br, disc):
         return self._a1_vec(t, Y, self.force(t, Y, br, disc))
@@ -737,6 +872,7 @@ class _Pendulum(_TwoIndicatorModel):
         p = _req(params, self.PARAMS + ("g",), self.name)
         p.update(_effect_params(params, self.name))
         super().__init__(p)
+        self._init_discrepancy(params)
         self.l, self.A0, self.gap, self.m = p["l"], p["amplitude_m"], p["gap_m"], p["m"]
         self.alpha = p["alpha"]
         self.w0 = math.sqrt(p["g"] / self.l)
@@ -754,14 +890,20 @@ class _Pendulum(_TwoIndicatorModel):
     def _thdd(self, t, th, om, Fi):
         p = self.p
         c = math.cos(th)
-        return (self.Aacc * c * math.sin(self.Om * t) - (p["g"] / self.l) * math.sin(th)
+        thdd = (self.Aacc * c * math.sin(self.Om * t) - (p["g"] / self.l) * math.sin(th)
                 - 2.0 * p["zeta"] * self.w0 * om - Fi * c / (self.m * self.l))
+        if self.dtool:     # tangential -cv (l th') - cd (l th') |l th'| on the hammer, over m l
+            thdd -= (self.tv * om + self.td * self.l * om * abs(om)) / self.m
+        return thdd
 
     def _Fi(self, th, om):
         p = self.p
         d = self.l * math.sin(th) - self.gap
         dd = self.l * om * math.cos(th)
-        return max(0.0, p["ki"] * (1.0 + self.alpha * max(dd, 0.0)) * d + p["ci"] * dd)
+        F = p["ki"] * (1.0 + self.alpha * max(dd, 0.0)) * d + p["ci"] * dd
+        if self.dcon:
+            F += _extra(d, dd, self.dq, self.dc, self.dp)
+        return max(0.0, F)
 
     def rhs(self, t, y, br, disc):
         th, om = y[0], y[1]
@@ -776,22 +918,33 @@ class _Pendulum(_TwoIndicatorModel):
 
     def indicators(self, t, y):
         th, om = y[0], y[1]
-        return _stiffened_indicators(self.l * np.sin(th) - self.gap, self.l * om * np.cos(th), self.alpha, self.t_kv)
+        d, dd = self.l * np.sin(th) - self.gap, self.l * om * np.cos(th)
+        g1, g2 = _stiffened_indicators(d, dd, self.alpha, self.t_kv)
+        if self.dcon:
+            g2 = g2 + _extra_vec(d, dd, self.dq, self.dc, self.dp) / self.p["ki"]
+        return g1, g2
 
     def rates(self, t, y):
         th, om = y[0], y[1]
         dd = self.l * om * math.cos(th)
         thdd = self._thdd(t, th, om, 0.0)
         ddd = self.l * (thdd * math.cos(th) - om * om * math.sin(th))
-        return _stiffened_rates(self.l * math.sin(th) - self.gap, dd, ddd, self.alpha, self.t_kv)
+        d = self.l * math.sin(th) - self.gap
+        r1, r2 = _stiffened_rates(d, dd, ddd, self.alpha, self.t_kv)
+        if self.dcon:
+            r2 += _extra_rate(d, dd, ddd, self.dq, self.dc, self.dp) / self.p["ki"]
+        return r1, r2
 
     def force(self, t, Y, br, disc):
         if br == 0:
             return np.zeros_like(t)
         p = self.p
         dd = self.l * Y[1] * np.cos(Y[0])
-        return np.maximum(p["ki"] * (1.0 + self.alpha * np.maximum(dd, 0.0)) * (self.l * np.sin(Y[0]) - self.gap)
-                          + p["ci"] * dd, 0.0)
+        d = self.l * np.sin(Y[0]) - self.gap
+        F = p["ki"] * (1.0 + self.alpha * np.maximum(dd, 0.0)) * d + p["ci"] * dd
+        if self.dcon:
+            F = F + _extra_vec(d, dd, self.dq, self.dc, self.dp)
+        return np.maximum(F, 0.0)
 
     def accel(self, t, Y, br, disc):
         p = self.p
@@ -800,6 +953,8 @@ class _Pendulum(_TwoIndicatorModel):
         c = np.cos(th)
         thdd = (self.Aacc * c * np.sin(self.Om * t) - (p["g"] / self.l) * np.sin(th)
                 - 2.0 * p["zeta"] * self.w0 * om - Fi * c / (self.m * self.l))
+        if self.dtool:
+            thdd = thdd - (self.tv * om + self.td * self.l * om * np.abs(om)) / self.m
         return self.l * (thdd * c - om * om * np.sin(th)) - self.A0 * self.Om ** 2 * np.sin(self.Om * t)
 
     def disp(self, t, Y, br, disc):
@@ -829,6 +984,7 @@ class _Rimd(_TwoIndicatorModel):
         p = _req(params, self.PARAMS, self.name)
         p.update(_effect_params(params, self.name))
         super().__init__(p)
+        self._init_discrepancy(params)
         self.F0, self.gap = p["amplitude_n"], p["gap_m"]
         self.alpha, self.kappa = p["alpha"], p["kappa"]
         fsc = max(abs(self.F0), 1e-3)
@@ -844,8 +1000,11 @@ class _Rimd(_TwoIndicatorModel):
         d = y[2] - self.gap
         if d <= 0.0:
             return 0.0
-        return (p["ki"] * (1.0 + self.alpha * max(y[3], 0.0)) * d ** p["ni"]
-                * max(0.0, 1.0 + p["lambda_i"] * y[3]))
+        F = (p["ki"] * (1.0 + self.alpha * max(y[3], 0.0)) * d ** p["ni"]
+             * max(0.0, 1.0 + p["lambda_i"] * y[3]))
+        if self.dcon:
+            F = max(0.0, F + _extra(d, y[3], self.dq, self.dc, self.dp))
+        return F
 
     def _acc(self, t, y, Fi):
         p = self.p
@@ -856,6 +1015,8 @@ class _Rimd(_TwoIndicatorModel):
         a1 = (-(p["c1"] + p["c2"]) * v1 - (p["k1"] + p["k2"]) * x1 + F + p["c2"] * v2 + p["k2"] * x2
               + hard) / p["m1"]
         a2 = (-p["c2"] * v2 - p["k2"] * x2 + p["c2"] * v1 + p["k2"] * x1 - hard - Fi) / p["m2"]
+        if self.dtool:
+            a2 += _tool(v2, self.tv, self.td) / p["m2"]
         return a1, a2, F * v1
 
     def rhs(self, t, y, br, disc):
@@ -877,15 +1038,21 @@ class _Rimd(_TwoIndicatorModel):
             return np.zeros_like(t)
         p = self.p
         d = np.maximum(Y[2] - self.gap, 0.0)
-        return (p["ki"] * (1.0 + self.alpha * np.maximum(Y[3], 0.0)) * d ** p["ni"]
-                * np.maximum(0.0, 1.0 + p["lambda_i"] * Y[3]))
+        F = (p["ki"] * (1.0 + self.alpha * np.maximum(Y[3], 0.0)) * d ** p["ni"]
+             * np.maximum(0.0, 1.0 + p["lambda_i"] * Y[3]))
+        if self.dcon:
+            F = np.maximum(0.0, F + _extra_vec(d, Y[3], self.dq, self.dc, self.dp))
+        return F
 
     def accel(self, t, Y, br, disc):
         p = self.p
         Fi = self.force(t, Y, br, disc)
         phi = Y[2] - Y[0]
         hard = p["k2"] * self.kappa * phi * phi * phi
-        return (-p["c2"] * Y[3] - p["k2"] * Y[2] + p["c2"] * Y[1] + p["k2"] * Y[0] - hard - Fi) / p["m2"]
+        a2 = (-p["c2"] * Y[3] - p["k2"] * Y[2] + p["c2"] * Y[1] + p["k2"] * Y[0] - hard - Fi) / p["m2"]
+        if self.dtool:
+            a2 = a2 + _tool(Y[3], self.tv, self.td) / p["m2"]
+        return a2
 
     def disp(self, t, Y, br, disc):
         return Y[2]
