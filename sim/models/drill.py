@@ -20,6 +20,9 @@ is exactly the base model's):
       MODELS.md §1 does for the indenter; v_eps default 1e-4 m/s).
   tip_blunting (gamma [-]): Pr → Pr (1 + γ (xb − G)/1 mm).
   suspension_hardening (kappa [1/m^2]): K2 (x1 − x2) → K2 (x1 − x2)(1 + κ (x1 − x2)²).
+
+Discrepancy terms (sim.models.discrepancy; off at 0): contact_quadratic, contact_cubic join Pc with δ = x1 − xb
+(so the guards, the phase check and the slider law see them); tool_viscous, tool_quadratic_drag act on M1 (v = ẋ1).
 """
 from __future__ import annotations
 

@@ -13,6 +13,9 @@ Effects (MODELS.md §6; all off at their default 0):
   shaker_coil (tau [s], beta [N s/m]), rate_stiffening (alpha [s/m]), guide_friction (mu [N]),
   tip_blunting (gamma [-], sandstone), suspension_hardening (kappa [1/m^2]),
   sensor_lowpass (fc [Hz]: applied to the recorded acceleration, ``sim.models.sensor``).
+
+Discrepancy terms (sim.models.discrepancy; off at 0): the metal's Kelvin–Voigt expression gains the contact terms
+(δ = x1 − G, δ̇ = ẋ1, also in its force indicator); both samples take the tool terms on m1 (v = ẋ1).
 """
 from __future__ import annotations
 

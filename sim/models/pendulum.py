@@ -19,6 +19,8 @@ The pendulum does not progress (observed progression 0).
 
 Effects (MODELS.md §6): ``rate_stiffening`` α [s/m] (0 = off); ``sensor_lowpass`` fc [Hz] on the recorded
 acceleration (``sim.models.sensor``).
+Discrepancy terms (sim.models.discrepancy; off at 0): the contact terms join Fi (and its indicator);
+tool_quadratic_drag is a tangential force −c (l θ̇)|l θ̇| on the hammer, θ̈ −= c l θ̇|θ̇| / m.
 """
 from __future__ import annotations
 

@@ -16,6 +16,8 @@ guard ``min(δ, 1 mm · (1 + λi ẋ2))`` (metres).  Contact can resume while δ
 Impacting mass: the hammer x2.  Work: W' = F0 sin(Ωt) ẋ1.  No progression (observed 0).
 Effects (MODELS.md §6): ``rate_stiffening`` α [s/m], ``suspension_hardening`` κ [1/m²] on the k2 spring,
 ``sensor_lowpass`` fc [Hz] on the recorded acceleration (``sim.models.sensor``).
+Discrepancy terms (sim.models.discrepancy; off at 0): contact_quadratic, contact_cubic join Fi (clamped at 0, the
+indicators unchanged); tool_viscous, tool_quadratic_drag act on the hammer m2 (v = ẋ2).
 Off the stop (κ = 0) the equations are linear: ``sim/exact/rimd.py`` propagates the free flight exactly and leaves
 the contact to the DOPRI5 steps (``method`` "auto" and "exact"; "dopri5" integrates both phases numerically).
 """
