@@ -189,7 +189,8 @@ def _exact_module(spec: ModelSpec, values: dict, st: Settings, history: bool) ->
     import importlib
 
     mod = importlib.import_module(spec.exact)
-    ok = mod.exact_applies(values, spec.effects)
+    # a discrepancy term changes a phase the propagator takes as linear: those runs are numerical
+    ok = mod.exact_applies(values, spec.effects) and not any(float(values.get(t, 0.0) or 0.0) for t in spec.discrepancy)
     if st.method == "exact":
         if not ok:
             when = getattr(mod, "APPLIES_WHEN", None)    # a condition beyond the effects, stated by the module

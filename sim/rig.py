@@ -15,9 +15,10 @@ from dataclasses import dataclass, field
 from typing import Any, Iterator, Mapping
 
 from sim.errors import ParameterError
+from sim.models.discrepancy import TERMS as DISCREPANCY_TERMS
 from sim.registry import get_model, model_names
 
-RIG_KEYS = ("model", "preset", "parameters", "effects", "uncertainty", "source")
+RIG_KEYS = ("model", "preset", "parameters", "effects", "discrepancy", "uncertainty", "source")
 """Keys of a rig mapping; ``model`` is required, the others optional."""
 
 
@@ -26,7 +27,8 @@ class Rig:
     """A model plus its known and calibrated parameters and active effects (all values SI).
 
     ``parameters``: parameter name -> value, overriding the preset.  ``effects``: §6 effect name ->
-    {effect parameter -> value}.  ``uncertainty``: parameter (or effect parameter) name -> standard
+    {effect parameter -> value}.  ``discrepancy``: term of the fixed vocabulary (sim.models.discrepancy) ->
+    coefficient, an adopted proposal of the diagnosis (names and numbers only, never an expression).  ``uncertainty``: parameter (or effect parameter) name -> standard
     deviation of its fitted value [same unit].  The constructor validates every name and value
     against the model's ``ModelSpec`` and raises ``ParameterError`` naming the culprit.
     """
@@ -37,6 +39,7 @@ class Rig:
     effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     uncertainty: Mapping[str, float] = field(default_factory=dict)
     source: str = ""
+    discrepancy: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.model not in model_names():
@@ -50,6 +53,9 @@ class Rig:
                                      f"known: {', '.join(spec.param_names)}")
         effect_params = {p for ps in spec.effects.values() for p in ps}
         for name in self.parameters:
+            if name in spec.discrepancy or name in DISCREPANCY_TERMS:
+                raise ParameterError(f"rig: '{name}' is a discrepancy term; give it under 'discrepancy' "
+                                     f"({{{name}: value}})")
             if name in effect_params:
                 raise ParameterError(f"rig: '{name}' is an effect parameter; give it under 'effects' "
                                      f"({self._effect_of(spec, name)}: {{{name}: value}})")
@@ -67,6 +73,10 @@ class Rig:
                 if name not in spec.effects[eff]:
                     raise ParameterError(f"rig: effect '{eff}' has no parameter '{name}'; "
                                          f"its parameters: {', '.join(spec.effects[eff])}")
+        for name in self.discrepancy:
+            if name not in spec.discrepancy:
+                raise ParameterError(f"rig: discrepancy term '{name}' is not a term of model '{self.model}'; "
+                                     f"its terms: {', '.join(spec.discrepancy) or 'none'}")
         for what, v in self._values():
             if isinstance(v, bool):     # YAML's true/false would pass float() as 1/0
                 raise ParameterError(f"rig: {what} must be a number, got {str(v).lower()} (a yes/no, not a value)")
@@ -86,6 +96,7 @@ class Rig:
         yield from ((f"parameter '{n}'", v) for n, v in self.parameters.items())
         for eff, vals in self.effects.items():
             yield from ((f"effect '{eff}' parameter '{n}'", v) for n, v in vals.items())
+        yield from ((f"discrepancy term '{n}'", v) for n, v in self.discrepancy.items())
         yield from ((f"uncertainty of '{n}'", v) for n, v in self.uncertainty.items())
 
     @staticmethod
@@ -93,10 +104,11 @@ class Rig:
         return next(eff for eff, ps in spec.effects.items() if name in ps)
 
     def overrides(self) -> dict[str, float]:
-        """Parameter overrides of this rig (parameters and effect parameters), for ``sim.simulate``."""
+        """Parameter overrides of this rig (parameters, effect parameters, discrepancy terms), for ``sim.simulate``."""
         out = dict(self.parameters)
         for vals in self.effects.values():
             out.update(vals)
+        out.update(self.discrepancy)
         return out
 
     def resolve(self, **controls: float) -> dict[str, float]:
@@ -114,13 +126,16 @@ class Rig:
         spec = get_model(self.model)
         params = dict(self.parameters)
         effects = {e: dict(v) for e, v in self.effects.items()}
+        terms = dict(self.discrepancy)
         for name, v in values.items():
             eff = next((e for e, ps in spec.effects.items() if name in ps), None)
-            if eff is None:
+            if name in spec.discrepancy:
+                terms[name] = float(v)
+            elif eff is None:
                 params[name] = float(v)
             else:
                 effects.setdefault(eff, {})[name] = float(v)
-        return Rig(self.model, self.preset, params, effects, dict(self.uncertainty), self.source)
+        return Rig(self.model, self.preset, params, effects, dict(self.uncertainty), self.source, terms)
 
     def to_mapping(self) -> dict[str, Any]:
         """Plain mapping in the rig-file layout (inverse of :meth:`from_mapping`)."""
@@ -130,6 +145,8 @@ class Rig:
         out["parameters"] = {k: float(v) for k, v in self.parameters.items()}
         if self.effects:
             out["effects"] = {e: {k: float(v) for k, v in vals.items()} for e, vals in self.effects.items()}
+        if self.discrepancy:
+            out["discrepancy"] = {k: float(v) for k, v in self.discrepancy.items()}
         if self.uncertainty:
             out["uncertainty"] = {k: float(v) for k, v in self.uncertainty.items()}
         if self.source:
@@ -146,11 +163,12 @@ class Rig:
                 raise ParameterError(f"rig: unknown key '{key}'; known keys: {', '.join(RIG_KEYS)}")
         if "model" not in data:
             raise ParameterError("rig: missing key 'model'")
-        for key in ("parameters", "effects", "uncertainty"):
+        for key in ("parameters", "effects", "discrepancy", "uncertainty"):
             if data.get(key) is not None and not isinstance(data[key], Mapping):
                 raise ParameterError(f"rig: '{key}' must be a mapping (name: value), got {data[key]!r}")
         preset = data.get("preset")
         source = data.get("source") or ""
         return cls(model=str(data["model"]), preset=None if preset is None else str(preset),
                    parameters=dict(data.get("parameters") or {}), effects=dict(data.get("effects") or {}),
-                   uncertainty=dict(data.get("uncertainty") or {}), source=str(source))
+                   uncertainty=dict(data.get("uncertainty") or {}), source=str(source),
+                   discrepancy=dict(data.get("discrepancy") or {}))

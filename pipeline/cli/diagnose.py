@@ -35,7 +35,16 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
 6. write the corrected rig DIR/rig.yaml (DIR/rig-<system>.yaml per system of a several-system dataset):
    preset, known and calibrated parameters, the selected effect with its fitted parameters and their sd
    (docs/closed-loop.md); use it with --rig in every simulating command.  An unexplained residual
-   still writes the calibrated base rig, marked UNEXPLAINED in its 'source' (report.json 'rig')."""
+   still writes the calibrated base rig, marked UNEXPLAINED in its 'source' (report.json 'rig');
+7. when the residual is unexplained, propose the missing term (docs/diagnose.md "Proposing the missing
+   term"): the model's discrepancy terms (contact_quadratic, contact_cubic, contact_rate_product: δ₊², δ₊³,
+   δ₊ δ̇ in the contact force; tool_viscous, tool_quadratic_drag: −c v, −c v|v| on the impacting mass) are
+   screened by a non-negative sparse regression of the calibrated base's residual on their sensitivities
+   (scikit-learn lars_path, BIC), then up to max_proposals sets are re-fitted through the simulator and judged
+   on the held-out runs by the rule of step 4.  report.json 'discrepancy' ranks them (terms in words and
+   symbols, coefficients with sd, held-out error against the floor); an accepted proposal goes into the rig
+   file as a 'discrepancy:' entry (term names and coefficients, never code) that every --rig command
+   simulates in the kernel."""
 
 EPILOG = """\
 params.yaml section 'diagnose' (all optional; defaults in brackets):
@@ -61,6 +70,7 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
   max_effects [1]          2: when the best effect improves but leaves the residual above the noise, add each
                            other effect to it and judge the pairs against it by the same rule (report.json
                            'second_effect'; the rig file then carries both)
+  max_proposals [3]        unexplained: re-fit at most this many discrepancy proposals (0: no discovery)
   model_floor [0.001]      feature sd floor: this x the signal's RMS harmonic amplitude, in quadrature with
                            the noise (what two correct simulations and a rig's sampling may differ by)
   summary_floor [0.01]     summary feature sd floor: this x the value
@@ -196,6 +206,7 @@ def run(args) -> int:
             if mlflow is not None:
                 mlflow.log_metrics({k: float(v) for k, v in _flat_metrics(report).items()})
                 mlflow.set_tag("vibro.selected", json.dumps(report["selected"]))
+                mlflow.set_tag("vibro.proposal_adopted", json.dumps(report["proposal_adopted"]))
                 mlflow.log_artifacts(str(tmp), artifact_path="diagnose")
                 for rig_file in sorted(Path(tmp).glob("rig*.yaml")):     # the corrected rig, also on its own
                     mlflow.log_artifact(str(rig_file), artifact_path="rig")
@@ -247,7 +258,8 @@ def check_report(report: dict) -> None:
 
 def _headline(report: dict) -> dict:
     keys = ("system", "verdict", "selected", "explained", "noise_floor", "default_error", "base_error", "final_error",
-            "default_nrms", "base_nrms", "final_nrms", "base_systematic", "final_systematic", "wall_time_s")
+            "default_nrms", "base_nrms", "final_nrms", "base_systematic", "final_systematic", "proposal_adopted",
+            "wall_time_s")
     out = {k: report[k] for k in keys}
     out["rig"] = report.get("rig")
     return out

@@ -186,21 +186,34 @@ def _extended(before: FitResult, more: FitResult) -> FitResult:
     return out
 
 
+def fit_added(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, cands: dict, start_fits: list[FitResult],
+              executor: Executor, carried: tuple[FreeParam, ...] = (),
+              extra_starts: dict[str, dict] | None = None) -> list[dict[str, FitResult]]:
+    """Per fold: each candidate of ``cands`` (name -> its fitted parameters) added to the model of ``start_fits[f]``
+    (the calibratable parameters and ``carried``), all fitted together on the fold's runs.  Each starts from a grid
+    of the added parameters at that fit (``candidate_start``: the calibratable and carried parameters refitted at
+    the best grid points) and, where given, also from ``start_fits[f]``'s values with ``extra_starts[name]`` on top
+    (e.g. a sparse regression's estimate); ``max_nfev + refine_nfev`` iterations."""
+    free = list(calibratable(ev.system)) + list(carried)
+    shared = ev.for_tasks(executor.task_threads)
+    keys = [(f, c) for f in range(len(folds)) for c in cands]
+    found = _batch(executor, ev, shared, _candidate_start_task,
+                   [(folds[f], start_fits[f].values, cands[c], free, cfg) for f, c in keys])
+    jobs = []
+    for (f, c), s in zip(keys, found):
+        starts = [s]
+        if extra_starts and c in extra_starts:
+            starts.append({**start_fits[f].values, **extra_starts[c]})
+        jobs.append(FitJob(folds[f], free + list(cands[c]), {}, starts, cfg.max_nfev + cfg.refine_nfev, cfg.diff_step))
+    outs: list[dict[str, FitResult]] = [{} for _ in folds]
+    for (f, c), fr in zip(keys, _fits(executor, ev, shared, jobs)):
+        outs[f][c] = fr
+    return outs
+
+
 def fit_additions(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, first: str, cands: dict,
                   first_fits: list[FitResult], executor: Executor) -> list[dict[str, FitResult]]:
-    """Per fold: the effect ``first`` plus each other candidate, fitted together (greedy forward selection).  Each
-    pair starts from the fold's fit with ``first`` (``first_fits``) and a grid of the added effect's parameters
-    there (``candidate_start``, the calibratable and ``first``'s parameters refitted at the best grid points).
-    Keys ``"first+other"``."""
-    free = list(calibratable(ev.system)) + list(cands[first])
-    shared = ev.for_tasks(executor.task_threads)
-    adds = [e for e in cands if e != first]
-    keys = [(f, e) for f in range(len(folds)) for e in adds]
-    found = _batch(executor, ev, shared, _candidate_start_task,
-                   [(folds[f], first_fits[f].values, cands[e], free, cfg) for f, e in keys])
-    jobs = [FitJob(folds[f], free + list(cands[e]), {}, [s], cfg.max_nfev + cfg.refine_nfev, cfg.diff_step)
-            for (f, e), s in zip(keys, found)]
-    outs: list[dict[str, FitResult]] = [{} for _ in folds]
-    for (f, e), fr in zip(keys, _fits(executor, ev, shared, jobs)):
-        outs[f][f"{first}+{e}"] = fr
-    return outs
+    """Per fold: the effect ``first`` plus each other candidate, fitted together (greedy forward selection), from
+    the fold's fit with ``first`` (``fit_added``).  Keys ``"first+other"``."""
+    adds = {f"{first}+{e}": cands[e] for e in cands if e != first}
+    return fit_added(ev, folds, cfg, adds, first_fits, executor, carried=tuple(cands[first]))

@@ -11,7 +11,8 @@ from pipeline.diagnosis.verdict import VerdictRule
 INT_BOUNDS: dict[str, tuple[int, int | None]] = {
     "holdout_every": (1, 1000), "min_runs_holdout": (1, 100_000), "n_starts": (1, 100), "grid": (1, 100),
     "profile_points": (1, 100), "profile_nfev": (0, 1000), "candidate_starts": (1, 2), "max_nfev": (1, 10_000),
-    "seed": (0, 2**32 - 1), "n_threads": (1, None), "record_window": (0, 10_000), "max_effects": (1, 2)}
+    "seed": (0, 2**32 - 1), "n_threads": (1, None), "record_window": (0, 10_000), "max_effects": (1, 2),
+    "max_proposals": (0, 3)}
 """Integer settings: (low, high); the highs bound the work (fits x starts x iterations).  The command caps
 ``n_threads`` too."""
 
@@ -82,6 +83,7 @@ class DiagnoseConfig:
     systematic_tol: float = 0.005       # ... or held-out systematic error (split-half) at or below this
     nrms_ratio: float = 0.5             # a candidate that cuts the base's held-out nrms to this fraction is material
     max_effects: int = 1                # 2: when the leading effect improves but is not adequate, try it with each other
+    max_proposals: int = 3              # unexplained: fit at most this many discrepancy proposals (0: no discovery)
     model_floor: float = 1e-3           # feature sd floor: this x the signal's RMS harmonic amplitude (model error)
     summary_floor: float = 0.01         # summary feature sd floor: this x the value
     effects: list[str] | None = None    # restrict the candidates (default: every §6 effect of the system)

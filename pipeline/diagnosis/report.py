@@ -95,7 +95,8 @@ def figure_names(diag: SystemDiagnosis) -> list[str]:
     """The PNG files :func:`figures` draws for ``diag``, in its order (report.json 'figures')."""
     tag = _tag(diag.system)
     return ([f"residual_{tag}.png"] + [f"timehist_{diag.evaluator.targets[i].run_id}.png" for i in _timehist_runs(diag)]
-            + ([f"summary_{tag}.png"] if _has_summary(diag) else []))
+            + ([f"summary_{tag}.png"] if _has_summary(diag) else [])
+            + ([f"proposals_{tag}.png"] if (diag.report.get("discrepancy") or {}).get("proposals") else []))
 
 
 SIGNALS = {"accel_m_s2": "acceleration [m/s²]", "force_n": "contact force [N]", "disp_m": "displacement [m]",
@@ -218,7 +219,33 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
         ax[0, 0].legend(fontsize=7)
         fig.suptitle(f"{sysname}: summary features, measured vs model")
         files.append(_save(fig, out / f"summary_{tag}.png"))
+    disc = diag.report.get("discrepancy") or {}
+    if disc.get("proposals"):
+        files.append(_proposals_figure(diag, disc, out / f"proposals_{tag}.png"))
     return files
+
+
+def _proposals_figure(diag: SystemDiagnosis, disc: dict, path: Path) -> str:
+    """The held-out residual of every held-out run before (calibrated base) and after each discrepancy proposal,
+    against the frequency, and the noise level."""
+    ev = diag.evaluator
+    rows = diag.report["residual_structure"]["by_run"]
+    held = [r for r in rows if r["held_out"]]
+    f_of = {t.run_id: t.controls["frequency_hz"] for t in ev.targets}
+    fig, a = plt.subplots(figsize=(6.4, 4.2))
+    a.scatter([r["frequency_hz"] for r in held], [r["base_nrms"] for r in held], marker="o", s=50,
+              label="calibrated base (before)")
+    for k, p_ in enumerate(disc["proposals"], 1):
+        by = p_["by_run_nrms"]
+        a.scatter([f_of[r] for r in by], list(by.values()), marker="sdv"[k - 1], alpha=0.8,
+                  label=f"#{k} {' + '.join(p_['forms'])} (nrms {p_['nrms']:.3g})")
+    a.axhline(1.0, color="grey", ls="--", lw=1, label="noise level")
+    a.set_yscale("log")
+    a.set_xlabel("frequency [Hz]")
+    a.set_ylabel("held-out residual / noise (nrms)")
+    a.legend(fontsize=7)
+    a.set_title(f"{diag.system}: proposals for the missing term, held-out runs")
+    return _save(fig, path)
 
 
 def _fmt(v) -> str:
@@ -271,6 +298,22 @@ def markdown(report: dict, per_system: list[dict], seconds: float) -> str:
             lines += [f"| {c['name']} | {_fmt(c['nrms'])} | {_fmt(c['systematic'])} | {_fmt(c['delta_bic'])} | "
                       f"{_fmt(c['delta_chi2'])} | {'yes' if c['adequate'] else 'no'} | {'yes' if c['improves'] else 'no'} |"
                       for c in second["candidates"][:3]]
+            lines.append("")
+        disc = rep.get("discrepancy")
+        if disc:
+            lines += [f"Proposing the missing term (no §6 effect explains the residual): {disc['text']}.", "",
+                      "Screening (non-negative sparse regression of the calibrated base's residual on each term's "
+                      "sensitivity, calibratable directions projected out): "
+                      + ", ".join(f"{s['term']} (#{s['entered']}, score {s['score']:.2f}"
+                                  + (", in the support)" if s["in_support"] else ")") for s in disc["screening"]) + ".",
+                      "", "| rank | proposal | terms | coefficients (sd) | held-out error (noise floor) | held-out nrms | "
+                      "ΔBIC | held-out Δχ² | adequate | improves |", "|---|---|---|---|---|---|---|---|---|---|"]
+            for k, p_ in enumerate(disc["proposals"], 1):
+                co = ", ".join(f"{t} = {p_['coefficients'][t]:.3g} ± {p_['coefficient_sd'][t]:.2g}" for t in p_["terms"])
+                lines.append(f"| {k} | {'; '.join(p_['words'])} | {' + '.join(p_['forms'])} | {co} | "
+                             f"{_fmt(p_['error'])} ({_fmt(p_['noise_floor'])}) | {_fmt(p_['nrms'])} | "
+                             f"{_fmt(p_['delta_bic'])} | {_fmt(p_['delta_chi2'])} | {'yes' if p_['adequate'] else 'no'} | "
+                             f"{'yes' if p_['improves'] else 'no'} |")
             lines.append("")
         if rep.get("indistinguishable"):
             lines += [f"Indistinguishable on these data from {rep['leader'] if not second else second['first']} "

@@ -6,6 +6,8 @@ Content (README.md "Closing the loop"):
   then the calibrated parameters (MODELS.md §6) of the final model — fitted jointly with the selected effect
   when one is selected, else the calibrated base model;
 - ``effects``: the selected §6 effect with its fitted parameters (none when nothing is selected);
+- ``discrepancy``: the accepted discrepancy proposal's terms and coefficients, when no §6 effect explained the
+  residual and a proposal did (``pipeline.diagnosis.discovery``);
 - ``uncertainty``: the standard deviation of every fitted parameter in its SI unit.  The fit works in
   log10 p; its covariance is ``pinv(JᵀJ) · max(1, χ²/dof)`` (J = Jacobian of the noise-normalised residuals
   at the optimum, inflated when the fit is worse than the noise), and sd(p) = p · ln 10 · sd(log10 p)
@@ -60,8 +62,11 @@ def corrected_rig(diag: SystemDiagnosis, presets: list[str | None], dataset: str
     fr = diag.fits[diag.final]
     effect_of = {p: eff for eff, ps in spec.effects.items() for p in ps}
     effects: dict[str, dict[str, float]] = {}
+    terms: dict[str, float] = {}
     for name in fr.free:
-        if name in effect_of:
+        if name in spec.discrepancy:
+            terms[name] = float(fr.values[name])
+        elif name in effect_of:
             effects.setdefault(effect_of[name], {})[name] = float(fr.values[name])
         else:
             params[name] = float(fr.values[name])
@@ -76,12 +81,19 @@ def corrected_rig(diag: SystemDiagnosis, presets: list[str | None], dataset: str
                    f"(nrms {rep['final_nrms']:.3g})")
         names = ", ".join(f"{n} ({100 * a['change']:+.0f} % against the fit with {a['effect']})"
                           for n, a in absorbed.items())
-        verdict += ("; parameters that may have absorbed the missing physics: " + names if names else
-                    "; the calibrated parameters may have absorbed part of the missing physics")
+        if terms:
+            verdict = (f"{UNEXPLAINED_PREFIX} by the §6 effects; adopted the discrepancy proposal "
+                       f"{' + '.join(terms)} (held-out error {rep['final_error']:.3g} against a noise floor of "
+                       f"{rep['noise_floor']:.3g}, nrms {rep['final_nrms']:.3g}; base model's error "
+                       f"{rep['base_error']:.3g})")
+        else:
+            verdict += ("; parameters that may have absorbed the missing physics: " + names if names else
+                        "; the calibrated parameters may have absorbed part of the missing physics")
     source = f"vibro diagnose {dataset} ({system}): {verdict}"
     rig = sim.Rig(model=system, preset=preset, parameters=params, effects=effects, uncertainty=uncertainty,
-                  source=source)
+                  source=source, discrepancy=terms)
     info = {"explained": bool(rep["explained"]), "selected": rep["selected"], "source": source,
+            "discrepancy": terms or None,
             "verdict": rep.get("verdict"), "absorbed": absorbed,
             "model_error": float(rep["final_error"]), "noise_floor": float(rep["noise_floor"]),
             "nrms": float(rep["final_nrms"]), "notes": notes}

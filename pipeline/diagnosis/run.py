@@ -21,7 +21,9 @@ from pipeline.diagnosis.config import DiagnoseConfig  # noqa: F401  (re-exported
 from pipeline.diagnosis.features import CONTROL_NAMES, Target, series_target, simulated_features, summary_target
 from pipeline.core.executors import Executor, InlineExecutor
 from pipeline.diagnosis.calibrate import fit_additions, fit_models
+from pipeline.diagnosis.discovery import discover, proposal_terms, report as discovery_report
 from pipeline.diagnosis.fit import FitResult
+from pipeline.diagnosis.heldout import fold_errors, heldout_errors as _errors, systematic_error  # noqa: F401
 from pipeline.diagnosis.result import SystemDiagnosis
 from pipeline.diagnosis.verdict import (SELECTED, UNEXPLAINED, ModelStats, Verdict, VerdictRule, closeness, decide,
                                         indistinguishable)
@@ -76,55 +78,6 @@ def make_folds(targets: list[Target], cfg: DiagnoseConfig) -> tuple[str, list[tu
     if n < 2:
         raise UserError(f"system '{targets[0].system}': only {n} run; need at least 2 to hold one out")
     return "leave-one-run-out", [([j for j in range(n) if j != i], [i]) for i in range(n)]
-
-
-def _errors(ev: Evaluator, idx: list[int], res: list[np.ndarray]) -> dict:
-    """nrms, relative error and noise floor over runs ``idx`` given their residual vectors."""
-    num, den, noise = {}, {}, {}
-    for i, r in zip(idx, res):
-        tg = ev.targets[i]
-        d = r * tg.sd
-        for g in dict.fromkeys(tg.group):     # first-seen order: sums independent of hashing
-            m = np.array([x == g for x in tg.group])
-            num[g] = num.get(g, 0.0) + float((d[m] ** 2).sum())
-            den[g] = den.get(g, 0.0) + float((tg.y[m] ** 2).sum())
-            noise[g] = noise.get(g, 0.0) + float((tg.sd[m] ** 2).sum())
-    rel = {g: math.sqrt(num[g] / max(den[g], 1e-300)) for g in num}
-    nf = {g: math.sqrt(noise[g] / max(den[g], 1e-300)) for g in num}
-    allr = np.concatenate(res) if res else np.zeros(1)
-    return {"nrms": float(np.sqrt(np.mean(allr ** 2))), "chi2": float(allr @ allr), "n": int(allr.size),
-            "error": float(np.sqrt(np.mean([v ** 2 for v in rel.values()]))),
-            "noise_floor": float(np.sqrt(np.mean([v ** 2 for v in nf.values()]))),
-            "error_by_group": rel, "noise_by_group": nf}
-
-
-def systematic_error(ev: Evaluator, idx: list[int], halves: list[np.ndarray | None]) -> float | None:
-    """Relative systematic error of a model over the series runs ``idx`` from their records' halves.  Per feature
-    group (signal) S/P = Σ r_A·r_B / Σ y² (r_A, r_B = model − measured features of each half: the noise of the two
-    halves is independent and averages out of the product, a model error is in both — with either sign: an error that
-    drifts over the record, as tip blunting's does, can flip sign between the halves), combined over the groups with
-    inverse-variance weights (the product's noise, Σ 4 σ⁴ / P² with σ the features' noise sd, so a group the noise
-    dominates — a displacement whose harmonics are small beside its drift — does not swamp the others); the square
-    root of the weighted mean of the |S|/P.  None without halves.  A run the model could not simulate counts its
-    features as the error."""
-    num, den, var = {}, {}, {}
-    for i, mh in zip(idx, halves):
-        tg = ev.targets[i]
-        if tg.y_halves is None:
-            continue
-        model = mh if mh is not None else np.zeros_like(tg.y_halves)
-        ra, rb = model[0] - tg.y_halves[0], model[1] - tg.y_halves[1]
-        for g in dict.fromkeys(tg.group):     # first-seen order: sums independent of hashing
-            m = np.array([x == g for x in tg.group])
-            num[g] = num.get(g, 0.0) + float(ra[m] @ rb[m])
-            den[g] = den.get(g, 0.0) + 0.5 * float(tg.y_halves[0][m] @ tg.y_halves[0][m]
-                                                   + tg.y_halves[1][m] @ tg.y_halves[1][m])
-            var[g] = var.get(g, 0.0) + 4.0 * float(np.sum(tg.noise_sd[m] ** 4))
-    if not num:
-        return None
-    ratio = {g: abs(num[g]) / max(den[g], 1e-300) for g in num}    # a drifting error flips sign between halves
-    w = {g: 1.0 / max(var[g] / max(den[g], 1e-300) ** 2, 1e-30) for g in num}
-    return float(math.sqrt(sum(w[g] * ratio[g] for g in num) / sum(w.values())))    # every |S|/P >= 0
 
 
 def absorbed_parameters(fits: dict[str, FitResult], v: Verdict, cal_names: list[str]) -> dict:
@@ -185,19 +138,7 @@ def _second_effect(ev: Evaluator, cfg: DiagnoseConfig, scheme: str, folds: list,
     fold_pairs = fit_additions(ev, [cal for cal, _ in folds], cfg, first, cands, [f[first] for f in fits_per_fold],
                                executor)
     names = list(fold_pairs[0])
-    res = {m: [] for m in names}
-    halves = {m: [] for m in names}
-    idx: list[int] = []
-    bic = {m: 0.0 for m in names}
-    for (_, test), fits in zip(folds, fold_pairs):
-        for m, (r, h) in zip(names, ev.held_out([fits[m].values for m in names], test)):
-            res[m] += r
-            halves[m] += h
-        idx += test
-        for m in names:
-            bic[m] += fits[m].bic()
-    err = {m: {**_errors(ev, idx, res[m]), "systematic": systematic_error(ev, idx, halves[m])} for m in names}
-    stats = {m: ModelStats(m, bic[m], err[m]["chi2"], err[m]["n"], err[m]["systematic"]) for m in names}
+    err, stats = fold_errors(ev, folds, fold_pairs, names)
     for m in names:
         log(f"  {m}: held-out nrms {err[m]['nrms']:.4g}")
     v2 = decide(first_stats, [stats[m] for m in names], cfg.rule())
@@ -302,6 +243,14 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
             kind = SELECTED if v2.checks[v2.leader]["adequate"] else UNEXPLAINED
             v = replace(v, kind=kind, selected=v2.leader if kind == SELECTED else None, leader=v2.leader)
     final = v.selected or "base"
+    found = None
+    if v.kind == UNEXPLAINED and cfg.max_proposals >= 1:
+        log(f"{system}: no §6 effect explains the residual: proposing the missing term")
+        found = discover(ev, cfg, scheme, folds, fits_per_fold, warm, stats["base"], executor, log)
+    if found is not None and found.accepted:
+        final = found.accepted
+        final_fits = {**final_fits, final: found.fits[final]}
+        err[final] = found.err[final]
     call = closeness(first, stats, cfg.rule())
     if second is not None:
         call["text"] = f"one effect: {call['text']}; two effects: {second['text']}"
@@ -338,13 +287,15 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
         "selected_effects": v.selected.split("+") if v.selected else [],
         "leader": v.leader,
         "runner_up": v.runner_up,
-        "selected_params": _param_report(final_fits[v.selected]) if v.selected else None,
+        "selected_params": _param_report(final_fits[final]) if final != "base" else None,
         "explained": v.explained,
         "best_partial_candidate": v.leader if v.kind == UNEXPLAINED else None,
         "absorbed": absorbed_parameters(final_fits, v, cal_names),
         "call": call,
         "indistinguishable": indistinguishable(first, stats, cfg.rule()),
         "second_effect": second,
+        "discrepancy": discovery_report(found, err["base"], cal_names) if found is not None else None,
+        "proposal_adopted": proposal_terms(found.accepted) if found is not None and found.accepted else None,
         "n_simulations": ev.n_sims,
     }
     return SystemDiagnosis(report=report, evaluator=ev, fits=final_fits, held_out=test_idx, final=final)

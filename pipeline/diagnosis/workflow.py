@@ -80,7 +80,7 @@ def _diagnose(ds, cfg: DiagnoseConfig, log, progress, executor: Executor) -> Dia
 
 
 KEYS = ("verdict", "calibrated", "noise_floor", "default_error", "base_error", "candidates", "selected", "final_error",
-        "default_nrms", "base_nrms", "final_nrms", "base_systematic", "final_systematic", "rig")
+        "default_nrms", "base_nrms", "final_nrms", "base_systematic", "final_systematic", "rig", "proposal_adopted")
 
 
 def _combine(per: list[dict], dataset: str, cfg: DiagnoseConfig) -> dict:

@@ -8,6 +8,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from sim.errors import ParameterError  # noqa: F401  (re-exported: the models and sim.api raise it from here)
+from sim.models.discrepancy import TERMS as DISCREPANCY_TERMS
 from sim.models.effects import EFFECT_FIT_BOUNDS, EFFECTS, effect
 from sim.models.fitbound import FitBound  # noqa: F401  (re-exported: the models build their bounds from here)
 from sim.models.param import Param  # noqa: F401  (re-exported: the models declare their parameters from here)
@@ -134,6 +135,10 @@ class ModelSpec:
     diagnose_fit: dict[str, int] = field(default_factory=lambda: {"candidate_starts": 1, "max_nfev": 10})
     # diagnosis fit effort: random starts per candidate, least-squares iterations (DIAGNOSE_FIT_KEYS)
     exact: str | None = None   # module of an exact propagator of the model's phases (sim/exact/), if any
+    # discrepancy terms the model has (sim.models.discrepancy; each a parameter, off at 0) and their fit bounds
+    # [SI]: lo = where the term just becomes measurable, hi = large but still simulable
+    discrepancy: tuple[str, ...] = ()
+    discrepancy_bounds: dict[str, FitBound] = field(default_factory=dict)
     synth: SynthRig | None = None   # how `vibro synth` records the model's rig (None: no synthetic rig)
 
     def __post_init__(self):
@@ -184,6 +189,12 @@ class ModelSpec:
                 isinstance(v, int) and v >= 1 for v in self.diagnose_fit.values()):
             raise ValueError(f"{where}: diagnose_fit must give integers >= 1 for exactly {DIAGNOSE_FIT_KEYS}, "
                              f"got {self.diagnose_fit!r}")
+        for t in self.discrepancy:
+            if t not in DISCREPANCY_TERMS or t not in names:
+                raise ValueError(f"{where}: discrepancy term '{t}' is not a term of sim.models.discrepancy and a parameter")
+            b = self.discrepancy_bounds.get(t)
+            if b is None or b.name != t or not 0.0 < b.lo < b.hi:
+                raise ValueError(f"{where}: discrepancy term '{t}' needs fit bounds 0 < lo < hi")
         if self.synth is not None:
             self.synth.check(self)
 
@@ -216,6 +227,10 @@ class ModelSpec:
                 out[name] = None
                 continue
             out[name] = by_name[name].validate(v)
+        for name in DISCREPANCY_TERMS:      # a term the model does not have must stay off
+            if out.get(name) and name not in self.discrepancy:
+                raise ParameterError(f"discrepancy term '{name}' does not apply to model '{self.name}' "
+                                     f"(its terms: {', '.join(self.discrepancy) or 'none'})")
         if self.derive is not None:
             out = self.derive(out)
         for name, v in out.items():

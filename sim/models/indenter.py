@@ -13,6 +13,9 @@ Effects (MODELS.md §6; all off at their default 0):
   shaker_coil (tau [s], beta [N s/m]), rate_stiffening (alpha [s/m]), guide_friction (mu [N]),
   tip_blunting (gamma [-], sandstone), suspension_hardening (kappa [1/m^2]),
   sensor_lowpass (fc [Hz]: applied to the recorded acceleration, ``sim.models.sensor``).
+
+Discrepancy terms (sim.models.discrepancy; off at 0): the metal's Kelvin–Voigt expression gains the contact terms
+(δ = x1 − G, δ̇ = ẋ1, also in its force indicator); both samples take the tool terms on m1 (v = ẋ1).
 """
 from __future__ import annotations
 
@@ -23,6 +26,7 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import FitBound, ModelSpec, Param, SynthRig
+from sim.models.discrepancy import contact_extra, discrepancy_params, tool_loss
 from sim.models.effects import effect_params
 from sim.models.param import index_of
 from sim.models.contact import branch_depth, branch_force, coulomb_sign, kelvin_voigt, released_force
@@ -82,6 +86,8 @@ def _body(t, y, p, fr, dy):
     beta = p[BETA]
     mu = p[MU]
     kappa = p[KAPPA]
+    tv = p[TV]
+    tq = p[TQ]
     om = 2.0 * math.pi * p[FREQ]
     phi1 = x1 - x2
     dphi1 = v1 - v2
@@ -90,7 +96,7 @@ def _body(t, y, p, fr, dy):
     fem, dfem = coil_force(fa * math.sin(om * t), beta, dphi1, tau, fem_y)
     inner = c2 * dphi1 + hardened_spring(k2, phi1, kappa) + guide_friction(mu, dphi1, veps)
     dy[IX1] = v1
-    dy[IV1] = (fem - inner - fr) / m1
+    dy[IV1] = (fem - inner - fr - tool_loss(tv, tq, v1)) / m1
     dy[IX2] = v2
     dy[IV2] = (-fem + inner - c3 * dphi2 - k3 * phi2) / m2
     dy[IX3] = v3
@@ -102,8 +108,12 @@ def _body(t, y, p, fr, dy):
 # ----------------------------------------------------------------------------- metal sample
 @njit(cache=True, inline="always")
 def _metal_expr(y, p):
-    """Kelvin–Voigt force expression of the metal sample [N] (unclamped), with rate stiffening."""
-    return kelvin_voigt(rate_stiffened(p[K1], p[ALPHA], y[IV1]), p[C1], y[IX1] - p[GAP], y[IV1])
+    """Kelvin–Voigt force expression of the metal sample [N] (unclamped), with rate stiffening and the discrepancy
+    contact terms (δ = x1 − G, δ̇ = ẋ1)."""
+    d = y[IX1] - p[GAP]
+    v1 = y[IV1]
+    return (kelvin_voigt(rate_stiffened(p[K1], p[ALPHA], v1), p[C1], d, v1)
+            + contact_extra(p[DQ], p[DC], p[DP], d, v1))
 
 
 @njit(cache=True, inline="always")
@@ -333,7 +343,11 @@ COMMON = (
                              "sensor_lowpass": "the armature's recorded acceleration"}),
     Param("P", 1.0, "bar", "pneumatic pressure", positive=True),
     Param("D", 0.05, "m", "piston diameter", positive=True),
+    *discrepancy_params({"contact": "in the metal's Kelvin–Voigt expression, δ = x1 − G, δ̇ = ẋ1 (not the sandstone)",
+                         "tool": "on m1, v = ẋ1"}),
 )
+DQ, DC, DP, TV, TQ = index_of(COMMON, "contact_quadratic", "contact_cubic", "contact_rate_product", "tool_viscous",
+                              "tool_quadratic_drag")
 TAU, BETA, ALPHA, MU, GAMMA, KAPPA, FC = index_of(COMMON, "tau", "beta", "alpha", "mu", "gamma", "kappa", "fc")
 # The kernel's parameter vector ends with the effects' parameters; P and D only feed static_force_n.
 
@@ -347,8 +361,19 @@ def _derive(values: dict) -> dict:
     return v
 
 
+# discrepancy terms (sim.models.discrepancy): penetration δ ~ 1.4e-4 m under the metal's k1, armature speed ~0.3 m/s,
+# m1 Ω ~ 1.3e3 N s/m at 60 Hz; lo ~ 1/20 and hi ~ 30x of a ~10 % change of the labels.  The sandstone's contact is
+# its power-law branches (kl, ku, nl, nu): only the tool terms apply there.
+_TOOL_BOUNDS = {"tool_viscous": FitBound("tool_viscous", 5.0, 4e3, "N s/m"),
+                "tool_quadratic_drag": FitBound("tool_quadratic_drag", 50.0, 1e5, "N s^2/m^2")}
+_METAL_BOUNDS = {"contact_quadratic": FitBound("contact_quadratic", 3e8, 3e11, "N/m^2"),
+                 "contact_cubic": FitBound("contact_cubic", 2e12, 2e15, "N/m^3"),
+                 "contact_rate_product": FitBound("contact_rate_product", 1e5, 1e8, "N s/m^2"), **_TOOL_BOUNDS}
+
+
 def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effects: tuple[str, ...], progression: str,
-          calibratable: tuple[FitBound, ...], map_kind: str, synth: SynthRig, exact: str) -> ModelSpec:
+          calibratable: tuple[FitBound, ...], map_kind: str, synth: SynthRig, exact: str,
+          discrepancy: dict[str, FitBound]) -> ModelSpec:
     return ModelSpec(
         name=name,
         description=f"indenter rig, {name.split('-')[1]} sample (MODELS.md §1)",
@@ -379,6 +404,8 @@ def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effe
         # every phase linear while the seal friction is ± pm (|ẋ2| ≥ v_band(rtol) v_eps): exact there, DOPRI5 across the
         # shaker body's velocity reversals (sim/exact/indenter.py)
         exact=exact,
+        discrepancy=tuple(discrepancy),
+        discrepancy_bounds=discrepancy,
     )
 
 
@@ -426,11 +453,11 @@ SPECS = {
     "indenter-metal": _spec("indenter-metal", (metal_rhs, metal_guards, metal_on_event, metal_observe, metal_bounded),
                             (), ("x1", "v1", "x2", "v2"), _PRESETS, _COMMON_EFFECTS, "none (metal does not progress)",
                             _METAL_FIT, "pattern", _synth(_COMMON_EFFECTS, "indenter-sandstone"),
-                            "sim.exact.indenter_metal"),
+                            "sim.exact.indenter_metal", _METAL_BOUNDS),
     "indenter-sandstone": _spec("indenter-sandstone",
                                 (sand_rhs, sand_guards, sand_on_event, sand_observe, sand_bounded),
                                 ("xp", "xf"), ("x1-xp", "v1", "x2-xp", "v2"), _PRESETS,
                                 (*_COMMON_EFFECTS, "tip_blunting"), "xp (crater floor)",
                                 _SAND_FIT, "rop", _synth((*_COMMON_EFFECTS, "tip_blunting"), None),
-                                "sim.exact.indenter_sandstone"),
+                                "sim.exact.indenter_sandstone", _TOOL_BOUNDS),
 }

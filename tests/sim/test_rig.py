@@ -49,8 +49,28 @@ def test_with_values_routes_effect_parameters():
     ({"model": "drill", "effects": {"shaker_coil": 3}}, "effect 'shaker_coil' must map"),
     ({"model": "drill", "uncertainty": {"K1": -1}}, "uncertainty of 'K1'"),
     ({"model": "drill", "parameters": [1, 2]}, "'parameters' must be a mapping"),
+    ({"model": "drill", "discrepancy": {"contact_quartic": 1.0}}, "discrepancy term 'contact_quartic' is not a term"),
+    ({"model": "indenter-sandstone", "discrepancy": {"contact_quadratic": 1e9}}, "is not a term of model"),
+    ({"model": "drill", "discrepancy": {"tool_viscous": -5.0}}, "'tool_viscous'"),
+    ({"model": "drill", "discrepancy": {"tool_viscous": "x + 1"}}, "'tool_viscous' must be a number"),
+    ({"model": "drill", "parameters": {"tool_viscous": 5.0}}, "give it under 'discrepancy'"),
+    ({"model": "drill", "discrepancy": [1]}, "'discrepancy' must be a mapping"),
     ([1, 2], "expected a mapping"),
 ])
 def test_bad_rig_names_the_culprit(data, culprit):
     with pytest.raises(sim.ParameterError, match=culprit.replace("(", r"\(")):
         Rig.from_mapping(data)
+
+
+def test_rig_with_discrepancy_round_trips_and_simulates_it():
+    """A rig's ``discrepancy:`` entry (an adopted proposal: term names and coefficients) survives the file layout and
+    is simulated in the kernel: the same labels as the term passed directly, not the base model's."""
+    data = {"model": "drill", "preset": "lab", "parameters": {"K1": 5e8}, "discrepancy": {"tool_quadratic_drag": 6e5}}
+    rig = Rig.from_mapping(data)
+    assert rig.to_mapping() == data and rig.overrides() == {"K1": 5e8, "tool_quadratic_drag": 6e5}
+    assert rig.with_values({"tool_quadratic_drag": 7e5}).discrepancy == {"tool_quadratic_drag": 7e5}
+    st = {"min_transient": 20, "max_transient": 60, "window": 8}
+    a = rig.simulate(settings=st).labels
+    b = sim.simulate("drill", preset="lab", K1=5e8, tool_quadratic_drag=6e5, settings=st).labels
+    c = sim.simulate("drill", preset="lab", K1=5e8, settings=st).labels
+    assert a["rop_m_s"] == b["rop_m_s"] and a["rop_m_s"] < 0.97 * c["rop_m_s"]     # drag slows the bit

@@ -33,7 +33,11 @@ def _check(rep: dict, truth: dict, spec: LogSpec) -> None:
             assert v == pytest.approx(truth["truth"][k], rel=PARAM_TOL), (k, v)
     elif spec.outside:
         assert rep["verdict"] == "unexplained" and rep["selected"] is None, rep["call"]["text"]
-        assert "UNEXPLAINED" in rep["rig"]["source"] and "absorbed" in rep["rig"]["source"]
+        assert "UNEXPLAINED" in rep["rig"]["source"]
+        adopted = rep["proposal_adopted"]       # a discrepancy proposal the held-out runs accepted, or none
+        assert (rep["rig"]["discrepancy"] is not None) == bool(adopted)
+        assert ("adopted the discrepancy proposal" if adopted else "absorbed") in rep["rig"]["source"]
+        assert rep["discrepancy"]["proposals"] and len(rep["discrepancy"]["proposals"]) <= 3
     else:
         assert rep["verdict"] == "nothing missing" and rep["selected"] is None, rep["call"]["text"]
     if not spec.outside and not spec.effect:    # a control: the calibrated rig is the true rig

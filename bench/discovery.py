@@ -1,0 +1,191 @@
+"""Discovery matrix of ``vibro diagnose`` on rig logs it did not make: proposals for physics outside the library,
+and two §6 effects at once.
+
+Every system × (each out-of-library physics of the independent rig, a pair of its §6 effects) × noise models: the log
+is written by the independent generator in ``tests/independent`` (scipy reference with event location, signals
+sampled at the DAQ's own instants, the noise a rig makes) and diagnosed at the defaults (``max_proposals`` 3), a pair
+with ``max_effects: 2``.  Scored against the truth:
+
+- out-of-library physics: the top proposal brings the held-out nrms within ``explained_nrms`` (2: twice the noise)
+  **and** names the right kind of term (``tests.independent.rigs.OUTSIDE_KIND``: contact / velocity loss; a hidden
+  mode and a sensor resonance have no term in the vocabulary, so those rows can only be right by saying so);
+- pairs of §6 effects: both selected;
+- controls are not run here: discovery only runs on an "unexplained" verdict, and the identification matrix
+  (``python -m bench.identification``) scores the controls' "nothing missing".
+
+    python -m bench.discovery --n-runs 8                        # the matrix (hours on 2 cores; resumable)
+    python -m bench.discovery --systems drill --cases outside:quadratic_damping --noise rig
+
+Logs and rows are kept under ``bench/results/discovery/`` (resumes; ``--fresh`` diagnoses again); the tables go to
+docs/discovery.md between its generated-table markers and the summary to bench/results/discovery.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import shutil
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = Path(__file__).resolve().parent / "results"
+WORK = RESULTS / "discovery"
+DOC = ROOT / "docs" / "discovery.md"
+START, END = "<!-- discovery:start -->", "<!-- discovery:end -->"
+NOISE = ("rig", "white2")
+PAIRS = {"drill": ("guide_friction", "tip_blunting"), "indenter-metal": ("guide_friction", "suspension_hardening"),
+         "indenter-sandstone": ("tip_blunting", "guide_friction"), "pendulum": ("rate_stiffening", "sensor_lowpass"),
+         "rimd": ("rate_stiffening", "suspension_hardening")}
+"""The pair of §6 effects each rig gets at once (the independent rig's visible strengths)."""
+
+
+def cases(system: str) -> list[str]:
+    """Every out-of-library physics of the independent rig, then the pair."""
+    from tests.independent.rigs import RIGS
+
+    return [*(f"outside:{o}" for o in RIGS[system].outside), "pair:" + "+".join(PAIRS[system])]
+
+
+def spec_of(system: str, case: str, noise: str, seed: int, n_runs: int | None):
+    from tests.independent.generator import LogSpec
+    from tests.independent.rigs import RIGS
+
+    if case.startswith("outside:"):
+        return LogSpec(system, outside=case.split(":", 1)[1], noise=noise, seed=seed, n_runs=n_runs)
+    first, second = case.split(":", 1)[1].split("+")
+    return LogSpec(system, effect=first, noise=noise, seed=seed, n_runs=n_runs,
+                   overrides=dict(RIGS[system].effects[second]))
+
+
+def row_name(system: str, case: str, noise: str, seed: int, n_runs: int | None) -> str:
+    what = case.replace(":", "-")
+    return f"{system}-{what}-{noise}-s{seed}" + ("" if n_runs is None else f"-n{n_runs}")
+
+
+def run_case(system: str, case: str, noise: str, seed: int, threads: int, n_runs: int | None) -> dict:
+    """Generate (or reuse) the log, diagnose it, and score the proposals / the pair against the truth."""
+    from tests.independent.generator import generate
+    from tests.independent.rigs import OUTSIDE_KIND
+
+    name = row_name(system, case, noise, seed, n_runs)
+    data, truth_file = WORK / "logs" / name, WORK / "logs" / f"{name}.truth.json"
+    if not truth_file.exists():
+        shutil.rmtree(data, ignore_errors=True)
+        generate(spec_of(system, case, noise, seed, n_runs), data, truth_file, threads=threads)
+    from pipeline.datasets.measured import load_dataset
+    from pipeline.diagnosis.outputs import diagnose_into
+    from pipeline.diagnosis.run import DiagnoseConfig
+
+    out = WORK / "diagnoses" / name
+    shutil.rmtree(out, ignore_errors=True)
+    cfg = DiagnoseConfig(n_threads=threads, max_effects=2 if case.startswith("pair:") else 1)
+    t0, c0 = time.time(), time.process_time()
+    rep = diagnose_into(load_dataset(data), out, cfg, log=lambda s: None).report
+    wall, cpu = time.time() - t0, time.process_time() - c0
+    r = rep["systems"][system]
+    disc = r.get("discrepancy") or {}
+    props = disc.get("proposals") or []
+    top = props[0] if props else None
+    row = {"system": system, "case": case, "noise": noise, "seed": seed, "name": name, "verdict": r["verdict"],
+           "selected": r["selected"], "selected_effects": r["selected_effects"], "base_nrms": r["base_nrms"],
+           "final_nrms": r["final_nrms"], "noise_floor": r["noise_floor"], "base_error": r["base_error"],
+           "final_error": r["final_error"], "accepted": disc.get("accepted"),
+           "proposals": [{k: p[k] for k in ("terms", "kinds", "coefficients", "coefficient_sd", "nrms", "error",
+                                            "adequate", "improves")} for p in props],
+           "screening": [{k: s[k] for k in ("term", "entered", "score", "in_support")} for s in disc.get("screening", [])],
+           "n_simulations": r["n_simulations"], "wall_time_s": round(wall, 1), "cpu_time_s": round(cpu, 1)}
+    if case.startswith("outside:"):
+        kind = OUTSIDE_KIND[case.split(":", 1)[1]]
+        row["expected"] = f"proposal: {kind}"
+        row["top_within_2x"] = bool(top is not None and top["nrms"] <= cfg.explained_nrms)
+        row["right_kind"] = bool(top is not None and kind in top["kinds"])
+        row["correct"] = row["top_within_2x"] and row["right_kind"]
+    else:
+        pair = set(case.split(":", 1)[1].split("+"))
+        row["expected"] = "both effects"
+        row["correct"] = set(r["selected_effects"]) == pair
+    return row
+
+
+def _fmt(x, spec=".3g") -> str:
+    return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
+
+
+def table(rows: list[dict]) -> str:
+    """Summary per kind of case and noise model, then every log."""
+    lines = ["| cases | noise | right | top proposal within 2× the noise | names the right kind |", "|---|---|---|---|---|"]
+    kinds = sorted({r["case"] if r["case"].startswith("outside:") else "pair of §6 effects" for r in rows})
+    for k in kinds:
+        for noise in sorted({r["noise"] for r in rows}):
+            rs = [r for r in rows if r["noise"] == noise and (r["case"] == k or (k.startswith("pair") and r["case"].startswith("pair:")))]
+            if not rs:
+                continue
+            within = f"{sum(r.get('top_within_2x', False) for r in rs)}/{len(rs)}" if k.startswith("outside") else "—"
+            kind = f"{sum(r.get('right_kind', False) for r in rs)}/{len(rs)}" if k.startswith("outside") else "—"
+            lines.append(f"| {k} | {noise} | {sum(r['correct'] for r in rs)}/{len(rs)} | {within} | {kind} |")
+    out = [r for r in rows if r["case"].startswith("outside:")]
+    pairs = [r for r in rows if r["case"].startswith("pair:")]
+    lines.append(f"| **out of library** | | **{sum(r['correct'] for r in out)}/{len(out)}** | "
+                 f"{sum(r.get('top_within_2x', False) for r in out)}/{len(out)} | {sum(r.get('right_kind', False) for r in out)}/{len(out)} |")
+    lines.append(f"| **pairs** | | **{sum(r['correct'] for r in pairs)}/{len(pairs)}** | | |")
+    lines += ["", "| log | verdict | selected / accepted proposal | top proposal (kind): held-out nrms | nrms base → final | "
+              "noise floor | diagnosis wall (CPU) |", "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        ok = "✓" if r["correct"] else "✗"
+        top = r["proposals"][0] if r["proposals"] else None
+        tp = (f"{' + '.join(top['terms'])} ({', '.join(top['kinds'])}): {_fmt(top['nrms'])}" if top else "—")
+        sel = r["selected"] or ("proposal " + " + ".join(r["accepted"]) if r["accepted"] else "—")
+        lines.append(f"| {r['name']} {ok} | {r['verdict']} | {sel} | {tp} | {_fmt(r['base_nrms'])} → "
+                     f"{_fmt(r['final_nrms'])} | {_fmt(r['noise_floor'])} | {r['wall_time_s']:.0f} s ({r['cpu_time_s']:.0f} s) |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--systems", nargs="+", default=["drill", "indenter-metal", "indenter-sandstone", "pendulum", "rimd"])
+    p.add_argument("--cases", nargs="+", help="subset: outside:<name>, pair")
+    p.add_argument("--noise", nargs="+", default=list(NOISE))
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--n-runs", type=int, default=8, help="the first N runs spread over each rig's grid")
+    p.add_argument("--fresh", action="store_true", help="diagnose every case again (the logs are kept)")
+    p.add_argument("--no-doc", action="store_true", help="do not rewrite docs/discovery.md")
+    a = p.parse_args(argv)
+    WORK.mkdir(parents=True, exist_ok=True)
+    done_file = WORK / "rows.json"
+    done = {r["name"]: r for r in json.loads(done_file.read_text())} if done_file.exists() and not a.fresh else {}
+    per = {s: [c for c in cases(s) if a.cases is None or c in a.cases or (c.startswith("pair:") and "pair" in a.cases)]
+           for s in a.systems}
+    todo = [(s, per[s][k], n) for n in a.noise for k in range(max(map(len, per.values()), default=0))
+            for s in a.systems if k < len(per[s])]
+    rows = []
+    for k, (s, c, n) in enumerate(todo, 1):
+        name = row_name(s, c, n, a.seed, a.n_runs)
+        if name not in done:
+            done[name] = run_case(s, c, n, a.seed, a.threads, a.n_runs)
+            done_file.write_text(json.dumps(list(done.values()), indent=1, default=float))
+            r = done[name]
+            print(f"[{k}/{len(todo)}] {name}: {'✓' if r['correct'] else '✗'} {r['verdict']}, "
+                  f"proposals {[p['terms'] for p in r['proposals']]}, nrms {_fmt(r['base_nrms'])} -> "
+                  f"{_fmt(r['final_nrms'])} ({r['wall_time_s']:.0f} s)", flush=True)
+        rows.append(done[name])
+    text = table(rows)
+    print(text)
+    summary = {"rows": len(rows), "right": sum(r["correct"] for r in rows)}
+    (RESULTS / "discovery.json").write_text(json.dumps({"summary": summary, "rows": rows}, indent=1, default=float))
+    if not a.no_doc and DOC.exists():
+        from bench import write_block
+
+        write_block(DOC, START, END, text)
+        from bench import write_between_markers
+
+        write_between_markers(ROOT, ["README.md"], "<!-- discovery-summary:start -->", "<!-- discovery-summary:end -->",
+                              text.split("\n\n")[0])
+    print(json.dumps(summary), file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

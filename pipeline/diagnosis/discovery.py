@@ -1,0 +1,229 @@
+"""Discrepancy discovery: when no §6 effect explains a rig, propose the missing term from the model's vocabulary.
+
+The vocabulary (``sim.models.discrepancy``) is a fixed set of terms at the contact force and on the impacting mass,
+each a kernel parameter off at 0.  Discovery has two steps:
+
+1. **Screening by sparse regression.**  At the calibrated base, the sensitivity of the calibration runs' residual
+   to each term (a secant to a probe strength inside its fit bounds) and to each calibratable parameter is
+   simulated in one batch.  The term columns are projected off the calibratable ones (what a recalibration can
+   absorb is no evidence for a term), and the residual is regressed on them with a non-negative lasso path
+   (scikit-learn's ``lars_path``); each support along the path is refitted without shrinkage (relaxed lasso), the
+   one with the least BIC (noise variance 1: the residuals are noise-normalised) is the support, and the order of
+   entry ranks the terms.  PySINDy-style regression on
+   derivatives is not used: a rig records one or two channels of the impacting mass at any rate, not the states and
+   their derivatives, and the contact switches make derivative estimates meaningless around every impact.
+2. **Re-fit through the simulator.**  The support and the leading single terms (at most ``max_proposals`` sets)
+   are each fitted with the calibratable parameters on every fold's calibration runs by the §6 machinery
+   (``calibrate.fit_added``: a grid start and the regression's estimate) and judged on the held-out runs by the
+   verdict rule of the effects: a proposal is *accepted* when it improves on the base materially and brings the
+   held-out nrms within ``explained_nrms`` (2 = twice the noise).  The regression only chooses what to fit.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pipeline.core.executors import Executor
+from pipeline.diagnosis.calibrate import fit_added
+from pipeline.diagnosis.fit import FitResult
+from pipeline.diagnosis.heldout import fold_errors
+from pipeline.diagnosis.model import Evaluator, FreeParam, calibratable
+from pipeline.diagnosis.verdict import ModelStats, decide
+
+if TYPE_CHECKING:
+    from pipeline.diagnosis.config import DiagnoseConfig
+
+PROBE_AT = 0.45
+"""The probe strength of a term: this fraction of its log10 fit range above the lower bound (about the strength
+that changes the labels by ~10 %)."""
+CAL_STEP = 0.01
+"""Step [log10] of the calibratable parameters' sensitivity columns."""
+MAX_SUPPORT = 2
+"""At most this many terms in one proposal."""
+PREFIX = "discrepancy:"
+"""Model names of proposals in the diagnosis' fits: ``discrepancy:`` + the terms joined by ``+``."""
+
+
+def term_candidates(system: str) -> dict[str, FreeParam]:
+    """The discrepancy terms of ``system`` with their fit bounds (``ModelSpec.discrepancy_bounds``)."""
+    import sim
+
+    spec = sim.get_model(system)
+    return {t: spec.discrepancy_bounds[t] for t in spec.discrepancy}
+
+
+def probe_value(b: FreeParam) -> float:
+    """A term's probe strength [its unit] (``PROBE_AT``)."""
+    lo, hi = b.bounds
+    return float(10 ** (lo + PROBE_AT * (hi - lo)))
+
+
+@dataclass(frozen=True)
+class Screening:
+    """The sparse regression's outcome: the terms in order of entry into the lasso path (then the others by
+    ``score``), the support at the path's least BIC, each term's estimated strength [its unit] (0 off the support),
+    ``score`` = |correlation| of its projected sensitivity with the residual, and the BIC of each support along the
+    path (refitted without shrinkage; the first is the empty support)."""
+
+    order: list[str]
+    support: list[str]
+    estimate: dict[str, float]
+    score: dict[str, float]
+    path_bic: list[float]
+
+
+def screen(ev: Evaluator, idx: list[int], base: dict, terms: dict[str, FreeParam]) -> Screening:
+    """Screen the ``terms`` on runs ``idx`` at the calibrated ``base`` parameters (one batch of simulations)."""
+    from scipy.optimize import nnls
+    from sklearn.linear_model import lars_path
+
+    cal = [p.name for p in calibratable(ev.system)]
+    names = list(terms)
+    probes = {t: probe_value(terms[t]) for t in names}
+    sets = ([dict(base)] + [{**base, n: base[n] * 10 ** CAL_STEP} for n in cal]
+            + [{**base, t: probes[t]} for t in names])
+    rs = ev.residuals(sets, idx)
+    r0 = rs[0]
+    jc = np.column_stack([(r - r0) / CAL_STEP for r in rs[1:1 + len(cal)]])
+    jt = np.column_stack([r - r0 for r in rs[1 + len(cal):]])       # per unit of the probe strength
+    q, _ = np.linalg.qr(jc)
+    jt = jt - q @ (q.T @ jt)                  # what a recalibration can absorb is no evidence for a term
+    y = -(r0 - q @ (q.T @ r0))
+    norms = np.linalg.norm(jt, axis=0)
+    norms[norms == 0.0] = 1.0
+    x = jt / norms
+    yn = float(np.linalg.norm(y)) or 1.0
+    score = {t: float(abs(x[:, j] @ y) / yn) for j, t in enumerate(names)}
+    _, active, coefs = lars_path(x, y, method="lasso", positive=True)
+    n = y.size
+    # relaxed lasso: each support along the path refitted without shrinkage (non-negative least squares), so its
+    # BIC is not biased towards larger supports by the lasso's shrunk coefficients
+    supports = list(dict.fromkeys(tuple(np.flatnonzero(c)) for c in coefs.T))
+    fits = []
+    for sup in supports:
+        c = np.zeros(len(names))
+        if sup:
+            c[list(sup)] = nnls(x[:, list(sup)], y)[0]
+        fits.append(c)
+    bic = [float(np.sum((y - x @ c) ** 2) + np.count_nonzero(c) * math.log(n)) for c in fits]
+    best = fits[int(np.argmin(bic))]
+    entered = [names[j] for j in active]
+    order = entered + sorted((t for t in names if t not in entered), key=lambda t: -score[t])
+    support = sorted((t for j, t in enumerate(names) if best[j] > 0.0), key=lambda t: -best[names.index(t)] * norms[names.index(t)])
+    estimate = {t: float(best[j] / norms[j] * probes[t]) for j, t in enumerate(names)}
+    return Screening(order=order, support=support[:MAX_SUPPORT], estimate=estimate, score=score, path_bic=bic)
+
+
+def proposal_sets(scr: Screening, max_proposals: int) -> list[tuple[str, ...]]:
+    """What to fit: the regression's support, then the leading single terms, at most ``max_proposals`` sets."""
+    sets: list[tuple[str, ...]] = []
+    if scr.support:
+        sets.append(tuple(scr.support))
+    for t in scr.order:
+        if (t,) not in sets:
+            sets.append((t,))
+    return sets[:max_proposals]
+
+
+def proposal_name(terms: tuple[str, ...]) -> str:
+    return PREFIX + "+".join(terms)
+
+
+def proposal_terms(name: str) -> list[str]:
+    """The terms of a proposal's model name (``PREFIX`` + terms joined by ``+``)."""
+    return name[len(PREFIX):].split("+")
+
+
+def _start(terms: tuple[str, ...], scr: Screening, bounds: dict[str, FreeParam]) -> dict:
+    """The regression's estimate of each term (its probe strength where it estimated none), inside its bounds."""
+    out = {}
+    for t in terms:
+        lo, hi = (10 ** v for v in bounds[t].bounds)
+        v = scr.estimate.get(t, 0.0) or probe_value(bounds[t])
+        out[t] = float(min(max(v, lo * 1.01), hi / 1.01))
+    return out
+
+
+@dataclass(frozen=True)
+class Discovery:
+    """Discovery's outcome: the screening, every proposal's fits (reported: the single split's, or on all runs),
+    held-out errors and statistics, and the verdict of the proposals against the calibrated base."""
+
+    screening: Screening
+    fits: dict[str, FitResult]
+    err: dict[str, dict]
+    stats: dict[str, ModelStats]
+    accepted: str | None
+    leader: str | None
+    checks: dict
+
+
+def discover(ev: Evaluator, cfg: DiagnoseConfig, scheme: str, folds: list, fits_per_fold: list[dict],
+             warm: dict | None, base_stats: ModelStats, executor: Executor, log) -> Discovery | None:
+    """Screen the model's discrepancy terms at the calibrated base, re-fit the proposals on every fold and judge
+    them on the held-out runs (``cfg.max_proposals`` of them; None when the model has no terms)."""
+    terms = term_candidates(ev.system)
+    if not terms or cfg.max_proposals < 1:
+        return None
+    all_runs = list(range(len(ev.targets)))
+    base = (fits_per_fold[0]["base"] if scheme == "holdout" else warm["base"]).values
+    idx = folds[0][0] if scheme == "holdout" else all_runs
+    scr = screen(ev, idx, base, terms)
+    log(f"{ev.system}: discrepancy screening: support {scr.support or 'none'}, order {', '.join(scr.order)}")
+    sets = proposal_sets(scr, cfg.max_proposals)
+    cands = {proposal_name(s): tuple(terms[t] for t in s) for s in sets}
+    starts = {proposal_name(s): _start(s, scr, terms) for s in sets}
+    fold_fits = fit_added(ev, [cal for cal, _ in folds], cfg, cands, [f["base"] for f in fits_per_fold], executor,
+                          extra_starts=starts)
+    if scheme == "holdout":
+        reported = fold_fits[0]
+    else:
+        [reported] = fit_added(ev, [all_runs], cfg, cands, [warm["base"]], executor, extra_starts=starts)
+    names = list(cands)
+    err, stats = fold_errors(ev, folds, fold_fits, names)
+    for m in names:
+        log(f"  {m}: held-out nrms {err[m]['nrms']:.4g} (base {math.sqrt(base_stats.chi2 / max(base_stats.n, 1)):.4g})")
+    v = decide(base_stats, [stats[m] for m in names], cfg.rule())
+    return Discovery(screening=scr, fits=reported, err=err, stats=stats, accepted=v.selected, leader=v.leader,
+                     checks=v.checks)
+
+
+def report(d: Discovery, base_err: dict, cal_names: list[str]) -> dict:
+    """report.json ``discrepancy``: the screening table, the proposals ranked by held-out nrms (at most three), the
+    accepted one and a sentence."""
+    import sim.models.discrepancy as vocab
+
+    scr = d.screening
+    screening = [{"term": t, "words": vocab.TERMS[t].words, "form": vocab.TERMS[t].form, "kind": vocab.TERMS[t].kind,
+                  "entered": scr.order.index(t) + 1, "score": scr.score[t], "estimate": scr.estimate[t],
+                  "in_support": t in scr.support} for t in scr.order]
+    rows = []
+    for m in sorted(d.err, key=lambda m: (d.err[m]["nrms"], d.stats[m].bic)):
+        fr, c, terms = d.fits[m], d.checks[m], proposal_terms(m)
+        rows.append({
+            "name": m, "terms": terms,
+            "words": [vocab.TERMS[t].words for t in terms], "forms": [vocab.TERMS[t].form for t in terms],
+            "kinds": sorted({vocab.TERMS[t].kind for t in terms}),
+            "coefficients": {t: fr.values[t] for t in terms}, "coefficient_sd": {t: fr.sd[t] for t in terms},
+            "coefficient_ci95": {t: list(fr.ci95[t]) for t in terms},
+            "calibrated": {n: fr.values[n] for n in cal_names},
+            "nrms": d.err[m]["nrms"], "error": d.err[m]["error"], "noise_floor": d.err[m]["noise_floor"],
+            "systematic": d.err[m]["systematic"], "by_run_nrms": d.err[m]["by_run_nrms"],
+            **{k: c[k] for k in ("delta_bic", "delta_chi2", "improves", "adequate")}})
+    top = rows[0] if rows else None
+    if d.accepted:
+        a = next(r for r in rows if r["name"] == d.accepted)
+        text = (f"proposed and accepted: {' + '.join(a['forms'])} ({'; '.join(a['words'])}): held-out nrms "
+                f"{base_err['nrms']:.3g} → {a['nrms']:.3g}, error {base_err['error']:.3g} → {a['error']:.3g} against a "
+                f"noise floor of {a['noise_floor']:.3g}")
+    elif top is not None:
+        text = (f"no proposal brings the held-out error to the noise (best: {' + '.join(top['forms'])}, nrms "
+                f"{base_err['nrms']:.3g} → {top['nrms']:.3g}); the missing term is not in the vocabulary "
+                f"({', '.join(vocab.TERMS)})")
+    else:
+        text = "no proposal"
+    return {"screening": screening, "path_bic": scr.path_bic, "proposals": rows[:3],
+            "accepted": proposal_terms(d.accepted) if d.accepted else None, "text": text}

@@ -1,0 +1,82 @@
+"""Errors on held-out runs: noise-normalised (nrms, χ²), relative against the noise floor, and systematic (from the
+records' halves); ``fold_errors`` accumulates them over the folds of a diagnosis for any set of fitted models."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pipeline.diagnosis.model import Evaluator
+from pipeline.diagnosis.verdict import ModelStats
+
+
+def heldout_errors(ev: Evaluator, idx: list[int], res: list[np.ndarray]) -> dict:
+    """nrms, relative error and noise floor over runs ``idx`` given their residual vectors."""
+    num, den, noise = {}, {}, {}
+    for i, r in zip(idx, res):
+        tg = ev.targets[i]
+        d = r * tg.sd
+        for g in dict.fromkeys(tg.group):     # first-seen order: sums independent of hashing
+            m = np.array([x == g for x in tg.group])
+            num[g] = num.get(g, 0.0) + float((d[m] ** 2).sum())
+            den[g] = den.get(g, 0.0) + float((tg.y[m] ** 2).sum())
+            noise[g] = noise.get(g, 0.0) + float((tg.sd[m] ** 2).sum())
+    rel = {g: math.sqrt(num[g] / max(den[g], 1e-300)) for g in num}
+    nf = {g: math.sqrt(noise[g] / max(den[g], 1e-300)) for g in num}
+    allr = np.concatenate(res) if res else np.zeros(1)
+    by_run = {ev.targets[i].run_id: float(np.sqrt(np.mean(r ** 2))) for i, r in zip(idx, res)}
+    return {"nrms": float(np.sqrt(np.mean(allr ** 2))), "chi2": float(allr @ allr), "n": int(allr.size),
+            "by_run_nrms": by_run,
+            "error": float(np.sqrt(np.mean([v ** 2 for v in rel.values()]))),
+            "noise_floor": float(np.sqrt(np.mean([v ** 2 for v in nf.values()]))),
+            "error_by_group": rel, "noise_by_group": nf}
+
+
+def systematic_error(ev: Evaluator, idx: list[int], halves: list[np.ndarray | None]) -> float | None:
+    """Relative systematic error of a model over the series runs ``idx`` from their records' halves.  Per feature
+    group (signal) S/P = Σ r_A·r_B / Σ y² (r_A, r_B = model − measured features of each half: the noise of the two
+    halves is independent and averages out of the product, a model error is in both — with either sign: an error that
+    drifts over the record, as tip blunting's does, can flip sign between the halves), combined over the groups with
+    inverse-variance weights (the product's noise, Σ 4 σ⁴ / P² with σ the features' noise sd, so a group the noise
+    dominates — a displacement whose harmonics are small beside its drift — does not swamp the others); the square
+    root of the weighted mean of the |S|/P.  None without halves.  A run the model could not simulate counts its
+    features as the error."""
+    num, den, var = {}, {}, {}
+    for i, mh in zip(idx, halves):
+        tg = ev.targets[i]
+        if tg.y_halves is None:
+            continue
+        model = mh if mh is not None else np.zeros_like(tg.y_halves)
+        ra, rb = model[0] - tg.y_halves[0], model[1] - tg.y_halves[1]
+        for g in dict.fromkeys(tg.group):     # first-seen order: sums independent of hashing
+            m = np.array([x == g for x in tg.group])
+            num[g] = num.get(g, 0.0) + float(ra[m] @ rb[m])
+            den[g] = den.get(g, 0.0) + 0.5 * float(tg.y_halves[0][m] @ tg.y_halves[0][m]
+                                                   + tg.y_halves[1][m] @ tg.y_halves[1][m])
+            var[g] = var.get(g, 0.0) + 4.0 * float(np.sum(tg.noise_sd[m] ** 4))
+    if not num:
+        return None
+    ratio = {g: abs(num[g]) / max(den[g], 1e-300) for g in num}    # a drifting error flips sign between halves
+    w = {g: 1.0 / max(var[g] / max(den[g], 1e-300) ** 2, 1e-30) for g in num}
+    return float(math.sqrt(sum(w[g] * ratio[g] for g in num) / sum(w.values())))    # every |S|/P >= 0
+
+
+def fold_errors(ev: Evaluator, folds: list[tuple[list[int], list[int]]], fold_fits: list[dict], names: list[str]
+                ) -> tuple[dict[str, dict], dict[str, ModelStats]]:
+    """The models ``names`` of every fold's fits (``fold_fits[f][name]``, fitted on the fold's calibration runs)
+    judged on the fold's held-out runs: per model its errors (``heldout_errors`` and ``systematic``) and its
+    ``ModelStats`` (BIC summed over the folds' calibration fits)."""
+    res = {m: [] for m in names}
+    halves = {m: [] for m in names}
+    idx: list[int] = []
+    bic = {m: 0.0 for m in names}
+    for (_, test), fits in zip(folds, fold_fits):
+        for m, (r, h) in zip(names, ev.held_out([fits[m].values for m in names], test)):
+            res[m] += r
+            halves[m] += h
+        idx += test
+        for m in names:
+            bic[m] += fits[m].bic()
+    err = {m: {**heldout_errors(ev, idx, res[m]), "systematic": systematic_error(ev, idx, halves[m])} for m in names}
+    stats = {m: ModelStats(m, bic[m], err[m]["chi2"], err[m]["n"], err[m]["systematic"]) for m in names}
+    return err, stats
