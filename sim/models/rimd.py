@@ -207,9 +207,11 @@ SPEC = ModelSpec(
     # discrepancy terms: penetration ~ 8e-5 m, hammer speed ~0.1 m/s; contact_rate_product is left out: the
     # Hunt–Crossley λi ki δ^ni δ̇ (calibratable) is that term already
     discrepancy=("contact_quadratic", "contact_cubic", "tool_viscous", "tool_quadratic_drag"),
-    discrepancy_bounds={"contact_quadratic": FitBound("contact_quadratic", 1e7, 1e10, "N/m^2"),
-                        "contact_cubic": FitBound("contact_cubic", 1e11, 1e14, "N/m^3"),
-                        "tool_viscous": FitBound("tool_viscous", 0.05, 50.0, "N s/m"),
+    # (bounds measured at the default point: each probe strength moves the peak force by ~3-10 %; the resonant
+    # hammer is very sensitive to a loss on it)
+    discrepancy_bounds={"contact_quadratic": FitBound("contact_quadratic", 1e7, 3e9, "N/m^2"),
+                        "contact_cubic": FitBound("contact_cubic", 1e11, 3e13, "N/m^3"),
+                        "tool_viscous": FitBound("tool_viscous", 0.01, 10.0, "N s/m"),
                         "tool_quadratic_drag": FitBound("tool_quadratic_drag", 0.5, 300.0, "N s^2/m^2")},
     # impact-pattern maps over the seed's ranges (seed 002 Table 3: gaps 0-3 mm)
     map_kind="pattern",

@@ -9,6 +9,7 @@ a real rig makes (``noise.py``).  Out-of-library physics (``outside.py``) gives 
     rigs.py       the five rigs: known parameters, calibratable ones, operating grid, DAQ, effect strengths
     noise.py      noise models (white, proportional to the record's RMS, gain, offsets and drift, 1/f, ADC
                   quantisation) and summary columns (rounded, or with a stated precision)
-    outside.py    physics outside MODELS.md §6 (accelerometer mount resonance, quadratic damping)
+    outside.py    physics outside MODELS.md §6 (accelerometer mount resonance, quadratic damping, a contact
+                  force with a power-law term, a hidden mode in the load path; dynamics in ``dynamics.py``)
     generator.py  ``generate(LogSpec, out_dir)``: a §7 directory and the truth, kept apart
 """

@@ -5,6 +5,17 @@
                      effect has a resonance (sensor_lowpass is a Butterworth, ζ = 0.71)
   quadratic_damping  a velocity-squared loss on the impacting mass (fluid / air drag): −cq v |v| [N]; the §6 losses
                      are viscous-like (shaker_coil β) or Coulomb (guide_friction) on a relative velocity
+  contact_power      a contact law nonlinear in the penetration δ: the contact force expression gains
+                     + kn max(δ, 0)^pn (kn [N/m^pn], pn [-], 2.5 on the rigs), inside the expression the model uses
+                     for its force and its release / threshold indicators (``dynamics.with_contact_power``); drill,
+                     indenter-metal, pendulum, rimd.  No §6 effect makes a contact stiffer with the penetration
+                     itself: rate_stiffening scales the stiffness with the penetration *rate*, tip_blunting with the
+                     progression, suspension_hardening hardens the suspension, not the contact.  Not on the
+                     sandstone, whose base contact already has power-law branches with calibratable stiffnesses.
+  load_path_mode     an extra mode in the load path: a hidden mass mh on the impacting mass through a spring ∥
+                     damper tuned to fh_hz with damping ratio zeta_h (two more states; ``dynamics.with_load_path_mode``);
+                     every system.  No §6 effect adds a degree of freedom with inertia: shaker_coil adds a first-order
+                     force state, sensor_lowpass filters only what the sensor reports, the rest change force laws.
 """
 from __future__ import annotations
 
@@ -29,7 +40,9 @@ class Outside:
 
 
 OUTSIDE = {"mount_resonance": Outside("mount_resonance", True),
-           "quadratic_damping": Outside("quadratic_damping", False)}
+           "quadratic_damping": Outside("quadratic_damping", False),
+           "contact_power": Outside("contact_power", False),
+           "load_path_mode": Outside("load_path_mode", False)}
 
 
 def measured_accel(name: str, truth: dict, t: np.ndarray, vel: np.ndarray, from_rest: bool) -> np.ndarray:
@@ -48,6 +61,8 @@ def model_for(system: str, outside: str | None):
     """What ``reference_run`` simulates: the system's own model, or its subclass with the outside dynamics."""
     if outside is None or OUTSIDE[outside].measurement:
         return system
-    from tests.independent.dynamics import with_quadratic_damping
+    from tests.independent import dynamics
 
-    return with_quadratic_damping(system)
+    factory = {"quadratic_damping": dynamics.with_quadratic_damping, "contact_power": dynamics.with_contact_power,
+               "load_path_mode": dynamics.with_load_path_mode}[outside]
+    return factory(system)
