@@ -376,8 +376,10 @@ SPEC = ModelSpec(
     diagnose_max_harmonic_hz=3000.0,
     diagnose_fit={"candidate_starts": 1, "max_nfev": 10},
     # discrepancy terms (sim.models.discrepancy) at the lab preset's scale: lo changes the ROP by ~0.5-1 %, the probe
-    # (sim/models/discrepancy PROBE_AT) by ~5-20 %, hi by 25-60 %.  contact_rate_product is left out: at some strengths
-    # (2e7 N s/m², not 1e7 or 4e7) the phase II/III switch chatters (event storms), not resolved yet
+    # (sim/models/discrepancy PROBE_AT) by ~5-20 %, hi by 25-60 %.  contact_rate_product is left out: a release where
+    # the δ δ̇ term takes Pc to 0 while K1 δ + C1 ẋ1 > 0 leaves the surface relaxing (phase I's base law) into the bit,
+    # and the onset guard x1 − xt fires at once (event storms at some strengths); the independent reference treats
+    # that overlap with two more events — the kernel's phase I would need the same before the term can be offered
     discrepancy=("contact_quadratic", "contact_cubic", "tool_viscous", "tool_quadratic_drag"),
     discrepancy_bounds={"contact_quadratic": FitBound("contact_quadratic", 2e12, 2e15, "N/m^2"),
                         "contact_cubic": FitBound("contact_cubic", 5e17, 5e20, "N/m^3"),
