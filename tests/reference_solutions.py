@@ -171,32 +171,30 @@ def _req(params: dict, names, model: str) -> dict:
     return {n: float(params[n]) for n in names}
 
 
-def _effect_params(params: dict, model: str) -> dict:
-    """The model's effect parameters (absent = 0); a non-zero effect the model does not have is an error."""
-    own = EFFECTS[model]
-    for n in EFFECT_PARAMS:
+def _switched_params(params: dict, model: str, every: tuple, own: tuple, what: str) -> dict:
+    """The ``own`` parameters of a switchable kind (``what``: "effect parameter", "discrepancy term"; absent = 0,
+    each finite and >= 0); a non-zero one of ``every`` the model does not have is an error."""
+    for n in every:
         if n not in own and float(params.get(n, 0.0)) != 0.0:
-            raise ValueError(f"reference_run({model!r}): effect parameter {n!r} = {params[n]!r} does not apply "
-                             f"to this model (its effect parameters: {own})")
+            raise ValueError(f"reference_run({model!r}): {what} {n!r} = {params[n]!r} does not apply "
+                             f"to this model (its {what}s: {own})")
     out = {n: float(params.get(n, 0.0)) for n in own}
     bad = [n for n, v in out.items() if not (v >= 0.0 and math.isfinite(v))]
     if bad:
-        raise ValueError(f"reference_run({model!r}): effect parameter(s) {bad} must be finite and >= 0")
+        raise ValueError(f"reference_run({model!r}): {what}(s) {bad} must be finite and >= 0")
     return out
+
+
+def _effect_params(params: dict, model: str) -> dict:
+    """The model's effect parameters (absent = 0); a non-zero effect the model does not have is an error."""
+    return _switched_params(params, model, EFFECT_PARAMS, EFFECTS[model], "effect parameter")
 
 
 def _discrepancy_params(params: dict, model: str) -> dict:
-    """The model's discrepancy terms (absent = 0); a non-zero term that does not apply to the model is an error."""
-    own = DISCREPANCY[model]
-    for n in DISCREPANCY_PARAMS:
-        if n not in own and float(params.get(n, 0.0)) != 0.0:
-            raise ValueError(f"reference_run({model!r}): discrepancy term {n!r} = {params[n]!r} does not apply "
-                             f"to this model (its discrepancy terms: {own})")
-    out = {n: float(params.get(n, 0.0)) for n in DISCREPANCY_PARAMS}
-    bad = [n for n, v in out.items() if not (v >= 0.0 and math.isfinite(v))]
-    if bad:
-        raise ValueError(f"reference_run({model!r}): discrepancy term(s) {bad} must be finite and >= 0")
-    return out
+    """Every discrepancy term (absent = 0; those the model lacks stay 0): a non-zero one that does not apply to the
+    model is an error."""
+    out = _switched_params(params, model, DISCREPANCY_PARAMS, DISCREPANCY[model], "discrepancy term")
+    return {n: out.get(n, 0.0) for n in DISCREPANCY_PARAMS}
 
 
 def _extra(d, dd, cq, cc, cp):

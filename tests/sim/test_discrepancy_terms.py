@@ -40,15 +40,8 @@ PARAMS = {
     "rimd": dict(m1=0.368, k1=2850.0, c1=1.269, m2=0.360, k2=272.1, c2=0.079, ki=92.5e3, lambda_i=8.0, ni=0.9,
                  amplitude_n=1.0, gap_m=0.0, frequency_hz=8.0),
 }
-# (sim preset, transient cycles, window cycles): as tests/sim/test_reference_effects.py POINTS
-POINTS = {
-    "indenter-metal": (None, 40, 8),
-    "indenter-sandstone": (None, 40, 8),
-    "drill": ("lab", 40, 8),
-    "pendulum": (None, 12, 4),
-    "rimd": (None, 40, 8),
-}
-LABELS = ("rop_m_s", "peak_force_n", "mean_peak_force_n", "peak_decel_g", "energy_per_cycle_j")
+# (sim preset, transient cycles, window cycles) and the labels compared: those of the §6 effects' comparison
+from tests.sim.test_reference_effects import LABELS, POINTS  # noqa: E402
 # the labels a strength is chosen on (MODELS.md §5): peak force and peak deceleration, and the ROP where there is one
 KEY = {m: ("peak_force_n", "peak_decel_g") for m in POINTS}
 KEY["drill"] = KEY["indenter-sandstone"] = ("rop_m_s", "peak_force_n", "peak_decel_g")
