@@ -40,6 +40,7 @@ def _check(rep: dict, truth: dict, spec: LogSpec) -> None:
         assert rep["discrepancy"]["proposals"] and len(rep["discrepancy"]["proposals"]) <= 3
     else:
         assert rep["verdict"] == "nothing missing" and rep["selected"] is None, rep["call"]["text"]
+        assert rep["discrepancy"] is None and rep["proposal_adopted"] is None    # no proposal on a control
     if not spec.outside and not spec.effect:    # a control: the calibrated rig is the true rig
         for k in truth["calibratable"]:
             assert rep["calibrated"][k] == pytest.approx(truth["truth"][k], rel=PARAM_TOL), (k, rep["calibrated"][k])
