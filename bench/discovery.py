@@ -113,9 +113,21 @@ def _fmt(x, spec=".3g") -> str:
     return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
 
 
+def wrong_adoption(r: dict) -> bool:
+    """An out-of-library row whose accepted proposal is of another kind than the truth's (the rig file would carry
+    the wrong physics)."""
+    from sim.models.discrepancy import TERMS
+    from tests.independent.rigs import OUTSIDE_KIND
+
+    if not r["case"].startswith("outside:") or not r["accepted"]:
+        return False
+    return OUTSIDE_KIND[r["case"].split(":", 1)[1]] not in {TERMS[t].kind for t in r["accepted"]}
+
+
 def table(rows: list[dict]) -> str:
     """Summary per kind of case and noise model, then every log."""
-    lines = ["| cases | noise | right | top proposal within 2× the noise | names the right kind |", "|---|---|---|---|---|"]
+    lines = ["| cases | noise | right | top proposal within 2× the noise | names the right kind | wrong proposal adopted |",
+             "|---|---|---|---|---|---|"]
     kinds = sorted({r["case"] if r["case"].startswith("outside:") else "pair of §6 effects" for r in rows})
     for k in kinds:
         for noise in sorted({r["noise"] for r in rows}):
@@ -124,12 +136,14 @@ def table(rows: list[dict]) -> str:
                 continue
             within = f"{sum(r.get('top_within_2x', False) for r in rs)}/{len(rs)}" if k.startswith("outside") else "—"
             kind = f"{sum(r.get('right_kind', False) for r in rs)}/{len(rs)}" if k.startswith("outside") else "—"
-            lines.append(f"| {k} | {noise} | {sum(r['correct'] for r in rs)}/{len(rs)} | {within} | {kind} |")
+            wrong = f"{sum(wrong_adoption(r) for r in rs)}/{len(rs)}" if k.startswith("outside") else "—"
+            lines.append(f"| {k} | {noise} | {sum(r['correct'] for r in rs)}/{len(rs)} | {within} | {kind} | {wrong} |")
     out = [r for r in rows if r["case"].startswith("outside:")]
     pairs = [r for r in rows if r["case"].startswith("pair:")]
     lines.append(f"| **out of library** | | **{sum(r['correct'] for r in out)}/{len(out)}** | "
-                 f"{sum(r.get('top_within_2x', False) for r in out)}/{len(out)} | {sum(r.get('right_kind', False) for r in out)}/{len(out)} |")
-    lines.append(f"| **pairs** | | **{sum(r['correct'] for r in pairs)}/{len(pairs)}** | | |")
+                 f"{sum(r.get('top_within_2x', False) for r in out)}/{len(out)} | {sum(r.get('right_kind', False) for r in out)}/{len(out)} | "
+                 f"{sum(wrong_adoption(r) for r in out)}/{len(out)} |")
+    lines.append(f"| **pairs of §6 effects, both selected** | | **{sum(r['correct'] for r in pairs)}/{len(pairs)}** | | | |")
     lines += ["", "| log | verdict | selected / accepted proposal | top proposal (kind): held-out nrms | nrms base → final | "
               "noise floor | diagnosis wall (CPU) |", "|---|---|---|---|---|---|---|"]
     for r in rows:
@@ -152,6 +166,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--n-runs", type=int, default=8, help="the first N runs spread over each rig's grid")
     p.add_argument("--fresh", action="store_true", help="diagnose every case again (the logs are kept)")
     p.add_argument("--no-doc", action="store_true", help="do not rewrite docs/discovery.md")
+    p.add_argument("--tables-only", action="store_true", help="write the tables from the stored rows, diagnose nothing")
     a = p.parse_args(argv)
     WORK.mkdir(parents=True, exist_ok=True)
     done_file = WORK / "rows.json"
@@ -163,6 +178,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for k, (s, c, n) in enumerate(todo, 1):
         name = row_name(s, c, n, a.seed, a.n_runs)
+        if name not in done and a.tables_only:
+            continue
         if name not in done:
             done[name] = run_case(s, c, n, a.seed, a.threads, a.n_runs)
             done_file.write_text(json.dumps(list(done.values()), indent=1, default=float))

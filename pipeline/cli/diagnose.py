@@ -67,7 +67,8 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
   explained_nrms [2]       held-out residual/noise at or below this counts as adequate ...
   systematic_tol [0.005]   ... and so does a held-out systematic error (record halves) at or below this
   nrms_ratio [0.5]         a candidate cutting the base's held-out nrms to this fraction gains materially
-  max_effects [1]          2: when the best effect improves but leaves the residual above the noise, add each
+  max_effects [1]          2: when the best effect improves but leaves the residual above the noise floor
+                           (held-out nrms > 1, adequate or not), add each
                            other effect to it and judge the pairs against it by the same rule (report.json
                            'second_effect'; the rig file then carries both)
   max_proposals [3]        unexplained: re-fit at most this many discrepancy proposals (0: no discovery)
