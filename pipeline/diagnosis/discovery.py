@@ -222,8 +222,9 @@ def report(d: Discovery, base_err: dict, cal_names: list[str]) -> dict:
     elif top is not None:
         text = (f"no proposal brings the held-out error to the noise (best: {' + '.join(top['forms'])}, nrms "
                 f"{base_err['nrms']:.3g} → {top['nrms']:.3g}); the missing term is not in the vocabulary "
-                f"({', '.join(vocab.TERMS)})")
+                f"of this model ({', '.join(scr.order)})")
     else:
         text = "no proposal"
     return {"screening": screening, "path_bic": scr.path_bic, "proposals": rows[:3],
+            "base_by_run_nrms": base_err["by_run_nrms"],
             "accepted": proposal_terms(d.accepted) if d.accepted else None, "text": text}

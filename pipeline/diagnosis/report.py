@@ -228,13 +228,10 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
 def _proposals_figure(diag: SystemDiagnosis, disc: dict, path: Path) -> str:
     """The held-out residual of every held-out run before (calibrated base) and after each discrepancy proposal,
     against the frequency, and the noise level."""
-    ev = diag.evaluator
-    rows = diag.report["residual_structure"]["by_run"]
-    held = [r for r in rows if r["held_out"]]
-    f_of = {t.run_id: t.controls["frequency_hz"] for t in ev.targets}
+    f_of = {t.run_id: t.controls["frequency_hz"] for t in diag.evaluator.targets}
     fig, a = plt.subplots(figsize=(6.4, 4.2))
-    a.scatter([r["frequency_hz"] for r in held], [r["base_nrms"] for r in held], marker="o", s=50,
-              label="calibrated base (before)")
+    base = disc["base_by_run_nrms"]
+    a.scatter([f_of[r] for r in base], list(base.values()), marker="o", s=50, label="calibrated base (before)")
     for k, p_ in enumerate(disc["proposals"], 1):
         by = p_["by_run_nrms"]
         a.scatter([f_of[r] for r in by], list(by.values()), marker="sdv"[k - 1], alpha=0.8,
