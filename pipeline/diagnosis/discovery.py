@@ -118,14 +118,16 @@ def screen(ev: Evaluator, idx: list[int], base: dict, terms: dict[str, FreeParam
 
 
 def proposal_sets(scr: Screening, max_proposals: int) -> list[tuple[str, ...]]:
-    """What to fit: the regression's support, then the leading single terms, at most ``max_proposals`` sets."""
+    """What to fit: the regression's support, then the leading single terms, at most ``max_proposals`` sets.  An
+    empty support is no evidence to prune with (the linearisation at the calibrated base can miss a term the base's
+    parameters absorbed: the pendulum's drag in its damping): every single term is fitted then."""
     sets: list[tuple[str, ...]] = []
     if scr.support:
         sets.append(tuple(scr.support))
     for t in scr.order:
         if (t,) not in sets:
             sets.append((t,))
-    return sets[:max_proposals]
+    return sets if not scr.support else sets[:max_proposals]
 
 
 def proposal_name(terms: tuple[str, ...]) -> str:

@@ -60,6 +60,7 @@ def test_screening_finds_nothing_in_noise_alone():
     ev = LinearRig({})
     scr = D.screen(ev, [0], dict(ev.true_cal), D.term_candidates(SYSTEM))
     assert scr.support == []
+    assert sorted(D.proposal_sets(scr, 3)) == sorted((t,) for t in D.term_candidates(SYSTEM))   # no evidence: all
 
 
 def test_a_term_a_recalibration_can_mimic_is_not_credited():
