@@ -40,12 +40,13 @@ class RopSpread:
 
 
 def fit_bounds(model: str) -> dict[str, tuple[float, float]]:
-    """(low, high) of every fitted parameter of ``model`` (calibratable and §6 effect parameters)."""
+    """(low, high) of every fitted parameter of ``model`` (calibratable, §6 effect parameters, discrepancy terms)."""
     import sim
 
     spec = sim.get_model(model)
     out = {b.name: (float(b.lo), float(b.hi)) for b in spec.calibratable}
     out.update({n: (float(b.lo), float(b.hi)) for n, b in dict(spec.effect_bounds).items()})
+    out.update({n: (float(b.lo), float(b.hi)) for n, b in dict(spec.discrepancy_bounds).items()})
     return out
 
 

@@ -26,6 +26,15 @@ def test_samples_are_lognormal_around_the_fitted_value_and_stay_in_the_fit_bound
     assert parameter_samples(rig, 5, seed=3) == parameter_samples(rig, 5, seed=3)
 
 
+def test_an_adopted_discrepancy_term_is_sampled_within_its_bounds():
+    """A rig carrying a proposal (``discrepancy:``) with an uncertain coefficient: the samples spread it and stay
+    inside the term's fit bounds."""
+    rig = Rig("drill", "lab", uncertainty={"tool_quadratic_drag": 3e6}, discrepancy={"tool_quadratic_drag": 8e5})
+    s = np.array([x["tool_quadratic_drag"] for x in parameter_samples(rig, 500, seed=0)])
+    lo, hi = fit_bounds("drill")["tool_quadratic_drag"]
+    assert s.min() == lo and s.max() == hi and np.median(s) == pytest.approx(8e5, rel=0.3)
+
+
 def test_no_uncertainty_gives_no_spread():
     r = rop_spread(Rig("drill", "lab"), POINT, n_samples=3, seed=0, settings=FAST)
     assert r.sampled == () and r.fraction_progressing == 1.0
