@@ -112,7 +112,8 @@ def screen(ev: Evaluator, idx: list[int], base: dict, terms: dict[str, FreeParam
     best = fits[int(np.argmin(bic))]
     entered = [names[j] for j in active]
     order = entered + sorted((t for t in names if t not in entered), key=lambda t: -score[t])
-    support = sorted((t for j, t in enumerate(names) if best[j] > 0.0), key=lambda t: -best[names.index(t)] * norms[names.index(t)])
+    # the largest contributions first (best is per unit-norm column: its size is the contribution's)
+    support = sorted((t for j, t in enumerate(names) if best[j] > 0.0), key=lambda t: -best[names.index(t)])
     estimate = {t: float(best[j] / norms[j] * probes[t]) for j, t in enumerate(names)}
     return Screening(order=order, support=support[:MAX_SUPPORT], estimate=estimate, score=score, path_bic=bic)
 
