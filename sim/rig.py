@@ -28,8 +28,8 @@ class Rig:
 
     ``parameters``: parameter name -> value, overriding the preset.  ``effects``: §6 effect name ->
     {effect parameter -> value}.  ``discrepancy``: term of the fixed vocabulary (sim.models.discrepancy) ->
-    coefficient, an adopted proposal of the diagnosis (names and numbers only, never an expression).  ``uncertainty``: parameter (or effect parameter) name -> standard
-    deviation of its fitted value [same unit].  The constructor validates every name and value
+    coefficient, an adopted proposal of the diagnosis (names and numbers only, never an expression).
+    ``uncertainty``: parameter (or effect parameter) name -> standard deviation of its fitted value [same unit].  The constructor validates every name and value
     against the model's ``ModelSpec`` and raises ``ParameterError`` naming the culprit.
     """
 
@@ -53,7 +53,7 @@ class Rig:
                                      f"known: {', '.join(spec.param_names)}")
         effect_params = {p for ps in spec.effects.values() for p in ps}
         for name in self.parameters:
-            if name in spec.discrepancy or name in DISCREPANCY_TERMS:
+            if name in DISCREPANCY_TERMS:
                 raise ParameterError(f"rig: '{name}' is a discrepancy term; give it under 'discrepancy' "
                                      f"({{{name}: value}})")
             if name in effect_params:

@@ -333,7 +333,8 @@ def markdown(report: dict, per_system: list[dict], seconds: float) -> str:
                   "Calibrated base parameters (value, sd, 95 % interval):", ""]
         lines += [_param_line(n, v) for n, v in rep["calibrated_uncertainty"].items()]
         if rep["selected_params"]:
-            lines += ["", f"Parameters with `{rep['selected']}` (value, sd, 95 % interval):", ""]
+            final = rep["selected"] or "the proposal " + " + ".join(rep["proposal_adopted"])
+            lines += ["", f"Parameters with `{final}` (value, sd, 95 % interval):", ""]
             lines += [_param_line(n, v) for n, v in rep["selected_params"].items()]
         lines += ["", "Candidates (score = BIC on calibration runs; lower is better):", "",
                   "| effect | fitted effect parameters | held-out error | held-out nrms | systematic error | "

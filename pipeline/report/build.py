@@ -501,7 +501,8 @@ def calibrated_rows(rep: dict, system: str) -> list[list]:
     for name, d in block.items():
         if not isinstance(d, dict):
             continue
-        role = ("calibrated (with the effect)" if name in cal else "selected effect") if with_effect else "calibrated"
+        added = "adopted discrepancy term" if name in (rep.get("proposal_adopted") or ()) else "selected effect"
+        role = ("calibrated (with the effect)" if name in cal else added) if with_effect else "calibrated"
         default, unit = info.get(name, (None, ""))
         ci = d.get("ci95") if isinstance(d.get("ci95"), list) and len(d["ci95"]) == 2 else None
         span = None

@@ -13,7 +13,7 @@ the forcing (where a model has ``shaker_coil``, its τ is that lag); a cubic spr
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable, Mapping
+from typing import Mapping
 
 from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.models.param import Param
@@ -47,19 +47,8 @@ TERMS: dict[str, Term] = {t.name: t for t in (
     Term("tool_quadratic_drag", "N s^2/m^2", TOOL, "F_tool −= c v |v|", "velocity_loss",
          "velocity-squared loss (drag) on the impacting mass"),
 )}
-"""The vocabulary, in the kernels' parameter order (δ₊ = max(δ, 0) the penetration, δ̇ its rate, v the impacting
+"""The vocabulary, in the kernels' parameter order (``index_of(PARAMS, *TERMS)``; δ₊ = max(δ, 0) the penetration, δ̇ its rate, v the impacting
 mass's velocity)."""
-
-CONTACT_TERMS = tuple(n for n, t in TERMS.items() if t.site == CONTACT)
-TOOL_TERMS = tuple(n for n, t in TERMS.items() if t.site == TOOL)
-
-
-def term(name: str) -> Term:
-    """The term ``name`` (ValueError naming the known ones otherwise)."""
-    if name not in TERMS:
-        raise ValueError(f"unknown discrepancy term '{name}'; known: {', '.join(TERMS)}")
-    return TERMS[name]
-
 
 def discrepancy_params(acts_on: Mapping[str, str]) -> tuple[Param, ...]:
     """Every term's parameter in vocabulary order, 0 (off) by default and ≥ 0; ``acts_on[site]`` says what δ, δ̇
@@ -70,14 +59,6 @@ def discrepancy_params(acts_on: Mapping[str, str]) -> tuple[Param, ...]:
         out.append(Param(t.name, 0.0, t.unit, f"discrepancy term: {t.words}, {t.form} ({where}); 0 = off",
                          nonnegative=True))
     return tuple(out)
-
-
-def applicable(names: Iterable[str]) -> tuple[str, ...]:
-    """``names`` checked against the vocabulary, in vocabulary order."""
-    names = set(names)
-    for n in names:
-        term(n)
-    return tuple(n for n in TERMS if n in names)
 
 
 @njit(cache=True, inline="always")

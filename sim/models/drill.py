@@ -32,7 +32,7 @@ import numpy as np
 from sim.jit import interpreted, njit  # numba is imported on first use (sim/jit.py)
 
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
-from sim.models.discrepancy import contact_extra, discrepancy_params, tool_loss
+from sim.models.discrepancy import TERMS as DISCREPANCY_TERMS, contact_extra, discrepancy_params, tool_loss
 from sim.models.effects import effect_params
 from sim.models.param import index_of
 from sim.models.contact import kelvin_voigt, rock_slider_rate, rock_surface_rate
@@ -248,8 +248,7 @@ PARAMS = (
                              "sensor_lowpass": "the bit's recorded acceleration"}),
     *discrepancy_params({"contact": "in Pc of phase II, δ = x1 − xb, δ̇ = ẋ1", "tool": "on M1, v = ẋ1"}),
 )
-DQ, DC, DP, TV, TQ = index_of(PARAMS, "contact_quadratic", "contact_cubic", "contact_rate_product", "tool_viscous",
-                              "tool_quadratic_drag")
+DQ, DC, DP, TV, TQ = index_of(PARAMS, *DISCREPANCY_TERMS)
 GAMMA, TAU, BETA, ALPHA, MU, KAPPA, FC = index_of(PARAMS, "gamma", "tau", "beta", "alpha", "mu", "kappa", "fc")
 NP = len(PARAMS)
 

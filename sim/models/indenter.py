@@ -26,7 +26,7 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import FitBound, ModelSpec, Param, SynthRig
-from sim.models.discrepancy import contact_extra, discrepancy_params, tool_loss
+from sim.models.discrepancy import TERMS as DISCREPANCY_TERMS, contact_extra, discrepancy_params, tool_loss
 from sim.models.effects import effect_params
 from sim.models.param import index_of
 from sim.models.contact import branch_depth, branch_force, coulomb_sign, kelvin_voigt, released_force
@@ -346,8 +346,7 @@ COMMON = (
     *discrepancy_params({"contact": "in the metal's Kelvin–Voigt expression, δ = x1 − G, δ̇ = ẋ1 (not the sandstone)",
                          "tool": "on m1, v = ẋ1"}),
 )
-DQ, DC, DP, TV, TQ = index_of(COMMON, "contact_quadratic", "contact_cubic", "contact_rate_product", "tool_viscous",
-                              "tool_quadratic_drag")
+DQ, DC, DP, TV, TQ = index_of(COMMON, *DISCREPANCY_TERMS)
 TAU, BETA, ALPHA, MU, GAMMA, KAPPA, FC = index_of(COMMON, "tau", "beta", "alpha", "mu", "gamma", "kappa", "fc")
 # The kernel's parameter vector ends with the effects' parameters; P and D only feed static_force_n.
 

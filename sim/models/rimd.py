@@ -31,7 +31,7 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
 from sim.models.param import index_of
-from sim.models.discrepancy import contact_extra, discrepancy_params, tool_loss
+from sim.models.discrepancy import TERMS as DISCREPANCY_TERMS, contact_extra, discrepancy_params, tool_loss
 from sim.models.effects import effect_params
 from sim.models.contact import hunt_crossley, hunt_crossley_damping
 from sim.models.sensor import sensor_lowpass
@@ -155,8 +155,7 @@ PARAMS = (
                          "tool": "on the hammer m2, v = ẋ2"}),
 )
 ALPHA, KAPPA = index_of(PARAMS, "alpha", "kappa")
-DQ, DC, DP, TV, TQ = index_of(PARAMS, "contact_quadratic", "contact_cubic", "contact_rate_product", "tool_viscous",
-                              "tool_quadratic_drag")
+DQ, DC, DP, TV, TQ = index_of(PARAMS, *DISCREPANCY_TERMS)
 
 STATES = ("x1", "v1", "x2", "v2", "work")
 BOUNDED = ("x1", "v1", "x2", "v2")

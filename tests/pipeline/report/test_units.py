@@ -51,3 +51,13 @@ def test_calibrated_rows_list_base_and_effect_parameters_with_defaults():
     rows = calibrated_rows(rep, "indenter-metal")
     assert [r[:2] for r in rows] == [["k1", "calibrated"], ["pm", "calibrated"]] and rows[0][3] == 2.0e6
     assert rows[1][5].startswith("not identifiable (") and not rows[0][5].startswith("not")
+
+
+def test_calibrated_rows_name_an_adopted_discrepancy_term():
+    """A diagnosis that adopted a discrepancy proposal: its term is labelled as such, not as a selected effect."""
+    rep = {"calibrated": {"k1": 2.0e6}, "proposal_adopted": ["tool_quadratic_drag"],
+           "selected_params": {"k1": {"value": 2.1e6, "sd": 1e5, "ci95": [1.9e6, 2.3e6]},
+                               "tool_quadratic_drag": {"value": 3e3, "sd": 1e2, "ci95": [2.8e3, 3.2e3]}}}
+    rows = calibrated_rows(rep, "indenter-metal")
+    assert [r[:2] for r in rows] == [["k1", "calibrated (with the effect)"],
+                                     ["tool_quadratic_drag", "adopted discrepancy term"]]
