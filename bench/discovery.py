@@ -7,8 +7,8 @@ sampled at the DAQ's own instants, the noise a rig makes) and diagnosed at the d
 with ``max_effects: 2``.  Scored against the truth:
 
 - out-of-library physics: the top proposal brings the held-out nrms within ``explained_nrms`` (2: twice the noise)
-  **and** names the right kind of term (``tests.independent.rigs.OUTSIDE_KIND``: contact / velocity loss; a hidden
-  mode and a sensor resonance have no term in the vocabulary, so those rows can only be right by saying so);
+  **and** names the right kind of term (``tests.independent.rigs.OUTSIDE_KIND``: contact, velocity loss, or mode:
+  the structured ``load_path_mode`` candidate; a sensor resonance has no term in the vocabulary);
 - pairs of §6 effects: both selected;
 - controls are not run here: discovery only runs on an "unexplained" verdict, and the identification matrix
   (``python -m bench.identification``) scores the controls' "nothing missing".
@@ -116,20 +116,20 @@ def _fmt(x, spec=".3g") -> str:
 def wrong_adoption(r: dict) -> bool:
     """An out-of-library row whose accepted proposal is of another kind than the truth's (the rig file would carry
     the wrong physics)."""
-    from sim.models.discrepancy import TERMS
+    from sim.models.discrepancy import CANDIDATES
     from tests.independent.rigs import OUTSIDE_KIND
 
     if not r["case"].startswith("outside:") or not r["accepted"]:
         return False
-    return OUTSIDE_KIND[r["case"].split(":", 1)[1]] not in {TERMS[t].kind for t in r["accepted"]}
+    return OUTSIDE_KIND[r["case"].split(":", 1)[1]] not in {CANDIDATES[t].kind for t in r["accepted"]}
 
 
 def _kind_in_vocabulary(r: dict) -> bool:
     """Whether the vocabulary has a term of the kind of the row's out-of-library physics."""
-    from sim.models.discrepancy import TERMS
+    from sim.models.discrepancy import CANDIDATES
     from tests.independent.rigs import OUTSIDE_KIND
 
-    return OUTSIDE_KIND[r["case"].split(":", 1)[1]] in {t.kind for t in TERMS.values()}
+    return OUTSIDE_KIND[r["case"].split(":", 1)[1]] in {t.kind for t in CANDIDATES.values()}
 
 
 def table(rows: list[dict]) -> str:

@@ -2,11 +2,13 @@
 
 Not imported directly.  The generated module defines, before this text, the model's
 numba functions as globals ``rhs, guards, on_event, observe, bounded``, the counts ``N_BOUNDED``
-and ``N_GUARDS`` and the tuple ``GUARD_STATES`` (see the model interface in sim.integrator).  Binding them as globals,
+and ``N_GUARDS``, the tuple ``GUARD_STATES``, the index ``IW`` of the excitation work in the state and ``IMODE`` of
+the hidden mode's mass ratio in the parameters (see the model interface in sim.integrator).  Binding them as globals,
 rather than passing them as arguments, is what lets numba cache the compiled kernel
 on disk and release the GIL.
 """
-# ruff: noqa: F821  (rhs, guards, on_event, observe, bounded, N_BOUNDED, N_GUARDS, GUARD_STATES: bound by sim.compiled)
+# ruff: noqa: F821  (rhs, guards, on_event, observe, bounded, N_BOUNDED, N_GUARDS, GUARD_STATES, IW, IMODE: bound by
+# sim.compiled)
 import numpy as np
 
 from sim.integrator import *  # noqa: F401,F403  constants and helpers
@@ -232,6 +234,9 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
     Returns the end time.
     """
     ny = y.shape[0]
+    # the RMS error counts the hidden mode's two states (the last two) only while the mode is on: off, they stay 0
+    # and the norm is the base model's, bit for bit
+    n_err = ny if p[IMODE] != 0.0 else ny - 2
     ng = N_GUARDS
     rtol = s[S_RTOL]
     # views of the run's workspace (allocated once per run_point, not per call)
@@ -318,7 +323,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                 e = h * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i])
                 e = e / (atol[i] + rtol * max(abs(y[i]), abs(y1[i])))
                 sq += e * e
-            en = np.sqrt(sq / ny)
+            en = np.sqrt(sq / n_err)
             if not np.isfinite(en):
                 h *= 0.1
                 if h < 1e-14 * period:
@@ -593,7 +598,7 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
         hist_t[i] += t_win
     ny = y.shape[0]
     prog0 = _progress(t, y, z, ph_arr[0], p, obs, dy)
-    w0 = y[ny - 1]
+    w0 = y[IW]
     ph_start = ph_arr[0]
     acc1[6] = 1.0 if ph_start > 0 else 0.0
     acc1[7] = -1.0 if ph_start > 0 else -2.0
@@ -601,7 +606,7 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
                          atol, True, ws[0:n1], wmin[0:n1], wmax[0:n1], acc1,
                          hist_t, hist_y, hist_obs, hist_ph, 1.0 if hist_t.shape[0] > 0 else 0.0, counters, wk, gk)
     prog_mid = _progress(t, y, z, ph_arr[0], p, obs, dy)
-    w_mid = y[ny - 1]
+    w_mid = y[IW]
     if counters[3] != STATUS_FAILED:
         acc2[5] = acc1[5]
         acc2[7] = acc1[7]
@@ -612,7 +617,7 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
     if _record_counters(labels, counters):
         return labels
     prog1 = _progress(t, y, z, ph_arr[0], p, obs, dy)
-    w1 = y[ny - 1]
+    w1 = y[IW]
     t_w = n_win * period
     # mean of per-contact maxima over the contacts whose onset lies in the window.  A contact
     # open at the window end is closed with the part of the contact that was open at the

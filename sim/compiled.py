@@ -28,7 +28,7 @@ import numba as _numba
 from numba import njit as _njit
 from sim.cachedir import jit_cache_dir as _jit_cache_dir
 _numba.config.CACHE_DIR = str(_jit_cache_dir())   # before the first cache=True decorator below
-from {mod} import N_GUARDS, GUARD_STATES, {rhs} as _rhs, {guards} as _guards, {on_event} as _on_event, {observe} as _observe, {bounded} as _bounded
+from {mod} import N_GUARDS, GUARD_STATES, IW, IMODE, {rhs} as _rhs, {guards} as _guards, {on_event} as _on_event, {observe} as _observe, {bounded} as _bounded
 from sim.compiled import inline_calls as _inline_calls
 # re-jitted for inlining into the kernel: a call across a compiled-function boundary costs a reference-count
 # increment and decrement per array argument (NRT_incref/NRT_decref), several per integration step; the model's
@@ -66,7 +66,8 @@ def _digest(model_module: str, exact: str | None = None) -> str:
     h = hashlib.sha256()
     files = [_SIM_DIR / "layout.py", _SIM_DIR / "integrator.py", _SIM_DIR / "kernel.py", _SIM_DIR / "compiled.py",
              _SIM_DIR / "_kernel_template.py", _SIM_DIR / "jit.py",
-             _SIM_DIR / "models" / "contact.py", _SIM_DIR / "models" / "terms.py"]   # the laws the models inline
+             _SIM_DIR / "models" / "contact.py", _SIM_DIR / "models" / "terms.py",     # the laws the models inline
+             _SIM_DIR / "models" / "discrepancy.py"]
     for name in (model_module, exact):
         if name is not None:       # located without importing (a fresh worker may not have imported it yet)
             files.append(Path(importlib.util.find_spec(name).origin))

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any, Iterator, Mapping
 
 from sim.errors import ParameterError
-from sim.models.discrepancy import TERMS as DISCREPANCY_TERMS
+from sim.models.discrepancy import PARAM_OF as DISCREPANCY_PARAMS
 from sim.registry import get_model, model_names
 
 RIG_KEYS = ("model", "preset", "parameters", "effects", "discrepancy", "uncertainty", "source")
@@ -27,8 +27,8 @@ class Rig:
     """A model plus its known and calibrated parameters and active effects (all values SI).
 
     ``parameters``: parameter name -> value, overriding the preset.  ``effects``: §6 effect name ->
-    {effect parameter -> value}.  ``discrepancy``: term of the fixed vocabulary (sim.models.discrepancy) ->
-    coefficient, an adopted proposal of the diagnosis (names and numbers only, never an expression).
+    {effect parameter -> value}.  ``discrepancy``: parameter of the fixed vocabulary (sim.models.discrepancy: a
+    term, or one of the hidden mode's three) -> value, an adopted proposal of the diagnosis (names and numbers only, never an expression).
     ``uncertainty``: parameter (or effect parameter) name -> standard deviation of its fitted value [same unit].  The constructor validates every name and value
     against the model's ``ModelSpec`` and raises ``ParameterError`` naming the culprit.
     """
@@ -53,7 +53,7 @@ class Rig:
                                      f"known: {', '.join(spec.param_names)}")
         effect_params = {p for ps in spec.effects.values() for p in ps}
         for name in self.parameters:
-            if name in DISCREPANCY_TERMS:
+            if name in DISCREPANCY_PARAMS:
                 raise ParameterError(f"rig: '{name}' is a discrepancy term; give it under 'discrepancy' "
                                      f"({{{name}: value}})")
             if name in effect_params:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Callable, Collection
 
 import numpy as np
 
@@ -77,11 +77,11 @@ def random_starts(free: list[FreeParam], defaults: dict, n: int, rng) -> list[di
 def candidate_start(ev: Evaluator, idx: list[int], base: dict, eff: tuple[FreeParam, ...], free: list[FreeParam],
                     cfg: DiagnoseConfig) -> dict:
     """Starting point of a candidate's fit: a log grid of the effect's parameters (``cfg.grid`` interior points per
-    parameter) at the base parameters ``base`` (one parallel batch of simulations), then, at the best
+    parameter, or the parameter's own ``FitBound.grid``) at the base parameters ``base`` (one parallel batch of simulations), then, at the best
     ``cfg.profile_points`` grid points, the base parameters refitted for ``cfg.profile_nfev`` iterations with the
     effect held there (its profile): a base fit that absorbed the missing effect (the drill's Pr standing in for
     guide friction) makes the effect look wrong at every grid point until the base parameters move back."""
-    axes = [np.linspace(*p.bounds, cfg.grid + 2)[1:-1] for p in eff]
+    axes = [np.linspace(*p.bounds, (p.grid or cfg.grid) + 2)[1:-1] for p in eff]     # a bound may ask for more
     mesh = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(eff), -1).T
     sets = [{**base, **{p.name: 10 ** v for p, v in zip(eff, row)}} for row in mesh]
     chi2 = [float(r @ r) for r in ev.residuals(sets, idx)]
@@ -188,20 +188,34 @@ def _extended(before: FitResult, more: FitResult) -> FitResult:
 
 def fit_added(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, cands: dict, start_fits: list[FitResult],
               executor: Executor, carried: tuple[FreeParam, ...] = (),
-              extra_starts: dict[str, dict] | None = None) -> list[dict[str, FitResult]]:
+              extra_starts: dict[str, dict] | None = None,
+              nominal: bool | Collection[str] = False) -> list[dict[str, FitResult]]:
     """Per fold: each candidate of ``cands`` (name -> its fitted parameters) added to the model of ``start_fits[f]``
     (the calibratable parameters and ``carried``), all fitted together on the fold's runs.  Each starts from a grid
     of the added parameters at that fit (``candidate_start``: the calibratable and carried parameters refitted at
-    the best grid points) and, where given, also from ``start_fits[f]``'s values with ``extra_starts[name]`` on top
-    (e.g. a sparse regression's estimate); ``max_nfev + refine_nfev`` iterations."""
+    the best grid points), with ``nominal`` (True, or the names of the candidates it applies to) also from the grid
+    at that fit with the calibratable parameters at the rig's nominal values (a fit that absorbed the added physics in a base parameter, e.g. the RIMD's λi standing in
+    for rate stiffening, hides it at every grid point), and, where given, from ``start_fits[f]``'s values with
+    ``extra_starts[name]`` on top (e.g. a sparse regression's estimate); ``max_nfev + refine_nfev`` iterations."""
+    import sim
+
     free = list(calibratable(ev.system)) + list(carried)
     shared = ev.for_tasks(executor.task_threads)
     keys = [(f, c) for f in range(len(folds)) for c in cands]
-    found = _batch(executor, ev, shared, _candidate_start_task,
-                   [(folds[f], start_fits[f].values, cands[c], free, cfg) for f, c in keys])
+    bases = {f: [start_fits[f].values] for f in range(len(folds))}
+    for f, idx in enumerate(folds):
+        nom = {**sim.get_model(ev.system).defaults(), **ev.targets[idx[0]].known}
+        bases[f].append({**start_fits[f].values, **{p.name: nom[p.name] for p in calibratable(ev.system)}})
+    at_nominal = set(cands) if nominal is True else set(nominal or ())
+    items = [(f, c, b) for f, c in keys for b in bases[f][:2 if c in at_nominal else 1]]
+    found_all = _batch(executor, ev, shared, _candidate_start_task,
+                       [(folds[f], b, cands[c], free, cfg) for f, c, b in items])
+    by_key: dict = {}
+    for (f, c, _), s in zip(items, found_all):
+        by_key.setdefault((f, c), []).append(s)
     jobs = []
-    for (f, c), s in zip(keys, found):
-        starts = [s]
+    for f, c in keys:
+        starts = list(by_key[(f, c)])
         if extra_starts and c in extra_starts:
             starts.append({**start_fits[f].values, **extra_starts[c]})
         jobs.append(FitJob(folds[f], free + list(cands[c]), {}, starts, cfg.max_nfev + cfg.refine_nfev, cfg.diff_step))
@@ -214,6 +228,6 @@ def fit_added(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, cands:
 def fit_additions(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, first: str, cands: dict,
                   first_fits: list[FitResult], executor: Executor) -> list[dict[str, FitResult]]:
     """Per fold: the effect ``first`` plus each other candidate, fitted together (greedy forward selection), from
-    the fold's fit with ``first`` (``fit_added``).  Keys ``"first+other"``."""
+    the fold's fit with ``first`` and from the rig's nominal calibratable values (``fit_added``).  Keys ``"first+other"``."""
     adds = {f"{first}+{e}": cands[e] for e in cands if e != first}
-    return fit_added(ev, folds, cfg, adds, first_fits, executor, carried=tuple(cands[first]))
+    return fit_added(ev, folds, cfg, adds, first_fits, executor, carried=tuple(cands[first]), nominal=True)

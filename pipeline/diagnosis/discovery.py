@@ -12,8 +12,9 @@ each a kernel parameter off at 0.  Discovery has two steps:
    entry ranks the terms.  PySINDy-style regression on
    derivatives is not used: a rig records one or two channels of the impacting mass at any rate, not the states and
    their derivatives, and the contact switches make derivative estimates meaningless around every impact.
-2. **Re-fit through the simulator.**  The support and the leading single terms (at most ``max_proposals`` sets)
-   are each fitted with the calibratable parameters on every fold's calibration runs by the §6 machinery
+2. **Re-fit through the simulator.**  The support and the leading single terms (at most ``max_proposals`` sets),
+   and every structured candidate of the model (the hidden load-path mode: nonlinear in its frequency, so it is no
+   column of the regression and is fitted from a grid of its three parameters) are each fitted with the calibratable parameters on every fold's calibration runs by the §6 machinery
    (``calibrate.fit_added``: a grid start and the regression's estimate) and judged on the held-out runs by the
    verdict rule of the effects: a proposal is *accepted* when it improves on the base materially and brings the
    held-out nrms within ``explained_nrms`` (2 = twice the noise).  The regression only chooses what to fit.
@@ -48,11 +49,24 @@ PREFIX = "discrepancy:"
 
 
 def term_candidates(system: str) -> dict[str, FreeParam]:
-    """The discrepancy terms of ``system`` with their fit bounds (``ModelSpec.discrepancy_bounds``)."""
+    """The discrepancy terms of ``system`` (one parameter each, screened by the regression) with their fit bounds
+    (``ModelSpec.discrepancy_bounds``)."""
     import sim
+    from sim.models.discrepancy import TERMS
 
     spec = sim.get_model(system)
-    return {t: spec.discrepancy_bounds[t] for t in spec.discrepancy}
+    return {t: spec.discrepancy_bounds[t] for t in spec.discrepancy if t in TERMS}
+
+
+def structured_candidates(system: str) -> dict[str, tuple[FreeParam, ...]]:
+    """The structured candidates of ``system`` (``sim.models.discrepancy.STRUCTURED`` whose parameters the model
+    has) -> their parameters' fit bounds."""
+    import sim
+    from sim.models.discrepancy import STRUCTURED
+
+    spec = sim.get_model(system)
+    return {n: tuple(spec.discrepancy_bounds[p] for p in c.params) for n, c in STRUCTURED.items()
+            if all(p in spec.discrepancy for p in c.params)}
 
 
 def probe_value(b: FreeParam) -> float:
@@ -169,22 +183,28 @@ def discover(ev: Evaluator, cfg: DiagnoseConfig, scheme: str, folds: list, fits_
     """Screen the model's discrepancy terms at the calibrated base, re-fit the proposals on every fold and judge
     them on the held-out runs (``cfg.max_proposals`` of them; None when the model has no terms)."""
     terms = term_candidates(ev.system)
-    if not terms or cfg.max_proposals < 1:
+    structured = structured_candidates(ev.system)
+    if not (terms or structured) or cfg.max_proposals < 1:
         return None
     all_runs = list(range(len(ev.targets)))
     base = (fits_per_fold[0]["base"] if scheme == "holdout" else warm["base"]).values
     idx = folds[0][0] if scheme == "holdout" else all_runs
-    scr = screen(ev, idx, base, terms)
+    scr = screen(ev, idx, base, terms) if terms else Screening([], [], {}, {}, [])
     log(f"{ev.system}: discrepancy screening: support {scr.support or 'none'}, order {', '.join(scr.order)}")
     sets = proposal_sets(scr, cfg.max_proposals)
     cands = {proposal_name(s): tuple(terms[t] for t in s) for s in sets}
     starts = {proposal_name(s): _start(s, scr, terms) for s in sets}
+    cands.update({proposal_name((n,)): ps for n, ps in structured.items()})   # from the grid of their parameters
+    # a structured candidate reshapes the response (a mode detuning a resonance): the base fit that absorbed it can be
+    # far from the truth in every parameter, so its grid also starts at the rig's nominal values
+    nominal = [proposal_name((n,)) for n in structured]
     fold_fits = fit_added(ev, [cal for cal, _ in folds], cfg, cands, [f["base"] for f in fits_per_fold], executor,
-                          extra_starts=starts)
+                          extra_starts=starts, nominal=nominal)
     if scheme == "holdout":
         reported = fold_fits[0]
     else:
-        [reported] = fit_added(ev, [all_runs], cfg, cands, [warm["base"]], executor, extra_starts=starts)
+        [reported] = fit_added(ev, [all_runs], cfg, cands, [warm["base"]], executor, extra_starts=starts,
+                               nominal=nominal)
     names = list(cands)
     err, stats = fold_errors(ev, folds, fold_fits, names)
     for m in names:
@@ -200,18 +220,20 @@ def report(d: Discovery, base_err: dict, cal_names: list[str]) -> dict:
     import sim.models.discrepancy as vocab
 
     scr = d.screening
+    cand = vocab.CANDIDATES
     screening = [{"term": t, "words": vocab.TERMS[t].words, "form": vocab.TERMS[t].form, "kind": vocab.TERMS[t].kind,
                   "entered": scr.order.index(t) + 1, "score": scr.score[t], "estimate": scr.estimate[t],
                   "in_support": t in scr.support} for t in scr.order]
     rows = []
     for m in sorted(d.err, key=lambda m: (d.err[m]["nrms"], d.stats[m].bic)):
         fr, c, terms = d.fits[m], d.checks[m], proposal_terms(m)
+        params = [q for t in terms for q in cand[t].params]
         rows.append({
             "name": m, "terms": terms,
-            "words": [vocab.TERMS[t].words for t in terms], "forms": [vocab.TERMS[t].form for t in terms],
-            "kinds": sorted({vocab.TERMS[t].kind for t in terms}),
-            "coefficients": {t: fr.values[t] for t in terms}, "coefficient_sd": {t: fr.sd[t] for t in terms},
-            "coefficient_ci95": {t: list(fr.ci95[t]) for t in terms},
+            "words": [cand[t].words for t in terms], "forms": [cand[t].form for t in terms],
+            "kinds": sorted({cand[t].kind for t in terms}),
+            "coefficients": {q: fr.values[q] for q in params}, "coefficient_sd": {q: fr.sd[q] for q in params},
+            "coefficient_ci95": {q: list(fr.ci95[q]) for q in params},
             "calibrated": {n: fr.values[n] for n in cal_names},
             "nrms": d.err[m]["nrms"], "error": d.err[m]["error"], "noise_floor": d.err[m]["noise_floor"],
             "systematic": d.err[m]["systematic"], "by_run_nrms": d.err[m]["by_run_nrms"],

@@ -306,7 +306,7 @@ def markdown(report: dict, per_system: list[dict], seconds: float) -> str:
                       "", "| rank | proposal | terms | coefficients (sd) | held-out error (noise floor) | held-out nrms | "
                       "ΔBIC | held-out Δχ² | adequate | improves |", "|---|---|---|---|---|---|---|---|---|---|"]
             for k, p_ in enumerate(disc["proposals"], 1):
-                co = ", ".join(f"{t} = {p_['coefficients'][t]:.3g} ± {p_['coefficient_sd'][t]:.2g}" for t in p_["terms"])
+                co = ", ".join(f"{t} = {p_['coefficients'][t]:.3g} ± {p_['coefficient_sd'][t]:.2g}" for t in p_["coefficients"])
                 lines.append(f"| {k} | {'; '.join(p_['words'])} | {' + '.join(p_['forms'])} | {co} | "
                              f"{_fmt(p_['error'])} ({_fmt(p_['noise_floor'])}) | {_fmt(p_['nrms'])} | "
                              f"{_fmt(p_['delta_bic'])} | {_fmt(p_['delta_chi2'])} | {'yes' if p_['adequate'] else 'no'} | "

@@ -31,7 +31,7 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.integrator import (REASON_TOO_MANY_STEPS, REASON_WORK_LIMIT, S_MAX_STEPS, S_MAX_STEPS_PER_CYCLE, S_RTOL,
                             STATUS_FAILED, window_switch)
 from sim.models.drill import (C1, C2, C3, F0, FREQ, FS, GAMMA, GAP, IV1, IV2, IV3, IW, IX1, IX2, IX3, IXB,
-                              IXT, K1, K2, K3, M1, M2, M3, NY, PR)
+                              IXT, K1, K2, K3, M1, M2, M3, NY_BASE as NY, PR)
 from sim.exact import effects_handled
 from sim.exact.taylor import NT, first_rise, flow_tables, pack_rows, poly_max, row_times, series, work_integral
 from sim.models.drill import bounded as _bounded_d

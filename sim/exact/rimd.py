@@ -27,7 +27,7 @@ from sim.integrator import N_OBS, S_RTOL, track_maxima, widen_extremes
 from sim.layout import GK_ROWS, WK_ROWS
 from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.models.rimd import (C1, C2, F0, FREQ, GAP, IV1, IV2, IW, IX1, IX2, K1, K2, LAM, LS, M1, M2, N_BOUNDED,
-                             N_GUARDS, NY)
+                             N_GUARDS, NY as NY_ALL, NY_BASE as NY)
 from sim.models.rimd import bounded as _bounded_r
 from sim.models.rimd import observe as _observe_r
 from sim.models.rimd import on_event as _on_event_r
@@ -149,7 +149,7 @@ def exact_free(p, y, z, ph, t, t_end, period, s, atol, record, acc, bmin, bmax, 
     pg = np.empty(NT)
     pw = np.empty(2 * NT + 1)
     obs = np.empty(N_OBS)
-    dy = np.empty(NY)
+    dy = np.empty(NY_ALL)      # the model's rhs writes every state
     bvec = np.empty(N_BOUNDED)
     ityp = np.ones(NZ)
     for i in range(NY - 1):

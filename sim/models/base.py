@@ -8,7 +8,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from sim.errors import ParameterError  # noqa: F401  (re-exported: the models and sim.api raise it from here)
-from sim.models.discrepancy import TERMS as DISCREPANCY_TERMS
+from sim.models.discrepancy import MODE, MODE_PARAMS, PARAM_OF as DISCREPANCY_PARAMS
 from sim.models.effects import EFFECT_FIT_BOUNDS, EFFECTS, effect
 from sim.models.fitbound import FitBound  # noqa: F401  (re-exported: the models build their bounds from here)
 from sim.models.param import Param  # noqa: F401  (re-exported: the models declare their parameters from here)
@@ -190,8 +190,8 @@ class ModelSpec:
             raise ValueError(f"{where}: diagnose_fit must give integers >= 1 for exactly {DIAGNOSE_FIT_KEYS}, "
                              f"got {self.diagnose_fit!r}")
         for t in self.discrepancy:
-            if t not in DISCREPANCY_TERMS or t not in names:
-                raise ValueError(f"{where}: discrepancy term '{t}' is not a term of sim.models.discrepancy and a parameter")
+            if t not in DISCREPANCY_PARAMS or t not in names:
+                raise ValueError(f"{where}: discrepancy term '{t}' is not a parameter of sim.models.discrepancy and of the model")
             b = self.discrepancy_bounds.get(t)
             if b is None or b.name != t or not 0.0 < b.lo < b.hi:
                 raise ValueError(f"{where}: discrepancy term '{t}' needs fit bounds 0 < lo < hi")
@@ -227,10 +227,14 @@ class ModelSpec:
                 out[name] = None
                 continue
             out[name] = by_name[name].validate(v)
-        for name in DISCREPANCY_TERMS:      # a term the model does not have must stay off
+        for name in DISCREPANCY_PARAMS:     # a term the model does not have must stay off
             if out.get(name) and name not in self.discrepancy:
                 raise ParameterError(f"discrepancy term '{name}' does not apply to model '{self.name}' "
                                      f"(its terms: {', '.join(self.discrepancy) or 'none'})")
+        ratio, hz, _ = (out.get(n) for n in MODE_PARAMS)
+        if ratio and not hz:       # a hidden mass on no spring: not a mode
+            raise ParameterError(f"discrepancy {MODE}: parameter '{MODE_PARAMS[1]}' must be > 0 [Hz] when "
+                                 f"'{MODE_PARAMS[0]}' is > 0, got {hz!r}")
         if self.derive is not None:
             out = self.derive(out)
         for name, v in out.items():

@@ -8,13 +8,16 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class FitBound:
-    """Fit bounds of a calibratable or effect parameter [SI]; fitted in log10 when log=True."""
+    """Fit bounds of a calibratable or effect parameter [SI]; fitted in log10 when log=True.  ``grid``: interior
+    points of the diagnosis' start grid along this parameter (0: the configured ``grid``), more for a parameter the
+    residual is multimodal in (a hidden mode's frequency)."""
 
     name: str
     lo: float
     hi: float
     unit: str
     log: bool = True
+    grid: int = 0
 
     def __post_init__(self):
         if not self.lo < self.hi:

@@ -1,7 +1,8 @@
 """Indenter rig: three masses, metal or sandstone sample (MODELS.md §1), with the §6 effects.
 
-States y = [x1, v1, x2, v2, x3, v3, Fem, W]: armature+indenter, shaker body, piston head,
-electromagnetic force (a state only with `shaker_coil`), excitation work.
+States y = [x1, v1, x2, v2, x3, v3, Fem, W, xh, vh]: armature+indenter, shaker body, piston head,
+electromagnetic force (a state only with `shaker_coil`), excitation work, the hidden load-path mode relative to
+m1 (discrepancy ``load_path_mode``; at rest while off).
 Discrete states z = [xp, xf] (sandstone crater floor and unloading end point).
 Phases: metal 0 free / 1 contact; sandstone 0 free / 1 loading / 2 unloading.
 
@@ -15,7 +16,8 @@ Effects (MODELS.md §6; all off at their default 0):
   sensor_lowpass (fc [Hz]: applied to the recorded acceleration, ``sim.models.sensor``).
 
 Discrepancy terms (sim.models.discrepancy; off at 0): the metal's Kelvin–Voigt expression gains the contact terms
-(δ = x1 − G, δ̇ = ẋ1, also in its force indicator); both samples take the tool terms on m1 (v = ẋ1).
+(δ = x1 − G, δ̇ = ẋ1, also in its force indicator); both samples take the tool terms on m1 (v = ẋ1) and the
+load_path_mode's hidden mass on m1.
 """
 from __future__ import annotations
 
@@ -26,7 +28,8 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import FitBound, ModelSpec, Param, SynthRig
-from sim.models.discrepancy import TERMS as DISCREPANCY_TERMS, contact_extra, discrepancy_params, tool_loss
+from sim.models.discrepancy import (MODE_PARAMS, MODE_STATES, TERMS as DISCREPANCY_TERMS, contact_extra,
+                                    discrepancy_params, mode_accel, mode_bounds, mode_force, tool_loss)
 from sim.models.effects import effect_params
 from sim.models.param import index_of
 from sim.models.contact import branch_depth, branch_force, coulomb_sign, kelvin_voigt, released_force
@@ -35,8 +38,8 @@ from sim.models.terms import coil_force, guide_friction, hardened_spring, rate_s
 
 (M1, M2, M3, K2, C2, K3, C3, PM, GAP, FP, FA, FREQ, VEPS, K1, C1, KL, KU, NL, NU) = range(19)   # then the effects'
 
-IX1, IV1, IX2, IV2, IX3, IV3, IFEM, IW = range(8)
-NY = 8
+IX1, IV1, IX2, IV2, IX3, IV3, IFEM, IW, IXH, IVH = range(10)
+NY = 10
 IXP, IXF = 0, 1
 N_BOUNDED = 4
 # the kernel checks N_GUARDS guards, as many as `guards` fills (sandstone loading and unloading have two; metal one)
@@ -88,6 +91,9 @@ def _body(t, y, p, fr, dy):
     kappa = p[KAPPA]
     tv = p[TV]
     tq = p[TQ]
+    ratio = p[IMODE]
+    fm = mode_force(ratio, p[IMODE + 1], p[IMODE + 2], m1, y[IXH], y[IVH])
+    vh = y[IVH]
     om = 2.0 * math.pi * p[FREQ]
     phi1 = x1 - x2
     dphi1 = v1 - v2
@@ -96,13 +102,16 @@ def _body(t, y, p, fr, dy):
     fem, dfem = coil_force(fa * math.sin(om * t), beta, dphi1, tau, fem_y)
     inner = c2 * dphi1 + hardened_spring(k2, phi1, kappa) + guide_friction(mu, dphi1, veps)
     dy[IX1] = v1
-    dy[IV1] = (fem - inner - fr - tool_loss(tv, tq, v1)) / m1
+    a1 = (fem - inner - fr - tool_loss(tv, tq, v1) + fm) / m1
+    dy[IV1] = a1
     dy[IX2] = v2
     dy[IV2] = (-fem + inner - c3 * dphi2 - k3 * phi2) / m2
     dy[IX3] = v3
     dy[IV3] = (fp + c3 * dphi2 + k3 * phi2 - pm * coulomb_sign(v2, veps)) / m3
     dy[IFEM] = dfem
     dy[IW] = fem * dphi1
+    dy[IXH] = vh
+    dy[IVH] = mode_accel(ratio, m1, fm, a1)
 
 
 # ----------------------------------------------------------------------------- metal sample
@@ -307,7 +316,7 @@ def _initial(p: np.ndarray):
 def _atol(p: np.ndarray) -> np.ndarray:
     xs = max(p[GAP], 1e-4)
     om = 2.0 * math.pi * p[FREQ]
-    return np.array([xs, xs * om, xs, xs * om, xs, xs * om, max(p[FA], 1.0), max(p[FA], 1.0) * xs])
+    return np.array([xs, xs * om, xs, xs * om, xs, xs * om, max(p[FA], 1.0), max(p[FA], 1.0) * xs, xs, xs * om])
 
 
 EFFECTS = ("shaker_coil", "rate_stiffening", "guide_friction", "tip_blunting", "suspension_hardening",
@@ -347,6 +356,7 @@ COMMON = (
                          "tool": "on m1, v = ẋ1"}),
 )
 DQ, DC, DP, TV, TQ = index_of(COMMON, *DISCREPANCY_TERMS)
+IMODE = index_of(COMMON, *MODE_PARAMS)[0]   # then its frequency and damping ratio
 TAU, BETA, ALPHA, MU, GAMMA, KAPPA, FC = index_of(COMMON, "tau", "beta", "alpha", "mu", "gamma", "kappa", "fc")
 # The kernel's parameter vector ends with the effects' parameters; P and D only feed static_force_n.
 
@@ -363,7 +373,9 @@ def _derive(values: dict) -> dict:
 # discrepancy terms (sim.models.discrepancy): penetration δ ~ 1.4e-4 m under the metal's k1, armature speed ~0.3 m/s,
 # m1 Ω ~ 1.3e3 N s/m at 60 Hz; lo ~ 1/20 and hi ~ 30x of a ~10 % change of the labels.  The sandstone's contact is
 # its power-law branches (kl, ku, nl, nu): only the tool terms apply there.
-_TOOL_BOUNDS = {"tool_viscous": FitBound("tool_viscous", 5.0, 4e3, "N s/m"),
+# The hidden mode from below the forcing (30-100 Hz) to above the impacts' ~1 kHz ring.
+_TOOL_BOUNDS = {**mode_bounds(20.0, 3000.0),
+                "tool_viscous": FitBound("tool_viscous", 5.0, 4e3, "N s/m"),
                 "tool_quadratic_drag": FitBound("tool_quadratic_drag", 50.0, 1e5, "N s^2/m^2")}
 _METAL_BOUNDS = {"contact_quadratic": FitBound("contact_quadratic", 3e8, 3e11, "N/m^2"),
                  "contact_cubic": FitBound("contact_cubic", 2e12, 2e15, "N/m^3"),
@@ -377,7 +389,7 @@ def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effe
         name=name,
         description=f"indenter rig, {name.split('-')[1]} sample (MODELS.md §1)",
         params=COMMON,
-        states=("x1", "v1", "x2", "v2", "x3", "v3", "fem", "work"),
+        states=("x1", "v1", "x2", "v2", "x3", "v3", "fem", "work", *MODE_STATES),
         z_names=z,
         bounded=bounded,
         funcs=funcs,

@@ -212,20 +212,22 @@ def test_conformance_exact_propagator_interface(model):
 
 @pytest.mark.parametrize("model,term", [(m, t) for m in MODELS for t in sim.get_model(m).discrepancy])
 def test_conformance_discrepancy_term_visible_and_off_at_zero(model, term):
-    """Every discrepancy term a model declares (``ModelSpec.discrepancy``, sim/models/discrepancy.py): a vocabulary
-    term with fit bounds; at 0 the labels and final state are the base model's bit for bit; at its probe strength
-    (the start of the diagnosis' screening) it moves the labels without failing the run."""
+    """Every discrepancy parameter a model declares (``ModelSpec.discrepancy``, sim/models/discrepancy.py): a
+    vocabulary parameter with fit bounds; at 0 the labels and final state are the base model's bit for bit; at its
+    probe strength (the start of the diagnosis' screening; a structured candidate's parameters all at theirs) it
+    moves the labels without failing the run."""
     from pipeline.diagnosis.discovery import probe_value
-    from sim.models.discrepancy import TERMS
+    from sim.models.discrepancy import CANDIDATES, PARAM_OF
 
     spec = sim.get_model(model)
-    assert term in TERMS and 0.0 < spec.discrepancy_bounds[term].lo < spec.discrepancy_bounds[term].hi
+    assert term in PARAM_OF and 0.0 < spec.discrepancy_bounds[term].lo < spec.discrepancy_bounds[term].hi
     preset = spec.synth.preset if spec.synth else None
     base = _base_run(model)
     off = sim.simulate(model, preset=preset, settings=SHORT, **{term: 0.0})
     assert off.labels == base.labels
     assert all(np.array_equal(a, b) for a, b in zip(off.final_state, base.final_state))
-    on = sim.simulate(model, preset=preset, settings=SHORT, **{term: probe_value(spec.discrepancy_bounds[term])}).labels
+    probe = {q: probe_value(spec.discrepancy_bounds[q]) for q in CANDIDATES[PARAM_OF[term]].params}
+    on = sim.simulate(model, preset=preset, settings=SHORT, **probe).labels
     assert on["status"] != "failed", on.get("reason")
     moved = max(abs(on[k] - base.labels[k]) / max(abs(base.labels[k]), 1e-300) for k in LABELS_MOVED
                 if on[k] is not None and base.labels[k] is not None)
@@ -235,10 +237,10 @@ def test_conformance_discrepancy_term_visible_and_off_at_zero(model, term):
 @pytest.mark.parametrize("model", MODELS)
 def test_conformance_discrepancy_term_a_model_lacks_is_refused(model):
     """A vocabulary term the model does not declare cannot be switched on silently: one line naming it."""
-    from sim.models.discrepancy import TERMS
+    from sim.models.discrepancy import PARAM_OF
 
     spec = sim.get_model(model)
-    lacking = [t for t in TERMS if t not in spec.discrepancy and t in spec.param_names]
+    lacking = [t for t in PARAM_OF if t not in spec.discrepancy and t in spec.param_names]
     for t in lacking:
         with pytest.raises(sim.ParameterError, match=f"discrepancy term '{t}' does not apply"):
             spec.resolve(**{t: 1.0})

@@ -100,7 +100,7 @@ def _base_rhs(t, y, ph, p):
     dxt = [-(K1 / C1) * (xt - xb), v1, v1][ph]
     dxb = [0.0, 0.0, (K1 * (x1 - xb) + C1 * v1 - p["Pr"]) / C1][ph]
     return np.array([v1, (f - link - pc) / p["M1"], v2, (p["static_force_n"] + link - top) / p["M2"], v3,
-                     top / p["M3"], dxt, dxb, 0.0, f * v1])
+                     top / p["M3"], dxt, dxb, 0.0, f * v1, 0.0, 0.0])     # the hidden mode off: at rest
 
 
 @pytest.mark.parametrize("ph", [0, 1, 2])
@@ -120,8 +120,10 @@ def test_effect_terms_vanish_exactly_when_off(ph):
 
 
 def test_state_layout():
-    """W last (the kernel reads the work from y[-1]); fh just before it; names line up with the constants."""
-    assert drill.IW == drill.NY - 1 == len(drill.STATES) - 1 and drill.STATES[drill.IW] == "work"
+    """W last of the base states (the exact propagator's linear system is the first NY_BASE), the hidden mode's two
+    after it; fh just before W; names line up with the constants."""
+    assert drill.IW == drill.NY_BASE - 1 and drill.STATES[drill.IW] == "work"
+    assert (drill.IXH, drill.IVH) == (drill.NY - 2, drill.NY - 1) == (len(drill.STATES) - 2, len(drill.STATES) - 1)
     assert drill.IFH == drill.IW - 1 and drill.STATES[drill.IFH] == "fh"
     assert len(drill.PARAMS) == drill.NP and len(drill.BOUNDED) == drill.N_BOUNDED
     names = [q.name for q in drill.PARAMS]

@@ -88,3 +88,38 @@ def test_two_terms_at_once_and_the_proposals_they_lead_to():
 def test_proposal_names_round_trip():
     name = D.proposal_name(("contact_quadratic", "tool_viscous"))
     assert name.startswith(D.PREFIX) and D.proposal_terms(name) == ["contact_quadratic", "tool_viscous"]
+
+
+@pytest.mark.parametrize("system", ["drill", "indenter-metal", "indenter-sandstone", "pendulum", "rimd"])
+def test_the_hidden_mode_is_a_structured_candidate_of_every_model(system):
+    """The hidden load-path mode is fitted as a proposal of its own (three parameters, with bounds), never screened
+    as a regression column."""
+    from sim.models.discrepancy import MODE, MODE_PARAMS
+
+    structured = D.structured_candidates(system)
+    assert list(structured) == [MODE]
+    assert tuple(b.name for b in structured[MODE]) == MODE_PARAMS
+    assert all(0.0 < 10 ** b.bounds[0] < 10 ** b.bounds[1] for b in structured[MODE])
+    assert not set(MODE_PARAMS) & set(D.term_candidates(system))
+
+
+def test_a_structured_proposal_reports_its_parameters():
+    """report(): a proposal of the hidden mode lists its kind "mode", its three parameters with sd and interval."""
+    from pipeline.diagnosis.fit import FitResult
+    from pipeline.diagnosis.verdict import ModelStats
+    from sim.models.discrepancy import MODE, MODE_PARAMS
+
+    name = D.proposal_name((MODE,))
+    vals = {"K1": 1e8, "C1": 1e4, "Pr": 2e3, **dict(zip(MODE_PARAMS, (0.25, 1000.0, 0.05)))}
+    fr = FitResult(values=vals, free=list(vals), chi2=10.0, n=100, nfev=20, sd={k: 0.1 * v for k, v in vals.items()},
+                   ci95={k: (0.8 * v, 1.2 * v) for k, v in vals.items()})
+    err = {"nrms": 1.1, "error": 0.01, "noise_floor": 0.009, "systematic": 0.001, "by_run_nrms": [1.0, 1.2]}
+    d = D.Discovery(screening=D.Screening([], [], {}, {}, []), fits={name: fr}, err={name: err},
+                    stats={name: ModelStats(name=name, bic=50.0, chi2=121.0, n=100, systematic=0.001)},
+                    accepted=name, leader=name,
+                    checks={name: {"delta_bic": -50.0, "delta_chi2": 400.0, "improves": True, "adequate": True}})
+    rep = D.report(d, {"nrms": 20.0, "error": 0.2, "by_run_nrms": [19.0, 21.0]}, ["K1", "C1", "Pr"])
+    [p] = rep["proposals"]
+    assert p["kinds"] == ["mode"] and p["terms"] == [MODE]
+    assert list(p["coefficients"]) == list(MODE_PARAMS) and p["coefficients"]["load_path_mode_hz"] == 1000.0
+    assert rep["accepted"] == [MODE] and "hidden mass" in rep["text"]
