@@ -74,6 +74,13 @@ def random_starts(free: list[FreeParam], defaults: dict, n: int, rng) -> list[di
     return starts
 
 
+def nominal_values(ev: Evaluator, idx: list[int]) -> dict[str, float]:
+    """The rig's nominal parameter values for the runs ``idx``: the model's defaults under the rig's known values."""
+    import sim
+
+    return {**sim.get_model(ev.system).defaults(), **ev.targets[idx[0]].known}
+
+
 def candidate_start(ev: Evaluator, idx: list[int], base: dict, eff: tuple[FreeParam, ...], free: list[FreeParam],
                     cfg: DiagnoseConfig) -> dict:
     """Starting point of a candidate's fit: a log grid of the effect's parameters (``cfg.grid`` interior points per
@@ -106,11 +113,9 @@ def fit_models(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, cands
     """Per fold (its calibration runs' indices): the base model and every candidate fitted, and the lines that
     report them.  ``warm``: start each model from these fits (leave-one-run-out folds start from the all-runs
     fit; each fold is still refitted on its own runs); without it the base starts are drawn from ``rng``."""
-    import sim
-
     free = list(calibratable(ev.system))
     shared = ev.for_tasks(executor.task_threads)
-    nominal = [{**sim.get_model(ev.system).defaults(), **ev.targets[idx[0]].known} for idx in folds]  # rig's known
+    nominal = [nominal_values(ev, idx) for idx in folds]
     base_jobs = [FitJob(idx, free, {}, [warm["base"].values] if warm else random_starts(free, d, cfg.n_starts, rng),
                         cfg.max_nfev, cfg.diff_step, coarse=not warm) for idx, d in zip(folds, nominal)]
     outs = [{"base": b} for b in _fits(executor, ev, shared, base_jobs)]
@@ -197,17 +202,16 @@ def fit_added(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, cands:
     at that fit with the calibratable parameters at the rig's nominal values (a fit that absorbed the added physics in a base parameter, e.g. the RIMD's λi standing in
     for rate stiffening, hides it at every grid point), and, where given, from ``start_fits[f]``'s values with
     ``extra_starts[name]`` on top (e.g. a sparse regression's estimate); ``max_nfev + refine_nfev`` iterations."""
-    import sim
-
     free = list(calibratable(ev.system)) + list(carried)
     shared = ev.for_tasks(executor.task_threads)
     keys = [(f, c) for f in range(len(folds)) for c in cands]
-    bases = {f: [start_fits[f].values] for f in range(len(folds))}
-    for f, idx in enumerate(folds):
-        nom = {**sim.get_model(ev.system).defaults(), **ev.targets[idx[0]].known}
-        bases[f].append({**start_fits[f].values, **{p.name: nom[p.name] for p in calibratable(ev.system)}})
     at_nominal = set(cands) if nominal is True else set(nominal or ())
-    items = [(f, c, b) for f, c in keys for b in bases[f][:2 if c in at_nominal else 1]]
+    items = []          # (fold, candidate, the parameters its grid starts at)
+    for f, c in keys:
+        items.append((f, c, start_fits[f].values))
+        if c in at_nominal:
+            nom = nominal_values(ev, folds[f])
+            items.append((f, c, {**start_fits[f].values, **{p.name: nom[p.name] for p in calibratable(ev.system)}}))
     found_all = _batch(executor, ev, shared, _candidate_start_task,
                        [(folds[f], b, cands[c], free, cfg) for f, c, b in items])
     by_key: dict = {}

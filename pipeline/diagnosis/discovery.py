@@ -247,7 +247,7 @@ def report(d: Discovery, base_err: dict, cal_names: list[str]) -> dict:
     elif top is not None:
         text = (f"no proposal brings the held-out error to the noise (best: {' + '.join(top['forms'])}, nrms "
                 f"{base_err['nrms']:.3g} → {top['nrms']:.3g}); the missing term is not in the vocabulary "
-                f"of this model ({', '.join(scr.order)})")
+                f"of this model ({', '.join(dict.fromkeys([*scr.order, *(t for m in d.err for t in proposal_terms(m))]))})")
     else:
         text = "no proposal"
     return {"screening": screening, "path_bic": scr.path_bic, "proposals": rows[:3],

@@ -26,6 +26,7 @@ from pipeline.report.doc import Document, Figure, Heading, Para, Table, fmt, to_
 from pipeline.core.units import ENGINEERING, convert, factor, label, split  # noqa: E402
 from pipeline.core.files import atomic_write_bytes, atomic_write_text  # noqa: E402
 from pipeline.core.jsonable import dump_json, flatten  # noqa: E402
+from sim.models.discrepancy import PARAM_OF  # noqa: E402
 
 
 @dataclass
@@ -501,7 +502,8 @@ def calibrated_rows(rep: dict, system: str) -> list[list]:
     for name, d in block.items():
         if not isinstance(d, dict):
             continue
-        added = "adopted discrepancy term" if name in (rep.get("proposal_adopted") or ()) else "selected effect"
+        adopted = PARAM_OF.get(name, name) in (rep.get("proposal_adopted") or ())    # a term, or the mode's
+        added = "adopted discrepancy term" if adopted else "selected effect"
         role = ("calibrated (with the effect)" if name in cal else added) if with_effect else "calibrated"
         default, unit = info.get(name, (None, ""))
         ci = d.get("ci95") if isinstance(d.get("ci95"), list) and len(d["ci95"]) == 2 else None

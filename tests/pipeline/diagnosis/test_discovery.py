@@ -123,3 +123,7 @@ def test_a_structured_proposal_reports_its_parameters():
     assert p["kinds"] == ["mode"] and p["terms"] == [MODE]
     assert list(p["coefficients"]) == list(MODE_PARAMS) and p["coefficients"]["load_path_mode_hz"] == 1000.0
     assert rep["accepted"] == [MODE] and "hidden mass" in rep["text"]
+    import dataclasses     # not accepted: the text names every candidate tried, the structured one too
+    text = D.report(dataclasses.replace(d, accepted=None), {"nrms": 20.0, "error": 0.2, "by_run_nrms": [19.0, 21.0]},
+                    ["K1", "C1", "Pr"])["text"]
+    assert text.endswith(f"not in the vocabulary of this model ({MODE})")

@@ -61,3 +61,14 @@ def test_calibrated_rows_name_an_adopted_discrepancy_term():
     rows = calibrated_rows(rep, "indenter-metal")
     assert [r[:2] for r in rows] == [["k1", "calibrated (with the effect)"],
                                      ["tool_quadratic_drag", "adopted discrepancy term"]]
+
+
+def test_calibrated_rows_name_the_adopted_modes_parameters():
+    """An adopted hidden load-path mode: each of its three parameters is labelled as the adopted term's."""
+    rep = {"calibrated": {"K1": 2.0e8}, "proposal_adopted": ["load_path_mode"],
+           "selected_params": {"K1": {"value": 2.1e8},
+                               **{n: {"value": v} for n, v in (("load_path_mode_ratio", 0.25),
+                                                               ("load_path_mode_hz", 1000.0),
+                                                               ("load_path_mode_zeta", 0.05))}}}
+    rows = calibrated_rows(rep, "drill")
+    assert [r[1] for r in rows] == ["calibrated (with the effect)"] + ["adopted discrepancy term"] * 3
