@@ -240,6 +240,8 @@ def parse_mapping(doc: object, label: str, base: Path) -> Mapping:
         for col in ("run_id", "system"):
             if col not in merged:
                 raise FieldFormatError(f"{where}: missing '{col}'")
+        if not isinstance(rid, (str, int)) or isinstance(rid, bool):
+            raise FieldFormatError(f"{where}: run_id must be a name given in the mapping (letters, digits, '_-.')")
         file = merged.get("file", doc.get("file"))
         if not isinstance(file, str) or not file:
             raise FieldFormatError(f"{where}: no file (give 'file:' at the top of the mapping or in the run)")

@@ -272,3 +272,21 @@ def test_unknown_format_and_extension(tmp_path):
         open_file(tmp_path / "log.dat")
     with pytest.raises(FieldFormatError, match="did you mean 'tdms'"):
         open_file(tmp_path / "log.dat", "tmds")
+
+
+def test_summary_values_convert_and_validate(tmp_path):
+    doc = write_csv(tmp_path)
+    doc["runs"][0]["summary"] = {"rop_m_s": "1.2 mm/s", "peak_decel_g": "29.43 m/s2", "impacts_per_cycle": 1}
+    ds = _import(tmp_path, doc).dataset
+    assert ds.summary.loc["r0", "rop_m_s"] == pytest.approx(1.2e-3)
+    assert ds.summary.loc["r0", "peak_decel_g"] == pytest.approx(3.0)
+    back = load_dataset(write_dataset(ds, tmp_path / "out"))
+    assert back.summary.index.tolist() == ["r0"] and back.summary.loc["r0", "impacts_per_cycle"] == 1
+
+
+def test_extra_columns_and_text_properties_pass_through(tmp_path):
+    doc = write_tdms(tmp_path)
+    doc["run_defaults"].update({"preset": "lab", "operator_note": {"property": "Rig"}, "M1": 1.5})
+    runs = _import(tmp_path, doc).dataset.runs
+    assert list(runs["preset"]) == ["lab", "lab"] and list(runs["operator_note"]) == ["lab drill"] * 2
+    assert list(runs["M1"]) == [1.5, 1.5]
