@@ -59,6 +59,16 @@ def did_you_mean(name: str, known: list[str]) -> str:
     return f" (the file has: {', '.join(known[:8])}{', ...' if len(known) > 8 else ''})" if known else " (the file has none)"
 
 
+def as_vector(values: np.ndarray, file: Path, path: str) -> np.ndarray:
+    """``values`` as a 1-D array (a MATLAB 1 x n or n x 1 array included); FieldFormatError for a matrix, whose
+    columns would be interleaved."""
+    arr = np.asarray(values)
+    if sum(d > 1 for d in arr.shape) > 1:
+        raise FieldFormatError(f"{file}, channel '{path}': a {' x '.join(map(str, arr.shape))} array, not one "
+                               f"signal; store each signal as its own vector")
+    return arr.reshape(-1)
+
+
 def scalar(value: object) -> object:
     """A property as a Python scalar: numpy scalars and 1-element arrays unwrapped, bytes decoded."""
     if isinstance(value, bytes):

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.core.optional import try_import
-from pipeline.datasets.fieldformats.base import Channel, FieldFormatError, scalar
+from pipeline.datasets.fieldformats.base import Channel, FieldFormatError, as_vector, scalar
 
 UNIT_ATTRS = ("unit", "units", "unit_string")
 STEP_ATTRS = ("wf_increment",)
@@ -52,7 +52,7 @@ class Hdf5Source:
             raise KeyError(path)
         unit = next((_text(ds.attrs[a]) for a in UNIT_ATTRS if a in ds.attrs), None)
         step = next((float(scalar(ds.attrs[a])) for a in STEP_ATTRS if a in ds.attrs), None)
-        return Channel(values=np.asarray(ds[()]).reshape(-1), unit=unit, step_s=step if step and step > 0 else None)
+        return Channel(values=as_vector(ds[()], self.path, path), unit=unit, step_s=step if step and step > 0 else None)
 
     def properties(self, group: str) -> dict[str, object]:
         g = self._file.get(group.strip("/") or "/")

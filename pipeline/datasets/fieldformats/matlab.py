@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.datasets.fieldformats.base import Channel, FieldFormatError, scalar
+from pipeline.datasets.fieldformats.base import Channel, FieldFormatError, as_vector, scalar
 from pipeline.datasets.fieldformats.hdf5 import Hdf5Source
 
 
@@ -21,7 +21,7 @@ def _walk(node: dict, prefix: str, channels: dict, props: dict) -> None:
         if isinstance(value, dict):
             _walk(value, path, channels, props)
         elif isinstance(value, np.ndarray) and value.dtype.kind in "fiub" and value.size > 1:
-            channels[path] = value.reshape(-1)
+            channels[path] = value
         else:
             v = scalar(value)
             if isinstance(v, (int, float, str, bool)):
@@ -47,7 +47,7 @@ class MatSource:
         return list(self._channels)
 
     def channel(self, path: str) -> Channel:
-        return Channel(values=self._channels[path.strip("/").replace(".", "/")])
+        return Channel(values=as_vector(self._channels[path.strip("/").replace(".", "/")], self.path, path))
 
     def properties(self, group: str) -> dict[str, object]:
         return dict(self._props.get(group.strip("/").replace(".", "/"), {}))

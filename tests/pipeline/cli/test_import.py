@@ -72,3 +72,30 @@ def test_help_has_an_example_mapping():
     for word in ("channels:", "accel_m_s2: {channel: Accel, unit: g}", "rate_hz", "{property:", "run_defaults",
                  "unit_string", "docs/import.md"):
         assert word in text, word
+
+
+def _yaml_block(text: str, first: str) -> dict:
+    """The YAML example starting at the line ``first`` up to the next blank line or fence, dedented."""
+    import textwrap
+
+    lines = text.splitlines()
+    i = next(k for k, ln in enumerate(lines) if ln.strip().startswith(first))
+    block = []
+    for ln in lines[i:]:
+        if not ln.strip() or ln.startswith("```"):
+            break
+        block.append(ln)
+    return yaml.safe_load(textwrap.dedent("\n".join(block)))
+
+
+@pytest.mark.parametrize("where", ["help", "docs"])
+def test_example_mappings_parse(tmp_path, where):
+    from pathlib import Path
+
+    from pipeline.cli.import_ import EPILOG
+    from pipeline.datasets.fieldformats import parse_mapping
+
+    text = EPILOG if where == "help" else (Path(__file__).resolve().parents[3] / "docs" / "import.md").read_text()
+    doc = _yaml_block(text, "file: rig")
+    m = parse_mapping(doc, "example", tmp_path)
+    assert m.runs and {c.signal for c in m.runs[0].channels} >= {"accel_m_s2", "force_n"}

@@ -290,3 +290,12 @@ def test_extra_columns_and_text_properties_pass_through(tmp_path):
     runs = _import(tmp_path, doc).dataset.runs
     assert list(runs["preset"]) == ["lab", "lab"] and list(runs["operator_note"]) == ["lab drill"] * 2
     assert list(runs["M1"]) == [1.5, 1.5]
+
+
+def test_matrix_is_not_taken_for_a_signal(tmp_path):
+    from scipy import io
+
+    io.savemat(tmp_path / "rig.mat", {"fs": FS, "data": np.stack([lab(0, "accel_m_s2"), lab(0, "force_n")], axis=1)})
+    doc = {"file": "rig.mat", "time": {"rate_hz": {"variable": "fs"}}, "channels": {"accel_m_s2": {"channel": "data",
+           "unit": "g"}}, "runs": [{"run_id": "r0", "system": "drill", **RUN_TABLE}]}
+    assert f"channel 'data': a {N} x 2 array, not one signal" in _error(tmp_path, doc)
