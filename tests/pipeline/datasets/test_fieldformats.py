@@ -299,3 +299,44 @@ def test_matrix_is_not_taken_for_a_signal(tmp_path):
     doc = {"file": "rig.mat", "time": {"rate_hz": {"variable": "fs"}}, "channels": {"accel_m_s2": {"channel": "data",
            "unit": "g"}}, "runs": [{"run_id": "r0", "system": "drill", **RUN_TABLE}]}
     assert f"channel 'data': a {N} x 2 array, not one signal" in _error(tmp_path, doc)
+
+
+def test_drill_rig_log_through_tdms_and_back(tmp_path):
+    """The measured drill log (series runs) written as a LabVIEW VI would — one group per run, g / kN / mm,
+    the run table as group properties in kN and ms — imports back to the same dataset."""
+    nptdms = pytest.importorskip("nptdms")
+    from pipeline.cli.diagnose import check_signals
+
+    orig = load_dataset(Path(__file__).resolve().parents[3] / "measured" / "drill-rig")
+    ids = [r for r in orig.series if "force_n" not in orig.series[r]][:1] + [r for r in orig.series
+                                                                              if "force_n" in orig.series[r]][:3]
+    lab_units = {"accel_m_s2": ("Accel", "g", 1 / G), "force_n": ("Load", "kN", 1e-3), "progression_m": ("Depth", "mm", 1e3)}
+    objs, runs = [nptdms.RootObject(properties={"Rig": "lab drill"})], []
+    for rid in ids:
+        row = orig.runs.set_index("run_id").loc[rid]
+        s = orig.series[rid]
+        objs.append(nptdms.GroupObject(rid, properties={"Frequency": row["frequency_hz"], "F0": row["amplitude_n"] / 1e3,
+                                                        "Fs": row["static_force_n"] / 1e3, "Preset": row["preset"],
+                                                        "Start": row["record_start_s"] * 1e3}))
+        step = float(s["t_s"].iloc[1])
+        objs += [nptdms.ChannelObject(rid, name, s[sig].to_numpy() * k, properties={"unit_string": u, "wf_increment": step})
+                 for sig, (name, u, k) in lab_units.items() if sig in s]
+        runs.append({"run_id": rid, "group": rid, **({"channels": {"force_n": "Load"}} if "force_n" in s else {})})
+    with nptdms.TdmsWriter(str(tmp_path / "rig.tdms")) as w:
+        w.write_segment(objs)
+    doc = {"file": "rig.tdms", "channels": {"accel_m_s2": "Accel", "progression_m": "Depth"},
+           "run_defaults": {"system": "drill", "gap_m": 0, "frequency_hz": {"property": "Frequency"},
+                            "amplitude_n": {"property": "F0", "unit": "kN"},
+                            "static_force_n": {"property": "Fs", "unit": "kN"}, "preset": {"property": "Preset"},
+                            "record_start_s": {"property": "Start", "unit": "ms"}},
+           "runs": runs}
+    back = load_dataset(write_dataset(_import(tmp_path, doc).dataset, tmp_path / "out"))
+    check_signals(back)
+    assert any("force_n" not in s for s in back.series.values()) and set(back.series) == set(ids)
+    a, b = orig.runs.set_index("run_id").loc[ids], back.runs.set_index("run_id").loc[ids]
+    for col in ("frequency_hz", "amplitude_n", "static_force_n", "record_start_s"):
+        np.testing.assert_allclose(b[col].astype(float), a[col].astype(float), rtol=1e-12, err_msg=col)
+    assert list(b["preset"]) == list(a["preset"])
+    for rid in ids:
+        assert list(back.series[rid].columns) == list(orig.series[rid].columns)
+        np.testing.assert_allclose(back.series[rid].to_numpy(), orig.series[rid].to_numpy(), rtol=1e-9, atol=1e-15)
