@@ -29,6 +29,8 @@ from the file (TDMS property, HDF5 attribute, MATLAB scalar variable; the run's 
       static_force_n: {property: "Static load", unit: kN}
       record_start_s: 0.6
       summary: {rop_m_s: "1.2 mm/s"}          # optional summary.csv row
+    - {run_id: r02, group: "Run 002", channels: {}, duration_s: 2.0, summary: {rop_m_s: "1.5 mm/s"}}
+                                              # channels: {} = no series, a summary.csv row only
 
 units (pipeline/core/units.py): s ms us | Hz kHz | m/s2 mm/s2 g (g = 9.81 m/s2, the project's) | N kN mN lbf |
   m cm mm um in | m/s mm/s m/min m/h.  A unit the mapping gives must agree with the file's; a channel with no
@@ -71,7 +73,7 @@ def run(args) -> int:
     doc = load_yaml(path, str(path), floats_12=True)
     try:
         mapping = parse_mapping(doc, str(path), path.parent)
-        inputs = [path, *dict.fromkeys(r.file for r in mapping.runs)]
+        inputs = [path, *dict.fromkeys(r.file for r in mapping.runs if r.file is not None)]
         check_out(args.out, inputs=inputs, overwrite=args.overwrite, marker="import")
         result = import_runs(mapping, open_file)
     except FieldFormatError as e:
@@ -84,6 +86,9 @@ def run(args) -> int:
             raise UserError(f"the imported data fail the MODELS.md §7 check: {e}") from None
     if not args.quiet:
         for r in result.runs:
+            if not r.samples:
+                print(f"  {r.run_id}: summary only", file=sys.stderr)
+                continue
             conv = ", ".join(f"{c.signal} <- {c.channel} [{c.unit}] x {c.factor:g}" for c in r.conversions)
             print(f"  {r.run_id}: {r.samples} samples at {r.rate_hz:.6g} Hz (t_s from {r.time_from}); {conv}",
                   file=sys.stderr)

@@ -33,7 +33,7 @@ class ImportedRun:
     """What was read for one run: ``samples`` at ``rate_hz`` [Hz], time taken from ``time_from``."""
 
     run_id: str
-    file: Path
+    file: Path | None
     group: str
     samples: int
     rate_hz: float
@@ -155,9 +155,14 @@ def _time(src: Source, run: RunSpec, n: int, chans: dict[str, Channel], where: s
     return np.arange(n) * first, f"wf_increment {first:g} s"
 
 
-def _read_run(src: Source, run: RunSpec) -> tuple[pd.DataFrame, dict, dict, ImportedRun]:
-    """(series, runs.csv row, summary row, record) of one run."""
+def _read_run(src: Source | None, run: RunSpec) -> tuple[pd.DataFrame | None, dict, dict, ImportedRun]:
+    """(series, runs.csv row, summary row, record) of one run; no series for a summary-only run."""
     where = f"run '{run.run_id}'"
+    if not run.channels:
+        row = {col: _value(src, run, col, v, f"{where}.{col}") for col, v in run.columns}
+        summary = {col: _value(src, run, col, v, f"{where}.summary.{col}") for col, v in run.summary}
+        return None, row, summary, ImportedRun(run_id=run.run_id, file=run.file, group=run.group, samples=0,
+                                               rate_hz=float("nan"), time_from="", conversions=())
     chans: dict[str, Channel] = {}
     data: dict[str, np.ndarray] = {}
     conv = []
@@ -198,12 +203,13 @@ def import_runs(mapping: Mapping, open_file: Callable[[Path, str | None], Source
     rows, summaries, series, recs = [], [], {}, []
     try:
         for run in mapping.runs:
-            if run.file not in sources:
+            if run.file is not None and run.file not in sources:
                 if not run.file.is_file():
                     raise FieldFormatError(f"{mapping.label} run '{run.run_id}': file not found ({run.file})")
                 sources[run.file] = open_file(run.file, run.format)
-            s, row, summ, rec = _read_run(sources[run.file], run)
-            series[run.run_id] = s
+            s, row, summ, rec = _read_run(sources.get(run.file), run)
+            if s is not None:
+                series[run.run_id] = s
             rows.append(row)
             if summ:
                 summaries.append({"run_id": run.run_id, **summ})

@@ -62,10 +62,10 @@ class TimeSpec:
 
 @dataclass(frozen=True)
 class RunSpec:
-    """One run: its ``file`` and ``format``, the ``group`` its channels are in, its runs.csv ``columns`` and
-    summary.csv ``summary`` values, in order."""
+    """One run: its ``file`` (None: a summary-only run given wholly in the mapping) and ``format``, the ``group``
+    its channels are in, its runs.csv ``columns`` and summary.csv ``summary`` values, in order."""
 
-    file: Path
+    file: Path | None
     format: str | None
     group: str
     channels: tuple[ChannelSpec, ...]
@@ -243,19 +243,30 @@ def parse_mapping(doc: object, label: str, base: Path) -> Mapping:
         if not isinstance(rid, (str, int)) or isinstance(rid, bool):
             raise FieldFormatError(f"{where}: run_id must be a name given in the mapping (letters, digits, '_-.')")
         file = merged.get("file", doc.get("file"))
-        if not isinstance(file, str) or not file:
-            raise FieldFormatError(f"{where}: no file (give 'file:' at the top of the mapping or in the run)")
+        if file is not None and (not isinstance(file, str) or not file):
+            raise FieldFormatError(f"{where}.file: give the rig file's path as text")
         fmt = merged.get("format", doc.get("format"))
         group = merged.get("group", "")
         if not isinstance(group, str):
             raise FieldFormatError(f"{where}.group: give the group's name as text")
-        chans = {**channels, **_channels(entry.get("channels") or {}, f"{where} channels")}
-        if not chans:
+        summary = _summary(entry["summary"], f"{where}.summary") if "summary" in entry else {}
+        own = entry.get("channels", {})
+        if own is None or own == {} and "channels" in entry:          # 'channels: {}': a summary-only run
+            chans = {}
+            if not summary:
+                raise FieldFormatError(f"{where}: 'channels: {{}}' (no series) needs a 'summary:' row")
+            if "duration_s" not in merged:
+                raise FieldFormatError(f"{where}: a summary-only run needs its duration_s")
+        else:
+            chans = {**channels, **_channels(own, f"{where} channels")}
+        if not chans and not summary:
             raise FieldFormatError(f"{where}: no channels (map at least one of {', '.join(SERIES_SIGNALS)})")
         cols = _columns({k: v for k, v in merged.items() if k not in RUN_KEYS}, where)
         cols["run_id"] = str(cols["run_id"])
-        summary = _summary(entry["summary"], f"{where}.summary") if "summary" in entry else {}
-        out.append(RunSpec(file=(base / file), format=None if fmt is None else str(fmt), group=group,
+        reads = chans or any(isinstance(v, FromFile) for v in (*cols.values(), *summary.values()))
+        if file is None and reads:
+            raise FieldFormatError(f"{where}: no file (give 'file:' at the top of the mapping or in the run)")
+        out.append(RunSpec(file=None if file is None else base / file, format=None if fmt is None else str(fmt), group=group,
                            channels=tuple(chans.values()),
                            time=_time(entry["time"] if "time" in entry else time, f"{where}.time"),
                            columns=tuple(cols.items()), summary=tuple(summary.items())))

@@ -340,3 +340,22 @@ def test_drill_rig_log_through_tdms_and_back(tmp_path):
     for rid in ids:
         assert list(back.series[rid].columns) == list(orig.series[rid].columns)
         np.testing.assert_allclose(back.series[rid].to_numpy(), orig.series[rid].to_numpy(), rtol=1e-9, atol=1e-15)
+
+
+def test_summary_only_runs(tmp_path):
+    doc = write_tdms(tmp_path)
+    doc["runs"] += [{"run_id": "s0", "group": "Run 001", "channels": {}, "duration_s": 2.0,
+                     "summary": {"rop_m_s": "0.6 mm/s", "peak_force_n": {"property": "Static load", "unit": "kN"}}},
+                    {"run_id": "s1", "file": None, "channels": {}, "duration_s": "2000 ms", "frequency_hz": 150,
+                     "static_force_n": 900, "summary": {"rop_m_s": "36 mm/min"}}]
+    back = load_dataset(write_dataset(_import(tmp_path, doc).dataset, tmp_path / "out"))
+    assert set(back.series) == {"r0", "r1"} and list(back.summary.index) == ["s0", "s1"]
+    assert back.summary["rop_m_s"].tolist() == pytest.approx([6e-4, 6e-4])
+    assert back.summary.loc["s0", "peak_force_n"] == pytest.approx(1200.0)
+    assert back.runs.set_index("run_id").loc["s1", "duration_s"] == pytest.approx(2.0)
+    doc["runs"][-1]["summary"]["rop_m_s"] = {"property": "ROP"}
+    with pytest.raises(FieldFormatError, match="run 's1': no file"):
+        parse_mapping(doc, "map.yaml", tmp_path)
+    del doc["runs"][-1]["summary"]
+    with pytest.raises(FieldFormatError, match=r"run 's1': 'channels: \{\}' \(no series\) needs a 'summary:' row"):
+        parse_mapping(doc, "map.yaml", tmp_path)
