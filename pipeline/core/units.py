@@ -95,8 +95,8 @@ SI_UNITS: dict[str, tuple[str, float]] = {
     "m": ("length", 1.0), "cm": ("length", 1e-2), "mm": ("length", 1e-3), "um": ("length", 1e-6),
     "µm": ("length", 1e-6), "μm": ("length", 1e-6), "in": ("length", 0.0254),
     # velocity [m/s] (rate of penetration)
-    "m/s": ("velocity", 1.0), "mm/s": ("velocity", 1e-3), "m/min": ("velocity", 1 / 60), "mm/min": ("velocity", 1e-3 / 60),
-    "m/h": ("velocity", 1 / 3600), "ft/h": ("velocity", 0.3048 / 3600),
+    "m/s": ("velocity", 1.0), "mm/s": ("velocity", 1e-3), "m/min": ("velocity", 1 / 60),
+    "mm/min": ("velocity", 1e-3 / 60), "m/h": ("velocity", 1 / 3600), "ft/h": ("velocity", 0.3048 / 3600),
     # a count or ratio
     "1": ("dimensionless", 1.0), "-": ("dimensionless", 1.0),
 }

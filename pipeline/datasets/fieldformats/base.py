@@ -56,7 +56,9 @@ def did_you_mean(name: str, known: list[str]) -> str:
     close = [low[name.lower()]] if name.lower() in low else difflib.get_close_matches(name, known, n=1, cutoff=0.5)
     if close:
         return f" (did you mean '{close[0]}'?)"
-    return f" (the file has: {', '.join(known[:8])}{', ...' if len(known) > 8 else ''})" if known else " (the file has none)"
+    if not known:
+        return " (the file has none)"
+    return f" (the file has: {', '.join(known[:8])}{', ...' if len(known) > 8 else ''})"
 
 
 def as_vector(values: np.ndarray, file: Path, path: str) -> np.ndarray:

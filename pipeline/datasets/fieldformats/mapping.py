@@ -251,23 +251,20 @@ def parse_mapping(doc: object, label: str, base: Path) -> Mapping:
             raise FieldFormatError(f"{where}.group: give the group's name as text")
         summary = _summary(entry["summary"], f"{where}.summary") if "summary" in entry else {}
         own = entry.get("channels", {})
-        if own is None or own == {} and "channels" in entry:          # 'channels: {}': a summary-only run
-            chans = {}
-            if not summary:
-                raise FieldFormatError(f"{where}: 'channels: {{}}' (no series) needs a 'summary:' row")
-            if "duration_s" not in merged:
-                raise FieldFormatError(f"{where}: a summary-only run needs its duration_s")
-        else:
-            chans = {**channels, **_channels(own, f"{where} channels")}
+        none = own is None or (own == {} and "channels" in entry)        # 'channels: {}': a summary-only run
+        chans = {} if none else {**channels, **_channels(own, f"{where} channels")}
         if not chans and not summary:
-            raise FieldFormatError(f"{where}: no channels (map at least one of {', '.join(SERIES_SIGNALS)})")
+            raise FieldFormatError(f"{where}: no channels (map at least one of {', '.join(SERIES_SIGNALS)}; or, for "
+                                   f"a summary-only run, 'channels: {{}}' and a 'summary:' row)")
+        if not chans and "duration_s" not in merged:
+            raise FieldFormatError(f"{where}: a summary-only run needs its duration_s")
         cols = _columns({k: v for k, v in merged.items() if k not in RUN_KEYS}, where)
         cols["run_id"] = str(cols["run_id"])
         reads = chans or any(isinstance(v, FromFile) for v in (*cols.values(), *summary.values()))
         if file is None and reads:
             raise FieldFormatError(f"{where}: no file (give 'file:' at the top of the mapping or in the run)")
-        out.append(RunSpec(file=None if file is None else base / file, format=None if fmt is None else str(fmt), group=group,
-                           channels=tuple(chans.values()),
+        out.append(RunSpec(file=None if file is None else base / file, format=None if fmt is None else str(fmt),
+                           group=group, channels=tuple(chans.values()),
                            time=_time(entry["time"] if "time" in entry else time, f"{where}.time"),
                            columns=tuple(cols.items()), summary=tuple(summary.items())))
     ids = [r.run_id for r in out]

@@ -44,7 +44,8 @@ def test_import_writes_a_dataset(tmp_path, capsys):
 
 
 @pytest.mark.parametrize(("kw", "expect"), [
-    ({"force_header": "force [furlongs]"}, "log.csv, channel 'force' (force_n), unit from the file: unknown unit 'furlongs' (force units: N, kN"),
+    ({"force_header": "force [furlongs]"},
+     "log.csv, channel 'force' (force_n), unit from the file: unknown unit 'furlongs' (force units: N, kN"),
     ({"force_header": "force"}, "log.csv, channel 'force' (force_n): no unit"),
     ({"system": "indentor-metal"}, "§7 check: runs.csv line 2, column 'system': unknown system 'indentor-metal'"),
 ])

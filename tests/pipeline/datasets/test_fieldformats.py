@@ -357,5 +357,5 @@ def test_summary_only_runs(tmp_path):
     with pytest.raises(FieldFormatError, match="run 's1': no file"):
         parse_mapping(doc, "map.yaml", tmp_path)
     del doc["runs"][-1]["summary"]
-    with pytest.raises(FieldFormatError, match=r"run 's1': 'channels: \{\}' \(no series\) needs a 'summary:' row"):
+    with pytest.raises(FieldFormatError, match=r"run 's1': no channels .* 'channels: \{\}' and a 'summary:' row"):
         parse_mapping(doc, "map.yaml", tmp_path)
