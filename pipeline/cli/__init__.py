@@ -1,6 +1,6 @@
 """``vibro``: the project's single command-line program.
 
-Each subcommand lives in its own module ``pipeline.cli.<name>`` exposing
+Each subcommand lives in its own module ``pipeline.cli.<name>`` (``import_`` for ``import``) exposing
 ``add_parser(subparsers)`` (which sets ``func``); modules are imported when the parser
 is built so ``vibro --help`` lists them all.  A command parses its arguments, calls its
 workflow (imported lazily inside its run function, so ``--help`` stays fast) and logs.

@@ -100,3 +100,10 @@ def test_example_mappings_parse(tmp_path, where):
     doc = _yaml_block(text, "file: rig")
     m = parse_mapping(doc, "example", tmp_path)
     assert m.runs and {c.signal for c in m.runs[0].channels} >= {"accel_m_s2", "force_n"}
+
+
+def test_out_holding_the_rig_file_is_refused(tmp_path, capsys):
+    mapping = _rig(tmp_path)
+    assert main(["import", str(mapping), "--out", str(tmp_path)]) == 2
+    assert "choose an --out apart from the inputs" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.csv", "map.yaml"]
