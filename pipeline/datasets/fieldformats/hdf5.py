@@ -29,7 +29,7 @@ class Hdf5Source:
         self._matlab = matlab
         try:
             self._file = h5py.File(str(path), "r")
-        except OSError as e:
+        except Exception as e:  # noqa: BLE001 - a parser failing on a corrupt file: the file's fault
             raise FieldFormatError(f"{path}: not a readable HDF5 file ({e})") from None
         self._datasets: dict[str, object] = {}
 

@@ -37,7 +37,7 @@ class MatSource:
         self.path = Path(path)
         try:
             tree = io.loadmat(str(path), simplify_cells=True)
-        except (ValueError, TypeError, OSError) as e:
+        except Exception as e:  # noqa: BLE001 - a parser failing on a corrupt file: the file's fault
             raise FieldFormatError(f"{path}: not a readable MATLAB file ({e})") from None
         self._channels: dict[str, np.ndarray] = {}
         self._props: dict[str, dict] = {}

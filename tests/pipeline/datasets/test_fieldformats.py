@@ -359,3 +359,11 @@ def test_summary_only_runs(tmp_path):
     del doc["runs"][-1]["summary"]
     with pytest.raises(FieldFormatError, match=r"run 's1': no channels .* 'channels: \{\}' and a 'summary:' row"):
         parse_mapping(doc, "map.yaml", tmp_path)
+
+
+@pytest.mark.parametrize("name", ["bad.tdms", "bad.h5", "bad.mat", "bad73.mat"])
+def test_corrupt_file_is_named(tmp_path, name):
+    head = b"MATLAB 7.3 MAT-file".ljust(128) if "73" in name else b""
+    (tmp_path / name).write_bytes(head + b"garbage" * 40)
+    with pytest.raises(FieldFormatError, match=rf"{name}: not a readable"):
+        open_file(tmp_path / name)
