@@ -1,6 +1,6 @@
 """``vibro``: the project's single command-line program.
 
-Each subcommand lives in its own module ``pipeline.cli.<name>`` exposing
+Each subcommand lives in its own module ``pipeline.cli.<name>`` (``import_`` for ``import``) exposing
 ``add_parser(subparsers)`` (which sets ``func``); modules are imported when the parser
 is built so ``vibro --help`` lists them all.  A command parses its arguments, calls its
 workflow (imported lazily inside its run function, so ``--help`` stays fast) and logs.
@@ -22,8 +22,10 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 from pipeline.core.errors import USER_ERRORS, machine_error, show_warnings  # noqa: E402
 
-SUBCOMMANDS = ("simulate", "sweep", "train", "optimise", "verify", "diagnose", "synth", "map", "report", "models",
-               "compare", "compile")
+SUBCOMMANDS = ("simulate", "sweep", "train", "optimise", "verify", "import", "diagnose", "synth", "map", "report",
+               "models", "compare", "compile")
+MODULE_OF = {"import": "import_"}
+"""Subcommands whose module name differs (``import`` is a Python keyword)."""
 
 
 def version() -> str:
@@ -68,9 +70,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="SUBCOMMAND")
     for name in SUBCOMMANDS:
         try:
-            mod = importlib.import_module(f"pipeline.cli.{name}")
+            mod = importlib.import_module(f"pipeline.cli.{MODULE_OF.get(name, name)}")
         except ModuleNotFoundError as e:
-            if e.name == f"pipeline.cli.{name}":
+            if e.name == f"pipeline.cli.{MODULE_OF.get(name, name)}":
                 continue
             raise
         mod.add_parser(sub)
