@@ -220,11 +220,49 @@ def _first_order(u: np.ndarray, h: float, p: complex, drive: complex) -> np.ndar
     return y
 
 
-def analog_filter(filt: AnalogFilter, u: np.ndarray, h: float) -> np.ndarray:
-    """The filter's output on the grid for the input u (linear between points), settled on u[0]."""
+JUMP_SUB = 64
+"""Points per grid step on which a step holding a jump is refined (``jump_cells``)."""
+
+
+def jump_cells(u: np.ndarray, factor: float = 10.0) -> np.ndarray:
+    """Grid steps j (u[j] -> u[j+1]) holding a jump: a change ``factor`` times both neighbours' and above 1e-6 of
+    the signal's range (a contact force's onset through a damper)."""
+    d = np.abs(np.diff(u))
+    nb = np.maximum(np.concatenate([[0.0], d[:-1]]), np.concatenate([d[1:], [0.0]]))
+    return np.flatnonzero((d > factor * nb) & (d > 1e-6 * max(float(np.ptp(u)), 1e-300)))
+
+
+def _kicks(u: np.ndarray, h: float, p: complex, cells: np.ndarray, u_sub: np.ndarray) -> np.ndarray:
+    """The state x' = p x + u gains at the end of each refined step: the response to (input on the step's
+    ``JUMP_SUB`` sub-points, linear between them) minus (the straight line the grid assumes)."""
+    s = u_sub.shape[1] - 1
+    frac = np.arange(s + 1) / s
+    d = u_sub - (u[cells, None] + (u[cells + 1] - u[cells])[:, None] * frac[None, :])
+    d[:, 0] = d[:, -1] = 0.0
+    hs = h / s
+    lam = np.exp(p * hs)
+    alpha = (lam - 1.0) / p
+    beta = (lam - 1.0 - p * hs) / (p * p)
+    b0, b1 = beta / hs, alpha - beta / hs
+    x = np.zeros(cells.size, dtype=complex)
+    for m in range(s):
+        x = lam * x + b0 * d[:, m + 1] + b1 * d[:, m]
+    return x
+
+
+def analog_filter(filt: AnalogFilter, u: np.ndarray, h: float, cells: np.ndarray | None = None,
+                  u_sub: np.ndarray | None = None) -> np.ndarray:
+    """The filter's output on the grid for the input u (linear between points), settled on u[0]; grid steps
+    ``cells`` (``jump_cells``) are taken as linear between the ``u_sub`` values (rows: u at t_j + k h / JUMP_SUB,
+    k = 0..JUMP_SUB) instead."""
     y = filt.direct * u
     for p, r in zip(filt.poles, filt.residues()):
-        y = y + r * _first_order(u, h, p, 1.0)
+        x = _first_order(u, h, p, 1.0)
+        if cells is not None and cells.size:
+            seq = np.zeros(u.size, dtype=complex)
+            np.add.at(seq, cells + 1, _kicks(u, h, p, cells, u_sub))
+            x = x + sps.lfilter([1.0], [1.0, -np.exp(p * h)], seq)
+        y = y + r * x
     return np.real(y)
 
 

@@ -191,15 +191,30 @@ def _chain_signals(spec, chain, filt, model, params, truth, start, fs, n, T, fro
     smp = {k: np.asarray(v, dtype=float) for k, v in out["samples"].items()}
     take = j0 + os_ * np.arange(n)
 
-    def through(u):
+    direct = ["force_n", "disp_m", "progression_m"] + (["accel_m_s2"] if truth.get("fc", 0.0) > 0.0 else [])
+    cells = {}
+    if isinstance(filt, D.AnalogFilter):         # steps holding a jump (a force's onset): refined on sub-points
+        cells = {k: D.jump_cells(smp[k]) for k in direct}
+        every = np.unique(np.concatenate([c for c in cells.values()] + [np.zeros(0, dtype=int)]))
+        if every.size:
+            frac = np.arange(D.JUMP_SUB + 1) / D.JUMP_SUB
+            sub_t = grid[every, None] + (grid[every + 1] - grid[every])[:, None] * frac[None, :]
+            ref = reference_run(model, params, 0, int(math.ceil(sub_t[-1, -1] / T)) + 1, rtol=RTOL,
+                                sample_times=np.maximum.accumulate(sub_t.ravel()))["samples"]
+            sub = {k: np.asarray(ref[k], dtype=float).reshape(sub_t.shape) for k in direct}
+            cells = {k: (c, sub[k][np.searchsorted(every, c)]) for k, c in cells.items() if c.size}
+
+    def through(u, key=None):
         if filt is None:
             return u
         if isinstance(filt, D.FirFilter):
             return D.fir_filter(filt, u)
+        if key in cells:
+            return D.analog_filter(filt, u, h, *cells[key])
         return D.analog_filter(filt, u, h)
 
     if truth.get("fc", 0.0) > 0.0:                           # sensor_lowpass: the sensor's output is smooth
-        acc = through(smp["accel_m_s2"])
+        acc = through(smp["accel_m_s2"], "accel_m_s2")
     elif mount:
         m = D.mount_filter(truth["fr_hz"], truth["zeta_r"])
         if isinstance(filt, D.FirFilter):
@@ -213,7 +228,7 @@ def _chain_signals(spec, chain, filt, model, params, truth, start, fs, n, T, fro
         acc = D.analog_filter_of_rate(filt, smp["vel_m_s"], smp["accel_m_s2"], h)
     sig = {"accel_m_s2": acc[take]}
     for k in ("force_n", "disp_m", "progression_m"):
-        sig[k] = through(smp[k])[take]
+        sig[k] = through(smp[k], k)[take]
     return sig, times, {"grid_step_s": h, "grid_start_s": float(grid[0])}
 
 
