@@ -10,6 +10,17 @@ Runs: every frequency at every level of the rig; records from rest (``record_sta
 in steady state; DAQ rates and record lengths cycled over the runs (not whole cycles, not multiples of f); two runs
 are logged as summaries only (their labels over a whole-cycle record: the rig software's numbers), and the 2nd series run and every
 ``drop_signal_every``-th after it lost its second channel.
+
+``LogSpec(daq=DaqChain(...))`` passes every series through a data-acquisition chain (``daq.py``: hum, anti-alias
+filter on the continuous signal, compensated or not, sample-clock error, the noise model, ADC saturation and
+quantisation, in that order) and declares it in runs.csv (``daq_filter``, ``daq_delay_s``, ``daq_delay_removed``,
+``daq_clock_ppm``) unless ``declared=False``; without a chain (or with one that does nothing) the files are those of
+the generator before the chain existed.
+
+Command: ``python -m tests.independent.generator SYSTEM OUT_DIR [--effect E] [--outside O] [--noise N] [--seed S]
+[--n-runs N] [--daq NAME] [--filter butter|ellip|fir|none] [--order N] [--cutoff F] [--compensated]
+[--clock-ppm P] [--clip CH=FRACTION ...] [--clip-range CH=RANGE ...] [--hum-hz 50] [--hum CH=A1,A2,...]
+[--no-declared] [--truth PATH]`` (``--help``).
 """
 from __future__ import annotations
 
@@ -303,3 +314,74 @@ def generate(spec: LogSpec, out_dir: str | Path, truth_path: str | Path | None =
     if truth_path is not None:
         Path(truth_path).write_text(json.dumps(info, indent=2))
     return info
+
+
+def _channel_values(items: list[str], what: str) -> dict:
+    """``CH=V[,V...]`` items -> {channel: float or tuple of floats}."""
+    out = {}
+    for it in items:
+        ch, _, v = it.partition("=")
+        if not v:
+            raise SystemExit(f"{what}: expected CHANNEL=VALUE, got {it!r}")
+        vals = tuple(float(x) for x in v.split(","))
+        out[ch] = vals if what == "--hum" else vals[0]
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m tests.independent.generator SYSTEM OUT_DIR [options]``: write one log and its truth."""
+    import argparse
+    from dataclasses import replace
+
+    ap = argparse.ArgumentParser(prog="python -m tests.independent.generator", description=main.__doc__)
+    ap.add_argument("system", choices=sorted(RIGS))
+    ap.add_argument("out_dir")
+    ap.add_argument("--effect", default=None)
+    ap.add_argument("--outside", default=None, choices=sorted(OUTSIDE))
+    ap.add_argument("--noise", default="white2", choices=sorted(NOISE_MODELS))
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--n-runs", type=int, default=None)
+    ap.add_argument("--truth", default=None, help="truth JSON path (default: OUT_DIR.truth.json)")
+    g = ap.add_argument_group("data-acquisition chain (tests/independent/daq.py)")
+    g.add_argument("--daq", default=None, choices=sorted(D.DAQ_CHAINS), help="a named chain to start from")
+    g.add_argument("--filter", default=None, choices=[*D.KINDS, "none"], help="anti-alias filter kind")
+    g.add_argument("--order", type=int, default=None, help="analog order, or FIR taps (0: from --stop-db)")
+    g.add_argument("--cutoff", type=float, default=None, help="cut-off / fs")
+    g.add_argument("--ripple-db", type=float, default=None)
+    g.add_argument("--stop-db", type=float, default=None)
+    g.add_argument("--compensated", action=argparse.BooleanOptionalAction, default=None,
+                   help="time stamps moved back by the filter's DC group delay")
+    g.add_argument("--clock-ppm", type=float, default=None, help="sample-clock error [ppm]")
+    g.add_argument("--clip", nargs="*", default=[], metavar="CH=FRACTION", help="saturate at FRACTION x max|x|")
+    g.add_argument("--clip-range", nargs="*", default=[], metavar="CH=RANGE", help="saturate at an absolute range")
+    g.add_argument("--hum-hz", type=float, default=None, help="mains frequency (50 or 60)")
+    g.add_argument("--hum", nargs="*", default=[], metavar="CH=A1,A2,..", help="hum amplitudes of harmonics 1, 2, ..")
+    g.add_argument("--declared", action=argparse.BooleanOptionalAction, default=None,
+                   help="write daq_* columns in runs.csv")
+    a = ap.parse_args(argv)
+    chain = D.DAQ_CHAINS[a.daq] if a.daq else None
+    kw = {k: v for k, v in dict(order=a.order, cutoff=a.cutoff, ripple_db=a.ripple_db, stop_db=a.stop_db,
+                                compensated=a.compensated, clock_ppm=a.clock_ppm, hum_hz=a.hum_hz,
+                                declared=a.declared).items() if v is not None}
+    if a.filter is not None:
+        kw["filter"] = None if a.filter == "none" else a.filter
+    if a.clip:
+        kw["clip_fraction"] = _channel_values(a.clip, "--clip")
+    if a.clip_range:
+        kw["clip_range"] = _channel_values(a.clip_range, "--clip-range")
+    if a.hum:
+        kw["hum"] = _channel_values(a.hum, "--hum")
+    if kw:
+        chain = replace(chain or D.DaqChain(name="custom"), **kw)
+        if a.daq:
+            chain = replace(chain, name=f"{a.daq}-mod")
+    spec = LogSpec(a.system, effect=a.effect, outside=a.outside, noise=a.noise, seed=a.seed, n_runs=a.n_runs,
+                   daq=chain)
+    truth = a.truth or f"{Path(a.out_dir).as_posix().rstrip('/')}.truth.json"
+    info = generate(spec, a.out_dir, truth_path=truth)
+    print(f"{info['name']}: {a.out_dir} (truth {truth})")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
