@@ -205,6 +205,9 @@ def test_saturated_channels_are_flat_at_exactly_the_range(tmp_path):
         at = np.abs(x) == r9
         assert at.sum() >= 5 and np.any(at[1:] & at[:-1])          # flat tops: neighbours at exactly the range
     assert 0.0 < info["daq"]["runs"][rid]["clipped_fraction"]["accel_m_s2"] < 0.5
+    from pipeline.datasets.measured import load_dataset
+
+    load_dataset(tmp_path / "log")                               # still a valid section-7 directory
     runs_csv = pd.read_csv(tmp_path / "log" / "runs.csv")
     assert runs_csv.loc[0, "daq_filter"] == "none" and runs_csv.loc[0, "daq_clock_ppm"] == 0.0
     assert info["name"] == "drill-control-rig-clip-s5-n1"
