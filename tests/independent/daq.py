@@ -11,7 +11,8 @@ the generator's output exactly as it was.  Order of the chain, as in a real fron
   3. anti-alias filter (``filter``), acting on the continuous signal:
        butter  analog Butterworth of ``order``, -3 dB at ``cutoff`` x fs
        ellip   analog elliptic of ``order``, pass-band ripple ``ripple_db`` up to ``cutoff`` x fs, stop band
-               ``stop_db`` down
+               ``stop_db`` down, scaled to gain 1 at DC (a calibrated channel; scipy's even orders start at
+               -ripple_db)
        fir     a delta-sigma ADC's decimation filter: a linear-phase FIR (Kaiser window, ``stop_db``, cut-off
                ``cutoff`` x fs, transition up to fs/2) on the modulator's stream at ``oversample`` x fs, decimated
      The analog kinds are simulated exactly for a piecewise-linear input on a uniform grid of ``oversample``
@@ -174,6 +175,7 @@ def design(chain: DaqChain, fs: float) -> AnalogFilter | FirFilter | None:
         z, p, k = sps.butter(chain.order, wc, analog=True, output="zpk")
     elif chain.filter == "ellip":
         z, p, k = sps.ellip(chain.order, chain.ripple_db, chain.stop_db, wc, analog=True, output="zpk")
+        k = k / abs(np.prod(-z) / np.prod(-p) * k)       # a calibrated channel: gain 1 at DC (even orders: not)
     elif chain.filter == "fir":
         rate = chain.oversample * fs
         n = chain.order

@@ -76,12 +76,14 @@ def test_filter_delays_a_sinusoid_by_its_frequency_response(chain, f):
 
 @pytest.mark.parametrize("chain", FILTERS, ids=lambda c: f"{c.filter}{c.order}-{c.cutoff}")
 def test_dc_group_delay_is_the_phase_slope_at_zero(chain):
-    """tau0 = -d arg H / d omega at omega -> 0, the slope of scipy's frequency response (central difference)."""
+    """tau0 = -d arg H / d omega at omega -> 0, the slope of scipy's frequency response (a difference); gain 1
+    at DC."""
     filt = D.design(chain, FS)
     f = np.array([1e-3, 2e-3])
     ph = np.unwrap(np.angle(filt.response(f)))
     slope = -(ph[1] - ph[0]) / (2 * np.pi * (f[1] - f[0]))
     assert filt.dc_delay() == pytest.approx(slope, rel=1e-6)
+    assert abs(filt.response(0.0)[0]) == pytest.approx(1.0, abs=1e-9)        # a calibrated channel at DC
     # the issue's range for analog front ends: 30-200 us at 10-51.2 kHz (here 25.6 kHz)
     if not isinstance(filt, D.FirFilter):
         assert 20e-6 < filt.dc_delay() < 200e-6
