@@ -151,7 +151,8 @@ def _run(rig: Rig, spec: LogSpec, truth: dict, i: int, f: float, level: float, s
     return {"row": row, "t": t_rec, "signals": sig, "fs": fs, "daq": daq}
 
 
-def _plain_signals(spec, model, params, truth, start, times, fs, n, T, from_rest, duration) -> dict:
+def _plain_signals(spec: LogSpec, model, params: dict, truth: dict, start: float, times: np.ndarray, fs: float,
+                   n: int, T: float, from_rest: bool, duration: float) -> dict:
     """The signals sampled at the instants ``times`` [s] on the dense output (no filter, a nominal clock)."""
     warm = OUTSIDE[spec.outside].warmup_s(truth) if spec.outside in OUTSIDE and OUTSIDE[spec.outside].measurement else 0.0
     n_cycles = int(math.ceil((start + duration) / T)) + 1
@@ -175,7 +176,9 @@ def _plain_signals(spec, model, params, truth, start, times, fs, n, T, from_rest
             "progression_m": smp["progression_m"]}
 
 
-def _chain_signals(spec, chain, filt, model, params, truth, start, fs, n, T, from_rest):
+def _chain_signals(spec: LogSpec, chain: D.DaqChain, filt: D.AnalogFilter | D.FirFilter | None, model,
+                   params: dict, truth: dict, start: float, fs: float, n: int, T: float,
+                   from_rest: bool) -> tuple[dict, np.ndarray, dict]:
     """The signals through the chain's filter (continuous, on a grid of ``chain.oversample`` points per sample
     interval of the DAQ's clock) sampled at the DAQ's instants: true time start + clock (k / fs + tau_c), tau_c
     the DC group delay when compensated (``daq.py``).  Returns (signals, true sample times, truth notes)."""
@@ -187,7 +190,7 @@ def _chain_signals(spec, chain, filt, model, params, truth, start, fs, n, T, fro
         out = reference_run(model, params, 0, int(math.ceil(times[-1] / T)) + 1, rtol=RTOL, sample_times=times)
         smp = out["samples"]
         return ({k: np.asarray(smp[k]) for k in ("accel_m_s2", "force_n", "disp_m", "progression_m")}, times,
-                {"true_times": "start + (1 + ppm 1e-6) k / fs"})
+                {"first_sample_true_s": float(times[0]), "sample_interval_true_s": eps / fs})
     os_ = chain.oversample
     h = eps / (os_ * fs)                                     # grid step, true time [s]
     warm = max(filt.settle_s() if filt is not None else 0.0,
@@ -240,7 +243,8 @@ def _chain_signals(spec, chain, filt, model, params, truth, start, fs, n, T, fro
     sig = {"accel_m_s2": acc[take]}
     for k in ("force_n", "disp_m", "progression_m"):
         sig[k] = through(smp[k], k)[take]
-    return sig, times, {"grid_step_s": h, "grid_start_s": float(grid[0])}
+    return sig, times, {"first_sample_true_s": float(times[0]), "sample_interval_true_s": eps / fs,
+                        "grid_step_s": h, "grid_start_s": float(grid[0])}
 
 
 def _adc_range(chain: D.DaqChain | None, signal: str, x: np.ndarray) -> float | None:
