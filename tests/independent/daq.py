@@ -29,6 +29,8 @@ the generator's output exactly as it was.  Order of the chain, as in a real fron
      remains is the filter's phase non-linearity and amplitude droop.  Uncompensated: tau0 stays in the data.
   4. sampling at the DAQ's clock: the true interval between samples is (1 + clock_ppm 1e-6) / fs while ``t_s``
      is written from the nominal rate, k / fs (``record_start_s`` is the true instant of the first sample).
+     ``channel_delay_s`` (channel -> d [s]): that channel's samples hold the signal d earlier (a signal
+     conditioner's own delay; a multiplexed ADC's later channels, d < 0); never declared, in the truth only.
   5. the noise model's parts before the ADC (sensor floor, RMS noise, gain noise, 1/f, offsets and drift;
      ``noise.py``): their levels are those of the record as written (the sensors' noise as the chain band-limits
      it), so they are added at the samples, as without a chain.
@@ -75,6 +77,7 @@ class DaqChain:
     clip_range: dict = field(default_factory=dict)      # channel -> absolute range [channel unit]
     hum_hz: float = 50.0                # mains frequency [Hz]
     hum: dict = field(default_factory=dict)             # channel -> (amplitude of harmonic 1, 2, ...) [unit]
+    channel_delay_s: dict = field(default_factory=dict)  # channel -> its own extra delay [s] (undeclared)
     declared: bool = True               # runs.csv declares filter, delay and clock
 
     def __post_init__(self):
@@ -86,7 +89,7 @@ class DaqChain:
             raise ValueError(f"cutoff {self.cutoff}: a fraction of fs in (0, 0.5)")
         if self.oversample < 2:
             raise ValueError("oversample >= 2")
-        for d in (self.clip_fraction, self.clip_range, self.hum):
+        for d in (self.clip_fraction, self.clip_range, self.hum, self.channel_delay_s):
             for ch in d:
                 if ch not in CHANNELS:
                     raise ValueError(f"channel {ch!r}: one of {CHANNELS}")
@@ -96,13 +99,13 @@ class DaqChain:
     @property
     def is_off(self) -> bool:
         """True when the chain changes nothing (the generator then writes what it wrote without one)."""
-        return (self.filter is None and self.clock_ppm == 0.0 and not self.clip_fraction and not self.clip_range
+        return (not self.times_change and not self.clip_fraction and not self.clip_range
                 and not any(any(a != 0.0 for a in amps) for amps in self.hum.values()) and not self.declared)
 
     @property
     def times_change(self) -> bool:
         """True when the samples are taken at other instants or through a filter."""
-        return self.filter is not None or self.clock_ppm != 0.0
+        return self.filter is not None or self.clock_ppm != 0.0 or any(v != 0.0 for v in self.channel_delay_s.values())
 
     @property
     def clock(self) -> float:

@@ -20,7 +20,7 @@ the generator before the chain existed.
 Command: ``python -m tests.independent.generator SYSTEM OUT_DIR [--effect E] [--outside O] [--noise N] [--seed S]
 [--n-runs N] [--daq NAME] [--filter butter|ellip|fir|none] [--order N] [--cutoff F] [--compensated]
 [--clock-ppm P] [--clip CH=FRACTION ...] [--clip-range CH=RANGE ...] [--hum-hz 50] [--hum CH=A1,A2,...]
-[--no-declared] [--truth PATH]`` (``--help``).
+[--channel-delay CH=SECONDS ...] [--no-declared] [--truth PATH]`` (``--help``).
 """
 from __future__ import annotations
 
@@ -133,10 +133,11 @@ def _run(rig: Rig, spec: LogSpec, truth: dict, i: int, f: float, level: float, s
         filt = D.design(chain, fs)
         row.update(D.runs_columns(chain, filt, fs))
     if chain is not None and chain.times_change:
-        sig, times, daq = _chain_signals(spec, chain, filt, model, params, truth, start, fs, n, T, rs is not None)
+        sig, at, daq = _chain_signals(spec, chain, filt, model, params, truth, start, fs, n, T, rs is not None)
     else:
         times = start + t_rec
         sig = _plain_signals(spec, model, params, truth, start, times, fs, n, T, rs is not None, duration)
+        at = {ch: times for ch in sig}
         daq = {}
     if chain is not None:
         daq.update(filter=D.declared_filter(chain, filt, fs), dc_delay_s=0.0 if filt is None else filt.dc_delay(),
@@ -145,7 +146,7 @@ def _run(rig: Rig, spec: LogSpec, truth: dict, i: int, f: float, level: float, s
             phases = D.hum_phases(chain, np.random.default_rng([spec.seed, 13, i]))
             for ch in sig:
                 if ch in chain.hum:
-                    sig[ch] = np.asarray(sig[ch], dtype=float) + D.hum_at(chain, ch, phases[ch], times, filt)
+                    sig[ch] = np.asarray(sig[ch], dtype=float) + D.hum_at(chain, ch, phases[ch], at[ch], filt)
             daq.update(hum_hz=chain.hum_hz, hum_amplitudes={k: list(v) for k, v in chain.hum.items()},
                        hum_phases_rad=phases)
     return {"row": row, "t": t_rec, "signals": sig, "fs": fs, "daq": daq}
@@ -178,36 +179,58 @@ def _plain_signals(spec: LogSpec, model, params: dict, truth: dict, start: float
 
 def _chain_signals(spec: LogSpec, chain: D.DaqChain, filt: D.AnalogFilter | D.FirFilter | None, model,
                    params: dict, truth: dict, start: float, fs: float, n: int, T: float,
-                   from_rest: bool) -> tuple[dict, np.ndarray, dict]:
-    """The signals through the chain's filter (continuous, on a grid of ``chain.oversample`` points per sample
-    interval of the DAQ's clock) sampled at the DAQ's instants: true time start + clock (k / fs + tau_c), tau_c
-    the DC group delay when compensated (``daq.py``).  Returns (signals, true sample times, truth notes)."""
+                   from_rest: bool) -> tuple[dict, dict, dict]:
+    """The signals through the chain's filter sampled at the DAQ's instants: true time start + clock (k / fs + tau_c)
+    - the channel's own delay, tau_c the DC group delay when compensated (``daq.py``).  Returns (signals, true
+    sample times per channel, truth notes)."""
     eps = chain.clock
     tau_c = filt.dc_delay() if (filt is not None and chain.compensated) else 0.0
     times = start + eps * (np.arange(n) / fs + tau_c)
+    groups: dict[float, list[str]] = {}
+    for ch in D.CHANNELS:
+        groups.setdefault(float(chain.channel_delay_s.get(ch, 0.0)), []).append(ch)
+    sig, at, notes = {}, {}, {"first_sample_true_s": float(times[0]), "sample_interval_true_s": eps / fs}
+    for d, chs in groups.items():
+        got, grid = _sample_through(spec, chain, filt, model, params, truth, times - d, fs, n, T, from_rest, chs)
+        sig.update(got)
+        at.update({ch: times - d for ch in chs})
+        if grid is not None and d == 0.0:
+            notes.update(grid_step_s=float(grid[1] - grid[0]), grid_start_s=float(grid[0]))
+    if chain.channel_delay_s:
+        notes["channel_delay_s"] = {ch: float(v) for ch, v in chain.channel_delay_s.items()}
+    return sig, at, notes
+
+
+def _sample_through(spec: LogSpec, chain: D.DaqChain, filt: D.AnalogFilter | D.FirFilter | None, model,
+                    params: dict, truth: dict, times: np.ndarray, fs: float, n: int, T: float, from_rest: bool,
+                    channels: list[str]) -> tuple[dict, np.ndarray | None]:
+    """``channels`` through the filter (continuous, on a grid of ``chain.oversample`` points per sample interval of
+    the DAQ's clock, settled at t = 0 from rest or early enough for a steady state) sampled at ``times`` [s].
+    Returns (signals, the grid or None)."""
     mount = spec.outside in OUTSIDE and OUTSIDE[spec.outside].measurement
     if filt is None and not mount:
-        out = reference_run(model, params, 0, int(math.ceil(times[-1] / T)) + 1, rtol=RTOL, sample_times=times)
-        smp = out["samples"]
-        return ({k: np.asarray(smp[k]) for k in ("accel_m_s2", "force_n", "disp_m", "progression_m")}, times,
-                {"first_sample_true_s": float(times[0]), "sample_interval_true_s": eps / fs})
+        out = reference_run(model, params, 0, int(math.ceil(times[-1] / T)) + 1, rtol=RTOL,
+                            sample_times=np.maximum(times, 0.0))
+        return {k: np.asarray(out["samples"][k]) for k in channels}, None
     os_ = chain.oversample
-    h = eps / (os_ * fs)                                     # grid step, true time [s]
+    h = chain.clock / (os_ * fs)                             # grid step, true time [s]
     warm = max(filt.settle_s() if filt is not None else 0.0,
                OUTSIDE[spec.outside].warmup_s(truth) if mount else 0.0)
-    t_first = times[0] - (0.0 if from_rest else warm)
-    j0 = int(math.floor((times[0] - max(t_first, 0.0)) / h * (1 + 1e-12)))
     if from_rest:                                            # from the start of excitation (the rig at rest)
-        j0 = int(math.floor(times[0] / h * (1 + 1e-12)))
+        j0 = int(math.floor(max(times[0], 0.0) / h * (1 + 1e-12)))
+    else:
+        j0 = int(math.floor((times[0] - max(times[0] - warm, 0.0)) / h * (1 + 1e-12)))
     grid = times[0] + h * np.arange(-j0, (n - 1) * os_ + 1)
     grid = np.maximum(grid, 0.0)
     out = reference_run(model, params, 0, int(math.ceil(grid[-1] / T)) + 1, rtol=RTOL, sample_times=grid)
     smp = {k: np.asarray(v, dtype=float) for k, v in out["samples"].items()}
     take = j0 + os_ * np.arange(n)
 
-    direct = ["force_n", "disp_m", "progression_m"] + (["accel_m_s2"] if truth.get("fc", 0.0) > 0.0 else [])
+    direct = [k for k in ("force_n", "disp_m", "progression_m") if k in channels]
+    if "accel_m_s2" in channels and truth.get("fc", 0.0) > 0.0:
+        direct.append("accel_m_s2")
     cells = {}
-    if isinstance(filt, D.AnalogFilter):         # steps holding a jump (a force's onset): refined on sub-points
+    if isinstance(filt, D.AnalogFilter) and direct:   # steps holding a jump (a force's onset): refined on sub-points
         cells = {k: D.jump_cells(smp[k]) for k in direct}
         every = np.unique(np.concatenate([c for c in cells.values()] + [np.zeros(0, dtype=int)]))
         if every.size:
@@ -227,24 +250,26 @@ def _chain_signals(spec: LogSpec, chain: D.DaqChain, filt: D.AnalogFilter | D.Fi
             return D.analog_filter(filt, u, h, *cells[key])
         return D.analog_filter(filt, u, h)
 
-    if truth.get("fc", 0.0) > 0.0:                           # sensor_lowpass: the sensor's output is smooth
-        acc = through(smp["accel_m_s2"], "accel_m_s2")
-    elif mount:
-        m = D.mount_filter(truth["fr_hz"], truth["zeta_r"])
-        if isinstance(filt, D.FirFilter):
-            acc = D.fir_filter(filt, D.analog_filter_of_rate(m, smp["vel_m_s"], smp["accel_true_m_s2"], h))
-        else:
-            g = m if filt is None else filt.cascade(m)
-            acc = D.analog_filter_of_rate(g, smp["vel_m_s"], smp["accel_true_m_s2"], h)
-    elif isinstance(filt, D.FirFilter):
-        acc = through(smp["accel_m_s2"])
-    else:                                                    # through the velocity: the acceleration jumps
-        acc = D.analog_filter_of_rate(filt, smp["vel_m_s"], smp["accel_m_s2"], h)
-    sig = {"accel_m_s2": acc[take]}
-    for k in ("force_n", "disp_m", "progression_m"):
-        sig[k] = through(smp[k], k)[take]
-    return sig, times, {"first_sample_true_s": float(times[0]), "sample_interval_true_s": eps / fs,
-                        "grid_step_s": h, "grid_start_s": float(grid[0])}
+    sig = {}
+    if "accel_m_s2" in channels:
+        if truth.get("fc", 0.0) > 0.0:                       # sensor_lowpass: the sensor's output is smooth
+            acc = through(smp["accel_m_s2"], "accel_m_s2")
+        elif mount:
+            m = D.mount_filter(truth["fr_hz"], truth["zeta_r"])
+            if isinstance(filt, D.FirFilter):
+                acc = D.fir_filter(filt, D.analog_filter_of_rate(m, smp["vel_m_s"], smp["accel_true_m_s2"], h))
+            else:
+                g = m if filt is None else filt.cascade(m)
+                acc = D.analog_filter_of_rate(g, smp["vel_m_s"], smp["accel_true_m_s2"], h)
+        elif isinstance(filt, D.FirFilter):
+            acc = through(smp["accel_m_s2"])
+        else:                                                # through the velocity: the acceleration jumps
+            acc = D.analog_filter_of_rate(filt, smp["vel_m_s"], smp["accel_m_s2"], h)
+        sig["accel_m_s2"] = acc[take]
+    for k in channels:
+        if k != "accel_m_s2":
+            sig[k] = through(smp[k], k)[take]
+    return sig, grid
 
 
 def _adc_range(chain: D.DaqChain | None, signal: str, x: np.ndarray) -> float | None:
@@ -360,6 +385,8 @@ def main(argv: list[str] | None = None) -> int:
     g.add_argument("--clip-range", nargs="*", default=[], metavar="CH=RANGE", help="saturate at an absolute range")
     g.add_argument("--hum-hz", type=float, default=None, help="mains frequency (50 or 60)")
     g.add_argument("--hum", nargs="*", default=[], metavar="CH=A1,A2,..", help="hum amplitudes of harmonics 1, 2, ..")
+    g.add_argument("--channel-delay", nargs="*", default=[], metavar="CH=SECONDS",
+                   help="a channel's own extra delay (undeclared)")
     g.add_argument("--declared", action=argparse.BooleanOptionalAction, default=None,
                    help="write daq_* columns in runs.csv")
     a = ap.parse_args(argv)
@@ -375,6 +402,8 @@ def main(argv: list[str] | None = None) -> int:
         kw["clip_range"] = _channel_values(a.clip_range, "--clip-range")
     if a.hum:
         kw["hum"] = _channel_values(a.hum, "--hum")
+    if a.channel_delay:
+        kw["channel_delay_s"] = _channel_values(a.channel_delay, "--channel-delay")
     if kw:
         chain = replace(chain or D.DaqChain(name="custom"), **kw)
         if a.daq:
