@@ -26,6 +26,8 @@ TS = optuna.trial.TrialState
 LIVE = (TS.COMPLETE, TS.RUNNING, TS.WAITING)
 SURPLUS_ATTR = "vibro_surplus"
 """User attribute of a trial withdrawn (FAIL) because other workers had already asked the study's last trials."""
+MAX_GRACE_STRETCH = 10
+"""The grace grown from observed beat gaps is at most this many times the storage's."""
 
 
 class HeartbeatGuard:
@@ -69,10 +71,12 @@ class HeartbeatGuard:
 
     def grace_s(self, storage) -> float:
         """The grace period used to judge other workers' trials: the storage's, or GRACE_FACTOR times the longest
-        gap between this worker's own beat rounds when that is longer."""
+        gap between this worker's own beat rounds when that is longer (at most MAX_GRACE_STRETCH times the
+        storage's: a suspended laptop must not keep a killed worker's trials from ever being re-run)."""
         from pipeline.optimise.storages import GRACE_FACTOR, grace_of
 
-        return max(float(grace_of(storage)), GRACE_FACTOR * self.worst_gap_s)
+        grace = float(grace_of(storage))
+        return min(max(grace, GRACE_FACTOR * self.worst_gap_s), MAX_GRACE_STRETCH * grace)
 
     def fail_stale(self, study) -> None:
         """Mark FAIL the running trials whose heartbeat stopped (optuna's callback re-queues each), with the grace

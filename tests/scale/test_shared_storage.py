@@ -211,6 +211,8 @@ def test_grace_grows_with_the_observed_beat_gap(tmp_path):
     guard.fail_stale(study)
     assert study.get_trials(deepcopy=False)[0].state == TS.RUNNING
     assert grace_of(storage) == 3
+    guard.worst_gap_s = 1e6             # a suspended machine: the stretch is capped
+    assert guard.grace_s(storage) == 30.0
     guard.worst_gap_s = 0.0
     guard.fail_stale(study)
     assert study.get_trials(deepcopy=False)[0].state == TS.FAIL
