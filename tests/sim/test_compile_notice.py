@@ -96,12 +96,13 @@ def test_exact_kernel_announced_in_a_fresh_process(tmp_path):
 
 
 def test_silent_with_the_real_cache():
-    """With the suite's filled kernel folder a second process prints nothing (needs one compiled drill kernel)."""
+    """With the suite's filled kernel folder a second process prints nothing (needs the drill's exact kernel compiled
+    by numba: the lab preset's batch runs on it)."""
     import os
     import subprocess
 
     code = ("import sim; from sim.compile_notice import is_cached; from sim.compiled import kernel_path; "
-            "print(is_cached(kernel_path(sim.get_model('drill').funcs)))")
+            "print(is_cached(kernel_path(sim.get_model('drill').funcs, 'sim.exact.drill')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=dict(os.environ), timeout=120)
     assert out.returncode == 0, out.stderr
     if out.stdout.strip() != "True":
