@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
-from pipeline.core.bounded import check_input_file
+from pipeline.core.bounded import MAX_CSV_BYTES, check_size
 from pipeline.core.files import atomic_directory, duplicate_csv_column
 
 RUN_COLUMNS = ("run_id", "system", "frequency_hz", "gap_m", "duration_s")
@@ -69,7 +69,9 @@ def _where(file: str, line: int, column: str) -> str:
 
 
 def _read_csv(path: Path, label: str) -> pd.DataFrame:
-    check_input_file(path, label)
+    if not path.exists():
+        raise UserError(f"{label}: file not found ({path})")
+    check_size(path, MAX_CSV_BYTES, label)          # a folder, device or FIFO is named as such
     try:
         df = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
     except pd.errors.EmptyDataError:
@@ -171,7 +173,9 @@ SERIES_CHUNK_ROWS = 2**18
 def _load_series(path: Path, rid: str, budget: int = MAX_SERIES_SAMPLES) -> pd.DataFrame:
     """Series ``path`` as floats, read chunk by chunk; refused as soon as it passes ``budget`` samples."""
     label = f"series/{rid}.csv"
-    check_input_file(path, label)
+    if not path.exists():
+        raise UserError(f"{label}: file not found ({path})")
+    check_size(path, MAX_CSV_BYTES, label)
     limit = min(budget, MAX_SERIES_SAMPLES)
     dup = duplicate_csv_column(path)
     if dup:
