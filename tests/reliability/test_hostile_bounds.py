@@ -255,3 +255,17 @@ def test_series_bad_cell_in_a_later_chunk_names_its_line(tmp_path, capsys, monke
     rc = main(["diagnose", str(ds), "--out", str(tmp_path / "o"), "--no-mlflow"])
     err = capsys.readouterr().err
     assert rc == 2 and "series/m40.csv line 72, column 'accel_m_s2'" in err, err
+
+
+def test_a_record_too_long_for_the_least_squares_design_is_refused(monkeypatch):
+    """diagnose's memory per record is its design (samples x harmonic columns): capped, naming the series."""
+    import numpy as np
+
+    from pipeline.core.errors import UserError
+    from pipeline.diagnosis import features
+
+    t = np.arange(2000) * 1e-4
+    features.check_resolution("r1", t, 100.0, 5)            # 2000 x 14 cells: far inside the cap
+    monkeypatch.setattr(features, "MAX_DESIGN_CELLS", 10_000)
+    with pytest.raises(UserError, match=r"series/r1.csv: 2000 samples x 14 harmonic columns"):
+        features.check_resolution("r1", t, 100.0, 5)
