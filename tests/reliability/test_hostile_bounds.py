@@ -121,6 +121,11 @@ CASES = [
      "not a regular file", 1500, ()),
     ("compare-report-dev-zero", "compare --uncorrected {t}/unc --corrected /dev/zero --rig {t}/rig.yaml "
      "--out {t}/out/c --no-mlflow", "dev_zero_report", 2, "/dev/zero", 1500, ()),
+    # --- values no simulation can honestly label ------------------------------------------------------------------
+    ("simulate-frequency-1e9", "simulate drill --set frequency_hz=1e9", None, 2, "--set frequency_hz=1e+09", 1500, ()),
+    ("simulate-m1-1e300", "simulate drill --preset lab --set M1=1e300", None, 2, "--set M1=1e+300", 1500, ()),
+    ("map-set-ki-1e-300", "map pendulum --x frequency_hz --nx 2 --set ki=1e-300 --out {t}/out/m --no-mlflow", None,
+     2, "--set ki=1e-300", 1500, ()),
     # --- exit codes ---------------------------------------------------------------------------------------------
     ("simulate-failed-status-exit-0", "simulate drill --preset lab --setting max_steps=1000", None, 0, "failed",
      1500, ()),
