@@ -44,7 +44,7 @@ class HeartbeatGuard:
     def __init__(self, poll_s: float = 1.0) -> None:
         self.poll_s = poll_s        # seconds between two looks at a study whose last trials run elsewhere
         self.token = int.from_bytes(os.urandom(4), "little")
-        self._held: dict[int, object] = {}      # trial id -> trial this worker holds RUNNING
+        self._held: set[int] = set()            # ids of the trials this worker holds RUNNING
         self._mutex = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -94,7 +94,7 @@ class HeartbeatGuard:
             trial = study.ask(distributions)
         study._storage.record_heartbeat(trial._trial_id)
         with self._mutex:
-            self._held[trial._trial_id] = trial
+            self._held.add(trial._trial_id)
         self._start(study)
         return trial
 
@@ -125,7 +125,7 @@ class HeartbeatGuard:
     def _release(self, trials: list) -> None:
         with self._mutex:
             for t in trials:
-                self._held.pop(t._trial_id, None)
+                self._held.discard(t._trial_id)
 
     def _start(self, study) -> None:
         """The beat thread of this worker (one per guard), started on first use."""
@@ -151,7 +151,7 @@ class HeartbeatGuard:
         self._thread.start()
 
     def fail_orphans(self, study) -> None:
-        """Nothing to do: an interrupted worker's trials stop beating and become stale."""
+        """Stop beating: an interrupted worker's trials become stale and are re-run by the others."""
         with self._mutex:
             self._held.clear()
 
