@@ -21,8 +21,8 @@ Single files (``--metrics``, ``--truth``, ``--plot``, ``--feedback``, ``map --ou
 ``check_out_file`` before any work and ``record_out_file`` after writing (atomically, ``pipeline.core.files``).
 Refused: a path that is, or lies inside, one of the command's inputs (real paths: symlinks resolved) or a folder
 another command manages (its marker: the folder is replaced whole by that command's next run); a blank name or one
-ending in a folder separator; a directory, device, pipe or socket; an existing file vibro did not write (no ``.NAME.vibro`` record whose
-checksum matches) unless ``overwrite`` — and then only a file of the kind the command writes (:data:`KINDS`).
+ending in a folder separator; a directory, device, pipe or socket; an existing file vibro did not write (no
+``.NAME.vibro`` record whose checksum matches) unless ``overwrite`` — and then only a file of the kind the command writes (:data:`KINDS`).
 A ``kind="feedback"`` file is appended to, so an existing one must be a feedback file, ``overwrite`` or not.
 """
 from __future__ import annotations

@@ -335,8 +335,8 @@ def validate_points(spec: SweepSpec, points: pd.DataFrame) -> None:
 
 
 def first_refused(spec: SweepSpec, columns: dict[str, np.ndarray]) -> tuple[int, str] | None:
-    """The first row of ``columns`` (the varied parameters' values) that the model's ``resolve`` refuses, with its
-    message, or None.  Each column's own checks (finite, > 0, >= 0: the parameter's declared flags) run on the whole
+    """A row of ``columns`` (the varied parameters' values) that the model's ``resolve`` refuses, with its message
+    (the first of the rows checked), or None when every row resolves.  Each column's own checks (finite, > 0, >= 0: the parameter's declared flags) run on the whole
     column; ``resolve`` itself then runs on the first row so flagged, on each column's smallest and largest value and
     on one row per pattern of signs (negative, zero, positive) of the varied values -- resolve's cross-parameter
     rules test whether a value is zero (a discrepancy term the model lacks, a hidden mode without a frequency)."""
@@ -360,7 +360,7 @@ def first_refused(spec: SweepSpec, columns: dict[str, np.ndarray]) -> tuple[int,
     flagged = np.zeros(n, dtype=bool)
     pattern = np.zeros(n, dtype=np.int64)
     rows = {0}
-    for j, k in enumerate(names):
+    for k in names:
         x, p = columns[k], by_name.get(k)
         with np.errstate(invalid="ignore"):
             flagged |= ~np.isfinite(x)
@@ -368,11 +368,15 @@ def first_refused(spec: SweepSpec, columns: dict[str, np.ndarray]) -> tuple[int,
                 flagged |= ~(x > 0.0)
             if p is not None and p.nonnegative:
                 flagged |= x < 0.0
-            pattern += (np.sign(np.nan_to_num(x)).astype(np.int64) + 1) * 3 ** j
+            pattern = pattern * 3 + (np.sign(np.nan_to_num(x)).astype(np.int64) + 1)
         finite = np.flatnonzero(np.isfinite(x))
         if finite.size:
             rows.update((int(finite[np.argmin(x[finite])]), int(finite[np.argmax(x[finite])])))
-    rows.update(int(i) for i in np.unique(pattern, return_index=True)[1])
+    if len(names) > 39:        # 3^40 > 2^63: the patterns no longer fit one integer
+        signs = np.column_stack([np.sign(np.nan_to_num(columns[k])) for k in names])
+        rows.update(int(i) for i in np.unique(signs, axis=0, return_index=True)[1])
+    else:
+        rows.update(int(i) for i in np.unique(pattern, return_index=True)[1])
     if flagged.any():
         rows.add(int(np.argmax(flagged)))
     refused = [(r, m) for r in sorted(rows) if (m := refusal(r)) is not None]
