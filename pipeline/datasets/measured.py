@@ -36,9 +36,10 @@ CONTROL_COLUMNS = ("amplitude_n", "amplitude_m", "static_force_n")
 """Controls needed only by the runs whose model has them as a parameter."""
 OPTIONAL_RUN_COLUMNS = {"record_start_s": "nonnegative"}
 """Optional numeric runs.csv columns; an empty cell means 'not given' for that run (record in steady state)."""
-MAX_RUNS = 2000
+MAX_RUNS = 500
 """Most runs (rows of runs.csv, hence of summary.csv) of a measured dataset: a rig campaign holds tens; a diagnosis
-simulates every run at every fit step, and its tables grow with runs x features x harmonics."""
+simulates every run at every fit step and its memory grows with the runs (2000 summary runs passed 2 GB, 500 stayed
+under 1 GB; 100 000 ended in std::bad_alloc)."""
 SERIES_SIGNALS = ("accel_m_s2", "force_n", "disp_m", "progression_m")
 SUMMARY_FEATURES = ("rop_m_s", "peak_force_n", "peak_decel_g", "impacts_per_cycle")
 SUMMARY_EXTRAS = ("spectral_ratio", "spectral_ratio_ref_hz", "spectral_peak_hz", "impacts_per_cycle_lower_bound")

@@ -94,7 +94,7 @@ CASES = [
     ("sweep-2e6-points-dry-run", "sweep --out {t}/out/sw --n-points 2000000 --dry-run", None, 0,
      "2000000 points", 1500, ()),
     ("diagnose-100000-runs", "diagnose {t}/ds --out {t}/out/d --no-mlflow", "many_runs", 2,
-     "more than the 2000", 1500, ()),
+     "more than the 500", 1500, ()),
     ("diagnose-series-20mb", "diagnose {t}/ds --out {t}/out/d --no-mlflow", "series_20mb", 2,
      "time is not increasing", 900, ()),
     ("diagnose-series-220mb", "diagnose {t}/ds --out {t}/out/d --no-mlflow", "series_220mb", 2,
