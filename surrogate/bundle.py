@@ -22,6 +22,7 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from sim.files import atomic_write_bytes, atomic_write_text
+from surrogate.bundle_check import BundleContentError, check_contents, check_payload_size
 from surrogate.candidates import SubsampledGP
 from surrogate.errors import BundleError, DataError
 from surrogate.features import InputScaler, TargetTransform
@@ -254,7 +255,8 @@ def load_bundle(ref: str | os.PathLike, model: str | None = None) -> Bundle:
 
     Order: manifest and hashes (:func:`verify_bundle`), then the skops payload's types against
     :data:`TRUSTED_TYPES` and the tree storage types, and only then are objects constructed; every
-    tree's node arrays are bounds-checked before the bundle is returned.  ``model``: raise BundleError unless
+    tree's node arrays are bounds-checked and every stored value checked (surrogate.bundle_check, with a bound on
+    the inflated size before loading) before the bundle is returned.  ``model``: raise BundleError unless
     the bundle was trained on that model's data."""
     import skops.io as sio
 
@@ -272,6 +274,10 @@ def load_bundle(ref: str | os.PathLike, model: str | None = None) -> Bundle:
     if foreign:
         raise BundleError(f"{f}: holds type(s) a vibro bundle never contains ({', '.join(foreign[:3])}); refusing to load")
     try:
+        check_payload_size(data)       # before any array is inflated
+    except BundleContentError as e:
+        raise BundleError(f"{f}: {e}; refusing to load") from None
+    try:
         b = sio.loads(data, trusted=list(untrusted))
     except Exception as e:  # noqa: BLE001 - damaged content of a verified file: a foreign writer
         raise BundleError(f"{f}: cannot be read ({type(e).__name__}: {str(e)[:120]})") from None
@@ -281,5 +287,9 @@ def load_bundle(ref: str | os.PathLike, model: str | None = None) -> Bundle:
         check_trees(b, len(b.inputs))
     except TreeStorageError as e:
         raise BundleError(f"{f}: a tree model is malformed ({e}); refusing to use it") from None
+    try:
+        check_contents(b, lambda X: b.predict(X, conditional=True))
+    except (BundleContentError, AttributeError) as e:       # AttributeError: a stored field is missing
+        raise BundleError(f"{f}: malformed bundle: {e}; refusing to use it") from None
     b.check_model(model)
     return b

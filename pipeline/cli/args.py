@@ -26,6 +26,7 @@ import math
 from typing import Callable
 
 from pipeline.core.errors import UserError
+from pipeline.core.numbers import number  # noqa: F401 - the one number parser, re-exported
 
 # upper bounds on the work one command may ask for (a typo like 1e12 is an error, not a MemoryError or a hang)
 MAX_POINTS = 10_000_000        # sweep / verify points, map grid cells
@@ -51,33 +52,6 @@ SETTINGS_BOUNDS: dict[str, tuple[bool, float, float, bool]] = {
 
 TEXT_SETTINGS = ("method",)
 """sim.Settings fields whose value is a word: ``method`` = auto | exact | dopri5 (sim.api.METHODS)."""
-
-
-def number(value, what: str, *, integer: bool = False, lo: float | None = None, hi: float | None = None,
-           lo_open: bool = False) -> float | int:
-    """``value`` (str, int or float) as a finite number in [lo, hi] (``(lo, hi]`` with ``lo_open``);
-    an int when ``integer`` (refusing 2.7); UserError naming ``what`` otherwise."""
-    if isinstance(value, bool):
-        raise UserError(f"{what}: expected a number, got {value!r}")
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise UserError(f"{what}: '{value}' is not a number") from None
-    if not math.isfinite(x):
-        raise UserError(f"{what}: must be finite, got {value!r}")
-    if integer:
-        if x != int(x):
-            raise UserError(f"{what}: must be an integer, got {value!r}")
-        x = int(x)
-    if lo is not None and (x < lo or (lo_open and x == lo)):
-        raise UserError(f"{what}: must be {'>' if lo_open else '>='} {_fmt(lo)}, got {value!r}")
-    if hi is not None and x > hi:
-        raise UserError(f"{what}: must be <= {_fmt(hi)} (an upper bound on the work), got {value!r}")
-    return x
-
-
-def _fmt(x: float) -> str:
-    return str(int(x)) if float(x).is_integer() and abs(x) < 1e15 else f"{x:g}"
 
 
 def arg_type(*, integer: bool = False, lo: float | None = None, hi: float | None = None,
@@ -136,10 +110,7 @@ def parse_ranges(items: list[str] | None, what: str = "--vary") -> dict[str, tup
         lo_s, sep2, hi_s = rest.partition(":")
         if not sep or not sep2 or not name.strip():
             raise UserError(f"{what} expects NAME=LOW:HIGH, got '{item}'")
-        try:
-            out[name.strip()] = (float(lo_s), float(hi_s))
-        except ValueError:
-            raise UserError(f"{what} {name.strip()}: '{rest}' is not LOW:HIGH numbers") from None
+        out[name.strip()] = (number(lo_s, f"{what} {name.strip()}: low"), number(hi_s, f"{what} {name.strip()}: high"))
     return out
 
 
@@ -212,12 +183,17 @@ def load_rig(path: str | None, model: str | None = None, preset: str | None = No
 def model_and_overrides(model: str | None, preset: str | None, rig_path: str | None,
                         sets: dict[str, float]) -> tuple[str, str | None, dict[str, float]]:
     """(model, preset, parameter overrides) of a command: the rig file's, then ``sets`` on top."""
+    from pipeline.core.rigfile import check_mode_complete
+
     rig = load_rig(rig_path, model, preset)
     if rig is None:
         if not model:
             raise UserError("give a MODEL (e.g. drill; 'vibro models' lists them) or --rig FILE")
+        check_mode_complete(sets, "--set")
         return model, (None if preset is not None and str(preset).lower() == "none" else preset), dict(sets)
-    return rig.model, rig.preset, {**rig.overrides(), **sets}
+    values = {**rig.overrides(), **sets}
+    check_mode_complete(values, "--set")
+    return rig.model, rig.preset, values
 
 
 def check_settings(values: dict | None, what: str = "--setting") -> dict | None:

@@ -50,6 +50,29 @@ OUTSIDE = {
 """Physics outside the library, for the 'unexplained' test.  The default mount resonance of a rig is its
 ``synth.mount_hz`` (inside the harmonics the diagnosis uses)."""
 
+OUTSIDE_PARAMS: dict[str, dict[str, tuple[float, float, str]]] = {
+    "mount_resonance": {"fr_hz": (1.0, math.inf, "Hz, below half the sample rate --fs"),
+                        "zeta": (1e-4, 100.0, "damping ratio")},
+    "contact_hertz": {"kh": (1.0, 1e15, "N/m^1.5")},
+}
+"""The --outside-param names of each outside physics with their (low, high) bounds [inclusive] and unit."""
+
+
+def check_outside_params(outside: str | None, values: dict[str, float], fs_hz: float) -> None:
+    """UserError naming an --outside-param that its --outside does not have, or a value out of its bounds
+    (``fr_hz`` also below the Nyquist frequency ``fs_hz / 2``, where the bilinear filter is defined)."""
+    if values and outside is None:
+        raise UserError(f"--outside-param {next(iter(values))}: give --outside (one of {', '.join(OUTSIDE)}) too")
+    table = OUTSIDE_PARAMS.get(outside or "", {})
+    for name, v in values.items():
+        if name not in table:
+            raise UserError(f"--outside-param {name}: --outside {outside} has no parameter '{name}' "
+                            f"(its parameters: {', '.join(table)})")
+        lo, hi, unit = table[name]
+        hi = min(hi, 0.5 * fs_hz * (1 - 1e-9)) if name == "fr_hz" else hi
+        if not lo <= v <= hi:
+            raise UserError(f"--outside-param {name}={v:g}: must be in [{lo:g}, {hi:g}] ({unit})")
+
 
 @dataclass
 class SynthConfig:
@@ -298,6 +321,7 @@ def synthesize(cfg: SynthConfig, progress: bool = False) -> tuple[Dataset, dict]
         raise UserError(f"--outside {cfg.outside}: unknown (known: {', '.join(OUTSIDE)})")
     if cfg.outside == "contact_hertz" and "k1" not in sim.get_model(cfg.system).param_names:
         raise UserError(f"--outside contact_hertz replaces a linear contact stiffness k1, which {cfg.system} does not have")
+    check_outside_params(cfg.outside, dict(cfg.outside_params), float(cfg.fs_hz))
     for s in cfg.signals:
         if s not in ("accel_m_s2", "force_n", "disp_m", "progression_m"):
             raise UserError(f"--signals: unknown signal '{s}' (accel_m_s2, force_n, disp_m, progression_m)")
