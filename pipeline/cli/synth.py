@@ -76,15 +76,6 @@ def check_record_size(cfg) -> None:
     if n > MAX_RECORD_SAMPLES:
         raise UserError(f"--frequencies {f:g}: a record of {r.cycles:g} cycles at {r.fs_hz:g} Hz holds {n:.3g} samples, "
                         f"more than the bound {MAX_RECORD_SAMPLES:.0e}; raise the frequency or lower --cycles / --fs")
-    from pipeline.datasets.measured import MAX_FROM_REST_CYCLES
-
-    f_hi = max(r.frequencies_hz)
-    for start in r.record_start_s or ():
-        cycles = start * f_hi + r.cycles
-        if cycles > MAX_FROM_REST_CYCLES:
-            raise UserError(f"--record-start {start:g}: {cycles:.3g} forcing cycles from rest at {f_hi:g} Hz, more than "
-                            f"the {MAX_FROM_REST_CYCLES} a record from rest may span; a record that late is in steady "
-                            "state (omit --record-start)")
 
 
 def run(args) -> int:

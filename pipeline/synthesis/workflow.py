@@ -306,6 +306,20 @@ def check_sampling(cfg: SynthConfig) -> None:
                         f"(--frequencies); need >= {MIN_SAMPLES_PER_CYCLE}: raise --fs or lower the frequencies")
 
 
+def check_from_rest(cfg: SynthConfig) -> None:
+    """UserError when a record from rest (``record_start_s``) would end more than MAX_FROM_REST_CYCLES forcing
+    cycles after the start at the highest frequency: the simulation from rest would hold them all."""
+    from pipeline.datasets.measured import MAX_FROM_REST_CYCLES
+
+    f_hi = max(cfg.frequencies_hz)
+    for start in cfg.record_start_s or ():
+        cycles = start * f_hi + cfg.cycles
+        if cycles > MAX_FROM_REST_CYCLES:
+            raise UserError(f"--record-start {start:g}: {cycles:.3g} forcing cycles from rest at {f_hi:g} Hz, more "
+                            f"than the {MAX_FROM_REST_CYCLES} a record from rest may span; a record that late is in "
+                            "steady state (omit --record-start)")
+
+
 def synthesize(cfg: SynthConfig, progress: bool = False) -> tuple[Dataset, dict]:
     """Build the dataset in memory: (Dataset, truth) — nothing is written here."""
     import os
@@ -321,13 +335,14 @@ def synthesize(cfg: SynthConfig, progress: bool = False) -> tuple[Dataset, dict]
         raise UserError(f"--outside {cfg.outside}: unknown (known: {', '.join(OUTSIDE)})")
     if cfg.outside == "contact_hertz" and "k1" not in sim.get_model(cfg.system).param_names:
         raise UserError(f"--outside contact_hertz replaces a linear contact stiffness k1, which {cfg.system} does not have")
-    check_outside_params(cfg.outside, dict(cfg.outside_params), float(cfg.fs_hz))
     for s in cfg.signals:
         if s not in ("accel_m_s2", "force_n", "disp_m", "progression_m"):
             raise UserError(f"--signals: unknown signal '{s}' (accel_m_s2, force_n, disp_m, progression_m)")
     if cfg.cycles < 2.5:
         raise UserError(f"--cycles must be >= 2.5, got {cfg.cycles:g}")
     check_sampling(cfg)
+    check_outside_params(cfg.outside, dict(cfg.outside_params), float(cfg.fs_hz))
+    check_from_rest(cfg)
     truth = true_parameters(cfg)
     runs = run_table(cfg)
     known = known_parameters(runs)
