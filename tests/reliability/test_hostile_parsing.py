@@ -109,6 +109,7 @@ SETUPS = {
     "rig_float_overflow": _rig("model: drill\nparameters: {K1: 1.0e400}\n"),
     "rig_quoted": _rig('model: drill\nparameters: {K1: "5.2e8"}\n'),
     "rig_quoted_underscore": _rig("model: drill\nparameters: {K1: '520_000_000'}\n"),
+    "rig_fc_tiny": _rig("model: drill\neffects: {sensor_lowpass: {fc: 1.0e-12}}\n"),
     "rig_mode_hz_only": _rig("model: drill\ndiscrepancy: {load_path_mode_hz: 300.0}\n"),
     "rig_mode_zeta_only": _rig("model: drill\ndiscrepancy: {load_path_mode_zeta: 0.05}\n"),
     "dataset_record_start_1e12": lambda t: _dataset(t / "ds", "record_start_s", "1e12"),
@@ -223,6 +224,8 @@ CASES = [
      ["load_path_mode_hz without load_path_mode_ratio"]),
     ("rig-mode-zeta-without-ratio", "simulate --rig {t}/rig.yaml", "rig_mode_zeta_only",
      ["load_path_mode_zeta without load_path_mode_ratio"]),
+    ("rig-sensor-lowpass-fc-1e-12", "simulate --rig {t}/rig.yaml", "rig_fc_tiny", ["rig.yaml", "'fc'", "0 (off) or >= 1"]),
+    ("set-sensor-lowpass-fc-1e-12", "simulate drill --set fc=1e-12", None, ["'fc'", "0 (off) or >= 1"]),
     ("set-mode-hz-without-ratio", "simulate drill --set load_path_mode_hz=300", None,
      ["load_path_mode_hz without load_path_mode_ratio"]),
 ]
