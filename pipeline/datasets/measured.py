@@ -73,9 +73,9 @@ def _where(file: str, line: int, column: str) -> str:
 
 
 def _read_csv(path: Path, label: str) -> pd.DataFrame:
-    if not path.is_file():
+    if not path.exists():
         raise UserError(f"{label}: file not found ({path})")
-    check_size(path, MAX_CSV_BYTES, label)
+    check_size(path, MAX_CSV_BYTES, label)          # a folder, device or FIFO is named as such
     try:
         df = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
     except pd.errors.EmptyDataError:

@@ -117,6 +117,8 @@ SETUPS = {
     "dataset_k1_underscore": lambda t: _dataset(t / "ds", "k1", "1_000"),
     "dataset_gap_1e300": lambda t: _dataset(t / "ds", "gap_m", "1e300"),
     "dataset": lambda t: _dataset(t / "ds"),
+    "dataset_summary_fifo": lambda t: (_dataset(t / "ds"), (t / "ds" / "summary.csv").unlink(),
+                                       _fifo(t / "ds" / "summary.csv")),
     "drill_points_pendulum_rig": lambda t: (_drill_points(t), _pendulum_rig(t)),
     "reports_pendulum_rig": _reports,
 }
@@ -173,6 +175,8 @@ CASES = [
     ("runs-k1-underscore", "diagnose {t}/ds --out {t}/o " + NO_ML, "dataset_k1_underscore",
      ["runs.csv line 2", "'k1'", "not a number"]),
     ("runs-gap-1e300", "diagnose {t}/ds --out {t}/o " + NO_ML, "dataset_gap_1e300", ["runs.csv line 2", "gap_m"]),
+    ("runs-summary-is-fifo", "diagnose {t}/ds --out {t}/o " + NO_ML, "dataset_summary_fifo",
+     ["summary.csv", "not a regular file"]),
     # --- one scheduler-address parser ------------------------------------------------------------------------
     ("diagnose-scheduler-garbage", "diagnose {t}/ds --out {t}/o --scheduler garbage " + NO_ML, "dataset",
      ["--scheduler garbage"]),
