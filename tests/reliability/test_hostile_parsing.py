@@ -376,3 +376,17 @@ def test_probe_accepts_a_real_scheduler():
             await asyncio.get_running_loop().run_in_executor(None, probe, s.address)
 
     asyncio.run(run())
+
+
+def test_a_sweep_whose_scheduler_fails_leaves_no_new_folder(tmp_path, ports):
+    """Past the command's probe (here: called directly), a backend that fails before any chunk removes the --out
+    folder this run created: no .sweep.lock, no metadata.json left behind."""
+    from pipeline.core.errors import UserError
+    from pipeline.datasets.dask_backend import DaskBackend
+    from pipeline.datasets.runner import run_sweep
+    from pipeline.datasets.spec import default_spec_dict, make_spec
+
+    spec = make_spec({**default_spec_dict(), "n_points": 2})
+    with pytest.raises(UserError, match="cannot reach"):
+        run_sweep(spec, tmp_path / "new", backend=DaskBackend(f"tcp://127.0.0.1:{ports['closed']}"), progress=False)
+    assert not (tmp_path / "new").exists()
