@@ -34,6 +34,10 @@ PAYLOAD = "bundle.skops"
 MANIFEST = "manifest.json"
 MANIFEST_KIND = "vibro-surrogate-bundle"
 ARTIFACT_DIR = "surrogate"
+MAX_MANIFEST_BYTES = 2**20
+"""Largest manifest.json read [bytes]; a real one is under 1 kB."""
+MAX_FILE_BYTES = 256 * 2**20
+"""Largest file of a bundle [bytes] (the payload is compressed: a real one is a few MB)."""
 
 
 class ExtrapolationWarning(UserWarning):
@@ -212,6 +216,14 @@ def _versions() -> dict:
     return {"scikit-learn": sklearn.__version__, "numpy": np.__version__, "skops": skops.__version__}
 
 
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(2**20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
 def verify_bundle(path: str | os.PathLike) -> dict:
     """Check a bundle directory's manifest and every file's size and sha256 WITHOUT deserialising
     anything; returns the manifest.  BundleError (one line naming the file) when corrupt, foreign,
@@ -225,6 +237,8 @@ def verify_bundle(path: str | os.PathLike) -> dict:
     if not mpath.is_file():
         raise BundleError(f"{d}: an old-format surrogate bundle (bundle.joblib, a pickle without a manifest); it is not "
                         f"loaded because unpickling runs code: retrain it with 'vibro train'")
+    if mpath.is_file() and mpath.stat().st_size > MAX_MANIFEST_BYTES:
+        raise BundleError(f"{mpath}: {mpath.stat().st_size} bytes, not a bundle manifest (at most {MAX_MANIFEST_BYTES})")
     try:
         man = json.loads(mpath.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
@@ -245,7 +259,10 @@ def verify_bundle(path: str | os.PathLike) -> dict:
             raise BundleError(f"{f}: missing (listed in the bundle manifest)")
         if f.stat().st_size != rec.get("size"):
             raise BundleError(f"{f}: {f.stat().st_size} bytes, the manifest says {rec.get('size')} (truncated or replaced)")
-        if hashlib.sha256(f.read_bytes()).hexdigest() != rec.get("sha256"):
+        if f.stat().st_size > MAX_FILE_BYTES:
+            raise BundleError(f"{f}: {f.stat().st_size // 2**20} MiB, more than the {MAX_FILE_BYTES // 2**20} MiB a "
+                              "bundle file may hold")
+        if _sha256(f) != rec.get("sha256"):
             raise BundleError(f"{f}: sha256 differs from the bundle manifest (damaged or tampered with)")
     return man
 

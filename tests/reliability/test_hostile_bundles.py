@@ -167,3 +167,23 @@ def test_inflating_bundle_is_refused_before_allocating(honest, tmp_path):
     one_error_line(r.returncode, r.stderr, ["bundle.skops", "MiB once inflated"])
     assert snapshot(tmp_path) == before
     assert MEMORY_LIMIT < 4 * 2**30
+
+
+def test_oversized_bundle_file_is_refused_before_hashing(honest, tmp_path, capsys):
+    """A listed file larger than bundle.MAX_FILE_BYTES (here sparse: no disk used) is refused by its size."""
+    from pipeline.cli import main
+    from surrogate.bundle import MAX_FILE_BYTES
+
+    d = tmp_path / "evil"
+    d.mkdir()
+    for f in honest.iterdir():
+        (d / f.name).write_bytes(f.read_bytes())
+    os.truncate(d / "report.json", MAX_FILE_BYTES + 1)
+    man = json.loads((d / "manifest.json").read_text())
+    man["files"]["report.json"]["size"] = MAX_FILE_BYTES + 1      # the hash is never reached
+    (d / "manifest.json").write_text(json.dumps(man))
+    (tmp_path / "pts.csv").write_text("frequency_hz,amplitude_n\n200,1500\n")
+    before = snapshot(tmp_path)
+    rc = main(["verify", str(tmp_path / "pts.csv"), "--surrogate", str(d), "--out", str(tmp_path / "o"), "--no-mlflow"])
+    one_error_line(rc, capsys.readouterr().err, ["report.json", "MiB a bundle file may hold"])
+    assert snapshot(tmp_path) == before
