@@ -238,7 +238,8 @@ def verify_bundle(path: str | os.PathLike) -> dict:
         raise BundleError(f"{d}: an old-format surrogate bundle (bundle.joblib, a pickle without a manifest); it is not "
                         f"loaded because unpickling runs code: retrain it with 'vibro train'")
     if mpath.is_file() and mpath.stat().st_size > MAX_MANIFEST_BYTES:
-        raise BundleError(f"{mpath}: {mpath.stat().st_size} bytes, not a bundle manifest (at most {MAX_MANIFEST_BYTES})")
+        raise BundleError(f"{mpath}: {mpath.stat().st_size} bytes, not a bundle manifest "
+                          f"(at most {MAX_MANIFEST_BYTES})")
     try:
         man = json.loads(mpath.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:

@@ -48,9 +48,10 @@ def journal_path(url: str) -> str | None:
 
 
 def open_storage(url: str, heartbeat_s: int = DEFAULT_HEARTBEAT_S):
-    """Optuna storage for ``url`` (checked first with :func:`check_storage_target`).  A SQLite file is opened in WAL mode with synchronous=NORMAL (several times
-    fewer fsyncs per trial); a server or journal storage with a heartbeat every ``heartbeat_s`` seconds, a grace
-    period of GRACE_FACTOR heartbeats and up to MAX_RETRY re-runs of a stale trial."""
+    """Optuna storage for ``url``, checked first with :func:`check_storage_target`.  A SQLite file is opened in WAL
+    mode with synchronous=NORMAL (several times fewer fsyncs per trial); a server or journal storage with a heartbeat
+    every ``heartbeat_s`` seconds, a grace period of GRACE_FACTOR heartbeats and up to MAX_RETRY re-runs of a stale
+    trial."""
     if is_sqlite(url):
         return _open_sqlite(url)
     if heartbeat_s is None or int(heartbeat_s) < 1:

@@ -96,7 +96,8 @@ BUNDLE_CASES = [
 ]
 COMMANDS = {
     "verify": "verify {t}/pts.csv --surrogate {t}/evil --out {t}/o --no-mlflow --quiet",
-    "optimise": "optimise --surrogate {t}/evil --out {t}/o --no-mlflow --quiet --n-trials 4 --storage sqlite:///{t}/o.db",
+    "optimise": "optimise --surrogate {t}/evil --out {t}/o --no-mlflow --quiet --n-trials 4 "
+                "--storage sqlite:///{t}/o.db",
 }
 
 

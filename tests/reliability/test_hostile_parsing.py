@@ -28,6 +28,8 @@ MEMORY_LIMIT = 3 * 2**30
 """Address-space limit of a BOUNDED case's child process [bytes]."""
 NO_ML = "--no-mlflow"
 OPT = "optimise --simulator --n-trials 2 --out {t}/o " + NO_ML
+JOURNAL = OPT + " --storage journal:///{t}/j.log"
+NOT_JOURNAL = ["j.log", "not an optuna journal"]
 
 
 # ----------------------------------------------------------------------------------- file set-ups
@@ -121,17 +123,17 @@ SETUPS = {
                                        _fifo(t / "ds" / "summary.csv")),
     "drill_points_pendulum_rig": lambda t: (_drill_points(t), _pendulum_rig(t)),
     "reports_pendulum_rig": _reports,
+    "reports_big_int_rig": lambda t: (_reports(t), _rig(f"model: drill\nparameters: {{K1: {BIG_401}}}\n")(t)),
+    "points_big_int_rig": lambda t: (_drill_points(t), _rig(f"model: drill\nparameters: {{K1: {BIG_401}}}\n")(t)),
 }
 
 # (id, argv with {t} = the test's folder, set-up or None, fragments the one error line must contain)
 CASES = [
     # --- storages never write into what is not theirs ------------------------------------------------------
-    ("journal-holding-json", OPT + " --storage journal:///{t}/j.log", "journal_json", ["j.log", "not an optuna journal"]),
-    ("journal-holding-text", OPT + " --storage journal:///{t}/j.log", "journal_text", ["j.log", "not an optuna journal"]),
-    ("journal-text-no-newline", OPT + " --storage journal:///{t}/j.log", "journal_text_no_newline",
-     ["j.log", "not an optuna journal"]),
-    ("journal-is-sqlite-db", OPT + " --storage journal:///{t}/j.log", "journal_is_sqlite",
-     ["j.log", "not an optuna journal"]),
+    ("journal-holding-json", JOURNAL, "journal_json", NOT_JOURNAL),
+    ("journal-holding-text", JOURNAL, "journal_text", NOT_JOURNAL),
+    ("journal-text-no-newline", JOURNAL, "journal_text_no_newline", NOT_JOURNAL),
+    ("journal-is-sqlite-db", JOURNAL, "journal_is_sqlite", NOT_JOURNAL),
     ("journal-dev-null", OPT + " --storage journal:///dev/null", None, ["/dev/null", "device"]),
     ("journal-is-folder", OPT + " --storage journal:///{t}/jdir", "journal_dir", ["jdir", "folder"]),
     ("journal-is-fifo", OPT + " --storage journal:///{t}/j.fifo", "journal_fifo", ["j.fifo", "pipe"]),
@@ -163,6 +165,10 @@ CASES = [
     ("rig-int-401-map", "map --rig {t}/rig.yaml --x frequency_hz --nx 3", "rig_int_401", ["rig.yaml", "401 digits"]),
     ("rig-int-401-optimise", OPT + " --rig {t}/rig.yaml", "rig_int_401", ["rig.yaml", "401 digits"]),
     ("rig-float-1e400", "simulate --rig {t}/rig.yaml", "rig_float_overflow", ["rig.yaml", "1.0e400", "out of range"]),
+    ("rig-int-401-verify", "verify {t}/pts.csv --rig {t}/rig.yaml --out {t}/o " + NO_ML, "points_big_int_rig",
+     ["rig.yaml", "401 digits"]),
+    ("rig-int-401-compare", "compare --uncorrected {t}/unc --corrected {t}/cor --rig {t}/rig.yaml --out {t}/o " + NO_ML,
+     "reports_big_int_rig", ["rig.yaml", "401 digits"]),
     ("rig-quoted-number", "simulate --rig {t}/rig.yaml", "rig_quoted", ["rig.yaml", "K1", "quoted text"]),
     ("rig-quoted-underscore", "simulate --rig {t}/rig.yaml", "rig_quoted_underscore", ["K1", "quoted text"]),
     ("set-underscore-number", "simulate drill --set K1=1_000", None, ["--set K1", "'1_000' is not a number"]),
@@ -171,7 +177,8 @@ CASES = [
      ["--vary frequency_hz", "not a number"]),
     ("runs-record-start-1e12", "diagnose {t}/ds --out {t}/o " + NO_ML, "dataset_record_start_1e12",
      ["runs.csv line 2", "record_start_s", "1e+12"]),
-    ("runs-k1-1e300", "diagnose {t}/ds --out {t}/o " + NO_ML, "dataset_k1_1e300", ["runs.csv line 2", "'k1'", "1e+300"]),
+    ("runs-k1-1e300", "diagnose {t}/ds --out {t}/o " + NO_ML, "dataset_k1_1e300",
+     ["runs.csv line 2", "'k1'", "1e+300"]),
     ("runs-k1-underscore", "diagnose {t}/ds --out {t}/o " + NO_ML, "dataset_k1_underscore",
      ["runs.csv line 2", "'k1'", "not a number"]),
     ("runs-gap-1e300", "diagnose {t}/ds --out {t}/o " + NO_ML, "dataset_gap_1e300", ["runs.csv line 2", "gap_m"]),
@@ -228,7 +235,8 @@ CASES = [
      ["load_path_mode_hz without load_path_mode_ratio"]),
     ("rig-mode-zeta-without-ratio", "simulate --rig {t}/rig.yaml", "rig_mode_zeta_only",
      ["load_path_mode_zeta without load_path_mode_ratio"]),
-    ("rig-sensor-lowpass-fc-1e-12", "simulate --rig {t}/rig.yaml", "rig_fc_tiny", ["rig.yaml", "'fc'", "0 (off) or >= 1"]),
+    ("rig-sensor-lowpass-fc-1e-12", "simulate --rig {t}/rig.yaml", "rig_fc_tiny",
+     ["rig.yaml", "'fc'", "0 (off) or >= 1"]),
     ("set-sensor-lowpass-fc-1e-12", "simulate drill --set fc=1e-12", None, ["'fc'", "0 (off) or >= 1"]),
     ("set-mode-hz-without-ratio", "simulate drill --set load_path_mode_hz=300", None,
      ["load_path_mode_hz without load_path_mode_ratio"]),
