@@ -90,6 +90,10 @@ def run(args) -> int:
         else:
             cor = doc
     rig = read_rig(args.rig)
+    for flag, doc in (("--uncorrected", unc), ("--corrected", cor)):
+        if doc["tried"]["model"] != rig.model:
+            raise UserError(f"--rig {args.rig} describes model '{rig.model}', but the {flag} study optimised model "
+                            f"'{doc['tried']['model']}': give the rig of the model that was optimised")
     diag_file = Path(args.rig).parent / "report.json"
     inputs = [args.uncorrected, args.corrected, args.rig, diag_file if diag_file.is_file() else None]
     check_out(args.out, inputs=[*inputs, args.metrics], overwrite=args.overwrite, marker="compare")

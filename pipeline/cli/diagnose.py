@@ -161,7 +161,7 @@ def scheduler_of(path: str | None, flag: str | None) -> str | None:
         return None
     if not isinstance(value, str):
         raise UserError(f"{path}: diagnose.scheduler must be tcp://host:port or local:N, got {value!r}")
-    return check_address(value)
+    return check_address(value, f"{path}: diagnose.scheduler")
 
 
 def run(args) -> int:

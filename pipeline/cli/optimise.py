@@ -218,6 +218,7 @@ def check_range_values(ranges: dict, model: str | None) -> None:
     = 0: the model's ``Param`` says > 0); the sampler may draw a bound itself.  Unknown names and malformed
     ranges are left to the search space's own check."""
     import sim
+    from pipeline.core.numbers import PLAUSIBLE_FACTOR, plausible
     from pipeline.optimise.space import space_from_mapping
     from sim.registry import DEFAULT_MODEL
 
@@ -233,6 +234,10 @@ def check_range_values(ranges: dict, model: str | None) -> None:
             except sim.ParameterError as e:
                 raise UserError(f"range '{name}': its {end} bound {v:g} is outside the parameter's valid values "
                                 f"({e})") from None
+            if name in by_name and not plausible(v, by_name[name].default):
+                raise UserError(f"range '{name}': its {end} bound {v:g} is not within a factor {PLAUSIBLE_FACTOR:g} "
+                                f"of the parameter's default {by_name[name].default:g} {by_name[name].unit}; "
+                                "not a physical range")
 
 
 def real_sqlite_url(url: str | None) -> str | None:
@@ -361,12 +366,13 @@ def run(args) -> int:
 
     from pipeline.core.outdir import check_out_file, record_out_file
     from pipeline.optimise.coordination import sqlite_path
-    from pipeline.optimise.storages import journal_path
+    from pipeline.optimise.storages import check_storage_target, journal_path
     from pipeline.optimise.study import default_storage
 
     cfg = config_from_args(args)
     chain = A.chain_of(args, surrogate_chain(cfg.surrogate) if cfg.mode == "surrogate" else None)
     url = cfg.storage or default_storage()
+    check_storage_target(url)
     db = sqlite_path(url) or (journal_path(url) and Path(journal_path(url)))
     reads = [args.params, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None,
              args.rig, db, db and f"{db}.lock", args.out]

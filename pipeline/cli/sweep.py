@@ -115,6 +115,10 @@ def spec_from_args(args):
     raw = dict(raw)
     scheduler = args.scheduler or raw.pop("scheduler", None)
     raw.pop("scheduler", None)
+    if scheduler is not None:
+        from pipeline.core.dask_client import check_address
+
+        scheduler = check_address(scheduler, "--scheduler" if args.scheduler else f"{args.params}: sweep.scheduler")
     workers = args.workers if args.workers is not None else raw.pop("workers", None)
     raw.pop("workers", None)
     if workers is not None:
@@ -164,6 +168,10 @@ def run(args) -> int:
     if args.dry_run:
         print("\n".join(plan_lines(spec, args.out)))
         return 0
+    if scheduler is not None and not scheduler.startswith("local:"):
+        from pipeline.core.dask_client import probe
+
+        probe(scheduler)            # an unreachable scheduler is refused before --out is created
     params = {"model": spec.model, "preset": spec.preset, "rig": args.rig or "", "design": spec.design, "n_points": spec.n_points,
               "seed": spec.seed, "chunk_size": spec.chunk_size, "fingerprint": spec.fingerprint,
               "scheduler": scheduler or "local", "out": args.out,

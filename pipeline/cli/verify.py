@@ -92,6 +92,12 @@ def run(args) -> int:
             preset = "lab" if args.preset is None else (None if str(args.preset).lower() == "none" else args.preset)
         settings = None
         names = sim.get_model(model).param_names
+        others = {p for m in sim.model_names() if m != model for p in sim.get_model(m).param_names} - set(names)
+        foreign = [c for c in points.columns if c in others]
+        if foreign:
+            where = f"rig file {args.rig} describes" if rig is not None else "this run simulates"
+            raise UserError(f"{args.points}: column(s) {', '.join(foreign[:4])} are parameters of another model, "
+                            f"but {where} model '{model}': the points were made for another model")
         inputs = args.inputs or [c for c in points.columns if c in names]
         if not inputs:
             raise UserError(f"{args.points}: no column is a parameter of model '{model}' "

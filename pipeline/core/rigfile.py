@@ -36,10 +36,45 @@ def read_rig(path: str | os.PathLike):
     if not p.exists():
         raise UserError(f"rig file {p}: not found")
     data = load_yaml(p, f"rig file {p}", floats_12=True)
+    data = _numbers_checked(data, f"rig file {p}")
+    if isinstance(data, dict) and isinstance(data.get("discrepancy"), dict):
+        check_mode_complete(data["discrepancy"], f"rig file {p}: discrepancy")
     try:
         return Rig.from_mapping(data)
     except ParameterError as e:
         raise UserError(f"rig file {p}: {str(e).removeprefix('rig: ')}") from None
+
+
+def check_mode_complete(values: dict, label: str) -> None:
+    """UserError when the hidden load-path mode's frequency or damping is given without its mass ratio: with
+    the ratio 0 (its default) the mode is off, and the other two would be silently ignored."""
+    from sim.models.discrepancy import MODE_PARAMS
+
+    ratio, *rest = MODE_PARAMS
+    given = [n for n in rest if values.get(n)]
+    if given and not values.get(ratio):
+        raise UserError(f"{label} {given[0]} without {ratio}: the mode is off while {ratio} is 0; "
+                        f"give {ratio} > 0 or leave the mode out")
+
+
+def _numbers_checked(data, label: str):
+    """``data`` with every value of parameters, effects, discrepancy and uncertainty through the one number parser
+    (quoted text, booleans and out-of-range integers refused naming the value); other shapes unchanged, for
+    ``Rig.from_mapping`` to name."""
+    from collections.abc import Mapping
+
+    from pipeline.core.numbers import number
+
+    if not isinstance(data, Mapping):
+        return data
+    out = dict(data)
+    for key in ("parameters", "discrepancy", "uncertainty"):
+        if isinstance(out.get(key), Mapping):
+            out[key] = {n: number(v, f"{label}: {key} '{n}'") for n, v in out[key].items()}
+    if isinstance(out.get("effects"), Mapping):
+        out["effects"] = {e: ({n: number(v, f"{label}: effect '{e}' parameter '{n}'") for n, v in vals.items()}
+                              if isinstance(vals, Mapping) else vals) for e, vals in out["effects"].items()}
+    return out
 
 
 def write_rig(path: str | os.PathLike, rig, comment: str = "") -> Path:

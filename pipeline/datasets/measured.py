@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
+from pipeline.core.numbers import PLAUSIBLE_FACTOR, number, plausible
 from pipeline.core.bounded import MAX_CSV_BYTES, check_size
 from pipeline.core.files import atomic_directory, duplicate_csv_column
 
@@ -32,6 +33,9 @@ model has them as parameters: amplitude_n (indenter, drill, rimd) or amplitude_m
 static_force_n (indenter, drill)."""
 RUN_NUMERIC = {"frequency_hz": "positive", "amplitude_n": "nonnegative", "amplitude_m": "nonnegative",
                "static_force_n": "nonnegative", "gap_m": "nonnegative", "duration_s": "positive"}
+RUN_UPPER = {"frequency_hz": 1e6, "amplitude_n": 1e9, "amplitude_m": 10.0, "static_force_n": 1e9, "gap_m": 1.0,
+             "duration_s": 1e5}
+"""Largest physical value of each numeric runs.csv column [SI] (a lab rig is far inside; 1e300 is a typo)."""
 CONTROL_COLUMNS = ("amplitude_n", "amplitude_m", "static_force_n")
 """Controls needed only by the runs whose model has them as a parameter."""
 OPTIONAL_RUN_COLUMNS = {"record_start_s": "nonnegative"}
@@ -40,6 +44,9 @@ MAX_RUNS = 500
 """Most runs (rows of runs.csv, hence of summary.csv) of a measured dataset: a rig campaign holds tens; a diagnosis
 simulates every run at every fit step and its memory grows with the runs (2000 summary runs passed 2 GB, 500 stayed
 under 1 GB; 100 000 ended in std::bad_alloc)."""
+MAX_FROM_REST_CYCLES = 10_000
+"""Most forcing cycles from rest to the end of a record from rest (record_start_s + duration_s): the simulator's
+largest window (--setting window); a record that late is in steady state: leave record_start_s empty."""
 SERIES_SIGNALS = ("accel_m_s2", "force_n", "disp_m", "progression_m")
 SUMMARY_FEATURES = ("rop_m_s", "peak_force_n", "peak_decel_g", "impacts_per_cycle")
 SUMMARY_EXTRAS = ("spectral_ratio", "spectral_ratio_ref_hz", "spectral_peak_hz", "impacts_per_cycle_lower_bound")
@@ -105,6 +112,10 @@ def _numeric(df: pd.DataFrame, col: str, label: str, rule: str | None = None,
     if rule == "nonnegative" and (vals < 0).any():
         i = int(np.argmax(vals < 0))
         raise UserError(f"{_where(label, i + 2, col)}: must be >= 0, got {vals[i]:g}")
+    hi = RUN_UPPER.get(col) if label == "runs.csv" else None
+    if hi is not None and (np.nan_to_num(vals) > hi).any():
+        i = int(np.argmax(np.nan_to_num(vals) > hi))
+        raise UserError(f"{_where(label, i + 2, col)}: {vals[i]:g} is above {hi:g}, the largest physical value")
     return vals
 
 
@@ -156,6 +167,16 @@ def _load_runs(root: Path) -> pd.DataFrame:
     for col, rule in OPTIONAL_RUN_COLUMNS.items():
         if col in df.columns:
             out[col] = _numeric(df, col, label, rule, allow_empty=True)
+    if "record_start_s" in out.columns:
+        cycles = (out["record_start_s"].to_numpy(dtype=float) + out["duration_s"].to_numpy(dtype=float)) \
+            * out["frequency_hz"].to_numpy(dtype=float)
+        over = np.nan_to_num(cycles, nan=0.0) > MAX_FROM_REST_CYCLES
+        if over.any():
+            i = int(np.argmax(over))
+            raise UserError(f"{_where(label, i + 2, 'record_start_s')}: {out['record_start_s'].iloc[i]:g} s is "
+                            f"{cycles[i]:.3g} forcing cycles from rest to the record's end, more than the "
+                            f"{MAX_FROM_REST_CYCLES} a record from rest may span (leave the cell empty for a "
+                            "steady-state record)")
     for col in df.columns:
         if col not in out.columns:
             out[col] = df[col].to_numpy()
@@ -337,10 +358,11 @@ def known_parameters(runs: pd.DataFrame) -> dict[str, dict[str, float]]:
             if col not in spec.param_names:
                 raise UserError(f"{_where(label, i + 2, col)}: '{col}' is not a parameter of system {row['system']} "
                                 f"(known: {', '.join(p for p in spec.param_names if p not in controls)})")
-            try:
-                vals[col] = float(cell)
-            except ValueError:
-                raise UserError(f"{_where(label, i + 2, col)}: '{cell}' is not a finite number") from None
+            vals[col] = number(cell, _where(label, i + 2, col))
+            default = spec.defaults(preset or None)[col]
+            if not plausible(vals[col], default):
+                raise UserError(f"{_where(label, i + 2, col)}: {vals[col]:g} is not within a factor "
+                                f"{PLAUSIBLE_FACTOR:g} of the model's default {default:g}; not a physical value")
         ctrl = {c: row[c] for c in RUN_NUMERIC if c in spec.param_names and c != "duration_s"
                 and c in row and np.isfinite(row[c])}
         try:

@@ -50,9 +50,10 @@ def journal_path(url: str) -> str | None:
 
 
 def open_storage(url: str, heartbeat_s: int = DEFAULT_HEARTBEAT_S):
-    """Optuna storage for ``url``.  A SQLite file is opened in WAL mode with synchronous=NORMAL (several times
-    fewer fsyncs per trial); a server or journal storage with a heartbeat every ``heartbeat_s`` seconds, a grace
-    period of GRACE_FACTOR heartbeats and up to MAX_RETRY re-runs of a stale trial."""
+    """Optuna storage for ``url``, checked first with :func:`check_storage_target`.  A SQLite file is opened in WAL
+    mode with synchronous=NORMAL (several times fewer fsyncs per trial); a server or journal storage with a heartbeat
+    every ``heartbeat_s`` seconds, a grace period of GRACE_FACTOR heartbeats and up to MAX_RETRY re-runs of a stale
+    trial."""
     if is_sqlite(url):
         return _open_sqlite(url)
     if heartbeat_s is None or int(heartbeat_s) < 1:
@@ -132,6 +133,21 @@ def grace_for(storage, seconds: float):
         yield
     finally:
         setattr(storage, attr, old)
+
+
+def check_storage_target(url: str) -> None:
+    """UserError unless the file behind a ``sqlite:///`` or ``journal:///`` URL is absent, empty or optuna's own
+    (an SQLite database with optuna's tables, an optuna journal); device files, folders and FIFOs are refused.
+    Runs before optuna or the worker locks touch anything, so another application's file is never written."""
+    from pipeline.optimise.storage_files import check_journal_file, check_sqlite_file, sqlite_file
+
+    journal = journal_path(url)
+    if journal is not None:
+        check_journal_file(Path(journal), f"--storage '{url}'")
+    elif is_sqlite(url):
+        db = sqlite_file(url)
+        if db is not None:
+            check_sqlite_file(db, f"--storage '{url}'")
 
 
 class JournalHeartbeatStorage(JournalStorage, BaseHeartbeat):

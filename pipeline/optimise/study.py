@@ -76,12 +76,13 @@ def open_study(storage: str | None, name: str, objectives: list[tuple[str, str]]
     import sqlalchemy.exc
 
     from pipeline.optimise.coordination import guard_for
-    from pipeline.optimise.storages import DEFAULT_HEARTBEAT_S, open_storage
+    from pipeline.optimise.storages import DEFAULT_HEARTBEAT_S, check_storage_target, open_storage
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     directions = [d for _, d in objectives]
     objective = ",".join(n for n, _ in objectives)
     url = storage or default_storage()
+    check_storage_target(url)       # before the worker locks: a file that is not optuna's stays untouched
     try:
         with guard_for(url).lock():   # concurrent creation of a new SQLite store
             study = optuna.create_study(storage=open_storage(url, heartbeat_s or DEFAULT_HEARTBEAT_S),
