@@ -21,6 +21,13 @@ ENGINEERING: dict[str, tuple[str, str, float]] = {
     "period": ("period", "cycles", 1.0),
     "spectral_ratio": ("spectral ratio", "", 1.0),
     "Pr": ("Pr (progression threshold)", "kN", 1e-3),
+    # measured / simulated signals (time histories, spectra, bifurcation diagrams)
+    "t_s": ("time", "ms", 1e3),
+    "disp_m": ("displacement", "mm", 1e3),
+    "progression_m": ("progression", "mm", 1e3),
+    "force_n": ("contact force", "kN", 1e-3),
+    "accel_m_s2": ("acceleration", "m/s²", 1.0),
+    "peak_velocity_m_s": ("peak velocity", "m/s", 1.0),
 }
 SUFFIXES = ("_sim", "_pred", "_predicted", "_lo", "_hi", "_verified")
 """Name suffixes kept after the label: ``rop_m_s_sim`` -> ``ROP (sim) [mm/s]``."""
@@ -58,6 +65,23 @@ def factor(name: str) -> float:
         return factor(leaf[5:])
     base, _ = split(name)
     return ENGINEERING[base][2] if base in ENGINEERING else 1.0
+
+
+def set_label(ax, which: str, name: str, text: str | None = None) -> float:
+    """Label axis ``which`` ('x' or 'y') of matplotlib Axes ``ax`` with the
+    quantity ``name`` from the table (``text`` replaces the words, the unit stays); returns the factor the
+    plotted SI values must be multiplied by, so label and data take their unit from one place."""
+    base = label(name)
+    if text is not None:
+        unit = base[base.rfind(" ["):] if base.endswith("]") else ""
+        base = text + unit
+    {"x": ax.set_xlabel, "y": ax.set_ylabel}[which](base)
+    return factor(name)
+
+
+def unit_of(text: str) -> str | None:
+    """The unit in brackets at the end of an axis label (``'ROP [mm/s]'`` -> ``'mm/s'``), None without one."""
+    return text[text.rfind("[") + 1:-1] if text.endswith("]") and "[" in text else None
 
 
 def convert(name: str, value):
