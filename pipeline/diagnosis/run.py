@@ -3,9 +3,9 @@ select one only if it brings the held-out residual to the noise level (the repor
 
 Errors (all on held-out runs, never on the runs a model was fitted to):
 - ``nrms``  = sqrt(mean of squared noise-normalised residuals) — 1 means "at the noise level";
-- ``error`` = relative error: per feature group (signal or summary label) ||model - measured|| /
-  ||measured||, then the RMS over groups; ``noise_floor`` is the same quantity for the noise alone
-  (sqrt(Σ sd²) / ||measured||), so ``error`` and ``noise_floor`` compare directly.
+- ``error`` = noise-weighted relative error ||(model - measured)/sd|| / ||measured/sd||; ``noise_floor`` is the
+  same quantity for a residual of pure noise (sqrt(n) / ||measured/sd||), so ``error / noise_floor = nrms``
+  (pipeline.diagnosis.heldout).
 Ranking: ``score`` = BIC on the calibration runs, χ² + k ln n (noise sd known from the data), summed
 over folds.  Selection: the best-scoring candidate whose BIC beats the base model's by ``bic_margin``
 and whose held-out nrms is <= ``explained_nrms``; if the calibrated base model is already within
