@@ -218,8 +218,8 @@ def run(args) -> int:
         atomic_write_text(args.metrics, dump_json(headline))
         record_out_file(args.metrics, command="diagnose", kind="json")
     if not args.quiet:
-        print(dump_json(headline))
-        print(f"report: {out / 'report.md'}")
+        print("\n".join(summary_lines(report)))
+        print(f"report: {out / 'report.md'}" + (f"; headline numbers: {args.metrics}" if args.metrics else ""))
     return 0
 
 
@@ -257,6 +257,27 @@ def check_report(report: dict) -> None:
             if v is None or not math.isfinite(float(v)) or float(v) > 1e100:   # 1e100: an overflow, not a fit
                 raise UserError(f"diagnosis {key} = {v!r}: the dataset's features are degenerate "
                                 f"(the model cannot be compared with them); check the measured signals")
+
+
+VERDICT_WORDS = {"nothing missing": "nothing missing (the calibrated base model is adequate)",
+                 "unexplained": "unexplained (no §6 effect brings the model to the data)"}
+
+
+def summary_lines(report: dict) -> list[str]:
+    """A few lines per system for the terminal: the verdict, the held-out nrms before/after, error and noise floor
+    (report.md has the tables, report.json every number)."""
+    lines = []
+    for name, r in report["systems"].items():
+        verdict = f"{r['selected']} selected" if r["selected"] else VERDICT_WORDS.get(r["verdict"], r["verdict"])
+        if r.get("proposal_adopted"):
+            verdict += f"; adopted discrepancy term {' + '.join(r['proposal_adopted'])}"
+        lines.append(f"{name}: {verdict}")
+        lines.append(f"  held-out nrms {r['base_nrms']:.3g} (calibrated base) -> {r['final_nrms']:.3g} (final); "
+                     f"1 = the noise level")
+        if r["final_error"] is not None and r["noise_floor"] is not None:
+            lines.append(f"  held-out error {r['final_error']:.3g} against a noise floor of {r['noise_floor']:.3g} "
+                         f"(error / floor = nrms)")
+    return lines
 
 
 def _headline(report: dict) -> dict:
