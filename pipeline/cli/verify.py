@@ -125,8 +125,11 @@ def run(args) -> int:
             mlflow.log_metrics({k: float(v) for k, v in summary.items() if isinstance(v, (int, float))})
             for f in (res.figure, str(res.table_path), str(res.summary_path)):
                 mlflow.log_artifact(f)
+    med = summary["rop_rel_error_median"]
+    med = "n/a" if med is None else f"{100 * med:.2g} %"
+    counts = ", ".join(f"{k} {v}" for k, v in summary["status_sim_counts"].items())
     print(f"verified {summary['n_points']} point(s): surrogate wrong at {summary['n_surrogate_wrong']}, "
-          f"median ROP error {summary['rop_rel_error_median']}, statuses {summary['status_sim_counts']}")
+          f"median relative ROP error {med}, simulator statuses: {counts}")
     print(f"table: {out / 'verified.csv'}")
     return 0
 
