@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from typing import Mapping
 
+from pipeline.core.units import broken_words, point_words
 from pipeline.optimise.robustness import rop_spread
 
 UNEXPLAINED_WARNING = ("The diagnosis left the rig's residual unexplained: the recommendation rests on a model known to "
@@ -94,33 +95,6 @@ def compare(uncorrected: Mapping, corrected: Mapping, rig, diagnosis: Mapping | 
         out.update(explained=False, model_error_ratio=ratio,
                    warning=UNEXPLAINED_WARNING.format(error=err, noise=noise, ratio=ratio))
     return out
-
-
-def broken_words(broken: Mapping[str, Mapping]) -> str:
-    """``power 19.1 W over its 18 W limit`` for each broken limit (pipeline.core.units), '' for none."""
-    from pipeline.core.units import ENGINEERING
-
-    out = []
-    for name, b in broken.items():
-        label, v, lim = b.get("label"), b.get("value"), b.get("limit")
-        if label in ENGINEERING and v is not None and lim is not None:
-            words, unit, k = ENGINEERING[label]
-            out.append(f"{words} {float(v) * k:.3g} {unit} over its {float(lim) * k:g} {unit} limit")
-        else:
-            out.append({"steady_state": "not in a steady state", "progress": "does not progress"}.get(name, name))
-    return "; ".join(out)
-
-
-SYMBOLS = {"frequency_hz": "f", "amplitude_n": "F0", "amplitude_m": "amplitude", "static_force_n": "Fs"}
-"""Short names of the controls in an operating point (units from pipeline.core.units)."""
-
-
-def point_words(p: Mapping[str, float]) -> str:
-    """``f = 262 Hz, F0 = 2.7 kN, Fs = 1.79 kN``: an operating point in engineering units (pipeline.core.units)."""
-    from pipeline.core.units import ENGINEERING, factor
-
-    return ", ".join(f"{SYMBOLS.get(k, k)} = {v * factor(k):.4g} {ENGINEERING.get(k, ('', ''))[1]}".rstrip()
-                     for k, v in p.items())
 
 
 def markdown(cmp: Mapping) -> str:

@@ -4,6 +4,8 @@
 """
 from __future__ import annotations
 
+from typing import Mapping
+
 ENGINEERING: dict[str, tuple[str, str, float]] = {
     "rop_m_s": ("ROP", "mm/s", 1e3),
     "frequency_hz": ("frequency", "Hz", 1.0),
@@ -91,3 +93,26 @@ def convert(name: str, value):
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         return value
     return value * factor(name)
+
+
+def broken_words(broken: Mapping[str, Mapping]) -> str:
+    """``power 19.1 W over its 18 W limit`` for each limit a point breaks (compare's ``breaks_on_<model>``), '' for none."""
+    out = []
+    for name, b in broken.items():
+        label, v, lim = b.get("label"), b.get("value"), b.get("limit")
+        if label in ENGINEERING and v is not None and lim is not None:
+            words, unit, k = ENGINEERING[label]
+            out.append(f"{words} {float(v) * k:.3g} {unit} over its {float(lim) * k:g} {unit} limit")
+        else:
+            out.append({"steady_state": "not in a steady state", "progress": "does not progress"}.get(name, name))
+    return "; ".join(out)
+
+
+SYMBOLS = {"frequency_hz": "f", "amplitude_n": "F0", "amplitude_m": "amplitude", "static_force_n": "Fs"}
+"""Short names of the controls in an operating point (units from the table above)."""
+
+
+def point_words(p: Mapping[str, float]) -> str:
+    """``f = 262 Hz, F0 = 2.7 kN, Fs = 1.79 kN``: an operating point in engineering units."""
+    return ", ".join(f"{SYMBOLS.get(k, k)} = {v * factor(k):.4g} {ENGINEERING.get(k, ('', ''))[1]}".rstrip()
+                     for k, v in p.items())

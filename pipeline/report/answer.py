@@ -78,7 +78,7 @@ def _corrected(cl: dict) -> str | None:
         text += "; on the edge of the search space: " + _bounds_words(lim["on_bounds"])
     broken = cl.get("breaks_on_uncorrected")
     if isinstance(broken, dict) and broken:
-        from pipeline.comparison.workflow import broken_words
+        from pipeline.core.units import broken_words
 
         text += f"; on the lab model this point breaks its limits ({broken_words(broken)})"
     lab = _number(cl, ("uncorrected_rop_on_corrected_mm_s",))
