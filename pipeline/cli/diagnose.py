@@ -185,10 +185,6 @@ def run(args) -> int:
     if out.exists() and not out.is_dir():
         raise UserError(f"--out '{out}' exists and is not a directory")
     log = (lambda s: None) if args.quiet else (lambda s: tqdm.write(s, file=sys.stderr))
-    n_steps = 0
-    for system in ds.systems:
-        n = int((ds.runs["system"] == system).sum())
-        n_steps += 1 if n >= max(cfg.min_runs_holdout, 3) else n
     from dataclasses import asdict
 
     inputs = [args.dataset, args.params, args.metrics]
@@ -197,10 +193,11 @@ def run(args) -> int:
                        overwrite=args.overwrite)
     with open_executor(scheduler) as executor, \
             prepare_out(out, inputs=inputs, overwrite=args.overwrite, marker="diagnose") as tmp:
-        bar = tqdm(total=n_steps, desc="diagnose (folds)", disable=args.quiet, unit="fold", file=sys.stderr)
+        bar = StageBars(disable=args.quiet)
+        executor.on_task_done = bar.task_done
         with tracking.run("diagnose", {"dataset": args.dataset, **asdict(cfg), "scheduler": scheduler or "local"},
                           enabled=not args.no_mlflow, variant=Path(args.dataset).resolve().name) as mlflow:
-            result = diagnose(ds, cfg, log=log, progress=lambda: bar.update(1), executor=executor)
+            result = diagnose(ds, cfg, log=log, progress=bar, executor=executor)
             bar.close()
             report = result.report
             write_outputs(result, tmp)
@@ -221,6 +218,32 @@ def run(args) -> int:
         print("\n".join(summary_lines(report)))
         print(f"report: {out / 'report.md'}" + (f"; headline numbers: {args.metrics}" if args.metrics else ""))
     return 0
+
+
+class StageBars:
+    """The diagnosis's progress on stderr (``pipeline.diagnosis.progress.Progress``): one line per stage with the
+    time the last one took, and a bar of its fit tasks with tqdm's estimate of the time left."""
+
+    def __init__(self, disable: bool = False) -> None:
+        self.disable, self.bar, self.k = disable, None, 0
+
+    def stage(self, name: str, tasks: int | None = None) -> None:
+        from tqdm import tqdm
+
+        self.close()
+        self.k += 1
+        self.bar = tqdm(total=tasks, desc=f"[stage {self.k}] {name}", unit="fit", disable=self.disable,
+                        file=sys.stderr, leave=True,
+                        bar_format=None if tasks else "{desc}: {elapsed}")
+
+    def task_done(self) -> None:
+        if self.bar is not None:
+            self.bar.update(1)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
 
 
 SIGNALS_CHECKED = ("accel_m_s2", "force_n")
