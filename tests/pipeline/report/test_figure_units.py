@@ -140,3 +140,28 @@ def test_maps_and_optimisation_figures(monkeypatch, tmp_path):
                           "surrogate_wrong": [False] * 5})
     oplots.plot_verification(table, tmp_path / "v.png", "v")
     assert check_units(saved.pop(), {"rop_m_s_sim": (0.002, 0.008), "rop_m_s_pred": (0.002, 0.008)}) == 2
+
+
+def test_training_parity_plot_in_the_applications_units(monkeypatch, tmp_path):
+    """surrogate.plots draws in the display table it is given: training passes pipeline.core.units."""
+    from surrogate import plots as splots
+
+    n = 30
+    test = pd.DataFrame({"rop_m_s": RNG.uniform(0.001, 0.008, n), "peak_force_n": RNG.uniform(3000, 5000, n)})
+
+    class Bundle:
+        regressors = {t: SimpleNamespace(name="gp", domain="all", transform=SimpleNamespace(kind="linear"))
+                      for t in test.columns}
+        report: dict = {}
+
+        def predict(self, df, conditional=False):
+            out = pd.DataFrame(index=df.index)
+            for t in df.columns:
+                out[t], out[f"{t}_lo"], out[f"{t}_hi"] = df[t] * 1.01, df[t] * 0.95, df[t] * 1.05
+            return out
+
+    saved = []
+    monkeypatch.setattr(splots, "_save", lambda fig, path: saved.append(fig) or str(path))
+    splots.parity(Bundle(), test, tmp_path / "parity.png", units.ENGINEERING)
+    si = {"rop_m_s": (0.00095, 0.0084), "peak_force_n": (2850, 5250)}
+    assert check_units(saved.pop(), si) == 4
