@@ -99,8 +99,10 @@ def run(args) -> int:
     diag = _read_json(diag_file, "diagnosis report").get("rig") if diag_file.is_file() else None
     if isinstance(diag, dict) and "explained" not in diag:   # several systems: system -> entry
         diag = diag.get(rig.model)
-    with tracking.run("compare", {"uncorrected": args.uncorrected, "corrected": args.corrected, "rig": args.rig,
-                                  "samples": args.samples, "seed": args.seed}, enabled=not args.no_mlflow) as mlflow:
+    params = {"uncorrected": args.uncorrected, "corrected": args.corrected, "rig": args.rig, "samples": args.samples,
+              "seed": args.seed}
+    with tracking.chain("corrected", rig_name(args.rig)), \
+            tracking.run("compare", params, enabled=not args.no_mlflow) as mlflow:
         cmp = compare(unc, cor, rig, diag, n_samples=args.samples, seed=args.seed,
                       n_threads=check_workers(args.threads), rig_name=rig_name(args.rig))
         out = Path(args.out)

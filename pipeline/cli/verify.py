@@ -6,6 +6,7 @@ import argparse
 from pipeline.cli import args as A
 from pipeline.cli.args import add_quiet, add_rig, add_set, add_workers, check_workers, load_rig
 from pipeline.core.errors import UserError
+from pipeline.core.rigfile import rig_name
 
 EPILOG = """\
 input: a CSV or Parquet file with one row per point and the input columns (frequency_hz, amplitude_n,
@@ -115,6 +116,7 @@ def run(args) -> int:
                        constraints=cons, rel_tol=args.rel_tol, bundle=bundle, fixed=fixed, settings=settings,
                        n_threads=args.n_threads, feedback=args.feedback)
     with prepare_out(out, inputs=sources, overwrite=args.overwrite, marker="verify") as tmp, \
+            tracking.chain("corrected" if args.rig else "lab", rig_name(args.rig)), \
             tracking.run("verify", params, enabled=not args.no_mlflow) as mlflow:
         res = run_verify(cfg, tmp, progress=not args.quiet)
         summary = res.summary
