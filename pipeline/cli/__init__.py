@@ -1,6 +1,6 @@
 """``vibro``: the project's single command-line program.
 
-Each subcommand lives in its own module ``pipeline.cli.<name>`` exposing
+Each subcommand lives in its own module ``pipeline.cli.<name>`` (``import_`` for ``import``) exposing
 ``add_parser(subparsers)`` (which sets ``func``); modules are imported when the parser
 is built so ``vibro --help`` lists them all.  A command parses its arguments, calls its
 workflow (imported lazily inside its run function, so ``--help`` stays fast) and logs.
@@ -22,8 +22,11 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 from pipeline.core.errors import USER_ERRORS, machine_error, show_warnings  # noqa: E402
 
-SUBCOMMANDS = ("simulate", "sweep", "train", "optimise", "verify", "diagnose", "synth", "map", "report", "models",
-               "compare", "compile")
+QUIET_ENV = "VIBRO_QUIET"      # read by sim/compile_notice.py (not imported here: --help stays fast)
+SUBCOMMANDS = ("simulate", "sweep", "train", "optimise", "verify", "import", "diagnose", "synth", "map", "report",
+               "models", "compare", "compile")
+MODULE_OF = {"import": "import_"}
+"""Subcommands whose module name differs (``import`` is a Python keyword)."""
 
 
 def version() -> str:
@@ -68,9 +71,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="SUBCOMMAND")
     for name in SUBCOMMANDS:
         try:
-            mod = importlib.import_module(f"pipeline.cli.{name}")
+            mod = importlib.import_module(f"pipeline.cli.{MODULE_OF.get(name, name)}")
         except ModuleNotFoundError as e:
-            if e.name == f"pipeline.cli.{name}":
+            if e.name == f"pipeline.cli.{MODULE_OF.get(name, name)}":
                 continue
             raise
         mod.add_parser(sub)
@@ -104,6 +107,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     t0 = time.perf_counter()
+    quiet_before = os.environ.get(QUIET_ENV)
+    if getattr(args, "quiet", False):      # no compile notice either, in this process and its workers
+        os.environ[QUIET_ENV] = "1"
     try:
         with warnings.catch_warnings(record=True) as caught:     # shown after success, never before an error
             warnings.simplefilter("default")
@@ -132,5 +138,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"vibro {args.command}: internal error: {type(e).__name__}: {e} (rerun with --debug for details)",
               file=sys.stderr)
         return 1
+    finally:
+        if quiet_before is None:
+            os.environ.pop(QUIET_ENV, None)
+        else:
+            os.environ[QUIET_ENV] = quiet_before
 
 

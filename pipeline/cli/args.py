@@ -209,14 +209,48 @@ def load_rig(path: str | None, model: str | None = None, preset: str | None = No
     return rig
 
 
+PLAUSIBLE_FACTOR = 1e6
+"""A ``--set`` value lies within this factor of the model's default (the factor runs.csv values and searched ranges
+are held to): ``frequency_hz=1e9`` judged a 'steady state' on 0.4 µs, ``M1=1e300`` a round-off power."""
+
+
+def check_plausible(model: str, preset: str | None, sets: dict[str, float], flag: str = "--set") -> None:
+    """UserError naming ``flag`` and the parameter when a value is not within :data:`PLAUSIBLE_FACTOR` of the
+    default (of ``preset``): 0 and a parameter whose default is 0 are always allowed.  Unknown names, models and
+    presets are left to the simulator's own checks."""
+    import math
+
+    import sim
+
+    if model not in sim.model_names():
+        return
+    spec = sim.get_model(model)
+    try:
+        defaults = spec.defaults(preset)
+    except sim.ParameterError:
+        return
+    for name, v in sets.items():
+        d = defaults.get(name)
+        if d is None or not isinstance(v, (int, float)) or not math.isfinite(v) or v == 0 or d == 0:
+            continue
+        if not abs(d) / PLAUSIBLE_FACTOR <= abs(v) <= abs(d) * PLAUSIBLE_FACTOR:
+            where = f"preset {preset}'s" if preset else "the model's default"
+            raise UserError(f"{flag} {name}={v:g}: not within a factor {PLAUSIBLE_FACTOR:g} of {where} {d:g}; "
+                            f"not a physical value for {model}")
+
+
 def model_and_overrides(model: str | None, preset: str | None, rig_path: str | None,
                         sets: dict[str, float]) -> tuple[str, str | None, dict[str, float]]:
-    """(model, preset, parameter overrides) of a command: the rig file's, then ``sets`` on top."""
+    """(model, preset, parameter overrides) of a command: the rig file's, then ``sets`` on top (each within
+    :data:`PLAUSIBLE_FACTOR` of its default)."""
     rig = load_rig(rig_path, model, preset)
     if rig is None:
         if not model:
             raise UserError("give a MODEL (e.g. drill; 'vibro models' lists them) or --rig FILE")
-        return model, (None if preset is not None and str(preset).lower() == "none" else preset), dict(sets)
+        preset = None if preset is not None and str(preset).lower() == "none" else preset
+        check_plausible(model, preset, sets)
+        return model, preset, dict(sets)
+    check_plausible(rig.model, rig.preset, sets)
     return rig.model, rig.preset, {**rig.overrides(), **sets}
 
 

@@ -47,9 +47,9 @@ def _read_json(path, what: str) -> dict:
     import json
     from pathlib import Path
 
-    f = Path(path)
-    if not f.is_file():
-        raise UserError(f"{what} {f}: not found")
+    from pipeline.core.bounded import MAX_TEXT_BYTES, check_input_file
+
+    f = check_input_file(path, what, MAX_TEXT_BYTES)
     try:
         doc = json.loads(f.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as e:

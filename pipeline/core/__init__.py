@@ -7,6 +7,8 @@ names.py     sweep statuses (from ``sim.statuses``), the objective's sense and d
 jsonable.py  JSON-safe conversion and the nested-dict flattener, from ``sim.jsonable``
 dask_client.py  a Dask scheduler address (tcp://host:port or local:N) checked and connected
 executors.py    batches of independent tasks run in this process or on a Dask cluster, results in order
+units.py        engineering units for people; a lab's units to SI (``SI_UNITS``, ``column_factor``)
+optional.py     ``try_import``: an optional third-party package guarded once
 
 The range <-> unit-interval mapping is ``sim.unitcube``; the surrogate's regimes and targets are
 ``surrogate.names``.  It imports nothing of the project but ``sim`` (for ParameterError and LABELS).

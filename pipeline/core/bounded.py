@@ -34,6 +34,18 @@ def check_size(path: str | os.PathLike, limit: int, what: str) -> None:
         raise UserError(f"{what} {p}: {st.st_size} bytes, more than the {limit // 2**20} MiB a {what} may hold")
 
 
+def check_input_file(path: str | os.PathLike, what: str, limit: int = MAX_CSV_BYTES) -> Path:
+    """``path`` as a Path when it is a regular file of at most ``limit`` bytes; UserError naming ``what``: "not
+    found" only when nothing is there (a FIFO, a device or a folder is named as such, not as missing)."""
+    p = Path(path)
+    if not p.exists() and not p.is_symlink():
+        raise UserError(f"{what} {p}: file not found")
+    if p.is_symlink() and not p.exists():
+        raise UserError(f"{what} {p}: a broken symbolic link")
+    check_size(p, limit, what)
+    return p
+
+
 def read_text_capped(path: str | os.PathLike, label: str, limit: int = MAX_TEXT_BYTES) -> str:
     """The UTF-8 text of ``path``, read up to ``limit`` bytes; UserError starting with ``label`` when it
     is longer, not text, or a folder."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 import errno
 import re
 
+from pipeline.core.optional import MissingPackage
 from sim.errors import ParameterError
 
 
@@ -11,7 +12,7 @@ class UserError(ValueError):
     """Bad input (file, column, option) — the message says what and where."""
 
 
-USER_ERRORS = (UserError, ParameterError, FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError)
+USER_ERRORS = (UserError, ParameterError, MissingPackage, FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError)
 
 MACHINE_ERRNOS = {
     errno.ENOSPC: "no space left on device", errno.EDQUOT: "disk quota exceeded", errno.EROFS: "read-only file system",

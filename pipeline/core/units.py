@@ -1,10 +1,14 @@
 """Engineering units for people: reports and commands show mm/s, kN, W, g instead of the code's SI names.
 
 ``ENGINEERING[name] = (label, unit, factor)``: a value of column/key ``name`` [SI] times ``factor`` is in ``unit``.
+The other way, for data that arrive in a lab's units (``vibro import``): ``SI_UNITS[unit] = (quantity, size in SI)``,
+``column_factor('force_n', 'kN') == 1000``; an unknown unit raises ``UnitError`` with a did-you-mean.
 """
 from __future__ import annotations
 
 from typing import Mapping
+
+from sim.layout import G_ACCEL
 
 ENGINEERING: dict[str, tuple[str, str, float]] = {
     "rop_m_s": ("ROP", "mm/s", 1e3),
@@ -116,3 +120,83 @@ def point_words(p: Mapping[str, float]) -> str:
     """``f = 262 Hz, F0 = 2.7 kN, Fs = 1.79 kN``: an operating point in engineering units."""
     return ", ".join(f"{SYMBOLS.get(k, k)} = {v * factor(k):.4g} {ENGINEERING.get(k, ('', ''))[1]}".rstrip()
                      for k, v in p.items())
+
+
+# ------------------------------------------------------------------------------------------ units to SI
+G = G_ACCEL
+"""[m/s²] per g: the project's one value (``sim.layout.G_ACCEL``, the one ``peak_decel_g`` is computed with), so a
+peak read in g comes back as the same number of g; standard gravity 9.80665 differs by 0.03 %."""
+
+SI_UNITS: dict[str, tuple[str, float]] = {
+    # time [s]
+    "s": ("time", 1.0), "ms": ("time", 1e-3), "us": ("time", 1e-6), "µs": ("time", 1e-6), "μs": ("time", 1e-6),
+    "ns": ("time", 1e-9), "min": ("time", 60.0),
+    # frequency [Hz]
+    "Hz": ("frequency", 1.0), "kHz": ("frequency", 1e3),
+    # acceleration [m/s²]
+    "m/s2": ("acceleration", 1.0), "m/s^2": ("acceleration", 1.0), "m/s²": ("acceleration", 1.0),
+    "mm/s2": ("acceleration", 1e-3), "mm/s^2": ("acceleration", 1e-3), "mm/s²": ("acceleration", 1e-3),
+    "g": ("acceleration", G),
+    # force [N]
+    "N": ("force", 1.0), "kN": ("force", 1e3), "mN": ("force", 1e-3), "MN": ("force", 1e6),
+    "lbf": ("force", 4.4482216152605),
+    # length [m]
+    "m": ("length", 1.0), "cm": ("length", 1e-2), "mm": ("length", 1e-3), "um": ("length", 1e-6),
+    "µm": ("length", 1e-6), "μm": ("length", 1e-6), "in": ("length", 0.0254),
+    # velocity [m/s] (rate of penetration)
+    "m/s": ("velocity", 1.0), "mm/s": ("velocity", 1e-3), "m/min": ("velocity", 1 / 60),
+    "mm/min": ("velocity", 1e-3 / 60), "m/h": ("velocity", 1 / 3600), "ft/h": ("velocity", 0.3048 / 3600),
+    # a count or ratio
+    "1": ("dimensionless", 1.0), "-": ("dimensionless", 1.0),
+}
+"""Unit name -> (quantity, its size in the quantity's SI unit): a value in ``unit`` times the factor is SI."""
+
+QUANTITY_OF: dict[str, tuple[str, float]] = {
+    "t_s": ("time", 1.0), "accel_m_s2": ("acceleration", 1.0), "force_n": ("force", 1.0), "disp_m": ("length", 1.0),
+    "progression_m": ("length", 1.0), "frequency_hz": ("frequency", 1.0), "amplitude_n": ("force", 1.0),
+    "amplitude_m": ("length", 1.0), "static_force_n": ("force", 1.0), "gap_m": ("length", 1.0),
+    "duration_s": ("time", 1.0), "record_start_s": ("time", 1.0), "rop_m_s": ("velocity", 1.0),
+    "peak_force_n": ("force", 1.0), "peak_decel_g": ("acceleration", G), "impacts_per_cycle": ("dimensionless", 1.0),
+}
+"""A column of the measured format (MODELS.md §7) -> (quantity, size of its unit in SI): ``peak_decel_g`` is in g."""
+
+
+class UnitError(ValueError):
+    """A unit that is unknown or of the wrong quantity (the message names the unit, not the file)."""
+
+
+def _norm(unit: str) -> str:
+    return "".join(str(unit).split()).replace("**", "^")
+
+
+def _suggest(unit: str, quantity: str | None) -> str:
+    import difflib
+
+    pool = [u for u, (q, _) in SI_UNITS.items() if quantity is None or q == quantity]
+    close = [u for u in pool if u.lower() == unit.lower()] or difflib.get_close_matches(unit, pool, n=1, cutoff=0.6)
+    known = f"{quantity} units: {', '.join(pool)}" if quantity else "units: pipeline/core/units.py SI_UNITS"
+    return f"({'did you mean ' + repr(close[0]) + '? ' if close else ''}{known})"
+
+
+def _a(word: str) -> str:
+    return ("an " if word[0] in "aeiou" else "a ") + word
+
+
+def si_factor(unit: str, quantity: str | None = None) -> float:
+    """Size of ``unit`` in SI (e.g. ``kN`` -> 1000); UnitError when unknown or not a ``quantity`` unit."""
+    key = _norm(unit)
+    if key not in SI_UNITS:
+        raise UnitError(f"unknown unit '{unit}' {_suggest(key, quantity)}")
+    q, f = SI_UNITS[key]
+    if quantity is not None and q != quantity:
+        raise UnitError(f"unit '{unit}' is {_a(q)} unit, not {_a(quantity)} unit {_suggest(key, quantity)}")
+    return f
+
+
+def column_factor(column: str, unit: str) -> float:
+    """Factor from ``unit`` to the unit of measured-format column ``column`` (``force_n`` from ``kN``: 1000;
+    ``peak_decel_g`` from ``m/s2``: 1/G); UnitError for a unit of another quantity or a column with no unit."""
+    if column not in QUANTITY_OF:
+        raise UnitError(f"column '{column}' has no known unit; give it as a plain number")
+    quantity, size = QUANTITY_OF[column]
+    return si_factor(unit, quantity) / size

@@ -6,5 +6,6 @@ compute.py       one chunk simulated (what a backend runs)
 runner.py        ``run_sweep`` on a backend (``LocalBackend``; any object with ``run(spec, chunks, write)``)
 dask_backend.py  ``DaskBackend``: chunks as tasks on a Dask cluster
 measured.py      measured rig data (MODELS.md §7): reader and writer
+fieldformats/    rig files (TDMS, HDF5, MATLAB .mat, CSV with units) -> §7 through a mapping (vibro import)
 plot.py          the sweep's overview figure
 """

@@ -36,6 +36,10 @@ CONTROL_COLUMNS = ("amplitude_n", "amplitude_m", "static_force_n")
 """Controls needed only by the runs whose model has them as a parameter."""
 OPTIONAL_RUN_COLUMNS = {"record_start_s": "nonnegative"}
 """Optional numeric runs.csv columns; an empty cell means 'not given' for that run (record in steady state)."""
+MAX_RUNS = 500
+"""Most runs (rows of runs.csv, hence of summary.csv) of a measured dataset: a rig campaign holds tens; a diagnosis
+simulates every run at every fit step and its memory grows with the runs (2000 summary runs passed 2 GB, 500 stayed
+under 1 GB; 100 000 ended in std::bad_alloc)."""
 SERIES_SIGNALS = ("accel_m_s2", "force_n", "disp_m", "progression_m")
 SUMMARY_FEATURES = ("rop_m_s", "peak_force_n", "peak_decel_g", "impacts_per_cycle")
 SUMMARY_EXTRAS = ("spectral_ratio", "spectral_ratio_ref_hz", "spectral_peak_hz", "impacts_per_cycle_lower_bound")
@@ -66,9 +70,9 @@ def _where(file: str, line: int, column: str) -> str:
 
 
 def _read_csv(path: Path, label: str) -> pd.DataFrame:
-    if not path.is_file():
+    if not path.exists():
         raise UserError(f"{label}: file not found ({path})")
-    check_size(path, MAX_CSV_BYTES, label)
+    check_size(path, MAX_CSV_BYTES, label)          # a folder, device or FIFO is named as such
     try:
         df = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
     except pd.errors.EmptyDataError:
@@ -83,10 +87,10 @@ def _read_csv(path: Path, label: str) -> pd.DataFrame:
 
 
 def _numeric(df: pd.DataFrame, col: str, label: str, rule: str | None = None,
-             allow_empty: bool | np.ndarray = False) -> np.ndarray:
+             allow_empty: bool | np.ndarray = False, first_row: int = 0) -> np.ndarray:
     """Column as float; the first bad cell raises an error naming file, line and column.
     ``allow_empty``: an empty cell means "not measured" / "not needed" (NaN in memory); a boolean
-    array allows it row by row."""
+    array allows it row by row.  ``first_row``: the data row ``df`` starts at (a chunk of a longer file)."""
     raw = df[col].astype(str).str.strip()
     vals = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
     empty = (raw == "").to_numpy()
@@ -94,7 +98,7 @@ def _numeric(df: pd.DataFrame, col: str, label: str, rule: str | None = None,
     if bad.any():
         i = int(np.argmax(bad))
         what = "empty" if raw.iloc[i] == "" else f"'{raw.iloc[i]}' is not a finite number"
-        raise UserError(f"{_where(label, i + 2, col)}: {what}")
+        raise UserError(f"{_where(label, first_row + i + 2, col)}: {what}")
     if rule == "positive" and (vals <= 0).any():
         i = int(np.argmax(vals <= 0))
         raise UserError(f"{_where(label, i + 2, col)}: must be > 0, got {vals[i]:g}")
@@ -115,6 +119,9 @@ def _load_runs(root: Path) -> pd.DataFrame:
                         f"(required: {', '.join(RUN_COLUMNS)})")
     if df.empty:
         raise UserError(f"{label}: no runs (the file has a header but no rows)")
+    if len(df) > MAX_RUNS:
+        raise UserError(f"{label}: {len(df)} runs, more than the {MAX_RUNS} a measured dataset may hold (MAX_RUNS: "
+                        f"each run is simulated at every step of a diagnosis); split the dataset")
     out = pd.DataFrame({"run_id": df["run_id"].str.strip(), "system": df["system"].str.strip()})
     for i, rid in enumerate(out["run_id"]):
         if not _RUN_ID.match(rid):
@@ -155,17 +162,57 @@ def _load_runs(root: Path) -> pd.DataFrame:
     return out
 
 
-def _load_series(path: Path, rid: str) -> pd.DataFrame:
+MAX_SERIES_SAMPLES = 2**24
+"""Most samples (rows) of one series file: 16.8 M, 28 min at 10 kHz.  What is kept is 8 bytes per sample and
+column (at most 5 columns: 670 MB); the text is read in chunks of :data:`SERIES_CHUNK_ROWS` rows."""
+MAX_TOTAL_SAMPLES = 2**25
+"""Most samples of all series of a dataset together (at most 1.3 GB of floats)."""
+SERIES_CHUNK_ROWS = 2**18
+"""Rows parsed at a time: the text of one chunk (tens of MB) is all a series costs beyond its floats."""
+
+
+def _load_series(path: Path, rid: str, budget: int = MAX_SERIES_SAMPLES) -> pd.DataFrame:
+    """Series ``path`` as floats, read chunk by chunk; refused as soon as it passes ``budget`` samples."""
     label = f"series/{rid}.csv"
-    df = _read_csv(path, label)
-    if "t_s" not in df.columns:
-        raise UserError(f"{label}: missing required column 't_s'")
-    signals = [c for c in SERIES_SIGNALS if c in df.columns]
-    if not signals:
-        raise UserError(f"{label}: no signal column (need at least one of {', '.join(SERIES_SIGNALS)})")
-    if len(df) < 16:
-        raise UserError(f"{label}: only {len(df)} samples (need at least 16)")
-    out = pd.DataFrame({c: _numeric(df, c, label) for c in ["t_s", *signals]})
+    if not path.exists():
+        raise UserError(f"{label}: file not found ({path})")
+    check_size(path, MAX_CSV_BYTES, label)
+    limit = min(budget, MAX_SERIES_SAMPLES)
+    dup = duplicate_csv_column(path)
+    if dup:
+        raise UserError(f"{label}: column '{dup}' appears more than once")
+    parts: dict[str, list[np.ndarray]] = {}
+    n = 0
+    try:
+        reader = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True,
+                             chunksize=SERIES_CHUNK_ROWS)
+        for chunk in reader:
+            chunk.columns = [str(c).strip() for c in chunk.columns]
+            if not parts:
+                if "t_s" not in chunk.columns:
+                    raise UserError(f"{label}: missing required column 't_s'")
+                signals = [c for c in SERIES_SIGNALS if c in chunk.columns]
+                if not signals:
+                    raise UserError(f"{label}: no signal column (need at least one of {', '.join(SERIES_SIGNALS)})")
+                parts = {c: [] for c in ["t_s", *signals]}
+            if n + len(chunk) > limit:
+                raise UserError(f"{label}: more than {limit} samples (the most "
+                                f"{'one series' if limit == MAX_SERIES_SAMPLES else 'the rest of the dataset'} "
+                                f"may hold; MAX_SERIES_SAMPLES {MAX_SERIES_SAMPLES}, all series together "
+                                f"MAX_TOTAL_SAMPLES {MAX_TOTAL_SAMPLES})")
+            for c in parts:
+                parts[c].append(_numeric(chunk, c, label, first_row=n))
+            n += len(chunk)
+    except pd.errors.EmptyDataError:
+        raise UserError(f"{label}: file is empty") from None
+    except (pd.errors.ParserError, UnicodeDecodeError) as e:
+        raise UserError(f"{label}: not a readable CSV file ({str(e).splitlines()[0]})") from None
+    if not parts:         # a header and no rows
+        raise UserError(f"{label}: only 0 samples (need at least 16)")
+    if n < 16:
+        raise UserError(f"{label}: only {n} samples (need at least 16)")
+    out = pd.DataFrame({c: np.concatenate(v) if len(v) > 1 else v[0] for c, v in parts.items()})
+    del parts
     t = out["t_s"].to_numpy()
     dt = np.diff(t)
     if (dt <= 0).any():
@@ -245,12 +292,14 @@ def load_dataset(path: str | os.PathLike) -> Dataset:
     series: dict[str, pd.DataFrame] = {}
     sdir = root / "series"
     if sdir.exists():
+        left = MAX_TOTAL_SAMPLES
         for f in sorted(sdir.iterdir()):
             if f.suffix != ".csv":
                 continue
             if f.stem not in ids:
                 raise UserError(f"series/{f.name}: run '{f.stem}' is not in runs.csv")
-            series[f.stem] = _load_series(f, f.stem)
+            series[f.stem] = _load_series(f, f.stem, budget=left)
+            left -= len(series[f.stem])
     _check_durations(runs, series)
     summary = _load_summary(root, ids)
     known = known_parameters(runs)

@@ -47,6 +47,11 @@ def harmonic_count(frequency_hz: float, max_harmonic_hz: float) -> int:
     return max(1, int(math.floor(max_harmonic_hz / frequency_hz + 1e-9)))
 
 
+MAX_DESIGN_CELLS = 2**25
+"""Most cells (samples x columns) of one record's least-squares design: 268 MB, a few times that while its
+pseudo-inverse is formed, so a diagnosis of long records stays within a few GB."""
+
+
 def check_resolution(run_id: str, t: np.ndarray, f: float, k_max: int) -> None:
     """One clear line if the record cannot resolve ``k_max`` harmonics of ``f`` (Nyquist) or is shorter
     than MIN_CYCLES forcing cycles."""
@@ -56,6 +61,12 @@ def check_resolution(run_id: str, t: np.ndarray, f: float, k_max: int) -> None:
     if cycles < MIN_CYCLES:
         raise UserError(f"series/{run_id}.csv: the record holds {cycles:.2f} forcing cycles of {f:g} Hz "
                         f"({t[-1] - t[0] + dt:.4g} s); need at least {MIN_CYCLES:g}")
+    cells = t.size * (2 * k_max + DRIFT_DEGREE + 1)
+    if cells > MAX_DESIGN_CELLS:
+        raise UserError(f"series/{run_id}.csv: {t.size} samples x {2 * k_max + DRIFT_DEGREE + 1} harmonic columns "
+                        f"make a least-squares design of {cells:.3g} cells, more than the {MAX_DESIGN_CELLS} a "
+                        f"diagnosis holds (MAX_DESIGN_CELLS, 8 bytes each); resample the record, shorten it, or lower "
+                        f"diagnose.max_harmonic_hz")
     if k_max * f >= fs / 2:
         raise UserError(f"series/{run_id}.csv: sampling rate {fs:.6g} Hz cannot resolve harmonic {k_max} of "
                         f"{f:g} Hz ({k_max * f:g} Hz >= Nyquist {fs / 2:.6g} Hz); record at > {2 * k_max * f:g} Hz "

@@ -10,6 +10,8 @@
 """
 from __future__ import annotations
 
+import contextlib
+import math
 import time
 import warnings
 from pathlib import Path
@@ -110,6 +112,26 @@ def _open_journal(url: str, path: str, hb: dict):
                                        hb["heartbeat_stale_trial_callback"])
     except OSError as e:
         raise UserError(f"--storage '{url}': {e.strerror or e}") from None
+
+
+def grace_of(storage) -> float:
+    """The grace period [s] of a heartbeat storage (an RDB server's or a journal's)."""
+    if isinstance(storage, JournalHeartbeatStorage):
+        return storage.grace_s
+    grace = getattr(storage, "grace_period", None)
+    return float(grace if grace is not None else 2 * (storage.get_heartbeat_interval() or 0))
+
+
+@contextlib.contextmanager
+def grace_for(storage, seconds: float):
+    """``storage`` judging stale trials with a grace of ``seconds`` (whole, rounded up) inside the block."""
+    attr = "grace_s" if isinstance(storage, JournalHeartbeatStorage) else "grace_period"
+    old = getattr(storage, attr, None)
+    setattr(storage, attr, int(math.ceil(seconds)))
+    try:
+        yield
+    finally:
+        setattr(storage, attr, old)
 
 
 class JournalHeartbeatStorage(JournalStorage, BaseHeartbeat):

@@ -186,18 +186,18 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
                 if not trials:
                     continue
                 X = pd.DataFrame([t.params for t in trials], columns=space.names)
-                with guard.beating(study, trials):
+                with guard.beating(study, trials):      # beating until told: a slow tell is not a dead worker
                     out = evaluate(X)
-                for t, row in zip(trials, out.to_dict("records")):
-                    try:
-                        t.set_user_attr("labels", {k: _clean(row[k]) for k in ATTR_KEYS if k in row})
-                        for key, val in constraints.values(row).items():
-                            t.set_constraint(key, val)
-                        study.tell(t, _objective_values(row, objectives))
-                    except optuna.exceptions.UpdateFinishedTrialError:
-                        continue        # failed as stale meanwhile (a stalled worker): its retry runs instead
-                    ran += 1
-                    bar.update(1)
+                    for t, row in zip(trials, out.to_dict("records")):
+                        try:
+                            t.set_user_attr("labels", {k: _clean(row[k]) for k in ATTR_KEYS if k in row})
+                            for key, val in constraints.values(row).items():
+                                t.set_constraint(key, val)
+                            study.tell(t, _objective_values(row, objectives))
+                        except optuna.exceptions.UpdateFinishedTrialError:
+                            continue        # failed as stale meanwhile (a stalled worker): its retry runs instead
+                        ran += 1
+                        bar.update(1)
             except BaseException:
                 for t in trials:
                     try:

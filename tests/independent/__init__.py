@@ -11,5 +11,8 @@ a real rig makes (``noise.py``).  Out-of-library physics (``outside.py``) gives 
                   quantisation) and summary columns (rounded, or with a stated precision)
     outside.py    physics outside MODELS.md §6 (accelerometer mount resonance, quadratic damping, a contact
                   force with a power-law term, a hidden mode in the load path; dynamics in ``dynamics.py``)
-    generator.py  ``generate(LogSpec, out_dir)``: a §7 directory and the truth, kept apart
+    daq.py        the data-acquisition chain a log may pass through (``LogSpec(daq=DaqChain(...))``): anti-alias
+                  filter on the continuous signal (compensated or not), sample-clock error, ADC saturation, hum
+    generator.py  ``generate(LogSpec, out_dir)``: a §7 directory and the truth, kept apart; also a command,
+                  ``python -m tests.independent.generator SYSTEM OUT_DIR [--daq NAME ...]``
 """

@@ -10,6 +10,17 @@ Runs: every frequency at every level of the rig; records from rest (``record_sta
 in steady state; DAQ rates and record lengths cycled over the runs (not whole cycles, not multiples of f); two runs
 are logged as summaries only (their labels over a whole-cycle record: the rig software's numbers), and the 2nd series run and every
 ``drop_signal_every``-th after it lost its second channel.
+
+``LogSpec(daq=DaqChain(...))`` passes every series through a data-acquisition chain (``daq.py``: hum, anti-alias
+filter on the continuous signal, compensated or not, sample-clock error, the noise model, ADC saturation and
+quantisation, in that order) and declares it in runs.csv (``daq_filter``, ``daq_delay_s``, ``daq_delay_removed``,
+``daq_clock_ppm``) unless ``declared=False``; without a chain (or with one that does nothing) the files are those of
+the generator before the chain existed.
+
+Command: ``python -m tests.independent.generator SYSTEM OUT_DIR [--effect E] [--outside O] [--noise N] [--seed S]
+[--n-runs N] [--daq NAME] [--filter butter|ellip|fir|none] [--order N] [--cutoff F] [--compensated]
+[--clock-ppm P] [--clip CH=FRACTION ...] [--clip-range CH=RANGE ...] [--hum-hz 50] [--hum CH=A1,A2,...]
+[--channel-delay CH=SECONDS ...] [--no-declared] [--truth PATH]`` (``--help``).
 """
 from __future__ import annotations
 
@@ -22,6 +33,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from tests.independent import daq as D
 from tests.independent.noise import NOISE_MODELS
 from tests.independent.outside import OUTSIDE, measured_accel, model_for
 from tests.independent.rigs import RIGS, Rig
@@ -43,12 +55,19 @@ class LogSpec:
     n_runs: int | None = None          # use the first n runs of the grid (spread over it), None: all
     effect_scale: float = 1.0          # multiplies the effect's visible strength
     overrides: dict = field(default_factory=dict)   # rig parameters to set in the truth (e.g. two effects)
+    daq: D.DaqChain | None = None      # the data-acquisition chain (``daq.py``); None: samples of the physics
+
+    @property
+    def chain(self) -> D.DaqChain | None:
+        """The DAQ chain if it changes anything, else None."""
+        return None if self.daq is None or self.daq.is_off else self.daq
 
     @property
     def name(self) -> str:
         what = self.effect or (f"outside-{self.outside}" if self.outside else "control")
         runs = "" if self.n_runs is None else f"-n{self.n_runs}"
-        return f"{self.system}-{what}-{self.noise}-s{self.seed}{runs}"
+        daq = "" if self.chain is None else f"-{self.chain.name}"
+        return f"{self.system}-{what}-{self.noise}{daq}-s{self.seed}{runs}"
 
 
 def true_parameters(rig: Rig, spec: LogSpec) -> dict:
@@ -98,6 +117,8 @@ def _run(rig: Rig, spec: LogSpec, truth: dict, i: int, f: float, level: float, s
         nw = max(int(round(duration * f)), 4)
         out = reference_run(model, params, k0, nw, rtol=RTOL)
         row.update(duration_s=nw * T, record_start_s=None if rs is None else k0 * T)
+        if spec.chain is not None:            # the DAQ declares its chain for every run
+            row.update(D.runs_columns(spec.chain, D.design(spec.chain, fs), fs))
         labels = {k: float(out[k]) for k in rig.summary_labels}
         if spec.outside in OUTSIDE and OUTSIDE[spec.outside].measurement:
             labels.pop("peak_decel_g", None)      # the rig software's deceleration comes from the mounted sensor
@@ -105,7 +126,35 @@ def _run(rig: Rig, spec: LogSpec, truth: dict, i: int, f: float, level: float, s
     n = int(round(duration * fs))
     t_rec = np.arange(n) / fs
     start = (rs if rs is not None else settle * T)
-    times = start + t_rec
+    chain = spec.chain
+    row.update(duration_s=duration, record_start_s=rs)
+    filt = None
+    if chain is not None:
+        filt = D.design(chain, fs)
+        row.update(D.runs_columns(chain, filt, fs))
+    if chain is not None and chain.times_change:
+        sig, at, daq = _chain_signals(spec, chain, filt, model, params, truth, start, fs, n, T, rs is not None)
+    else:
+        times = start + t_rec
+        sig = _plain_signals(spec, model, params, truth, start, times, fs, n, T, rs is not None, duration)
+        at = {ch: times for ch in sig}
+        daq = {}
+    if chain is not None:
+        daq.update(filter=D.declared_filter(chain, filt, fs), dc_delay_s=0.0 if filt is None else filt.dc_delay(),
+                   compensated=bool(chain.compensated and filt is not None), clock_ppm=chain.clock_ppm)
+        if chain.hum:
+            phases = D.hum_phases(chain, np.random.default_rng([spec.seed, 13, i]))
+            for ch in sig:
+                if ch in chain.hum:
+                    sig[ch] = np.asarray(sig[ch], dtype=float) + D.hum_at(chain, ch, phases[ch], at[ch], filt)
+            daq.update(hum_hz=chain.hum_hz, hum_amplitudes={k: list(v) for k, v in chain.hum.items()},
+                       hum_phases_rad=phases)
+    return {"row": row, "t": t_rec, "signals": sig, "fs": fs, "daq": daq}
+
+
+def _plain_signals(spec: LogSpec, model, params: dict, truth: dict, start: float, times: np.ndarray, fs: float,
+                   n: int, T: float, from_rest: bool, duration: float) -> dict:
+    """The signals sampled at the instants ``times`` [s] on the dense output (no filter, a nominal clock)."""
     warm = OUTSIDE[spec.outside].warmup_s(truth) if spec.outside in OUTSIDE and OUTSIDE[spec.outside].measurement else 0.0
     n_cycles = int(math.ceil((start + duration) / T)) + 1
     fine = None
@@ -120,14 +169,118 @@ def _run(rig: Rig, spec: LogSpec, truth: dict, i: int, f: float, level: float, s
         out = reference_run(model, params, 0, n_cycles, rtol=RTOL, sample_times=times)
     smp = out["samples"]
     if fine is not None:
-        a = measured_accel(spec.outside, truth, smp["t_s"], smp["vel_m_s"], from_rest=rs is not None)
+        a = measured_accel(spec.outside, truth, smp["t_s"], smp["vel_m_s"], from_rest=from_rest)
         j = np.searchsorted(smp["t_s"], times - 0.25 / (fs * 8))
         smp = {k: np.asarray(v)[j] for k, v in smp.items()}
         smp["accel_m_s2"] = a[j]
-    sig = {"accel_m_s2": smp["accel_m_s2"], "force_n": smp["force_n"], "disp_m": smp["disp_m"],
-           "progression_m": smp["progression_m"]}
-    row.update(duration_s=duration, record_start_s=rs)
-    return {"row": row, "t": t_rec, "signals": sig, "fs": fs}
+    return {"accel_m_s2": smp["accel_m_s2"], "force_n": smp["force_n"], "disp_m": smp["disp_m"],
+            "progression_m": smp["progression_m"]}
+
+
+def _chain_signals(spec: LogSpec, chain: D.DaqChain, filt: D.AnalogFilter | D.FirFilter | None, model,
+                   params: dict, truth: dict, start: float, fs: float, n: int, T: float,
+                   from_rest: bool) -> tuple[dict, dict, dict]:
+    """The signals through the chain's filter sampled at the DAQ's instants: true time start + clock (k / fs + tau_c)
+    - the channel's own delay, tau_c the DC group delay when compensated (``daq.py``).  Returns (signals, true
+    sample times per channel, truth notes)."""
+    eps = chain.clock
+    tau_c = filt.dc_delay() if (filt is not None and chain.compensated) else 0.0
+    times = start + eps * (np.arange(n) / fs + tau_c)
+    groups: dict[float, list[str]] = {}
+    for ch in D.CHANNELS:
+        groups.setdefault(float(chain.channel_delay_s.get(ch, 0.0)), []).append(ch)
+    sig, at, notes = {}, {}, {"first_sample_true_s": float(times[0]), "sample_interval_true_s": eps / fs}
+    for d, chs in groups.items():
+        got, grid = _sample_through(spec, chain, filt, model, params, truth, times - d, fs, n, T, from_rest, chs)
+        sig.update(got)
+        at.update({ch: times - d for ch in chs})
+        if grid is not None and d == 0.0:
+            notes.update(grid_step_s=float(grid[1] - grid[0]), grid_start_s=float(grid[0]))
+    if chain.channel_delay_s:
+        notes["channel_delay_s"] = {ch: float(v) for ch, v in chain.channel_delay_s.items()}
+    return sig, at, notes
+
+
+def _sample_through(spec: LogSpec, chain: D.DaqChain, filt: D.AnalogFilter | D.FirFilter | None, model,
+                    params: dict, truth: dict, times: np.ndarray, fs: float, n: int, T: float, from_rest: bool,
+                    channels: list[str]) -> tuple[dict, np.ndarray | None]:
+    """``channels`` through the filter (continuous, on a grid of ``chain.oversample`` points per sample interval of
+    the DAQ's clock, settled at t = 0 from rest or early enough for a steady state) sampled at ``times`` [s].
+    Returns (signals, the grid or None)."""
+    mount = spec.outside in OUTSIDE and OUTSIDE[spec.outside].measurement
+    if filt is None and not mount:
+        out = reference_run(model, params, 0, int(math.ceil(times[-1] / T)) + 1, rtol=RTOL,
+                            sample_times=np.maximum(times, 0.0))
+        return {k: np.asarray(out["samples"][k]) for k in channels}, None
+    os_ = chain.oversample
+    h = chain.clock / (os_ * fs)                             # grid step, true time [s]
+    warm = max(filt.settle_s() if filt is not None else 0.0,
+               OUTSIDE[spec.outside].warmup_s(truth) if mount else 0.0)
+    if from_rest:                                            # from the start of excitation (the rig at rest)
+        j0 = int(math.floor(max(times[0], 0.0) / h * (1 + 1e-12)))
+    else:
+        j0 = int(math.floor((times[0] - max(times[0] - warm, 0.0)) / h * (1 + 1e-12)))
+    grid = times[0] + h * np.arange(-j0, (n - 1) * os_ + 1)
+    grid = np.maximum(grid, 0.0)
+    out = reference_run(model, params, 0, int(math.ceil(grid[-1] / T)) + 1, rtol=RTOL, sample_times=grid)
+    smp = {k: np.asarray(v, dtype=float) for k, v in out["samples"].items()}
+    take = j0 + os_ * np.arange(n)
+
+    direct = [k for k in ("force_n", "disp_m", "progression_m") if k in channels]
+    if "accel_m_s2" in channels and truth.get("fc", 0.0) > 0.0:
+        direct.append("accel_m_s2")
+    cells = {}
+    if isinstance(filt, D.AnalogFilter) and direct:   # steps holding a jump (a force's onset): refined on sub-points
+        cells = {k: D.jump_cells(smp[k]) for k in direct}
+        every = np.unique(np.concatenate([c for c in cells.values()] + [np.zeros(0, dtype=int)]))
+        if every.size:
+            frac = np.arange(D.JUMP_SUB + 1) / D.JUMP_SUB
+            sub_t = grid[every, None] + (grid[every + 1] - grid[every])[:, None] * frac[None, :]
+            ref = reference_run(model, params, 0, int(math.ceil(sub_t[-1, -1] / T)) + 1, rtol=RTOL,
+                                sample_times=np.maximum.accumulate(sub_t.ravel()))["samples"]
+            sub = {k: np.asarray(ref[k], dtype=float).reshape(sub_t.shape) for k in direct}
+            cells = {k: (c, sub[k][np.searchsorted(every, c)]) for k, c in cells.items() if c.size}
+
+    def through(u, key=None):
+        if filt is None:
+            return u
+        if isinstance(filt, D.FirFilter):
+            return D.fir_filter(filt, u)
+        if key in cells:
+            return D.analog_filter(filt, u, h, *cells[key])
+        return D.analog_filter(filt, u, h)
+
+    sig = {}
+    if "accel_m_s2" in channels:
+        if truth.get("fc", 0.0) > 0.0:                       # sensor_lowpass: the sensor's output is smooth
+            acc = through(smp["accel_m_s2"], "accel_m_s2")
+        elif mount:
+            m = D.mount_filter(truth["fr_hz"], truth["zeta_r"])
+            if isinstance(filt, D.FirFilter):
+                acc = D.fir_filter(filt, D.analog_filter_of_rate(m, smp["vel_m_s"], smp["accel_true_m_s2"], h))
+            else:
+                g = m if filt is None else filt.cascade(m)
+                acc = D.analog_filter_of_rate(g, smp["vel_m_s"], smp["accel_true_m_s2"], h)
+        elif isinstance(filt, D.FirFilter):
+            acc = through(smp["accel_m_s2"])
+        else:                                                # through the velocity: the acceleration jumps
+            acc = D.analog_filter_of_rate(filt, smp["vel_m_s"], smp["accel_m_s2"], h)
+        sig["accel_m_s2"] = acc[take]
+    for k in channels:
+        if k != "accel_m_s2":
+            sig[k] = through(smp[k], k)[take]
+    return sig, grid
+
+
+def _adc_range(chain: D.DaqChain | None, signal: str, x: np.ndarray) -> float | None:
+    """The ADC range of a saturating channel [signal unit], None if it does not saturate."""
+    if chain is None:
+        return None
+    if signal in chain.clip_range:
+        return float(chain.clip_range[signal])
+    if signal in chain.clip_fraction:
+        return float(chain.clip_fraction[signal] * np.max(np.abs(x)))
+    return None
 
 
 def generate(spec: LogSpec, out_dir: str | Path, truth_path: str | Path | None = None, threads: int = 2) -> dict:
@@ -147,6 +300,8 @@ def generate(spec: LogSpec, out_dir: str | Path, truth_path: str | Path | None =
     rng = np.random.default_rng([spec.seed, 11])
     (out_dir / "series").mkdir(parents=True)
     rows, summary = [], []
+    chain = spec.chain
+    daq_runs: dict = {}
     n_series = 0
     for r in runs:
         rows.append(r["row"])
@@ -159,7 +314,16 @@ def generate(spec: LogSpec, out_dir: str | Path, truth_path: str | Path | None =
         n_series += 1
         cols = {"t_s": r["t"]}
         for s in sigs:
-            cols[s] = noise.apply(np.asarray(r["signals"][s], dtype=float), r["fs"], rng, s)
+            x = np.asarray(r["signals"][s], dtype=float)
+            rng_ = _adc_range(chain, s, x)
+            if rng_ is None:
+                cols[s] = noise.apply(x, r["fs"], rng, s)
+            else:                       # the sensor's noise, then the ADC saturating at its range
+                cols[s] = D.adc(noise.apply_before_adc(x, r["fs"], rng, s), rng_, noise.adc_bits)
+                r["daq"].setdefault("adc_range", {})[s] = rng_
+                r["daq"].setdefault("clipped_fraction", {})[s] = float(np.mean(np.abs(cols[s]) >= rng_))
+        if r["daq"]:
+            daq_runs[r["row"]["run_id"]] = r["daq"]
         df = pd.DataFrame(cols)
         df.to_csv(out_dir / "series" / f"{r['row']['run_id']}.csv", index=False, float_format="%.9g")
     runs_df = pd.DataFrame(rows)
@@ -168,9 +332,89 @@ def generate(spec: LogSpec, out_dir: str | Path, truth_path: str | Path | None =
     runs_df.to_csv(out_dir / "runs.csv", index=False, float_format="%.12g")
     if summary:
         pd.DataFrame(summary).to_csv(out_dir / "summary.csv", index=False, float_format="%.12g")
-    info = {"spec": asdict(spec), "name": spec.name, "system": spec.system, "truth": truth,
+    spec_d = asdict(spec)
+    if spec.daq is None:
+        spec_d.pop("daq")               # the truth of a log without a chain, as it was
+    info = {"spec": spec_d, "name": spec.name, "system": spec.system, "truth": truth,
             "effect": spec.effect, "outside": spec.outside, "noise": spec.noise,
             "calibratable": list(rig.calibratable)}
+    if chain is not None:
+        info["daq"] = {"chain": asdict(chain), "runs": daq_runs}
     if truth_path is not None:
         Path(truth_path).write_text(json.dumps(info, indent=2))
     return info
+
+
+def _channel_values(items: list[str], what: str) -> dict:
+    """``CH=V[,V...]`` items -> {channel: float or tuple of floats}."""
+    out = {}
+    for it in items:
+        ch, _, v = it.partition("=")
+        if not v:
+            raise SystemExit(f"{what}: expected CHANNEL=VALUE, got {it!r}")
+        vals = tuple(float(x) for x in v.split(","))
+        out[ch] = vals if what == "--hum" else vals[0]
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m tests.independent.generator SYSTEM OUT_DIR [options]``: write one log and its truth."""
+    import argparse
+    from dataclasses import replace
+
+    ap = argparse.ArgumentParser(prog="python -m tests.independent.generator", description=main.__doc__)
+    ap.add_argument("system", choices=sorted(RIGS))
+    ap.add_argument("out_dir")
+    ap.add_argument("--effect", default=None)
+    ap.add_argument("--outside", default=None, choices=sorted(OUTSIDE))
+    ap.add_argument("--noise", default="white2", choices=sorted(NOISE_MODELS))
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--n-runs", type=int, default=None)
+    ap.add_argument("--truth", default=None, help="truth JSON path (default: OUT_DIR.truth.json)")
+    g = ap.add_argument_group("data-acquisition chain (tests/independent/daq.py)")
+    g.add_argument("--daq", default=None, choices=sorted(D.DAQ_CHAINS), help="a named chain to start from")
+    g.add_argument("--filter", default=None, choices=[*D.KINDS, "none"], help="anti-alias filter kind")
+    g.add_argument("--order", type=int, default=None, help="analog order, or FIR taps (0: from --stop-db)")
+    g.add_argument("--cutoff", type=float, default=None, help="cut-off / fs")
+    g.add_argument("--ripple-db", type=float, default=None)
+    g.add_argument("--stop-db", type=float, default=None)
+    g.add_argument("--compensated", action=argparse.BooleanOptionalAction, default=None,
+                   help="time stamps moved back by the filter's DC group delay")
+    g.add_argument("--clock-ppm", type=float, default=None, help="sample-clock error [ppm]")
+    g.add_argument("--clip", nargs="*", default=[], metavar="CH=FRACTION", help="saturate at FRACTION x max|x|")
+    g.add_argument("--clip-range", nargs="*", default=[], metavar="CH=RANGE", help="saturate at an absolute range")
+    g.add_argument("--hum-hz", type=float, default=None, help="mains frequency (50 or 60)")
+    g.add_argument("--hum", nargs="*", default=[], metavar="CH=A1,A2,..", help="hum amplitudes of harmonics 1, 2, ..")
+    g.add_argument("--channel-delay", nargs="*", default=[], metavar="CH=SECONDS",
+                   help="a channel's own extra delay (undeclared)")
+    g.add_argument("--declared", action=argparse.BooleanOptionalAction, default=None,
+                   help="write daq_* columns in runs.csv")
+    a = ap.parse_args(argv)
+    chain = D.DAQ_CHAINS[a.daq] if a.daq else None
+    kw = {k: v for k, v in dict(order=a.order, cutoff=a.cutoff, ripple_db=a.ripple_db, stop_db=a.stop_db,
+                                compensated=a.compensated, clock_ppm=a.clock_ppm, hum_hz=a.hum_hz,
+                                declared=a.declared).items() if v is not None}
+    if a.filter is not None:
+        kw["filter"] = None if a.filter == "none" else a.filter
+    if a.clip:
+        kw["clip_fraction"] = _channel_values(a.clip, "--clip")
+    if a.clip_range:
+        kw["clip_range"] = _channel_values(a.clip_range, "--clip-range")
+    if a.hum:
+        kw["hum"] = _channel_values(a.hum, "--hum")
+    if a.channel_delay:
+        kw["channel_delay_s"] = _channel_values(a.channel_delay, "--channel-delay")
+    if kw:
+        chain = replace(chain or D.DaqChain(name="custom"), **kw)
+        if a.daq:
+            chain = replace(chain, name=f"{a.daq}-mod")
+    spec = LogSpec(a.system, effect=a.effect, outside=a.outside, noise=a.noise, seed=a.seed, n_runs=a.n_runs,
+                   daq=chain)
+    truth = a.truth or f"{Path(a.out_dir).as_posix().rstrip('/')}.truth.json"
+    info = generate(spec, a.out_dir, truth_path=truth)
+    print(f"{info['name']}: {a.out_dir} (truth {truth})")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
