@@ -7,6 +7,7 @@ from pathlib import Path
 from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_workers, count, finite,
                                model_and_overrides, parse_assignments, parse_settings)
 from pipeline.core.errors import UserError
+from pipeline.core.rigfile import rig_name
 
 KINDS = ("auto", "peterka", "rop", "label", "bifurcation")
 
@@ -167,7 +168,8 @@ def run(args) -> int:
         written.append((out.with_name(out.name + ".strobe.parquet"), "parquet"))
     for path, file_kind in written:
         check_out_file(path, flag="--out", kind=file_kind, inputs=[args.rig], overwrite=args.overwrite)
-    with tracking.run("map", params, enabled=not args.no_mlflow) as mlflow:
+    with tracking.chain("corrected" if args.rig else "lab", rig_name(args.rig)), \
+            tracking.run("map", params, enabled=not args.no_mlflow) as mlflow:
         res = run_map(cfg, progress=not args.quiet)
         for path, file_kind in written:
             if Path(path) in map(Path, res.files):

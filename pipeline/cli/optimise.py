@@ -53,6 +53,7 @@ examples:
 from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_workers, load_rig,  # noqa: E402
                                parse_assignments, parse_ranges)
 from pipeline.core.errors import UserError  # noqa: E402
+from pipeline.core.rigfile import rig_name  # noqa: E402
 from pipeline.optimise import samplers  # noqa: E402
 
 
@@ -251,15 +252,27 @@ def real_sqlite_url(url: str | None) -> str | None:
     return "sqlite:///" + str(db.resolve())
 
 
-def surrogate_chain(surrogate) -> str | None:
-    """The chain a surrogate bundle folder was trained in (its report.json 'chain'), None when unknown."""
+def _surrogate_report(surrogate) -> dict:
+    """A surrogate bundle folder's report.json ({} when there is none, e.g. an MLflow run id)."""
     import json
 
     try:
-        chain = json.loads((Path(str(surrogate)) / "report.json").read_text()).get("chain")
-    except (OSError, ValueError, AttributeError):
-        return None
+        rep = json.loads((Path(str(surrogate)) / "report.json").read_text())
+    except (OSError, ValueError):
+        return {}
+    return rep if isinstance(rep, dict) else {}
+
+
+def surrogate_chain(surrogate) -> str | None:
+    """The chain a surrogate bundle folder was trained in (its report.json 'chain'), None when unknown."""
+    chain = _surrogate_report(surrogate).get("chain")
     return chain if chain in ("lab", "corrected") else None
+
+
+def surrogate_rig(surrogate) -> str | None:
+    """The name of the rig a surrogate bundle folder was trained for (report.json 'rig_name'), None if none."""
+    name = _surrogate_report(surrogate).get("rig_name")
+    return name if isinstance(name, str) and name else None
 
 
 # ------------------------------------------------------------------ strategies: the one place names become objects
@@ -371,6 +384,7 @@ def run(args) -> int:
 
     cfg = config_from_args(args)
     chain = A.chain_of(args, surrogate_chain(cfg.surrogate) if cfg.mode == "surrogate" else None)
+    rig = rig_name(args.rig) or (surrogate_rig(cfg.surrogate) if cfg.mode == "surrogate" else None)
     url = cfg.storage or default_storage()
     check_storage_target(url)
     db = sqlite_path(url) or (journal_path(url) and Path(journal_path(url)))
@@ -383,7 +397,7 @@ def run(args) -> int:
         check_out_file(cfg.feedback, flag="--feedback", kind="feedback", inputs=[*reads, args.metrics])
     inputs = [args.params, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None,
               args.metrics, args.feedback, db]
-    with tracking.variant(cfg.objective), tracking.chain(chain), \
+    with tracking.variant(cfg.objective), tracking.chain(chain, rig), \
             prepare_out(args.out, inputs=inputs, overwrite=args.overwrite, marker="optimise") as tmp:
         rep = optimise_into(cfg, tmp, metrics_path=args.metrics, progress=not args.quiet,
                             mlflow_enabled=not args.no_mlflow, raise_if_none=False)

@@ -9,6 +9,7 @@ from pipeline.cli import args as A
 from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_settings, load_rig, number, parse_assignments,
                                parse_settings)
 from pipeline.core.errors import UserError
+from pipeline.core.rigfile import rig_name
 
 EPILOG = """\
 spec (params.yaml section 'sweep'; command-line options override it):
@@ -178,7 +179,7 @@ def run(args) -> int:
               **{f"vary.{k}": f"{r.low:g}:{r.high:g}:{r.scale}" for k, r in spec.vary.items()},
               **{f"fixed.{k}": v for k, v in spec.fixed.items()},
               **{f"settings.{k}": v for k, v in spec.settings.items()}}
-    with tracking.chain(A.chain_of(args)), tracking.run("sweep", params, enabled=not args.no_mlflow) as mlflow, \
+    with tracking.chain(A.chain_of(args), rig_name(args.rig)), tracking.run("sweep", params, enabled=not args.no_mlflow) as mlflow, \
             tempfile.TemporaryDirectory(prefix="vibro-sweep-") as tmpdir:
         plot = Path(args.plot) if args.plot else (Path(tmpdir) / "sweep_overview.png" if mlflow is not None else None)
         job = SweepJob(spec=spec, out=Path(args.out), scheduler=scheduler, workers=workers,

@@ -27,6 +27,18 @@ HEADER = """\
 """
 
 
+def rig_name(path: str | os.PathLike | None) -> str | None:
+    """A rig's name for people and MLflow: its file's stem (``my-rig.yaml`` -> ``my-rig``); a file the diagnosis
+    wrote (``rig.yaml``, ``rig-metal.yaml``) takes its folder's name (``results/diagnose/drill-rig/rig.yaml`` ->
+    ``drill-rig``).  None without a path."""
+    if not path:
+        return None
+    p = Path(path)
+    if p.stem == "rig" or p.stem.startswith("rig-"):
+        return p.parent.resolve().name + p.stem[3:]
+    return p.stem
+
+
 def read_rig(path: str | os.PathLike):
     """The validated ``sim.Rig`` of a rig file (UserError naming the file and the culprit)."""
     from pipeline.core.bounded import load_yaml

@@ -547,26 +547,38 @@ def model_on_record(tg: Target, h: pd.DataFrame, sig: str) -> np.ndarray:
     return h[sig].to_numpy()[_record_rows(tg, h)]
 
 
+DIVERGED = 1e100
+"""A simulated signal beyond this magnitude (any unit) has diverged: its least-squares features would overflow, so
+the run counts as one the model could not simulate (features None), like a failed one."""
+
+
+def _diverged(x: dict[str, np.ndarray]) -> bool:
+    """Whether any signal of ``x`` is non-finite or beyond :data:`DIVERGED`."""
+    return any(v.size and not (np.all(np.isfinite(v)) and float(np.max(np.abs(v))) < DIVERGED) for v in x.values())
+
+
 def simulated_halves(tg: Target, res) -> np.ndarray | None:
-    """The model's features of each half of a series record, (2, n) (None: no halves, or no history)."""
+    """The model's features of each half of a series record, (2, n) (None: no halves, no history, or diverged)."""
     if not tg.halves or res.history is None:
         return None
     x = {sig: model_on_record(tg, res.history, sig) for sig in tg.signals}
+    if _diverged(x):
+        return None
     return np.array([_features(tg.signals, _coefs(ops, x, sl), tg.record_start_s is not None) for sl, ops in tg.halves])
 
 
 def simulated_features(tg: Target, res) -> np.ndarray | None:
-    """The model's values of ``tg``'s features from a SimulationResult with history (None if the
-    run failed or ran away)."""
+    """The model's values of ``tg``'s features from a SimulationResult with history (None if the run has no
+    history — it failed or ran away — or its signals diverged, :data:`DIVERGED`)."""
     h = res.history
     if h is None:
         return None
     f = tg.frequency_hz
     if tg.kind == "series":
-        return _features(tg.signals, _coefs(tg.pinv, {sig: model_on_record(tg, h, sig) for sig in tg.signals}),
-                         tg.record_start_s is not None)
+        x = {sig: model_on_record(tg, h, sig) for sig in tg.signals}
+        return None if _diverged(x) else _features(tg.signals, _coefs(tg.pinv, x), tg.record_start_s is not None)
     t, hr = model_record(tg, h)
-    if t.size < 4:
+    if t.size < 4 or _diverged({c: hr[c].to_numpy(dtype=float) for c in hr.columns if c != "t_s"}):
         return None
     lab = res.labels
     vals = []
