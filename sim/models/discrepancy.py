@@ -78,6 +78,9 @@ MODE = "load_path_mode"
 MODE_PARAMS = ("load_path_mode_ratio", "load_path_mode_hz", "load_path_mode_zeta")
 """The hidden mode's mass mh over the impacting mass's [-] (0 = off), its frequency fh with the impacting mass held
 [Hz] and its damping ratio ζh [-]: kh = mh (2π fh)², ch = 2 ζh mh 2π fh."""
+MODE_MAX_RATIO = 100.0
+MODE_MAX_ZETA = 100.0
+"""Largest hidden mass (x the impacting mass) and damping ratio accepted: far beyond the fit bounds, below typos."""
 MODE_STATES = ("load_path_mode_x", "load_path_mode_v")
 """The hidden mass's position relative to the impacting mass [m] (pendulum: along the hammer's tangent) and its
 rate [m/s]: the last two states of every model."""
@@ -118,9 +121,10 @@ def discrepancy_params(acts_on: Mapping[str, str]) -> tuple[Param, ...]:
     mode = STRUCTURED[MODE]
     what = ("mass over the impacting mass's (0 = off)", "frequency with the impacting mass held",
             "damping ratio")
-    for name, unit, w in zip(mode.params, mode.units, what):
+    most = (MODE_MAX_RATIO, math.inf, MODE_MAX_ZETA)
+    for name, unit, w, hi in zip(mode.params, mode.units, what, most):
         out.append(Param(name, 0.0, unit, f"discrepancy {MODE} ({mode.words}, {acts_on.get(TOOL, '')}): its {w}",
-                         nonnegative=True))
+                         nonnegative=True, most=hi))
     return tuple(out)
 
 

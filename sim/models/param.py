@@ -20,6 +20,7 @@ class Param:
     nonnegative: bool = False
     integer: bool = False
     least: float = 0.0          # smallest value other than 0 (off): below it the parameter means nothing physical
+    most: float = math.inf      # largest value with a physical meaning (a damping ratio of 1e300 is a typo)
 
     def validate(self, value) -> float:
         try:
@@ -35,6 +36,8 @@ class Param:
         if self.least and v != 0.0 and abs(v) < self.least:
             raise ParameterError(f"parameter '{self.name}' must be 0 (off) or >= {self.least:g} [{self.unit}], "
                                  f"got {v:g}")
+        if abs(v) > self.most:
+            raise ParameterError(f"parameter '{self.name}' must be <= {self.most:g} [{self.unit}], got {v:g}")
         return v
 
 

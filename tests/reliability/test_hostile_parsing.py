@@ -114,6 +114,8 @@ SETUPS = {
     "rig_fc_tiny": _rig("model: drill\neffects: {sensor_lowpass: {fc: 1.0e-12}}\n"),
     "rig_mode_hz_only": _rig("model: drill\ndiscrepancy: {load_path_mode_hz: 300.0}\n"),
     "rig_mode_zeta_only": _rig("model: drill\ndiscrepancy: {load_path_mode_zeta: 0.05}\n"),
+    "rig_mode_zeta_huge": _rig("model: drill\ndiscrepancy: {load_path_mode_ratio: 0.2, load_path_mode_hz: 300.0, "
+                               "load_path_mode_zeta: 1.0e+300}\n"),
     "dataset_record_start_1e12": lambda t: _dataset(t / "ds", "record_start_s", "1e12"),
     "dataset_k1_1e300": lambda t: _dataset(t / "ds", "k1", "1e300"),
     "dataset_k1_underscore": lambda t: _dataset(t / "ds", "k1", "1_000"),
@@ -240,6 +242,11 @@ CASES = [
     ("set-sensor-lowpass-fc-1e-12", "simulate drill --set fc=1e-12", None, ["'fc'", "0 (off) or >= 1"]),
     ("set-mode-hz-without-ratio", "simulate drill --set load_path_mode_hz=300", None,
      ["load_path_mode_hz without load_path_mode_ratio"]),
+    ("rig-mode-zeta-1e300", "simulate --rig {t}/rig.yaml", "rig_mode_zeta_huge",
+     ["rig.yaml", "load_path_mode_zeta", "<= 100"]),
+    ("set-mode-zeta-1e300",
+     "simulate drill --set load_path_mode_ratio=0.2 --set load_path_mode_hz=300 --set load_path_mode_zeta=1e300",
+     None, ["load_path_mode_zeta", "<= 100"]),
 ]
 
 # cases that could ask for memory or recursion: run in a child process under MEMORY_LIMIT
