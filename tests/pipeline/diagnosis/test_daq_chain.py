@@ -1,0 +1,190 @@
+"""The recording chain: declared DAQ columns (validated, applied to the model), an undeclared chain estimated as
+nuisance (delay per channel and clock), saturated samples left out of the features.
+
+The fast tests check the operators on synthetic records (no simulator); the end-to-end cases diagnose a short drill
+log of the independent generator whose recording is altered here exactly: a clock error by re-dating ``t_s``
+(samples taken every (1 + ε)/fs, written as 1/fs), a delay by declaring the record ``τ`` later than it started."""
+from __future__ import annotations
+
+import json
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipeline.core.errors import UserError
+from pipeline.datasets.daq import DaqFilter, DeclaredChain, parse_filter
+from pipeline.diagnosis.features import (MAX_CLIPPED_FRACTION, Target, clipped_samples, series_target,
+                                         simulated_features)
+from pipeline.diagnosis.instrument import Nuisance
+from pipeline.diagnosis.nuisance import profile, profile_items
+
+F, FS, K = 50.0, 10_000.0, 20
+
+
+def _impacts(t: np.ndarray, tau: float = 0.0, eps: float = 0.0, t0: float = 0.0) -> np.ndarray:
+    """A periodic impact-like signal (a sharp pulse once a cycle, every harmonic up to K) at true instants."""
+    tt = t0 + (1.0 + eps) * t - tau
+    ph = (F * tt) % 1.0
+    return np.exp(-((ph - 0.3) / 0.02) ** 2) + 0.3 * np.sin(2 * np.pi * F * tt)
+
+
+def _target(t_rec: np.ndarray, sigs: dict, record_start: float | None = None) -> Target:
+    tg = Target(run_id="r1", system="indenter-metal", kind="", controls={"frequency_hz": F},
+                duration_s=t_rec.size / FS, record_start_s=record_start)
+    return series_target(tg, pd.DataFrame({"t_s": t_rec, **sigs}), K * F)
+
+
+def test_filter_column_is_validated_with_a_did_you_mean():
+    assert parse_filter("none", "x") is None
+    assert parse_filter("butter:4:4000", "x") == DaqFilter("butter", 4, 4000.0)
+    with pytest.raises(UserError, match=r"runs.csv line 3, column 'daq_filter': unknown filter kind 'butterworth' "
+                                        r"\(did you mean 'butter'\?\)"):
+        parse_filter("butterworth:4:4000", "runs.csv line 3, column 'daq_filter'")
+    for bad, msg in (("butter:4", "expected butter:order:cutoff_hz"), ("ellip:0:100", "order must be"),
+                     ("butter:4:-5", "not a positive number")):
+        with pytest.raises(UserError, match=msg):
+            parse_filter(bad, "w")
+    h = DaqFilter("butter", 4, 1000.0).response(np.array([10.0, 1000.0]))
+    assert abs(h[0]) == pytest.approx(1.0, abs=1e-6) and abs(h[1]) == pytest.approx(2 ** -0.5, rel=1e-9)
+    e = DaqFilter("ellip", 6, 1000.0).response(np.array([500.0, 3000.0]))
+    assert 0.98 < abs(e[0]) <= 1.0 + 1e-9 and abs(e[1]) < 1e-2        # pass band ripple, stop band
+
+
+def test_bad_daq_cell_is_one_line_naming_the_row(tmp_path):
+    from pipeline.datasets.measured import load_dataset
+
+    n = 400
+    (tmp_path / "series").mkdir()
+    pd.DataFrame({"t_s": np.arange(n) / FS, "accel_m_s2": _impacts(np.arange(n) / FS)}).to_csv(
+        tmp_path / "series" / "a.csv", index=False)
+    base = "run_id,system,frequency_hz,amplitude_n,static_force_n,gap_m,duration_s,daq_filter,daq_clock_ppm\n"
+    row = f"a,indenter-metal,{F},1,200,0.001,{n / FS}"
+    for cells, col in ((",ellipse:4:3000,", "daq_filter"), (",butter:4:6000,", "daq_filter"),
+                       (",butter:4:3000,fast", "daq_clock_ppm")):
+        (tmp_path / "runs.csv").write_text(base + row + cells + "\n")
+        with pytest.raises(UserError) as e:
+            load_dataset(tmp_path)
+        assert str(e.value).startswith(f"runs.csv line 2, column '{col}'") and "\n" not in str(e.value)
+    (tmp_path / "runs.csv").write_text(base + row + ",butter:4:3000,25\n")
+    ds = load_dataset(tmp_path)
+    assert ds.chains["a"] == DeclaredChain(DaqFilter("butter", 4, 3000.0), 0.0, 25.0)
+
+
+def test_delay_and_clock_act_on_the_features_as_the_instrument_says():
+    """Features of a record taken through a delay and a fast clock = the rotated features of the true record."""
+    t = np.arange(int(20.4 / F * FS)) / FS
+    tau, eps = 120e-6, 80e-6
+    clean = _target(t, {"accel_m_s2": _impacts(t)})
+    seen = _target(t, {"accel_m_s2": _impacts(t, tau, eps)})
+    amp = np.abs(clean.y[clean.pair_at] + 1j * clean.y[clean.pair_at + 1])
+    moved = np.abs(seen.y - clean.y)[clean.pair_at].max() / amp.max()
+    clean.nuisance = Nuisance((("accel_m_s2", tau),), eps)
+    from pipeline.diagnosis.instrument import apply_gain, instrument_gain
+
+    err = np.abs(apply_gain(clean.y, clean.pair_at, instrument_gain(clean)) - seen.y)[clean.pair_at].max() / amp.max()
+    assert moved > 0.02 and err < 5e-3 * moved         # 4 % of the largest harmonic moved, 0.3 % of that left
+
+
+def _fake_result(t_abs: np.ndarray, sigs: dict):
+    return SimpleNamespace(history=pd.DataFrame({"t_s": t_abs, **sigs}))
+
+
+def test_profile_recovers_delays_per_channel_and_the_clock():
+    rng = np.random.default_rng(3)
+    tau = {"accel_m_s2": 95e-6, "force_n": 140e-6}
+    eps, items = 40e-6, []
+    for start, cycles in ((0.15, 28.3), (0.45, 35.9)):
+        t = np.arange(int(cycles / F * FS)) / FS
+        meas = {s: _impacts(t, d, eps, start) + 0.02 * rng.standard_normal(t.size) for s, d in tau.items()}
+        tg = _target(t, meas, record_start=start)
+        model = {s: _impacts(t, 0.0, 0.0, start) for s in tau}
+        items += profile_items(tg, _fake_result(start + t, model), tuple(tau))
+    x = profile(items, 2)[0]
+    assert x[0] == pytest.approx(1e6 * tau["accel_m_s2"], abs=5.0)      # µs
+    assert x[1] == pytest.approx(1e6 * tau["force_n"], abs=5.0)
+    assert x[2] == pytest.approx(1e6 * eps, abs=5.0)                     # ppm
+
+
+def test_saturated_samples_are_left_out_of_the_features():
+    rng = np.random.default_rng(0)
+    t = np.arange(int(20.4 / F * FS)) / FS
+    x = _impacts(t) + 0.003 * rng.standard_normal(t.size)
+    top = np.quantile(x, 0.985)
+    clipped = np.minimum(x, top)
+    m = clipped_samples(clipped)
+    assert 0.005 < m.mean() < MAX_CLIPPED_FRACTION and not clipped_samples(x).any()
+    assert not clipped_samples(np.maximum(x - 0.5, 0.0)).any()      # a contact force resting at 0 is not saturation
+    kept = _target(t, {"force_n": clipped})
+    naive = _target(t, {"force_n": clipped + 1e-12 * np.arange(t.size)})     # the same flat tops, not detected
+    assert set(kept.clipped) == {"force_n"} and 0.005 < kept.clipped["force_n"] < MAX_CLIPPED_FRACTION
+    assert not naive.clipped
+    assert any("run r1, channel force_n" in n and "saturated" in n for n in kept.notes)
+    # the true signal reduced by each target's own operator (as the model is): the saturated samples biased the
+    # features by > 10 sd where they were fitted, not where they were left out
+    z = [np.abs(simulated_features(tg, _fake_result(tg.t_rec, {"force_n": _impacts(tg.t_rec)})) - tg.y) / tg.sd
+         for tg in (kept, naive)]
+    assert z[0].max() < 5.0 < 10.0 < z[1].max()
+
+
+def test_a_channel_saturated_beyond_the_threshold_is_not_used():
+    t = np.arange(int(20.4 / F * FS)) / FS
+    x = _impacts(t)
+    tg = _target(t, {"accel_m_s2": x, "force_n": np.minimum(x, np.quantile(x, 0.9))})
+    assert tg.signals == ("accel_m_s2",) and any("not used" in n for n in tg.notes)
+
+
+# --- end to end: a drill log of the independent generator, re-dated -------------------------------------------
+
+TAU, PPM = 80e-6, 50.0
+
+
+def _redated_drill_log(tmp_path, declare: bool):
+    from tests.independent.generator import LogSpec, generate
+
+    spec = LogSpec("drill", noise="white2", seed=0, n_runs=8)
+    data = tmp_path / spec.name
+    generate(spec, data, threads=2)
+    runs = pd.read_csv(data / "runs.csv")
+    eps = 1e-6 * PPM
+    for rid in runs["run_id"]:
+        p = data / "series" / f"{rid}.csv"
+        if p.exists():
+            df = pd.read_csv(p)
+            df["t_s"] = df["t_s"] / (1.0 + eps)          # true interval (1 + ε)/fs, t_s written nominal
+            df.to_csv(p, index=False, float_format="%.10g")
+    runs["duration_s"] = runs["duration_s"] / (1.0 + eps)
+    runs["record_start_s"] = runs["record_start_s"] + TAU     # the record started τ earlier than declared
+    if declare:
+        runs["daq_filter"], runs["daq_delay_s"], runs["daq_clock_ppm"] = "none", TAU, PPM
+    runs.to_csv(data / "runs.csv", index=False, float_format="%.12g")
+    return data
+
+
+def _diagnose(tmp_path, data, *args):
+    from pipeline.cli import main
+
+    out = tmp_path / (data.name + "-diag")
+    assert main(["diagnose", str(data), "--out", str(out), "--quiet", "--no-mlflow", *args]) == 0
+    return json.loads((out / "report.json").read_text()), (out / "report.md").read_text()
+
+
+def test_undeclared_delay_and_clock_are_estimated_and_the_control_stays_clean(tmp_path):
+    rep, md = _diagnose(tmp_path, _redated_drill_log(tmp_path, declare=False))
+    est = rep["recording"]["estimated"]
+    for sig, d in est["delay_s"].items():
+        assert d["value"] == pytest.approx(TAU, abs=5e-6), (sig, d)
+        assert 0 < d["sd"] < 5e-6
+    assert est["clock_ppm"]["value"] == pytest.approx(PPM, abs=5.0) and 0 < est["clock_ppm"]["sd"] < 5.0
+    assert rep["verdict"] == "nothing missing", rep["call"]["text"]
+    assert "Recording: undeclared DAQ chain" in md
+
+
+@pytest.mark.slow
+def test_declared_chain_gives_the_verdict_of_no_chain(tmp_path):
+    rep, _ = _diagnose(tmp_path, _redated_drill_log(tmp_path, declare=True))
+    assert rep["recording"]["estimated"] is None and len(rep["recording"]["declared"]) >= 6
+    assert rep["verdict"] == "nothing missing", rep["call"]["text"]
+    assert math.isfinite(rep["base_nrms"]) and rep["base_nrms"] < 2.0
