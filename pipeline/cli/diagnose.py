@@ -49,10 +49,13 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
    simulates in the kernel.
 The recording is a model of its own (docs/diagnose.md "The recording chain"): optional runs.csv columns declare a
 run's DAQ chain, and the model's signals pass through it before they are compared:
-  daq_filter     kind:order:cutoff_hz — anti-alias filter, kind butter or ellip (analog prototype; ellip with
-                 0.1 dB ripple, 60 dB stop band, cut-off = pass-band edge), or none; applied as its frequency
-                 response on every harmonic (exact in steady state)
-  daq_delay_s    a pure delay [s] (what the DAQ's alignment left, a digital filter's group delay)
+  daq_filter     anti-alias filter: butter:order:cutoff_hz, ellip:order:cutoff_hz[:ripple_db:stop_db] (analog
+                 prototypes; ellip default 0.1 dB, 60 dB, cut-off = pass-band edge), fir:taps:cutoff_hz:oversample
+                 (linear-phase decimation filter: its pure delay), or none; applied as its frequency response on
+                 every harmonic (exact in steady state)
+  daq_delay_s    a pure delay [s] on top of the filter (what the DAQ's alignment left); with a column
+                 daq_delay_removed it is the filter's own group delay instead, and daq_delay_removed = 1 says the
+                 DAQ moved the time stamps back by it (0: left in the data)
   daq_clock_ppm  sample-clock error [ppm]: sample n was taken at (1 + ppm 1e-6) n / fs while t_s says n / fs
   (delay and clock: the model is sampled at the true instants).  Where a series run declares none of them, a
   delay per channel and a clock error are estimated as nuisance parameters on the base model's calibration (the

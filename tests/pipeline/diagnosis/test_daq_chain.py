@@ -43,11 +43,14 @@ def test_filter_column_is_validated_with_a_did_you_mean():
     with pytest.raises(UserError, match=r"runs.csv line 3, column 'daq_filter': unknown filter kind 'butterworth' "
                                         r"\(did you mean 'butter'\?\)"):
         parse_filter("butterworth:4:4000", "runs.csv line 3, column 'daq_filter'")
-    for bad, msg in (("butter:4", "expected butter:order:cutoff_hz"), ("ellip:0:100", "order must be"),
+    for bad, msg in (("butter:4", "expected butter:order:cutoff_hz"), ("ellip:0:100", "filter order '0' is not a positive integer"), ("butter:40:100", "order must be"),
                      ("butter:4:-5", "not a positive number")):
         with pytest.raises(UserError, match=msg):
             parse_filter(bad, "w")
     h = DaqFilter("butter", 4, 1000.0).response(np.array([10.0, 1000.0]))
+    assert parse_filter("ellip:6:3000:0.1:80", "x") == DaqFilter("ellip", 6, 3000.0, 0.1, 80.0)
+    fir = parse_filter("fir:129:4000:16", "x", fs=10_000.0)
+    assert fir.fir_delay_s == pytest.approx(64 / 160_000.0)        # (taps - 1) / 2 at 16 x fs
     assert abs(h[0]) == pytest.approx(1.0, abs=1e-6) and abs(h[1]) == pytest.approx(2 ** -0.5, rel=1e-9)
     e = DaqFilter("ellip", 6, 1000.0).response(np.array([500.0, 3000.0]))
     assert 0.98 < abs(e[0]) <= 1.0 + 1e-9 and abs(e[1]) < 1e-2        # pass band ripple, stop band
