@@ -84,6 +84,18 @@ class NoiseModel:
             x = PARTS[part](x, fs, rng, signal, **kw)
         return x
 
+    def apply_before_adc(self, x: np.ndarray, fs: float, rng: np.random.Generator, signal: str) -> np.ndarray:
+        """The parts that act before the ADC (all but quantisation), in order."""
+        for part, kw in self.parts:
+            if part != "quantise":
+                x = PARTS[part](x, fs, rng, signal, **kw)
+        return x
+
+    @property
+    def adc_bits(self) -> int | None:
+        """The ADC's bits if the model quantises, else None."""
+        return next((kw.get("bits", 16) for part, kw in self.parts if part == "quantise"), None)
+
     def summary(self, values: dict, rng: np.random.Generator) -> dict:
         """Summary columns of a run from its noise-free values."""
         out = {}
