@@ -17,15 +17,21 @@ from dataclasses import dataclass
 import numpy as np
 
 
+def channel(tg, sig: str) -> tuple[str, float]:
+    """The identity of a delay: the signal and the run's sampling rate [Hz] (a DAQ's anti-alias filter follows the
+    rate it samples at, so runs at another rate have another delay)."""
+    return sig, round(float(tg.fs_hz), 3)
+
+
 @dataclass(frozen=True)
 class Nuisance:
-    """An undeclared chain: a delay per signal [s] (``delays``: (signal, τ) pairs) and a clock error ε [-]."""
+    """An undeclared chain: a delay per channel [s] (``delays``: (``channel``, τ) pairs) and a clock error ε [-]."""
 
-    delays: tuple[tuple[str, float], ...] = ()
+    delays: tuple[tuple[tuple[str, float], float], ...] = ()
     clock: float = 0.0
 
-    def delay(self, sig: str) -> float:
-        return dict(self.delays).get(sig, 0.0)
+    def delay(self, key: tuple[str, float]) -> float:
+        return dict(self.delays).get(key, 0.0)
 
 
 def rotation(kw: np.ndarray, tau: np.ndarray, eps: float, tbar: float, span: float) -> np.ndarray:
@@ -39,7 +45,7 @@ def instrument_gain(tg, part: int = 0) -> np.ndarray | None:
     the declared filter's response and the undeclared chain's rotation; None when there is neither."""
     g = tg.filter_gain
     if tg.nuisance is not None and tg.pairs:
-        tau = np.array([tg.nuisance.delay(s) for s, _ in tg.pairs])
+        tau = np.array([tg.nuisance.delay(channel(tg, s)) for s, _ in tg.pairs])
         r = rotation(tg.pair_kw, tau, tg.nuisance.clock, *tg.spans[part])
         g = r if g is None else g * r
     return g

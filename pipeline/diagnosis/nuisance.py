@@ -1,7 +1,8 @@
 """An undeclared recording chain estimated as nuisance parameters beside the calibration (never a §6 effect).
 
 Where runs.csv declares no DAQ chain for a series run, the log's chain is unknown: a delay per channel (what the
-anti-alias filter and the DAQ's alignment leave, shared by every run of the log) and one clock error ε.  They are
+anti-alias filter and the DAQ's alignment leave, shared by every run of the log at the same sampling rate: the
+filter follows the rate) and one clock error ε.  They are
 estimated once, on the base model's calibration: the base model is fitted to every run with the chain profiled
 out of its residual (for each parameter set simulated, the delays and ε that fit its features best, a cheap linear
 least squares on the harmonics' phases, ``profile``), and the chain of the best fit is then held fixed for every
@@ -22,7 +23,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from pipeline.diagnosis.features import _coefs, _features, model_on_record, simulated_features
-from pipeline.diagnosis.instrument import Nuisance, apply_gain, rotation
+from pipeline.diagnosis.instrument import Nuisance, apply_gain, channel, rotation
 
 MAX_DELAY_S = 2e-3
 """Bound of an estimated delay [s] (a delta-sigma ADC's uncompensated filter delays by ~1 ms at 25 kHz)."""
@@ -39,8 +40,8 @@ class ChainEstimate:
     and the calibration χ²/n of the base model fitted with it."""
 
     runs: tuple[str, ...]
-    delay_s: tuple[tuple[str, float], ...]
-    delay_sd_s: tuple[tuple[str, float], ...]
+    delay_s: tuple[tuple[tuple[str, float], float], ...]       # ((signal, sampling rate [Hz]), τ [s])
+    delay_sd_s: tuple[tuple[tuple[str, float], float], ...]
     clock_ppm: float
     clock_sd_ppm: float
     base_chi2_per_n: float
@@ -52,14 +53,14 @@ class ChainEstimate:
     def to_report(self) -> dict:
         sd = dict(self.delay_sd_s)
         return {"runs": list(self.runs),
-                "delay_s": {s: {"value": v, "sd": sd[s]} for s, v in self.delay_s},
+                "delays": [{"channel": s, "fs_hz": fs, "value_s": v, "sd_s": sd[(s, fs)]} for (s, fs), v in self.delay_s],
                 "clock_ppm": {"value": self.clock_ppm, "sd": self.clock_sd_ppm},
                 "base_chi2_per_n": self.base_chi2_per_n,
                 "text": self.text()}
 
     def text(self) -> str:
         sd = dict(self.delay_sd_s)
-        d = ", ".join(f"{s} {1e6 * v:.2f} ± {1e6 * sd[s]:.2f} µs" for s, v in self.delay_s)
+        d = ", ".join(f"{s} at {fs:g} Hz {1e6 * v:.2f} ± {1e6 * sd[(s, fs)]:.2f} µs" for (s, fs), v in self.delay_s)
         return (f"undeclared DAQ chain estimated on the base model's calibration and held fixed for every model: "
                 f"delay {d}; clock {self.clock_ppm:.2f} ± {self.clock_sd_ppm:.2f} ppm ({len(self.runs)} runs)")
 
@@ -83,13 +84,13 @@ def _pairs(v: np.ndarray, at: np.ndarray) -> np.ndarray:
     return v[at] + 1j * v[at + 1]
 
 
-def profile_items(tg, res, sig_names: tuple[str, ...]) -> list[_Item]:
+def profile_items(tg, res, keys: tuple) -> list[_Item]:
     """The profile's items of one series run from its simulation ``res`` (the model's raw features, no chain): its
-    two halves where it has them, else the whole record."""
+    two halves where it has them, else the whole record.  ``keys``: the delays' channels (``instrument.channel``)."""
     h = res.history if res is not None else None
     if h is None or not tg.pairs:
         return []
-    sig = np.array([sig_names.index(s) for s, _ in tg.pairs])
+    sig = np.array([keys.index(channel(tg, s)) for s, _ in tg.pairs])
     x = {s: model_on_record(tg, h, s) for s in tg.signals}
     from_rest = tg.record_start_s is not None
     if tg.halves and tg.y_halves is not None:
@@ -139,14 +140,14 @@ def profiled_residuals(ev, sims: list[list], idx: list[int], low_only: bool) -> 
         nuis = None
         if items:
             x = profile(items, len(sig_names))[0]
-            nuis = Nuisance(tuple((s, 1e-6 * v) for s, v in zip(sig_names, x[:-1])), 1e-6 * x[-1])
+            nuis = Nuisance(tuple((key, 1e-6 * v) for key, v in zip(sig_names, x[:-1])), 1e-6 * x[-1])
         parts = []
         for i, r in zip(idx, row):
             tg = ev.targets[i]
             ri = ev.residual_of(i, r)
             m = simulated_features(tg, r)
             if nuis is not None and i in ev.profile_runs and m is not None:   # the targets stay as they are
-                tau = np.array([nuis.delay(s) for s, _ in tg.pairs])
+                tau = np.array([nuis.delay(channel(tg, s)) for s, _ in tg.pairs])
                 ri = (apply_gain(m, tg.pair_at, rotation(tg.pair_kw, tau, nuis.clock, *tg.spans[0])) - tg.y) / tg.sd
             parts.append(ri[tg.low] if low_only else ri)
         out.append(np.concatenate(parts))
@@ -170,7 +171,7 @@ def estimate_chain(ev, cfg, executor, log=print) -> ChainEstimate | None:
     und = undeclared_runs(ev.targets)
     if not und:
         return None
-    sig_names = tuple(dict.fromkeys(s for i in und for s, _ in ev.targets[i].pairs))
+    sig_names = tuple(dict.fromkeys(channel(ev.targets[i], s) for i in und for s, _ in ev.targets[i].pairs))
     idx = list(range(len(ev.targets)))
     pev = copy.copy(ev)
     pev.profile_runs, pev.profile_signals = frozenset(und), sig_names

@@ -84,7 +84,7 @@ def test_delay_and_clock_act_on_the_features_as_the_instrument_says():
     seen = _target(t, {"accel_m_s2": _impacts(t, tau, eps)})
     amp = np.abs(clean.y[clean.pair_at] + 1j * clean.y[clean.pair_at + 1])
     moved = np.abs(seen.y - clean.y)[clean.pair_at].max() / amp.max()
-    clean.nuisance = Nuisance((("accel_m_s2", tau),), eps)
+    clean.nuisance = Nuisance(((("accel_m_s2", FS), tau),), eps)
     from pipeline.diagnosis.instrument import apply_gain, instrument_gain
 
     err = np.abs(apply_gain(clean.y, clean.pair_at, instrument_gain(clean)) - seen.y)[clean.pair_at].max() / amp.max()
@@ -104,7 +104,7 @@ def test_profile_recovers_delays_per_channel_and_the_clock():
         meas = {s: _impacts(t, d, eps, start) + 0.02 * rng.standard_normal(t.size) for s, d in tau.items()}
         tg = _target(t, meas, record_start=start)
         model = {s: _impacts(t, 0.0, 0.0, start) for s in tau}
-        items += profile_items(tg, _fake_result(start + t, model), tuple(tau))
+        items += profile_items(tg, _fake_result(start + t, model), tuple((s, FS) for s in tau))
     x = profile(items, 2)[0]
     assert x[0] == pytest.approx(1e6 * tau["accel_m_s2"], abs=5.0)      # µs
     assert x[1] == pytest.approx(1e6 * tau["force_n"], abs=5.0)
@@ -177,9 +177,9 @@ def _diagnose(tmp_path, data, *args):
 def test_undeclared_delay_and_clock_are_estimated_and_the_control_stays_clean(tmp_path):
     rep, md = _diagnose(tmp_path, _redated_drill_log(tmp_path, declare=False))
     est = rep["recording"]["estimated"]
-    for sig, d in est["delay_s"].items():
-        assert d["value"] == pytest.approx(TAU, abs=5e-6), (sig, d)
-        assert 0 < d["sd"] < 5e-6
+    for d in est["delays"]:
+        assert d["value_s"] == pytest.approx(TAU, abs=5e-6), d
+        assert 0 < d["sd_s"] < 5e-6
     assert est["clock_ppm"]["value"] == pytest.approx(PPM, abs=5.0) and 0 < est["clock_ppm"]["sd"] < 5.0
     assert rep["verdict"] == "nothing missing", rep["call"]["text"]
     assert "Recording: undeclared DAQ chain" in md
