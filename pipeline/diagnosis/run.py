@@ -186,8 +186,7 @@ def recording_report(targets: list[Target], chain: ChainEstimate | None) -> dict
     """report.json ``recording``: the DAQ chain each run declares, the undeclared chain estimated as nuisance
     (delay per channel and clock, with sd; None when every series run declares its chain or estimation is off),
     and the fraction of saturated samples left out per run and channel."""
-    declared = {t.run_id: {"filter": (None if t.chain.filter is None else
-                                      f"{t.chain.filter.kind}:{t.chain.filter.order}:{t.chain.filter.cutoff_hz:g}"),
+    declared = {t.run_id: {"filter": None if t.chain.filter is None else t.chain.filter.text(),
                            "delay_s": t.chain.delay_s, "clock_ppm": t.chain.clock_ppm}
                 for t in targets if t.chain is not None}
     return {"declared": declared, "estimated": chain.to_report() if chain is not None else None,

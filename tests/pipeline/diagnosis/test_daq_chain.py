@@ -139,31 +139,7 @@ def test_a_channel_saturated_beyond_the_threshold_is_not_used():
     assert tg.signals == ("accel_m_s2",) and any("not used" in n for n in tg.notes)
 
 
-# --- end to end: a drill log of the independent generator, re-dated -------------------------------------------
-
-TAU, PPM = 80e-6, 50.0
-
-
-def _redated_drill_log(tmp_path, declare: bool):
-    from tests.independent.generator import LogSpec, generate
-
-    spec = LogSpec("drill", noise="white2", seed=0, n_runs=8)
-    data = tmp_path / spec.name
-    generate(spec, data, threads=2)
-    runs = pd.read_csv(data / "runs.csv")
-    eps = 1e-6 * PPM
-    for rid in runs["run_id"]:
-        p = data / "series" / f"{rid}.csv"
-        if p.exists():
-            df = pd.read_csv(p)
-            df["t_s"] = df["t_s"] / (1.0 + eps)          # true interval (1 + ε)/fs, t_s written nominal
-            df.to_csv(p, index=False, float_format="%.10g")
-    runs["duration_s"] = runs["duration_s"] / (1.0 + eps)
-    runs["record_start_s"] = runs["record_start_s"] + TAU     # the record started τ earlier than declared
-    if declare:
-        runs["daq_filter"], runs["daq_delay_s"], runs["daq_clock_ppm"] = "none", TAU, PPM
-    runs.to_csv(data / "runs.csv", index=False, float_format="%.12g")
-    return data
+# --- end to end: short drill logs of the independent generator through a DAQ chain ------------------------------
 
 
 def _diagnose(tmp_path, data, *args):
@@ -174,20 +150,63 @@ def _diagnose(tmp_path, data, *args):
     return json.loads((out / "report.json").read_text()), (out / "report.md").read_text()
 
 
-def test_undeclared_delay_and_clock_are_estimated_and_the_control_stays_clean(tmp_path):
-    rep, md = _diagnose(tmp_path, _redated_drill_log(tmp_path, declare=False))
+def _drill_log(tmp_path, chain: str):
+    from tests.independent.daq import DAQ_CHAINS
+    from tests.independent.generator import LogSpec, generate
+
+    spec = LogSpec("drill", noise="white2", seed=0, n_runs=8, daq=DAQ_CHAINS[chain])
+    truth = generate(spec, tmp_path / spec.name, threads=2)
+    return tmp_path / spec.name, truth
+
+
+def _nothing_missing(rep):
+    assert rep["verdict"] == "nothing missing" and rep["selected"] is None, rep["call"]["text"]
+
+
+def test_an_undeclared_filter_and_clock_are_estimated_and_the_control_stays_clean(tmp_path):
+    """8th-order Butterworth at 0.45 fs (its delay left in the data) and a 50 ppm clock, undeclared."""
+    data, truth = _drill_log(tmp_path, "butter8-undeclared")
+    rep, md = _diagnose(tmp_path, data)
+    _nothing_missing(rep)
     est = rep["recording"]["estimated"]
+    runs = truth["daq"]["runs"]
     for d in est["delays"]:
-        assert d["value_s"] == pytest.approx(TAU, abs=5e-6), d
+        true = {r["dc_delay_s"] for rid, r in runs.items() if d["fs_hz"] == pytest.approx(_fs(data, rid))}
+        assert len(true) == 1 and d["value_s"] == pytest.approx(true.pop(), abs=5e-6), d
         assert 0 < d["sd_s"] < 5e-6
-    assert est["clock_ppm"]["value"] == pytest.approx(PPM, abs=5.0) and 0 < est["clock_ppm"]["sd"] < 5.0
-    assert rep["verdict"] == "nothing missing", rep["call"]["text"]
+    assert est["clock_ppm"]["value"] == pytest.approx(50.0, abs=5.0) and 0 < est["clock_ppm"]["sd"] < 5.0
     assert "Recording: undeclared DAQ chain" in md
 
 
+def _fs(data, rid) -> float:
+    t = pd.read_csv(data / "series" / f"{rid}.csv", usecols=["t_s"])["t_s"].to_numpy()
+    return round(1.0 / float(np.median(np.diff(t))), 3)
+
+
 @pytest.mark.slow
-def test_declared_chain_gives_the_verdict_of_no_chain(tmp_path):
-    rep, _ = _diagnose(tmp_path, _redated_drill_log(tmp_path, declare=True))
+@pytest.mark.parametrize("chain", ["butter8", "butter8-comp", "ellip6"])
+def test_a_declared_filter_gives_the_verdict_of_no_filter(tmp_path, chain):
+    data, _ = _drill_log(tmp_path, chain)
+    rep, _ = _diagnose(tmp_path, data)
     assert rep["recording"]["estimated"] is None and len(rep["recording"]["declared"]) >= 6
-    assert rep["verdict"] == "nothing missing", rep["call"]["text"]
-    assert math.isfinite(rep["base_nrms"]) and rep["base_nrms"] < 2.0
+    _nothing_missing(rep)
+
+
+@pytest.mark.slow
+def test_a_saturated_accelerometer_is_noted_and_the_verdict_holds(tmp_path):
+    data, truth = _drill_log(tmp_path, "clip80")
+    rep, _ = _diagnose(tmp_path, data)
+    _nothing_missing(rep)
+    clipped = {rid for rid, r in truth["daq"]["runs"].items() if r.get("clipped_fraction", {}).get("accel_m_s2")}
+    assert clipped and clipped == set(rep["recording"]["clipped"])
+    assert all(any(f"run {rid}, channel accel_m_s2" in n for n in rep["notes"]) for rid in clipped)
+
+
+@pytest.mark.slow
+def test_hum_on_the_forcing_harmonic_does_not_bias_the_verdict(tmp_path):
+    """50 Hz hum (5, 2, 1 N at 50, 100, 150 Hz) on the force channel: its third harmonic sits on the 150 Hz run's
+    forcing frequency (within the feature's noise: a few N against kN of force, sd ~1 N)."""
+    data, _ = _drill_log(tmp_path, "hum50")
+    assert "150" in " ".join(pd.read_csv(data / "runs.csv")["frequency_hz"].astype(str))
+    rep, _ = _diagnose(tmp_path, data)
+    _nothing_missing(rep)
