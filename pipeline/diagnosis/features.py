@@ -278,7 +278,8 @@ class Target:
     noise_sd: np.ndarray | None = None             # the noise part of sd, without the model floor (series)
     max_harmonic_hz: float = 0.0                    # the features' highest harmonic frequency
     chain: DeclaredChain | None = None             # the DAQ chain runs.csv declares (None: undeclared)
-    nuisance: Nuisance | None = None               # an undeclared chain's estimate (instrument.estimate_chain)
+    nuisance: Nuisance | None = None               # an undeclared chain's delays (nuisance.estimate_chain)
+    timing: DeclaredChain | None = None            # ... and its clock, applied at the model's instants
     pairs: tuple = ()                              # (signal, k) of every harmonic feature pair, in feature order
     pair_at: np.ndarray | None = None              # index of each pair's real part in the features
     pair_kw: np.ndarray | None = None              # each pair's angular frequency k Ω [rad/s]
@@ -587,8 +588,9 @@ def sampling_plan(tg: Target, frequency_hz: float, warmup_s: float = 0.0) -> tup
     n_pre = int(math.floor(min(warmup_s, t0) / dt + 1e-9)) if warmup_s > 0 else 0
     times = t0 + np.arange(-n_pre, tg.t_rec.size * sub) * dt
     end = t0 + tg.duration_s
-    if tg.chain is not None:        # a declared delay and clock: the plant's signal at the true instants
-        times = tg.chain.true_times(times, t0)
+    chain = tg.chain or tg.timing
+    if chain is not None:           # a declared (or estimated) delay and clock: the plant at the true instants
+        times = chain.true_times(times, t0)
         end = float(times[-1]) + dt
         if times[0] < 0:            # delayed past the start from rest: the first samples hold the rest state
             times = np.maximum(times, np.arange(times.size) * 1e-9 * dt)
