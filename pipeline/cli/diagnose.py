@@ -60,7 +60,7 @@ run's DAQ chain, and the model's signals pass through it before they are compare
   (delay and clock: the model is sampled at the true instants).  Where a series run declares none of them, a
   delay per channel and a clock error are estimated as nuisance parameters on the base model's calibration (the
   chain profiled out of every base fit) and held fixed for every model judged (never a §6 effect); report.json
-  'recording' gives them with their sd.  Saturated samples (runs of identical values at a channel's extreme) are
+  'recording' gives them with their sd.  Saturated samples (>= 3 identical values at a channel's extreme: flat tops) are
   left out of the features with a note; a channel saturated in more than 5 % of its samples is not used, a run
   with no usable channel is skipped and named."""
 

@@ -390,17 +390,20 @@ MAX_CLIPPED_FRACTION = 0.05
 gaps sit at the impacts, and the harmonics of what is left lose the information that tells impacts apart."""
 
 
+MIN_AT_EXTREME = 3
+"""Samples at exactly a channel's maximum (or minimum) that make it a saturation: a noisy signal reaches its extreme
+once; a clipped one sits there in flat tops (at 25.6 kHz an impact's flat top may be a single sample)."""
+
+
 def clipped_samples(x: np.ndarray) -> np.ndarray:
-    """Mask of the saturated samples of a channel: runs of >= 2 identical values at its maximum or minimum (a
-    flat top), when at least 3 samples sit there; an extreme of exactly 0 is a contact force at rest, not a
-    sensor's range."""
+    """Mask of the saturated samples of a channel: the samples at exactly its maximum or minimum, when at least
+    MIN_AT_EXTREME sit there (flat tops); an extreme of exactly 0 is a contact force at rest, not a sensor's
+    range."""
     out = np.zeros(x.size, dtype=bool)
     for v in (float(x.max()), float(x.min())):
         at = x == v
-        if v == 0.0 or np.count_nonzero(at) < 3:
-            continue
-        flat = at & (np.r_[False, at[:-1]] | np.r_[at[1:], False])
-        out |= flat
+        if v != 0.0 and np.count_nonzero(at) >= MIN_AT_EXTREME:
+            out |= at
     return out
 
 

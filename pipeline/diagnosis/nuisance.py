@@ -46,11 +46,6 @@ class ChainEstimate:
     clock_sd_ppm: float
     base_chi2_per_n: float
 
-    @property
-    def nuisance(self) -> Nuisance:
-        """The delays as a rotation (the clock goes to the model's instants, ``_set``)."""
-        return Nuisance(self.delay_s, 0.0)
-
     def to_report(self) -> dict:
         sd = dict(self.delay_sd_s)
         return {"runs": list(self.runs),
@@ -181,7 +176,9 @@ def estimate_chain(ev, cfg, executor, log=print) -> ChainEstimate | None:
     job = FitJob(idx, free, {}, random_starts(free, nominal_values(ev, idx), cfg.n_starts, rng), cfg.max_nfev,
                  cfg.diff_step, coarse=True)
     [fr] = _fits(executor, ev, pev.for_tasks(executor.task_threads), [job])
-    x0 = _at_clock(ev, und, fr.values, sig_names, None)[0]
+    x0, jac0, chi2_0, n0 = _at_clock(ev, und, fr.values, sig_names, None)
+    if all(ev.targets[i].record_start_s is None for i in und):     # steady state: the rotation is exact
+        return _finish(ev, und, sig_names, x0[:-1], float(x0[-1]), None, (x0, jac0, chi2_0, n0), fr, log)
     # the rotation is exact for a steady state only: a record from rest has its transient stretched by the clock too
     # (a drill log read 66 ppm for 80 by the rotation; χ²/n 0.91 there, 0.17 with the clock at the instants).  So
     # the clock is applied at the model's instants and searched on a grid around the rotation's estimate (coarse,
@@ -195,18 +192,31 @@ def estimate_chain(ev, cfg, executor, log=print) -> ChainEstimate | None:
                 pts[e] = _at_clock(ev, und, fr.values, sig_names, e)
         centre = min(pts, key=lambda e: pts[e][2])
     eps = centre
-    x, jac, chi2, n = pts[eps]
-    scale = max(1.0, chi2 / max(n - x.size - 1, 1))     # a model error inflates the sd as in the calibration
-    sd = np.sqrt(np.clip(np.diag(np.linalg.pinv(jac.T @ jac)) * scale, 0.0, None))
+    x, _, chi2, n = pts[eps]
     near = sorted(pts, key=lambda e: abs(e - eps))[:5]
     a = np.polyfit(near, [pts[e][2] for e in near], 2)[0]
+    scale = max(1.0, chi2 / max(n - x.size - 1, 1))
     # one sd: where χ² rises by the scale; at least half the fine grid's step (its resolution)
     clock_sd = max(float(np.sqrt(scale / a)) if a > 0 else math.inf, 0.5 * CLOCK_GRID[-1][0])
+    return _finish(ev, und, sig_names, x, eps, clock_sd, pts[eps], fr, log)
+
+
+def _finish(ev, und: list[int], keys: tuple, delays_us: np.ndarray, eps_ppm: float, clock_sd: float | None,
+            prof: tuple, fr, log) -> ChainEstimate:
+    """The estimate, its sd (the profile's Jacobian ``prof``, inflated by χ²/dof when above 1; the clock's
+    ``clock_sd`` where it was searched at the instants, else from the Jacobian too) set on the targets: the clock at
+    the instants where searched there (``clock_sd`` given), else as a rotation (steady state: exact)."""
+    x, jac, chi2, n = prof
+    scale = max(1.0, chi2 / max(n - x.size, 1))     # a model error inflates the sd as in the calibration
+    sd = np.sqrt(np.clip(np.diag(np.linalg.pinv(jac.T @ jac)) * scale, 0.0, None))
+    at_instants = clock_sd is not None
     est = ChainEstimate(runs=tuple(ev.targets[i].run_id for i in und),
-                        delay_s=tuple((s, 1e-6 * float(v)) for s, v in zip(sig_names, x)),
-                        delay_sd_s=tuple((s, 1e-6 * float(v)) for s, v in zip(sig_names, sd)),
-                        clock_ppm=eps, clock_sd_ppm=clock_sd, base_chi2_per_n=fr.chi2 / max(fr.n, 1))
-    _set(ev, und, eps, est.nuisance)
+                        delay_s=tuple((s, 1e-6 * float(v)) for s, v in zip(keys, delays_us)),
+                        delay_sd_s=tuple((s, 1e-6 * float(v)) for s, v in zip(keys, sd)),
+                        clock_ppm=eps_ppm, clock_sd_ppm=clock_sd if at_instants else float(sd[-1]),
+                        base_chi2_per_n=fr.chi2 / max(fr.n, 1))
+    rotation_only = Nuisance(est.delay_s, 0.0 if at_instants else 1e-6 * eps_ppm)
+    _set(ev, und, eps_ppm if at_instants else None, rotation_only)
     log(f"{ev.system}: {est.text()}")
     return est
 
@@ -216,13 +226,13 @@ CLOCK_GRID = ((5.0, 6), (1.0, 4))
 one around the coarse grid's best (each point one simulation of the undeclared runs)."""
 
 
-def _set(ev, und: list[int], eps_ppm: float | None, delays: Nuisance | None) -> None:
-    """The clock ``eps_ppm`` at the model's instants (None: none) and the delays as a rotation on the runs ``und``."""
+def _set(ev, und: list[int], eps_ppm: float | None, rotation: Nuisance | None) -> None:
+    """The clock ``eps_ppm`` at the model's instants (None: none) and ``rotation`` on the runs ``und``."""
     from pipeline.datasets.daq import DeclaredChain
 
     for i in und:
         ev.targets[i].timing = None if eps_ppm is None else DeclaredChain(None, 0.0, eps_ppm)
-        ev.targets[i].nuisance = None if delays is None else Nuisance(delays.delays, 0.0)
+        ev.targets[i].nuisance = rotation
 
 
 def _at_clock(ev, und: list[int], values: dict, keys: tuple, eps_ppm: float | None):
