@@ -2,11 +2,11 @@
 
 Where runs.csv declares no DAQ chain for a series run, the log's chain is unknown: a delay per channel (what the
 anti-alias filter and the DAQ's alignment leave, shared by every run of the log at the same sampling rate: the
-filter follows the rate) and one clock error ε.  They are
-estimated once, on the base model's calibration: the base model is fitted to every run with the chain profiled
-out of its residual (for each parameter set simulated, the delays and ε that fit its features best, a cheap linear
-least squares on the harmonics' phases, ``profile``), and the chain of the best fit is then held fixed for every
-model the diagnosis fits and judges (base, candidates, pairs, proposals).  The physics never trades against it:
+filter follows the rate) and one clock error ε.  They are estimated once, on the base model's calibration: the base
+model is fitted to every run with the chain profiled out of its residual (for each parameter set simulated, the
+delays and ε that fit its features best, a cheap least squares on the harmonics' phases, ``profile``); for records
+from rest the clock is then searched with the model sampled at the clock's instants (``estimate_chain``); and the
+chain found is held fixed for every model the diagnosis fits and judges (base, candidates, pairs, proposals).  The physics never trades against it:
 no candidate can move it, and it cannot move with a candidate.
 
 The chain acts on the features as ``instrument.rotation``: harmonic k of signal s turns by k Ω (ε t̄ − τ_s).  A
