@@ -397,12 +397,13 @@ once; a clipped one sits there in flat tops (at 25.6 kHz an impact's flat top ma
 
 def clipped_samples(x: np.ndarray) -> np.ndarray:
     """Mask of the saturated samples of a channel: the samples at exactly its maximum or minimum, when at least
-    MIN_AT_EXTREME sit there (flat tops); an extreme of exactly 0 is a contact force at rest, not a sensor's
-    range."""
+    MIN_AT_EXTREME sit there and two of them are adjacent (a flat top); an extreme of exactly 0 is a contact force
+    at rest, not a sensor's range."""
     out = np.zeros(x.size, dtype=bool)
     for v in (float(x.max()), float(x.min())):
         at = x == v
-        if v != 0.0 and np.count_nonzero(at) >= MIN_AT_EXTREME:
+        flat = bool(np.any(at[1:] & at[:-1]))     # a noise-free periodic record repeats its peak, never flat
+        if v != 0.0 and flat and np.count_nonzero(at) >= MIN_AT_EXTREME:
             out |= at
     return out
 
