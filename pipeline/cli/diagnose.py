@@ -46,7 +46,23 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
    on the held-out runs by the rule of step 4.  report.json 'discrepancy' ranks them (terms in words and
    symbols, coefficients with sd, held-out error against the floor); an accepted proposal goes into the rig
    file as a 'discrepancy:' entry (term names and coefficients, never code) that every --rig command
-   simulates in the kernel."""
+   simulates in the kernel.
+The recording is a model of its own (docs/diagnose.md "The recording chain"): optional runs.csv columns declare a
+run's DAQ chain, and the model's signals pass through it before they are compared:
+  daq_filter     anti-alias filter: butter:order:cutoff_hz, ellip:order:cutoff_hz[:ripple_db:stop_db] (analog
+                 prototypes; ellip default 0.1 dB, 60 dB, cut-off = pass-band edge), fir:taps:cutoff_hz:oversample
+                 (linear-phase decimation filter: its pure delay), or none; applied as its frequency response on
+                 every harmonic (exact in steady state)
+  daq_delay_s    a pure delay [s] on top of the filter (what the DAQ's alignment left); with a column
+                 daq_delay_removed it is the filter's own group delay instead, and daq_delay_removed = 1 says the
+                 DAQ moved the time stamps back by it (0: left in the data)
+  daq_clock_ppm  sample-clock error [ppm]: sample n was taken at (1 + ppm 1e-6) n / fs while t_s says n / fs
+  (delay and clock: the model is sampled at the true instants).  Where a series run declares none of them, a
+  delay per channel and a clock error are estimated as nuisance parameters on the base model's calibration (the
+  chain profiled out of every base fit) and held fixed for every model judged (never a §6 effect); report.json
+  'recording' gives them with their sd.  Saturated samples (>= 3 identical values at a channel's extreme: flat tops) are
+  left out of the features with a note; a channel saturated in more than 5 % of its samples is not used, a run
+  with no usable channel is skipped and named."""
 
 EPILOG = """\
 params.yaml section 'diagnose' (all optional; defaults in brackets):
@@ -84,6 +100,7 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
   record_window [64]       a steady-state series is compared over its first this many cycles (0 = all)
   summary_sd [{}]          e.g. {peak_decel_g: [rel, 0.05], impacts_per_cycle: [abs, 0.5]}
   seed [0]                 seed of the random starts
+  estimate_chain [true]    estimate an undeclared DAQ chain (delay per channel, clock) as nuisance (false: none)
   scheduler [null]         Dask scheduler (tcp://host:8786) or local:N that runs the fits; null = this process
                            (--threads simulation threads); not part of the report: the numbers are the same
 examples:
@@ -137,7 +154,11 @@ def load_config(path: str | None, sets: dict, effects: list[str] | None, threads
         if k not in known:
             raise UserError(f"diagnose setting '{k}' is unknown (known: {', '.join(known)})")
     for k, v in list(values.items()):
-        if k in INT_BOUNDS and v is not None:
+        if k == "estimate_chain" and isinstance(v, str):
+            if v.strip().lower() not in ("true", "false"):
+                raise UserError(f"diagnose setting 'estimate_chain' must be true or false, got {v!r}")
+            values[k] = v.strip().lower() == "true"
+        elif k in INT_BOUNDS and v is not None:
             lo, hi = INT_BOUNDS[k]
             hi = A.MAX_THREADS if k == "n_threads" else hi
             values[k] = A.number(v, f"diagnose setting '{k}'", integer=True, lo=lo, hi=hi)

@@ -26,6 +26,7 @@ from pipeline.core.errors import UserError
 from pipeline.core.numbers import PLAUSIBLE_FACTOR, number, plausible
 from pipeline.core.bounded import MAX_CSV_BYTES, check_size
 from pipeline.core.files import atomic_directory, duplicate_csv_column
+from pipeline.datasets.daq import DAQ_COLUMNS, DeclaredChain, declared_chains
 
 RUN_COLUMNS = ("run_id", "system", "frequency_hz", "gap_m", "duration_s")
 """Required for every run.  The amplitude and static-force columns are required for the runs whose
@@ -66,6 +67,7 @@ class Dataset:
     path: Path | None = None
     known: dict[str, dict[str, float]] = field(default_factory=dict)   # run_id -> known rig parameters
     extra_files: dict[str, str] = field(default_factory=dict)   # relative path -> text (README.md, truth.json)
+    chains: dict[str, DeclaredChain] = field(default_factory=dict)   # run_id -> declared DAQ chain (daq_* columns)
 
     @property
     def systems(self) -> list[str]:
@@ -322,13 +324,15 @@ def load_dataset(path: str | os.PathLike) -> Dataset:
             series[f.stem] = _load_series(f, f.stem, budget=left)
             left -= len(series[f.stem])
     _check_durations(runs, series)
+    chains = declared_chains(runs, {rid: 1.0 / float(np.median(np.diff(df["t_s"].to_numpy())))
+                                    for rid, df in series.items()})
     summary = _load_summary(root, ids)
     known = known_parameters(runs)
     for i, rid in enumerate(runs["run_id"]):
         if rid not in series and (summary is None or rid not in summary.index):
             raise UserError(f"{_where('runs.csv', i + 2, 'run_id')}: run '{rid}' has neither a series "
                             f"(series/{rid}.csv) nor a row in summary.csv")
-    return Dataset(runs=runs, series=series, summary=summary, path=root, known=known)
+    return Dataset(runs=runs, series=series, summary=summary, path=root, known=known, chains=chains)
 
 
 def known_parameters(runs: pd.DataFrame) -> dict[str, dict[str, float]]:
@@ -339,7 +343,7 @@ def known_parameters(runs: pd.DataFrame) -> dict[str, dict[str, float]]:
     import sim
 
     label = "runs.csv"
-    controls = set(RUN_NUMERIC) | {"run_id", "system", "preset", *OPTIONAL_RUN_COLUMNS}
+    controls = set(RUN_NUMERIC) | {"run_id", "system", "preset", *OPTIONAL_RUN_COLUMNS, *DAQ_COLUMNS}
     all_params = {p for m in sim.model_names() for p in sim.get_model(m).param_names} - controls
     out: dict[str, dict[str, float]] = {}
     for i, row in enumerate(runs.to_dict("records")):

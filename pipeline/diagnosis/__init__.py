@@ -1,6 +1,8 @@
 """Model diagnosis against measured data (``vibro diagnose``).
 
 features.py  measured and simulated features (harmonics of the signals, summary labels) with noise
+instrument.py what the recording chain (filter, delay, clock) does to the model's harmonic features
+nuisance.py  an undeclared recording chain estimated beside the calibration and held fixed
 model.py     calibratable parameters, candidate effects, parallel evaluation of the simulator
 fit.py       multi-start least squares with a parallel finite-difference Jacobian, uncertainty
 calibrate.py the base and candidate fits of every fold, stage by stage as batches of tasks on an executor

@@ -55,6 +55,8 @@ def check_config(cfg) -> None:
         check_setting(name, getattr(cfg, name))
     if cfg.effects is not None and (not isinstance(cfg.effects, list) or not all(isinstance(e, str) for e in cfg.effects)):
         raise UserError(f"diagnose setting 'effects' must be a list of effect names, got {cfg.effects!r}")
+    if not isinstance(cfg.estimate_chain, bool):
+        raise UserError(f"diagnose setting 'estimate_chain' must be true or false, got {cfg.estimate_chain!r}")
     for name in ("sim_settings", "summary_sd"):
         if not isinstance(getattr(cfg, name), dict):
             raise UserError(f"diagnose setting '{name}' must be a mapping, got {getattr(cfg, name)!r}")
@@ -95,6 +97,7 @@ class DiagnoseConfig:
     summary_sd: dict = field(default_factory=dict)   # e.g. {"peak_decel_g": ["rel", 0.05]}
     seed: int = 0
     n_threads: int | None = None
+    estimate_chain: bool = True         # estimate an undeclared DAQ chain (delay per channel, clock) as nuisance
 
     def __post_init__(self) -> None:
         check_config(self)

@@ -29,6 +29,8 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
+from pipeline.datasets.daq import DeclaredChain
+from pipeline.diagnosis.instrument import Nuisance, apply_gain, instrument_gain
 
 HARMONIC_SIGNALS = ("accel_m_s2", "force_n", "disp_m")
 CONTROL_NAMES = ("frequency_hz", "amplitude_n", "amplitude_m", "static_force_n", "gap_m")
@@ -40,6 +42,10 @@ DEFAULT_SUMMARY_SD = {"peak_decel_g": ("rel", 0.05), "impacts_per_cycle": ("abs"
 MIN_CYCLES = 2.0
 """A record must hold at least this many forcing cycles (harmonics and drift are separable only then)."""
 G = 9.81
+
+
+class UnusableRecord(UserError):
+    """A series record none of whose channels can be used (saturated): the run is skipped and named."""
 
 
 def harmonic_count(frequency_hz: float, max_harmonic_hz: float) -> int:
@@ -229,15 +235,22 @@ def _broadband(res: np.ndarray, fs: float, f: float, k_max: int, degree: int = 0
     return math.sqrt(_trimmed_level(p[m] if np.any(m) else p[1:]))
 
 
-def record_noise(t: np.ndarray, x: np.ndarray, f: float, k_max: int, degree: int = 0) -> tuple[np.ndarray, float]:
+def record_noise(t: np.ndarray, x: np.ndarray, f: float, k_max: int, degree: int = 0,
+                 keep: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """(noise variance density around k f, k = 0..k_max (``band_noise``), broadband sd [unit of x]) of a record:
     the residual of a harmonic fit whose amplitudes may vary as polynomials of ``degree`` over the record
-    (``_slow_design``; SLOW_DEGREE for a record from rest, 0 in steady state), on the record's own time base."""
+    (``_slow_design``; SLOW_DEGREE for a record from rest, 0 in steady state), on the record's own time base.
+    ``keep``: the usable samples (saturated ones left out of the fit, their residual 0 and the periodogram scaled
+    up by the fraction left out)."""
     fs = 1.0 / float(t[1] - t[0])
     # a few harmonics above k_max too: their lines would leak into the top bands
     k_fit = max(min(k_max + NOISE_EXTRA_HARMONICS, int(math.floor(fs / (2.0 * f) - 0.5))), k_max)
     a = _slow_design(t, f, k_fit, degree)
-    res = x - a @ np.linalg.lstsq(a, x, rcond=None)[0]
+    if keep is None:
+        res = x - a @ np.linalg.lstsq(a, x, rcond=None)[0]
+    else:
+        res = np.where(keep, x - a @ np.linalg.lstsq(a[keep], x[keep], rcond=None)[0], 0.0)
+        res = res * math.sqrt(keep.size / max(np.count_nonzero(keep), 1))
     return band_noise(res, fs, f, k_max, degree), _broadband(res, fs, f, k_max, degree)
 
 
@@ -275,6 +288,16 @@ class Target:
     y_halves: np.ndarray | None = None             # (2, n) features of each half (series; the summary has none)
     noise_sd: np.ndarray | None = None             # the noise part of sd, without the model floor (series)
     max_harmonic_hz: float = 0.0                    # the features' highest harmonic frequency
+    chain: DeclaredChain | None = None             # the DAQ chain runs.csv declares (None: undeclared)
+    nuisance: Nuisance | None = None               # an undeclared chain's delays (nuisance.estimate_chain)
+    timing: DeclaredChain | None = None            # ... and its clock, applied at the model's instants
+    pairs: tuple = ()                              # (signal, k) of every harmonic feature pair, in feature order
+    pair_at: np.ndarray | None = None              # index of each pair's real part in the features
+    pair_kw: np.ndarray | None = None              # each pair's angular frequency k Ω [rad/s]
+    filter_gain: np.ndarray | None = None          # the declared filter's response at each pair (None: no filter)
+    spans: tuple = ()                              # (mid record time, length) [s] of the record and of its halves
+    clipped: dict = field(default_factory=dict)    # signal -> fraction of samples left out (saturated)
+    notes: list = field(default_factory=list)      # what the features left out, for the report
 
     @property
     def low(self) -> np.ndarray:
@@ -323,15 +346,20 @@ def record_time(tg: Target, t_record: np.ndarray) -> np.ndarray:
     return t_record + (tg.record_start_s or 0.0)
 
 
-def _operators(t: np.ndarray, f: float, k: int) -> dict:
+def _operators(t: np.ndarray, f: float, k: int, keep: dict | None = None) -> dict:
     """Least-squares operators of a time base: "harmonic" (cubic drift, DRIFT_DEGREE) for accelerations, forces and
-    displacements, "linear" (offset and rate) for the progression."""
-    return {"harmonic": np.linalg.pinv(_design(t, f, k, DRIFT_DEGREE)), "linear": np.linalg.pinv(_design(t, f, k, 1))}
+    displacements, "linear" (offset and rate) for the progression, and per signal of ``keep`` (signal -> mask of
+    its usable samples) one that leaves the others out."""
+    a = _design(t, f, k, DRIFT_DEGREE)
+    ops = {"harmonic": np.linalg.pinv(a), "linear": np.linalg.pinv(_design(t, f, k, 1))}
+    for sig, m in (keep or {}).items():
+        ops[sig] = _masked(np.linalg.pinv(a[m]), m)
+    return ops
 
 
 def _coefs(ops: dict, x: dict, sl: slice = slice(None)) -> dict:
     """Each signal's least-squares coefficients on its operator (samples ``sl`` of ``x``)."""
-    return {sig: ops["linear" if sig == "progression_m" else "harmonic"] @ v[sl] for sig, v in x.items()}
+    return {sig: ops.get(sig, ops["linear" if sig == "progression_m" else "harmonic"]) @ v[sl] for sig, v in x.items()}
 
 
 def _features(signals: tuple[str, ...], coef: dict, from_rest: bool) -> np.ndarray:
@@ -358,13 +386,44 @@ def steady_cycles(cycles: float, max_cycles: float = 0.0) -> int:
     return max((c // 4) * 4 if c >= 8 else (c // 2) * 2, 2)
 
 
-def _halves(t: np.ndarray, f: float, k: int, steady: bool) -> list:
+def _halves(t: np.ndarray, f: float, k: int, steady: bool, keep: dict | None = None) -> list:
     """The record's two halves (slices) and the least-squares operators of their own time bases; a steady-state
     record (whole pairs of cycles, ``steady_cycles``) is split between its pairs."""
     mid = t.size // 2
     if steady:
         mid = int(np.searchsorted(t, t[0] + 0.5 * (t[-1] - t[0] + (t[1] - t[0])) - 1e-9 * (t[1] - t[0])))
-    return [(sl, _operators(t[sl], f, k)) for sl in (slice(0, mid), slice(mid, t.size))]
+    return [(sl, _operators(t[sl], f, k, {s_: m[sl] for s_, m in (keep or {}).items()}))
+            for sl in (slice(0, mid), slice(mid, t.size))]
+
+
+MAX_CLIPPED_FRACTION = 0.05
+"""A channel with more saturated samples than this fraction of its record is not used (named in the notes): the
+gaps sit at the impacts, and the harmonics of what is left lose the information that tells impacts apart."""
+
+
+MIN_AT_EXTREME = 3
+"""Samples at exactly a channel's maximum (or minimum) that make it a saturation: a noisy signal reaches its extreme
+once; a clipped one sits there in flat tops (at 25.6 kHz an impact's flat top may be a single sample)."""
+
+
+def clipped_samples(x: np.ndarray) -> np.ndarray:
+    """Mask of the saturated samples of a channel: the samples at exactly its maximum or minimum, when at least
+    MIN_AT_EXTREME sit there and two of them are adjacent (a flat top); an extreme of exactly 0 is a contact force
+    at rest, not a sensor's range."""
+    out = np.zeros(x.size, dtype=bool)
+    for v in (float(x.max()), float(x.min())):
+        at = x == v
+        flat = bool(np.any(at[1:] & at[:-1]))     # a noise-free periodic record repeats its peak, never flat
+        if v != 0.0 and flat and np.count_nonzero(at) >= MIN_AT_EXTREME:
+            out |= at
+    return out
+
+
+def _masked(op: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """A least-squares operator on the samples ``keep`` only, as an operator on all of them (zero columns)."""
+    out = np.zeros((op.shape[0], keep.size))
+    out[:, keep] = op
+    return out
 
 
 def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segments: int = 4,
@@ -396,15 +455,36 @@ def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segmen
     t = record_time(tg, t_rec)
     tg.t_rec = t_rec
     a = _design(t, f, k)
-    tg.pinv = _operators(t, f, k)
     sigs = tuple(sig for sig in (*HARMONIC_SIGNALS, "progression_m") if sig in df.columns)
+    keep = {}
+    for sig in HARMONIC_SIGNALS:        # saturated samples: out of the fits (and so of the model's sampling)
+        if sig not in sigs:
+            continue
+        m = clipped_samples(df[sig].to_numpy())
+        frac = float(m.mean())
+        if frac > MAX_CLIPPED_FRACTION:
+            sigs = tuple(x for x in sigs if x != sig)
+            tg.notes.append(f"run {tg.run_id}, channel {sig}: {frac:.1%} of the samples saturated (flat tops at the "
+                            f"channel's extreme), more than {MAX_CLIPPED_FRACTION:.0%}: the channel is not used")
+        elif frac > 0:
+            keep[sig] = ~m
+            tg.clipped[sig] = frac
+            tg.notes.append(f"run {tg.run_id}, channel {sig}: {frac:.2%} of the samples saturated (flat tops at the "
+                            f"channel's extreme), left out of the features")
+    if not sigs:
+        raise UnusableRecord(f"run {tg.run_id}: every channel is saturated in more than {MAX_CLIPPED_FRACTION:.0%} "
+                             f"of its samples; the run is skipped")
+    tg.pinv = _operators(t, f, k, keep)
     x_all = {sig: df[sig].to_numpy() for sig in sigs}
     coef = _coefs(tg.pinv, x_all)
     from_rest = tg.record_start_s is not None
-    tg.halves = _halves(t, f, k, not from_rest) if tg.cycles >= 2 * MIN_CYCLES else []
+    tg.halves = _halves(t, f, k, not from_rest, keep) if tg.cycles >= 2 * MIN_CYCLES else []
+    spans = [(float(np.mean(t_rec)), tg.duration_s)]
+    spans += [(float(np.mean(t_rec[sl])), float(t_rec[sl][-1] - t_rec[sl][0] + dt)) for sl, _ in tg.halves]
+    tg.spans = tuple(spans)
     if tg.halves:
         tg.y_halves = np.array([_features(sigs, _coefs(ops, x_all, sl), from_rest) for sl, ops in tg.halves])
-    present = [sig for sig in HARMONIC_SIGNALS if sig in df.columns]
+    present = [sig for sig in HARMONIC_SIGNALS if sig in sigs]
     if present and tg.cycles >= 2 * n_segments * MIN_CYCLES / 2:
         a_h = _design(t, f, k, DRIFT_DEGREE)
         x_stack = np.column_stack([x_all[sig] for sig in present])
@@ -417,8 +497,10 @@ def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segmen
         tg.segments = {sig: np.array(v) for sig, v in seg_c.items()}
     names, sd, noise, group = [], [], [], []
     n = t.size
+    pairs, pair_at = [], []
     for sig in sigs:
-        dens, broad = record_noise(t, x_all[sig], f, k, SLOW_DEGREE if from_rest else 0)
+        dens, broad = record_noise(t, x_all[sig], f, k, SLOW_DEGREE if from_rest else 0, keep.get(sig))
+        n = int(np.count_nonzero(keep[sig])) if sig in keep else t.size
         tg.noise[sig] = broad
         c = coef[sig]
         if sig == "progression_m":
@@ -439,6 +521,8 @@ def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segmen
         floor = model_floor * math.sqrt(float(np.mean(np.abs(h) ** 2)))
         csd = np.sqrt(2.0 * dens[1:] / n + floor ** 2)
         csd = np.maximum(csd, 1e-12 * (float(np.abs(h).max()) + 1e-30))
+        pair_at += list(len(names) + 2 * np.arange(k))
+        pairs += [(sig, j) for j in range(1, k + 1)]
         names += _complex_features(sig, h)[0]
         sd += list(np.repeat(csd, 2))
         noise += list(np.repeat(np.sqrt(2.0 * dens[1:] / n), 2))
@@ -447,6 +531,10 @@ def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segmen
     tg.noise_sd = np.array(noise)
     tg.y = _features(sigs, coef, from_rest)
     tg.lower_bound = np.zeros(tg.y.size, dtype=bool)
+    tg.pairs, tg.pair_at = tuple(pairs), np.array(pair_at, dtype=int)
+    tg.pair_kw = 2.0 * math.pi * f * np.array([j for _, j in pairs], dtype=float)
+    if tg.chain is not None and tg.chain.filter is not None:
+        tg.filter_gain = tg.chain.gain(tg.pair_kw / (2.0 * math.pi))
     return tg
 
 
@@ -514,7 +602,14 @@ def sampling_plan(tg: Target, frequency_hz: float, warmup_s: float = 0.0) -> tup
         t0 = tg.record_start_s
     n_pre = int(math.floor(min(warmup_s, t0) / dt + 1e-9)) if warmup_s > 0 else 0
     times = t0 + np.arange(-n_pre, tg.t_rec.size * sub) * dt
-    window = int(math.ceil((t0 + tg.duration_s) / period)) + 1
+    end = t0 + tg.duration_s
+    chain = tg.chain or tg.timing
+    if chain is not None:           # a declared (or estimated) delay and clock: the plant at the true instants
+        times = chain.true_times(times, t0)
+        end = float(times[-1]) + dt
+        if times[0] < 0:            # delayed past the start from rest: the first samples hold the rest state
+            times = np.maximum(times, np.arange(times.size) * 1e-9 * dt)
+    window = int(math.ceil(end / period)) + 1
     return times, max(window, 2), t0
 
 
@@ -564,7 +659,8 @@ def simulated_halves(tg: Target, res) -> np.ndarray | None:
     x = {sig: model_on_record(tg, res.history, sig) for sig in tg.signals}
     if _diverged(x):
         return None
-    return np.array([_features(tg.signals, _coefs(ops, x, sl), tg.record_start_s is not None) for sl, ops in tg.halves])
+    return np.array([apply_gain(_features(tg.signals, _coefs(ops, x, sl), tg.record_start_s is not None), tg.pair_at,
+                                instrument_gain(tg, j + 1)) for j, (sl, ops) in enumerate(tg.halves)])
 
 
 def simulated_features(tg: Target, res) -> np.ndarray | None:
@@ -576,7 +672,10 @@ def simulated_features(tg: Target, res) -> np.ndarray | None:
     f = tg.frequency_hz
     if tg.kind == "series":
         x = {sig: model_on_record(tg, h, sig) for sig in tg.signals}
-        return None if _diverged(x) else _features(tg.signals, _coefs(tg.pinv, x), tg.record_start_s is not None)
+        if _diverged(x):
+            return None
+        m = _features(tg.signals, _coefs(tg.pinv, x), tg.record_start_s is not None)
+        return apply_gain(m, tg.pair_at, instrument_gain(tg))
     t, hr = model_record(tg, h)
     if t.size < 4 or _diverged({c: hr[c].to_numpy(dtype=float) for c in hr.columns if c != "t_s"}):
         return None

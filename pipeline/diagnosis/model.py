@@ -128,6 +128,8 @@ class Evaluator:
         self.sim_settings = dict(sim_settings)
         self.settings = [run_settings(tg, sim_settings, fs_sim_hz) for tg in targets]
         self.n_sims = 0
+        self.profile_runs: frozenset = frozenset()     # runs whose undeclared DAQ chain is profiled out (nuisance)
+        self.profile_signals: tuple[str, ...] = ()
         warm(system)
 
     def for_tasks(self, n_threads: int | None = None) -> Evaluator:
@@ -181,6 +183,10 @@ class Evaluator:
         """Concatenated normalised residual over runs ``idx`` for each parameter set (``low_only``: the features of
         the low harmonics only, ``features.low_harmonics``)."""
         sims = self.simulate(param_sets, idx)
+        if self.profile_runs:
+            from pipeline.diagnosis.nuisance import profiled_residuals
+
+            return profiled_residuals(self, sims, idx, low_only)
         if low_only:
             return [np.concatenate([self.residual_of(i, r)[self.targets[i].low] for i, r in zip(idx, row)])
                     for row in sims]

@@ -343,6 +343,20 @@ def markdown(report: dict, per_system: list[dict], seconds: float) -> str:
             lines.append("Residual / noise by quarter of the record: "
                          + ", ".join(f"{x:.3g}" for x in st["by_time_segment"]) + ".")
         lines += [""] + [f"![{f}]({f})" for f in rep["figures"]] + [""]
+        lines += _recording_lines(rep.get("recording"))
         if rep.get("notes"):
             lines += [f"Note: {n}" for n in rep["notes"]] + [""]
     return "\n".join(lines)
+
+
+def _recording_lines(rec: dict | None) -> list[str]:
+    """report.md lines on the DAQ chain: the declared chains, and the undeclared chain estimated as nuisance."""
+    if not rec:
+        return []
+    out = []
+    if rec["declared"]:
+        out.append(f"Recording chain declared in runs.csv for {len(rec['declared'])} run(s): the model's signals went "
+                   "through it before the comparison.")
+    if rec["estimated"]:
+        out.append("Recording: " + rec["estimated"]["text"] + ".")
+    return out + ([""] if out else [])

@@ -19,11 +19,13 @@ import numpy as np
 
 from pipeline.diagnosis.config import DiagnoseConfig  # noqa: F401  (re-exported: the commands import it from here)
 from pipeline.diagnosis.progress import NoProgress, Progress, fit_tasks
-from pipeline.diagnosis.features import CONTROL_NAMES, Target, series_target, simulated_features, summary_target
+from pipeline.diagnosis.features import (CONTROL_NAMES, Target, UnusableRecord, series_target, simulated_features,
+                                         summary_target)
 from pipeline.core.executors import Executor, InlineExecutor
 from pipeline.diagnosis.calibrate import fit_additions, fit_models
 from pipeline.diagnosis.discovery import discover, proposal_terms, report as discovery_report
 from pipeline.diagnosis.fit import FitResult
+from pipeline.diagnosis.nuisance import ChainEstimate, estimate_chain
 from pipeline.diagnosis.heldout import fold_errors, heldout_errors as _errors, systematic_error  # noqa: F401
 from pipeline.diagnosis.result import SystemDiagnosis
 from pipeline.diagnosis.verdict import (SELECTED, UNEXPLAINED, ModelStats, Verdict, VerdictRule, closeness, decide,
@@ -33,10 +35,12 @@ from pipeline.diagnosis.model import (Evaluator, calibratable, candidates, defau
 from pipeline.core.errors import UserError
 
 
-def build_targets(ds, cfg: DiagnoseConfig) -> dict[str, list[Target]]:
+def build_targets(ds, cfg: DiagnoseConfig, skipped: dict[str, list[str]] | None = None) -> dict[str, list[Target]]:
     """Targets per system, in runs.csv order (series preferred over summary when both exist).  Each
     target carries its run's controls (the model's own control names), the known rig parameters
-    (preset / parameter columns) and ``record_start_s`` (None where not given: steady state)."""
+    (preset / parameter columns), ``record_start_s`` (None where not given: steady state) and the DAQ chain
+    runs.csv declares for it.  A record that cannot be used (every channel saturated) is left out and named in
+    ``skipped`` (system -> notes)."""
     import sim
 
     out: dict[str, list[Target]] = {}
@@ -52,11 +56,17 @@ def build_targets(ds, cfg: DiagnoseConfig) -> dict[str, list[Target]]:
                     controls={c: float(row[c]) for c in CONTROL_NAMES if c in names and c in row},
                     known=dict(ds.known.get(row["run_id"], {})),
                     record_start_s=None if rs is None or not np.isfinite(rs) else float(rs),
-                    duration_s=float(row["duration_s"]))
+                    duration_s=float(row["duration_s"]), chain=getattr(ds, "chains", {}).get(row["run_id"]))
         mh = cfg.max_harmonic_hz or default_max_harmonic_hz(system)
         if row["run_id"] in ds.series:
-            tg = series_target(tg, ds.series[row["run_id"]], mh, model_floor=cfg.model_floor,
-                               max_cycles=cfg.record_window)
+            try:
+                tg = series_target(tg, ds.series[row["run_id"]], mh, model_floor=cfg.model_floor,
+                                   max_cycles=cfg.record_window)
+            except UnusableRecord as e:
+                if skipped is None:
+                    raise
+                skipped.setdefault(system, []).append(str(e))
+                continue
         else:
             tg = summary_target(tg, ds.summary.loc[row["run_id"]], mh, sd, floor=cfg.summary_floor)
         out.setdefault(system, []).append(tg)
@@ -173,6 +183,17 @@ def _second_report(first: str, fits: dict, stats: dict, v2: Verdict, rule: Verdi
     return {"first": first, "candidates": rows, "leader": lead, "indistinguishable": same, "text": text}
 
 
+def recording_report(targets: list[Target], chain: ChainEstimate | None) -> dict:
+    """report.json ``recording``: the DAQ chain each run declares, the undeclared chain estimated as nuisance
+    (delay per channel and clock, with sd; None when every series run declares its chain or estimation is off),
+    and the fraction of saturated samples left out per run and channel."""
+    declared = {t.run_id: {"filter": None if t.chain.filter is None else t.chain.filter.text(),
+                           "delay_s": t.chain.delay_s, "clock_ppm": t.chain.clock_ppm}
+                for t in targets if t.chain is not None}
+    return {"declared": declared, "estimated": chain.to_report() if chain is not None else None,
+            "clipped": {t.run_id: dict(t.clipped) for t in targets if t.clipped}}
+
+
 def _param_report(fr: FitResult) -> dict:
     return {n: {"value": fr.values[n], "sd": fr.sd[n], "ci95": list(fr.ci95[n])} for n in fr.free}
 
@@ -189,6 +210,8 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
 
     cfg = replace(cfg, **{k: v for k, v in default_fit_settings(system).items() if getattr(cfg, k) is None})
     ev = Evaluator(system, targets, dict(cfg.sim_settings), cfg.fs_sim_hz, cfg.n_threads)
+    executor = executor or InlineExecutor()
+    chain = estimate_chain(ev, cfg, executor, log) if cfg.estimate_chain else None
     unreproducible = unreproducible_runs(ev, cfg)
     if unreproducible:
         log(f"{system}: model response not reproducible (chaotic or multi-stable): {', '.join(unreproducible)}")
@@ -209,7 +232,6 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
     cal_chi2 = {m: 0.0 for m in names}
     fits_per_fold = []
     warm = None
-    executor = executor or InlineExecutor()
 
     def n_fit_tasks(n_folds: int, warm_start: bool) -> int:
         return fit_tasks(n_folds, len(cands), cfg.n_starts, cfg.candidate_starts, warm_start)
@@ -314,6 +336,7 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
         "second_effect": second,
         "discrepancy": discovery_report(found, err["base"], cal_names) if found is not None else None,
         "proposal_adopted": proposal_terms(found.accepted) if found is not None and found.accepted else None,
+        "recording": recording_report(targets, chain),
         "n_simulations": ev.n_sims,
     }
     return SystemDiagnosis(report=report, evaluator=ev, fits=final_fits, held_out=test_idx, final=final)

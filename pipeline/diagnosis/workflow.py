@@ -53,7 +53,8 @@ def _presets(ds, system: str) -> list[str | None]:
 
 def _diagnose(ds, cfg: DiagnoseConfig, log, progress, executor: Executor) -> DiagnoseResult:
     t0 = time.time()
-    targets = build_targets(ds, cfg)
+    skipped: dict[str, list[str]] = {}
+    targets = build_targets(ds, cfg, skipped)
     diags, runs = [], []
     for system, tgs in targets.items():
         diag = diagnose_system(system, tgs, cfg, log, progress, executor)
@@ -62,6 +63,7 @@ def _diagnose(ds, cfg: DiagnoseConfig, log, progress, executor: Executor) -> Dia
         sim_runs = simulate_runs(diag)
         notes = [SUMMARY_NOTE] if "summary" in diag.report["data"] else []
         notes += [UNREPRODUCIBLE_NOTE.format(run=r, nrms=x) for r, x in diag.report["unreproducible"].items()]
+        notes += skipped.get(system, []) + [n for t in tgs for n in t.notes]     # what the recording left out
         diag = replace(diag, report={**diag.report, "residual_structure": residual_structure(diag, sim_runs.base,
                                                                                              sim_runs.final),
                                      "notes": notes})

@@ -1,0 +1,217 @@
+"""The recording chain: declared DAQ columns (validated, applied to the model), an undeclared chain estimated as
+nuisance (delay per channel and clock), saturated samples left out of the features.
+
+The fast tests check the operators on synthetic records (no simulator); the end-to-end cases diagnose a short drill
+log of the independent generator whose recording is altered here exactly: a clock error by re-dating ``t_s``
+(samples taken every (1 + ε)/fs, written as 1/fs), a delay by declaring the record ``τ`` later than it started."""
+from __future__ import annotations
+
+import json
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipeline.core.errors import UserError
+from pipeline.datasets.daq import DaqFilter, DeclaredChain, parse_filter
+from pipeline.diagnosis.features import (MAX_CLIPPED_FRACTION, Target, clipped_samples, series_target,
+                                         simulated_features)
+from pipeline.diagnosis.instrument import Nuisance
+from pipeline.diagnosis.nuisance import profile, profile_items
+
+F, FS, K = 50.0, 10_000.0, 20
+
+
+def _impacts(t: np.ndarray, tau: float = 0.0, eps: float = 0.0, t0: float = 0.0) -> np.ndarray:
+    """A periodic impact-like signal (a sharp pulse once a cycle, every harmonic up to K) at true instants."""
+    tt = t0 + (1.0 + eps) * t - tau
+    ph = (F * tt) % 1.0
+    return np.exp(-((ph - 0.3) / 0.02) ** 2) + 0.3 * np.sin(2 * np.pi * F * tt)
+
+
+def _target(t_rec: np.ndarray, sigs: dict, record_start: float | None = None) -> Target:
+    tg = Target(run_id="r1", system="indenter-metal", kind="", controls={"frequency_hz": F},
+                duration_s=t_rec.size / FS, record_start_s=record_start)
+    return series_target(tg, pd.DataFrame({"t_s": t_rec, **sigs}), K * F)
+
+
+def test_filter_column_is_validated_with_a_did_you_mean():
+    assert parse_filter("none", "x") is None
+    assert parse_filter("butter:4:4000", "x") == DaqFilter("butter", 4, 4000.0)
+    with pytest.raises(UserError, match=r"runs.csv line 3, column 'daq_filter': unknown filter kind 'butterworth' "
+                                        r"\(did you mean 'butter'\?\)"):
+        parse_filter("butterworth:4:4000", "runs.csv line 3, column 'daq_filter'")
+    for bad, msg in (("butter:4", "expected butter:order:cutoff_hz"), ("ellip:0:100", "filter order '0' is not a positive integer"), ("butter:40:100", "order must be"),
+                     ("butter:4:-5", "not a positive number")):
+        with pytest.raises(UserError, match=msg):
+            parse_filter(bad, "w")
+    h = DaqFilter("butter", 4, 1000.0).response(np.array([10.0, 1000.0]))
+    assert parse_filter("ellip:6:3000:0.1:80", "x") == DaqFilter("ellip", 6, 3000.0, 0.1, 80.0)
+    fir = parse_filter("fir:129:4000:16", "x", fs=10_000.0)
+    assert fir.fir_delay_s == pytest.approx(64 / 160_000.0)        # (taps - 1) / 2 at 16 x fs
+    assert abs(h[0]) == pytest.approx(1.0, abs=1e-6) and abs(h[1]) == pytest.approx(2 ** -0.5, rel=1e-9)
+    e = DaqFilter("ellip", 6, 1000.0).response(np.array([500.0, 3000.0]))
+    assert 0.98 < abs(e[0]) <= 1.0 + 1e-9 and abs(e[1]) < 1e-2        # pass band ripple, stop band
+
+
+def test_bad_daq_cell_is_one_line_naming_the_row(tmp_path):
+    from pipeline.datasets.measured import load_dataset
+
+    n = 400
+    (tmp_path / "series").mkdir()
+    pd.DataFrame({"t_s": np.arange(n) / FS, "accel_m_s2": _impacts(np.arange(n) / FS)}).to_csv(
+        tmp_path / "series" / "a.csv", index=False)
+    base = "run_id,system,frequency_hz,amplitude_n,static_force_n,gap_m,duration_s,daq_filter,daq_clock_ppm\n"
+    row = f"a,indenter-metal,{F},1,200,0.001,{n / FS}"
+    for cells, col in ((",ellipse:4:3000,", "daq_filter"), (",butter:4:6000,", "daq_filter"),
+                       (",butter:4:3000,fast", "daq_clock_ppm")):
+        (tmp_path / "runs.csv").write_text(base + row + cells + "\n")
+        with pytest.raises(UserError) as e:
+            load_dataset(tmp_path)
+        assert str(e.value).startswith(f"runs.csv line 2, column '{col}'") and "\n" not in str(e.value)
+    (tmp_path / "runs.csv").write_text(base + row + ",butter:4:3000,25\n")
+    ds = load_dataset(tmp_path)
+    assert ds.chains["a"] == DeclaredChain(DaqFilter("butter", 4, 3000.0), 0.0, 25.0)
+
+
+def test_delay_and_clock_act_on_the_features_as_the_instrument_says():
+    """Features of a record taken through a delay and a fast clock = the rotated features of the true record."""
+    t = np.arange(int(20.4 / F * FS)) / FS
+    tau, eps = 120e-6, 80e-6
+    clean = _target(t, {"accel_m_s2": _impacts(t)})
+    seen = _target(t, {"accel_m_s2": _impacts(t, tau, eps)})
+    amp = np.abs(clean.y[clean.pair_at] + 1j * clean.y[clean.pair_at + 1])
+    moved = np.abs(seen.y - clean.y)[clean.pair_at].max() / amp.max()
+    clean.nuisance = Nuisance(((("accel_m_s2", FS), tau),), eps)
+    from pipeline.diagnosis.instrument import apply_gain, instrument_gain
+
+    err = np.abs(apply_gain(clean.y, clean.pair_at, instrument_gain(clean)) - seen.y)[clean.pair_at].max() / amp.max()
+    assert moved > 0.02 and err < 5e-3 * moved         # 4 % of the largest harmonic moved, 0.3 % of that left
+
+
+def _fake_result(t_abs: np.ndarray, sigs: dict):
+    return SimpleNamespace(history=pd.DataFrame({"t_s": t_abs, **sigs}))
+
+
+def test_profile_recovers_delays_per_channel_and_the_clock():
+    rng = np.random.default_rng(3)
+    tau = {"accel_m_s2": 95e-6, "force_n": 140e-6}
+    eps, items = 40e-6, []
+    for start, cycles in ((0.15, 28.3), (0.45, 35.9)):
+        t = np.arange(int(cycles / F * FS)) / FS
+        meas = {s: _impacts(t, d, eps, start) + 0.02 * rng.standard_normal(t.size) for s, d in tau.items()}
+        tg = _target(t, meas, record_start=start)
+        model = {s: _impacts(t, 0.0, 0.0, start) for s in tau}
+        items += profile_items(tg, _fake_result(start + t, model), tuple((s, FS) for s in tau))
+    x = profile(items, 2)[0]
+    assert x[0] == pytest.approx(1e6 * tau["accel_m_s2"], abs=5.0)      # µs
+    assert x[1] == pytest.approx(1e6 * tau["force_n"], abs=5.0)
+    assert x[2] == pytest.approx(1e6 * eps, abs=5.0)                     # ppm
+
+
+def test_saturated_samples_are_left_out_of_the_features():
+    rng = np.random.default_rng(0)
+    t = np.arange(int(20.4 / F * FS)) / FS
+    x = _impacts(t) + 0.003 * rng.standard_normal(t.size)
+    top = np.quantile(x, 0.985)
+    clipped = np.minimum(x, top)
+    m = clipped_samples(clipped)
+    assert 0.005 < m.mean() < MAX_CLIPPED_FRACTION and not clipped_samples(x).any()
+    assert not clipped_samples(np.maximum(x - 0.5, 0.0)).any()      # a contact force resting at 0 is not saturation
+    kept = _target(t, {"force_n": clipped})
+    naive = _target(t, {"force_n": clipped + 1e-12 * np.arange(t.size)})     # the same flat tops, not detected
+    assert set(kept.clipped) == {"force_n"} and 0.005 < kept.clipped["force_n"] < MAX_CLIPPED_FRACTION
+    assert not naive.clipped
+    assert any("run r1, channel force_n" in n and "saturated" in n for n in kept.notes)
+    # the true signal reduced by each target's own operator (as the model is): the saturated samples biased the
+    # features by > 10 sd where they were fitted, not where they were left out
+    z = [np.abs(simulated_features(tg, _fake_result(tg.t_rec, {"force_n": _impacts(tg.t_rec)})) - tg.y) / tg.sd
+         for tg in (kept, naive)]
+    assert z[0].max() < 5.0 < 10.0 < z[1].max()
+
+
+def test_a_channel_saturated_beyond_the_threshold_is_not_used():
+    t = np.arange(int(20.4 / F * FS)) / FS
+    x = _impacts(t)
+    tg = _target(t, {"accel_m_s2": x, "force_n": np.minimum(x, np.quantile(x, 0.9))})
+    assert tg.signals == ("accel_m_s2",) and any("not used" in n for n in tg.notes)
+
+
+# --- end to end: short drill logs of the independent generator through a DAQ chain ------------------------------
+
+
+def _diagnose(tmp_path, data, *args):
+    from pipeline.cli import main
+
+    out = tmp_path / (data.name + "-diag")
+    assert main(["diagnose", str(data), "--out", str(out), "--quiet", "--no-mlflow", *args]) == 0
+    return json.loads((out / "report.json").read_text()), (out / "report.md").read_text()
+
+
+def _drill_log(tmp_path, chain: str):
+    from tests.independent.daq import DAQ_CHAINS
+    from tests.independent.generator import LogSpec, generate
+
+    spec = LogSpec("drill", noise="white2", seed=0, n_runs=8, daq=DAQ_CHAINS[chain])
+    truth = generate(spec, tmp_path / spec.name, threads=2)
+    return tmp_path / spec.name, truth
+
+
+def _nothing_missing(rep):
+    assert rep["verdict"] == "nothing missing" and rep["selected"] is None, rep["call"]["text"]
+
+
+def test_an_undeclared_filter_and_clock_are_estimated_and_the_control_stays_clean(tmp_path):
+    """8th-order Butterworth at 0.45 fs (its delay left in the data) and a 50 ppm clock, undeclared."""
+    data, truth = _drill_log(tmp_path, "butter8-undeclared")
+    rep, md = _diagnose(tmp_path, data)
+    _nothing_missing(rep)
+    est = rep["recording"]["estimated"]
+    runs = truth["daq"]["runs"]
+    for d in est["delays"]:
+        true = {r["dc_delay_s"] for rid, r in runs.items() if d["fs_hz"] == pytest.approx(_fs(data, rid))}
+        assert len(true) == 1 and d["value_s"] == pytest.approx(true.pop(), abs=5e-6), d
+        assert 0 < d["sd_s"] < 5e-6
+    assert est["clock_ppm"]["value"] == pytest.approx(50.0, abs=5.0) and 0 < est["clock_ppm"]["sd"] < 5.0
+    assert "Recording: undeclared DAQ chain" in md
+
+
+def _fs(data, rid) -> float:
+    t = pd.read_csv(data / "series" / f"{rid}.csv", usecols=["t_s"])["t_s"].to_numpy()
+    return round(1.0 / float(np.median(np.diff(t))), 3)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("chain", ["butter8", "butter8-comp", "ellip6"])
+def test_a_declared_filter_gives_the_verdict_of_no_filter(tmp_path, chain):
+    data, _ = _drill_log(tmp_path, chain)
+    rep, _ = _diagnose(tmp_path, data)
+    assert rep["recording"]["estimated"] is None and len(rep["recording"]["declared"]) >= 6
+    _nothing_missing(rep)
+
+
+@pytest.mark.slow
+def test_a_saturated_accelerometer_is_noted_and_the_verdict_holds(tmp_path):
+    data, truth = _drill_log(tmp_path, "clip80")
+    rep, _ = _diagnose(tmp_path, data)
+    _nothing_missing(rep)
+    frac = {rid: r["clipped_fraction"]["accel_m_s2"] for rid, r in truth["daq"]["runs"].items()
+            if r.get("clipped_fraction", {}).get("accel_m_s2")}
+    light = {rid: f for rid, f in frac.items() if f <= MAX_CLIPPED_FRACTION}     # left out of the features
+    heavy = set(frac) - set(light)                                                # the channel not used
+    assert light and heavy       # 80 % of the peak: 2 % of the samples at 150 Hz, 8-29 % at the others
+    assert {rid: c["accel_m_s2"] for rid, c in rep["recording"]["clipped"].items()} == pytest.approx(light)
+    for rid in heavy:
+        assert any(f"run {rid}, channel accel_m_s2" in n and "not used" in n for n in rep["notes"]), rid
+
+
+@pytest.mark.slow
+def test_hum_on_the_forcing_harmonic_does_not_bias_the_verdict(tmp_path):
+    """50 Hz hum (5, 2, 1 N at 50, 100, 150 Hz) on the force channel: its third harmonic sits on the 150 Hz run's
+    forcing frequency (within the feature's noise: a few N against kN of force, sd ~1 N)."""
+    data, _ = _drill_log(tmp_path, "hum50")
+    assert "150" in " ".join(pd.read_csv(data / "runs.csv")["frequency_hz"].astype(str))
+    rep, _ = _diagnose(tmp_path, data)
+    _nothing_missing(rep)
