@@ -60,6 +60,9 @@ FAST = [LogSpec("drill", effect="shaker_coil", noise="rig", seed=0, n_runs=8),
 def test_verdict_on_an_independent_log(tmp_path, spec):
     rep, truth = _diagnose(tmp_path, spec)
     _check(rep, truth, spec)
+    if spec.effect:     # one effect explains the log: the pair stage (on by default) costs it nothing, and says so
+        assert not rep["pair_stage"]["tried"] and rep["second_effect"] is None, rep["pair_stage"]
+        assert f"{spec.effect} alone leaves held-out nrms" in rep["pair_stage"]["reason"]
     # the pendulum's 7.25 Hz run at gap 1 mm is chaotic in the model (two tolerances give different orbits, see
     # tests/independent/rigs.py): the report names it, and no other run of any log
     chaotic = {"pendu-07-7.25hz"} if spec.system == "pendulum" else set()
@@ -93,8 +96,9 @@ def test_two_effects_at_once_are_both_found(tmp_path):
     import yaml
 
     spec = LogSpec("drill", effect="shaker_coil", overrides={"mu": 50.0}, noise="rig", seed=0, n_runs=8)
-    rep, truth = _diagnose(tmp_path, spec, "--set", "max_effects=2", "--effects", "shaker_coil", "guide_friction")
+    rep, truth = _diagnose(tmp_path, spec, "--effects", "shaker_coil", "guide_friction")
     assert rep["call"]["text"].startswith("one effect: unexplained"), rep["call"]["text"]
+    assert rep["pair_stage"]["tried"] and "shaker_coil improves on the base" in rep["pair_stage"]["reason"]
     assert rep["verdict"] == "selected" and rep["selected_effects"] == ["shaker_coil", "guide_friction"]
     pair = rep["second_effect"]["candidates"][0]
     assert pair["name"] == rep["selected"] and pair["adequate"] and pair["improves"]
