@@ -83,12 +83,15 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
   bic_margin [10]          a candidate must beat the base model's BIC by this much (calibration runs)
   test_margin [25]         ... and its held-out chi2 by this much
   explained_nrms [2]       held-out residual/noise at or below this counts as adequate ...
-  systematic_tol [0.005]   ... and so does a held-out systematic error (record halves) at or below this
+  systematic_tol [0.005]   ... and so does a held-out systematic error (record halves) at or below this,
+  systematic_nrms_cap [4]  ... with a held-out nrms at or below this (further above the noise is a model error)
   nrms_ratio [0.5]         a candidate cutting the base's held-out nrms to this fraction gains materially
-  max_effects [1]          2: when the best effect improves but leaves the residual above the noise floor
-                           (held-out nrms > 1, adequate or not), add each
+  max_effects [2]          when the best effect improves but leaves held-out nrms above pair_nrms, add each
                            other effect to it and judge the pairs against it by the same rule (report.json
-                           'second_effect'; the rig file then carries both)
+                           'second_effect', and 'pair_stage': whether it ran and why; the rig file then carries
+                           both); 1: one effect only
+  pair_nrms [1]            the pair stage's trigger: the noise floor, so a weaker second effect within
+                           explained_nrms is looked for too (2: pairs only for clearly inadequate leaders)
   max_proposals [3]        unexplained: re-fit at most this many discrepancy proposals (0: no discovery)
   model_floor [0.001]      feature sd floor: this x the signal's RMS harmonic amplitude, in quadrature with
                            the noise (what two correct simulations and a rig's sampling may differ by)

@@ -18,7 +18,8 @@ INT_BOUNDS: dict[str, tuple[int, int | None]] = {
 
 FLOAT_BOUNDS: dict[str, float] = {
     "max_harmonic_hz": 1e6, "diff_step": 1.0, "bic_margin": 1e12, "explained_nrms": 1e6, "fs_sim_hz": 1e7,
-    "test_margin": 1e12, "systematic_tol": 1.0, "nrms_ratio": 1.0, "model_floor": 1.0, "summary_floor": 1.0}
+    "test_margin": 1e12, "systematic_tol": 1.0, "nrms_ratio": 1.0, "model_floor": 1.0, "summary_floor": 1.0,
+    "systematic_nrms_cap": 1e6, "pair_nrms": 1e6}
 """Real settings: the high; the low is 0, excluded except for the floors (:data:`ZERO_ALLOWED`)."""
 
 ZERO_ALLOWED = ("model_floor", "summary_floor")
@@ -84,7 +85,12 @@ class DiagnoseConfig:
     explained_nrms: float = 2.0         # adequate: held-out nrms at or below this ("at the noise level") ...
     systematic_tol: float = 0.005       # ... or held-out systematic error (split-half) at or below this
     nrms_ratio: float = 0.5             # a candidate that cuts the base's held-out nrms to this fraction is material
-    max_effects: int = 1                # 2: when the leading effect improves but is not adequate, try it with each other
+    systematic_nrms_cap: float = 4.0    # ... adequate by systematic error only up to this held-out nrms (2x explained_nrms:
+    #                                     the noise estimate is checked to a factor 2); further above the noise is an error
+    max_effects: int = 2                # 2: a leader that improves but leaves held-out nrms above pair_nrms is fitted with
+    #                                     each other effect (1: one effect only)
+    pair_nrms: float = 1.0              # ... the pair stage's trigger: the noise floor, so a weaker second effect hiding
+    #                                     within explained_nrms is still looked for (2: only clearly inadequate leaders)
     max_proposals: int = 3              # unexplained: fit at most this many discrepancy proposals (0: no discovery)
     model_floor: float = 1e-3           # feature sd floor: this x the signal's RMS harmonic amplitude (model error)
     summary_floor: float = 0.01         # summary feature sd floor: this x the value
@@ -104,4 +110,5 @@ class DiagnoseConfig:
 
     def rule(self) -> VerdictRule:
         """The verdict's thresholds (pipeline.diagnosis.verdict)."""
-        return VerdictRule(self.explained_nrms, self.systematic_tol, self.bic_margin, self.test_margin, self.nrms_ratio)
+        return VerdictRule(self.explained_nrms, self.systematic_tol, self.bic_margin, self.test_margin, self.nrms_ratio,
+                           self.systematic_nrms_cap)

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Collection
 
 import numpy as np
 
@@ -212,6 +212,23 @@ def discover(ev: Evaluator, cfg: DiagnoseConfig, scheme: str, folds: list, fits_
     v = decide(base_stats, [stats[m] for m in names], cfg.rule())
     return Discovery(screening=scr, fits=reported, err=err, stats=stats, accepted=v.selected, leader=v.leader,
                      checks=v.checks)
+
+
+def spanned_effect(system: str, accepted: str, values: dict, effects: Collection[str]) -> tuple[str, dict] | None:
+    """The §6 effect (one of ``effects``) an accepted proposal of one term is in another form
+    (``sim.models.discrepancy.SPANS``), with its parameter's start from the proposal's fitted ``values`` (the rig's
+    nominal values beneath them): (effect, {parameter: c / k}); None when the proposal spans no effect."""
+    import sim
+    from sim.models.discrepancy import SPANS
+
+    terms = proposal_terms(accepted)
+    span = SPANS.get(terms[0]) if len(terms) == 1 else None
+    if span is None or span.effect not in effects:
+        return None
+    per = next((p for p in span.per if p in sim.get_model(system).param_names), None)
+    if per is None or not values.get(per):
+        return None
+    return span.effect, {span.param: float(values[terms[0]] / values[per])}
 
 
 def report(d: Discovery, base_err: dict, cal_names: list[str]) -> dict:

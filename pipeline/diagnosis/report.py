@@ -265,6 +265,9 @@ def markdown(report: dict, per_system: list[dict], seconds: float) -> str:
                    "selected": f"**{rep['selected']}** selected",
                    "unexplained": "**unexplained** (no §6 effect brings the model to the data)"}[rep["verdict"]]
         lines += [f"Verdict: {verdict}.", "", f"How close the call was: {rep['call']['text']}.", ""]
+        stage = rep.get("pair_stage")
+        if stage:
+            lines += [f"Two effects: {'tried' if stage['tried'] else 'not tried'} ({stage['reason']}).", ""]
         second = rep.get("second_effect")
         lead1 = second["first"] if second else rep["leader"]      # the single-effect step's leader
         shown = [m for m in (lead1, rep["runner_up"]) if m]

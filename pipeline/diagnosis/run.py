@@ -14,6 +14,7 @@ and whose held-out nrms is <= ``explained_nrms``; if the calibrated base model i
 from __future__ import annotations
 
 import math
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -22,8 +23,8 @@ from pipeline.diagnosis.progress import NoProgress, Progress, fit_tasks
 from pipeline.diagnosis.features import (CONTROL_NAMES, Target, UnusableRecord, series_target, simulated_features,
                                          summary_target)
 from pipeline.core.executors import Executor, InlineExecutor
-from pipeline.diagnosis.calibrate import fit_additions, fit_models
-from pipeline.diagnosis.discovery import discover, proposal_terms, report as discovery_report
+from pipeline.diagnosis.calibrate import fit_added, fit_additions, fit_models
+from pipeline.diagnosis.discovery import discover, proposal_terms, report as discovery_report, spanned_effect
 from pipeline.diagnosis.fit import FitResult
 from pipeline.diagnosis.nuisance import ChainEstimate, estimate_chain
 from pipeline.diagnosis.heldout import fold_errors, heldout_errors as _errors, systematic_error  # noqa: F401
@@ -108,9 +109,6 @@ def absorbed_parameters(fits: dict[str, FitResult], v: Verdict, cal_names: list[
     return out
 
 
-NOISE_NRMS = 1.0
-"""Held-out nrms of a model at the noise floor (residual / noise sd)."""
-
 REPRODUCIBLE_RTOL_FACTOR = 0.01
 """A run is checked by solving its equations again at this × the settings' rtol."""
 
@@ -138,6 +136,32 @@ def unreproducible_runs(ev: Evaluator, cfg: DiagnoseConfig) -> dict[str, float]:
         if nrms > 1.0:
             out[ev.targets[i].run_id] = nrms
     return out
+
+
+@dataclass(frozen=True)
+class PairStage:
+    """Whether the greedy pair stage ran, and why (or why not) in a sentence (report.json ``pair_stage``)."""
+
+    tried: bool
+    reason: str
+
+
+def pair_stage(cfg: DiagnoseConfig, v: Verdict, n_candidates: int) -> PairStage:
+    """The pair stage runs when the single-effect leader improves on the base but leaves its held-out nrms above
+    ``cfg.pair_nrms`` (adequate or not): the data ask for more than one effect.  A log one effect explains to the
+    noise costs nothing more."""
+    if cfg.max_effects < 2:
+        return PairStage(False, "max_effects 1: one effect only")
+    if n_candidates < 2:
+        return PairStage(False, "fewer than two candidate effects")
+    if v.leader is None:
+        return PairStage(False, "no effect improves on the calibrated base, so none to add a second to")
+    nrms = v.checks[v.leader]["nrms"]
+    if nrms <= cfg.pair_nrms:
+        return PairStage(False, f"{v.leader} alone leaves held-out nrms {nrms:.3g}, within pair_nrms "
+                                f"{cfg.pair_nrms:g} of the noise: no pair tried")
+    return PairStage(True, f"{v.leader} improves on the base but leaves held-out nrms {nrms:.3g}, above pair_nrms "
+                           f"{cfg.pair_nrms:g}")
 
 
 def _second_effect(ev: Evaluator, cfg: DiagnoseConfig, scheme: str, folds: list, first: str, cands: dict,
@@ -192,6 +216,43 @@ def recording_report(targets: list[Target], chain: ChainEstimate | None) -> dict
                 for t in targets if t.chain is not None}
     return {"declared": declared, "estimated": chain.to_report() if chain is not None else None,
             "clipped": {t.run_id: dict(t.clipped) for t in targets if t.clipped}}
+
+
+def _as_effect(ev: Evaluator, cfg: DiagnoseConfig, scheme: str, folds: list, found, cands: dict,
+               stats: dict[str, ModelStats], executor: Executor, log) -> dict | None:
+    """An accepted proposal that is a §6 effect in another form (``discovery.spanned_effect``): the effect refitted
+    on every fold from the proposal's calibrated values with the parameter the proposal's coefficient gives (α = c / k)
+    and judged on the held-out runs; None when the proposal spans no effect or the refit is no better than the
+    effect's own fit (BIC).  {effect, start, params, fit, err, stats, fit_chi2, text}."""
+    import sim
+
+    fr = found.fits[found.accepted]
+    values = {**sim.get_model(ev.system).defaults(), **ev.targets[0].known, **fr.values}
+    hit = spanned_effect(ev.system, found.accepted, values, cands)
+    if hit is None:
+        return None
+    eff, start = hit
+    cal_names = [q.name for q in calibratable(ev.system)]
+    base_start = replace(fr, values={n: fr.values[n] for n in cal_names})      # the calibration, without the term
+    log(f"{ev.system}: the proposal {found.accepted} is {eff} in another form: refitting {eff} from "
+        + ", ".join(f"{k} = {x:.4g}" for k, x in start.items()))
+    fold_fits = fit_added(ev, [cal for cal, _ in folds], cfg, {eff: cands[eff]}, [base_start] * len(folds), executor,
+                          extra_starts={eff: start})
+    err, st = fold_errors(ev, folds, fold_fits, [eff])
+    if st[eff].bic >= stats[eff].bic:
+        log(f"  {eff} from the proposal: no better than its own fit")
+        return None
+    reported = fold_fits[0][eff]
+    if scheme != "holdout":
+        reported = fit_added(ev, [list(range(len(ev.targets)))], cfg, {eff: cands[eff]}, [base_start], executor,
+                             extra_starts={eff: start})[0][eff]
+    params = {p: reported.values[p] for p in reported.free if p not in cal_names}
+    text = (f"the accepted proposal {' + '.join(proposal_terms(found.accepted))} is {eff} in another form: refitted "
+            f"from {', '.join(f'{k} = {x:.4g}' for k, x in start.items())} (c / k) to "
+            f"{', '.join(f'{k} = {x:.4g}' for k, x in params.items())}, held-out nrms {err[eff]['nrms']:.3g}")
+    log(f"  {text}")
+    return {"effect": eff, "start": start, "params": params, "fit": reported, "err": err[eff], "stats": st[eff],
+            "fit_chi2": sum(f[eff].chi2 for f in fold_fits), "text": text}
 
 
 def _param_report(fr: FitResult) -> dict:
@@ -266,11 +327,9 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
     v = first = decide(stats["base"], [stats[m] for m in cands], cfg.rule())
     cal_names = [q.name for q in calibratable(system)]
     second = None
-    # the second step runs whenever the leader leaves the held-out residual above the noise floor (nrms 1), adequate
-    # or not: a weaker second effect (the drill's tip blunting beside guide friction) hides inside explained_nrms
-    if (cfg.max_effects >= 2 and v.leader is not None and v.checks[v.leader]["nrms"] > NOISE_NRMS
-            and len(cands) > 1):
-        log(f"{system}: {v.leader} improves on the base but leaves the residual above the noise: adding a second effect")
+    pair = pair_stage(cfg, v, len(cands))
+    if pair.tried:
+        log(f"{system}: {pair.reason}: adding a second effect")
         progress.stage(f"{system}: {v.leader} + each of {len(cands) - 1} other effects")
         pair_fits, pair_err, pair_stats, v2 = _second_effect(ev, cfg, scheme, folds, v.leader, cands, fits_per_fold,
                                                              warm, stats[v.leader], executor, log)
@@ -287,13 +346,26 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
         log(f"{system}: no §6 effect explains the residual: proposing the missing term")
         progress.stage(f"{system}: proposing the missing term")
         found = discover(ev, cfg, scheme, folds, fits_per_fold, warm, stats["base"], executor, log)
+    named = None
     if found is not None and found.accepted:
         final = found.accepted
         final_fits = {**final_fits, final: found.fits[final]}
         err[final] = found.err[final]
+        named = _as_effect(ev, cfg, scheme, folds, found, cands, stats, executor, log)
     call = closeness(first, stats, cfg.rule())
     if second is not None:
         call["text"] = f"one effect: {call['text']}; two effects: {second['text']}"
+    if named is not None:
+        eff = named["effect"]
+        bic[eff], cal_chi2[eff] = named["stats"].bic, named["fit_chi2"]
+        stats[eff], err[eff], final_fits[eff] = named["stats"], named["err"], named["fit"]
+        v_named = decide(stats["base"], [stats[m] for m in cands], cfg.rule())
+        named["selected"] = v_named.selected == eff
+        v = replace(v, checks={**v.checks, eff: v_named.checks[eff]})
+        if named["selected"]:
+            v, final = v_named, eff
+            call = closeness(v_named, stats, cfg.rule())
+        call["text"] += f"; {named['text']}" + ("" if named["selected"] else " (not adequate: the proposal stays)")
     cand_list = [{"effect": m, "params": {p: final_fits[m].values[p] for p in final_fits[m].free if p not in cal_names},
                   "param_sd": {p: final_fits[m].sd[p] for p in final_fits[m].free},
                   "calibrated": final_fits[m].values,
@@ -334,8 +406,12 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
         "call": call,
         "indistinguishable": indistinguishable(first, stats, cfg.rule()),
         "second_effect": second,
+        "pair_stage": asdict(pair),
         "discrepancy": discovery_report(found, err["base"], cal_names) if found is not None else None,
-        "proposal_adopted": proposal_terms(found.accepted) if found is not None and found.accepted else None,
+        "proposal_adopted": (proposal_terms(found.accepted) if found is not None and found.accepted
+                             and not (named and named["selected"]) else None),
+        "proposal_as_effect": ({k: named[k] for k in ("effect", "start", "params", "selected", "text")}
+                               if named is not None else None),
         "recording": recording_report(targets, chain),
         "n_simulations": ev.n_sims,
     }

@@ -98,6 +98,24 @@ PARAM_OF: dict[str, str] = {p: c.name for c in CANDIDATES.values() for p in c.pa
 """Every discrepancy parameter -> the candidate it belongs to."""
 
 
+@dataclass(frozen=True)
+class Span:
+    """A term that is a §6 effect in another form: its coefficient c is the effect's parameter ``param`` times the
+    model parameter ``per`` names (the first of them the model has), so ``param`` = c / that value."""
+
+    effect: str
+    param: str
+    per: tuple[str, ...]
+
+
+SPANS: dict[str, Span] = {
+    # rate stiffening k (1 + α δ̇₊) δ = k δ + k α δ δ̇₊: the term's c δ₊ δ̇ with c = k α (equal while loading)
+    "contact_rate_product": Span("rate_stiffening", "alpha", ("ki", "k1", "K1")),
+}
+"""Terms that span a §6 effect's form -> how their coefficient converts to the effect's parameter (the contact
+stiffness the effect multiplies: the pendulum's and RIMD's ki, the indenter's k1, the drill's K1)."""
+
+
 def mode_bounds(hz_lo: float, hz_hi: float) -> dict[str, FitBound]:
     """Fit bounds of the hidden mode: its frequency in [hz_lo, hz_hi] [Hz] (a model's own: from below its forcing to
     well above its contact's harmonics), a mass of 2 % to 2x the impacting mass's and a damping ratio 0.5-50 %.

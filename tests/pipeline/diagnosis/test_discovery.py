@@ -127,3 +127,34 @@ def test_a_structured_proposal_reports_its_parameters():
     text = D.report(dataclasses.replace(d, accepted=None), {"nrms": 20.0, "error": 0.2, "by_run_nrms": [19.0, 21.0]},
                     ["K1", "C1", "Pr"])["text"]
     assert text.endswith(f"not in the vocabulary of this model ({MODE})")
+
+
+@pytest.mark.parametrize("system", ["drill", "indenter-metal", "indenter-sandstone", "pendulum", "rimd"])
+def test_every_span_converts_to_an_effect_the_model_has(system):
+    """A term declared as a §6 effect in another form (``SPANS``) names that effect's parameter, and every model that
+    has both the term and the effect has the stiffness its coefficient is divided by."""
+    import sim
+    from sim.models.discrepancy import SPANS, TERMS
+    from sim.models.effects import EFFECTS
+
+    spec = sim.get_model(system)
+    for term, span in SPANS.items():
+        assert term in TERMS and span.param in EFFECTS[span.effect].param_names
+        if term in spec.discrepancy and span.effect in spec.effects:
+            assert any(p in spec.param_names for p in span.per), (system, term)
+
+
+def test_contact_rate_product_is_rate_stiffening_in_another_form():
+    """c δ₊ δ̇ = k α δ δ̇₊ while loading: an accepted contact_rate_product proposal on the pendulum starts rate
+    stiffening at α = c / ki (the load cell's fitted stiffness); a proposal of another term, or of two, spans
+    nothing, nor does an effect the diagnosis does not try."""
+    name = D.proposal_name(("contact_rate_product",))
+    values = {"ki": 5.0e6, "ci": 1.2e3, "zeta": 0.005, "contact_rate_product": 2.5e7}
+    assert D.spanned_effect("pendulum", name, values, ["rate_stiffening", "sensor_lowpass"]) == (
+        "rate_stiffening", {"alpha": pytest.approx(5.0)})
+    assert D.spanned_effect("indenter-metal", name, {"k1": 1e7, "contact_rate_product": 3e7},
+                            ["rate_stiffening"]) == ("rate_stiffening", {"alpha": pytest.approx(3.0)})
+    assert D.spanned_effect("pendulum", name, values, ["sensor_lowpass"]) is None
+    assert D.spanned_effect("pendulum", D.proposal_name(("contact_cubic",)), values, ["rate_stiffening"]) is None
+    both = D.proposal_name(("contact_rate_product", "contact_cubic"))
+    assert D.spanned_effect("pendulum", both, values, ["rate_stiffening"]) is None

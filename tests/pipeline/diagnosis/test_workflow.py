@@ -14,7 +14,7 @@ SYSTEM_KEYS = ["system", "n_runs", "unreproducible", "data", "split", "verdict",
                "noise_floor", "noise_sd", "default_error", "base_error", "final_error", "default_nrms", "base_nrms", "final_nrms",
                "base_systematic", "final_systematic", "heldout_n", "error_by_group", "base_score", "candidates",
                "selected", "selected_effects", "leader", "runner_up", "selected_params", "explained", "best_partial_candidate", "absorbed",
-               "call", "indistinguishable", "second_effect", "discrepancy", "proposal_adopted", "recording", "n_simulations", "residual_structure", "notes", "rig", "figures"]
+               "call", "indistinguishable", "second_effect", "pair_stage", "discrepancy", "proposal_adopted", "proposal_as_effect", "recording", "n_simulations", "residual_structure", "notes", "rig", "figures"]
 REPORT_KEYS = ["dataset", "config", *SYSTEM_KEYS, "systems", "wall_time_s"]
 RIG_KEYS = ["explained", "selected", "source", "discrepancy", "verdict", "absorbed", "model_error", "noise_floor", "nrms", "notes",
             "file"]
