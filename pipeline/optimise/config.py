@@ -9,6 +9,9 @@ from pipeline.optimise.study import DEFAULT_PARETO, OBJECTIVES, SAMPLERS, parse_
 from sim.registry import DEFAULT_MODEL
 
 MODES = ("surrogate", "simulator")
+DEFAULT_SAMPLER = {"rop": "sobol-local", "pareto": "tpe"}
+"""Sampler of a study that names none: the space-filling pass + local search for ROP (bench/bench_search.py: the only
+one within 0.995 of a dense scan on every case), TPE for a Pareto front."""
 DEFAULT_TRIALS = {"surrogate": 600, "simulator": 200}
 """Complete trials of a study when ``n_trials`` is not given (on the simulator: simulator calls)."""
 
@@ -22,7 +25,7 @@ class OptimiseConfig:
     ``objectives``, default ROP against the mean power: ``["rop_m_s", "power_w"]``; any labels, each with
     an optional ``max:``/``min:`` prefix, ROP maximised and the rest minimised by default).  max_power_w [W],
     max_decel_g [g]: the exciter's power rating and the bit's deceleration limit (None = unconstrained).
-    ranges: {name: [low, high]} — default: the surrogate's training ranges / the model's published space
+    sampler: None picks DEFAULT_SAMPLER by objective.  ranges: {name: [low, high]} — default: the surrogate's training ranges / the model's published space
     (ModelSpec.search_spaces).  n_trials: total complete trials of the study (a resumed study runs only the
     rest; default 600 on the surrogate, 200 on the simulator = simulator calls).  n_verify: points
     re-simulated (distinct best / spread along the front).  rel_tol: relative ROP error above which the
@@ -41,7 +44,7 @@ class OptimiseConfig:
     objective: str = "rop"
     ranges: dict = field(default_factory=dict)
     fixed: dict = field(default_factory=dict)
-    sampler: str = "tpe"
+    sampler: str | None = None
     n_trials: int | None = None
     batch_size: int = 8
     seed: int = 0
@@ -79,6 +82,8 @@ class OptimiseConfig:
             raise UserError(f"mode must be one of {MODES}, got '{self.mode}'")
         if self.objective not in OBJECTIVES:
             raise UserError(f"objective must be one of {OBJECTIVES}, got '{self.objective}'")
+        if self.sampler is None:        # by the measurement (docs/optimise.md "Which search")
+            self.sampler = DEFAULT_SAMPLER[self.objective] if self.objective in DEFAULT_SAMPLER else "tpe"
         if self.sampler not in SAMPLERS:
             raise UserError(f"sampler must be one of {SAMPLERS}, got '{self.sampler}'")
         for name in ("batch_size", "n_verify"):
