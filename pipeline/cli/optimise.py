@@ -38,6 +38,8 @@ examples:
   vibro optimise --surrogate models/surrogate --out results/optimise
   vibro optimise --surrogate models/surrogate --out results/optimise --max-peak-force-n 3000 --peak-force-static-ratio 2.5
   vibro optimise --surrogate models/surrogate --out results/optimise --max-power-w 18 --max-decel-g 4
+  vibro optimise --surrogate models/surrogate --out results/optimise --max-power-w 18 --max-decel-g 4 --margin 0.05
+  vibro optimise --simulator --max-power-w 18 --max-decel-g 4 --margin power_w=0.05 --margin peak_decel_g=0.1
   vibro optimise --surrogate models/surrogate --out results/pareto --objective pareto --n-verify 12
   vibro optimise --surrogate models/surrogate --out results/pareto --objective pareto --objectives rop_m_s,peak_decel_g
   vibro optimise --simulator --model drill --preset lab --n-trials 200 --out results/optimise-sim
@@ -104,6 +106,10 @@ def add_parser(sub) -> None:
                    help="constraint: the excitation's mean power power_w <= W watts (the exciter's power rating)")
     p.add_argument("--max-decel-g", type=A.positive, metavar="G",
                    help="constraint: the bit's peak deceleration peak_decel_g <= G (in g; tool life)")
+    p.add_argument("--margin", action="append", metavar="FRACTION|LABEL=FRACTION",
+                   help="keep the recommendation this fraction below every limit (0.05 = 5 %%), or below one limit "
+                        "(power_w=0.05; repeatable); on the surrogate a point is judged by the upper end of its "
+                        "predicted interval, so it stays feasible within that uncertainty")
     p.add_argument("--allow-not-settled", action="store_true",
                    help="accept not_settled (bounded but aperiodic) points; runaway and failed never are")
     p.add_argument("--n-verify", type=A.count(1, 10_000), help="distinct best points (or front points) re-simulated (default 10)")
@@ -206,6 +212,8 @@ def config_from_args(args):
             base[key] = v
     if args.allow_not_settled:
         base["allow_not_settled"] = True
+    if args.margin:
+        base["margin"] = parse_margin(args.margin)
     if str(base.get("preset", "")).lower() == "none":
         base["preset"] = None
     check_workers(base.get("n_threads"))
@@ -214,6 +222,19 @@ def config_from_args(args):
     _feedback_path(base)
     base["storage"] = real_sqlite_url(base.get("storage"))
     return OptimiseConfig.from_mapping(base)
+
+
+def parse_margin(items: list[str]) -> float | dict:
+    """``["0.05"]`` -> 0.05 (every limit); ``["power_w=0.05", "peak_decel_g=0.1"]`` -> {label: fraction}."""
+    if len(items) == 1 and "=" not in items[0]:
+        return A.number(items[0], "--margin")
+    out = {}
+    for item in items:
+        name, sep, val = item.partition("=")
+        if not sep or not name.strip():
+            raise UserError(f"--margin expects FRACTION or LABEL=FRACTION (repeatable), got '{item}'")
+        out[name.strip()] = A.number(val, f"--margin {name.strip()}")
+    return out
 
 
 def check_range_values(ranges: dict, model: str | None) -> None:

@@ -1,10 +1,10 @@
 """``OptimiseConfig``: the ``optimise`` section of params.yaml (CLI flags override it), checked when built."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 from pipeline.core.errors import UserError
-from pipeline.optimise.constraints import Constraints
+from pipeline.optimise.constraints import Constraints, resolve_margins
 from pipeline.optimise.study import DEFAULT_PARETO, OBJECTIVES, SAMPLERS, parse_objectives
 from sim.registry import DEFAULT_MODEL
 
@@ -25,6 +25,8 @@ class OptimiseConfig:
     ``objectives``, default ROP against the mean power: ``["rop_m_s", "power_w"]``; any labels, each with
     an optional ``max:``/``min:`` prefix, ROP maximised and the rest minimised by default).  max_power_w [W],
     max_decel_g [g]: the exciter's power rating and the bit's deceleration limit (None = unconstrained).
+    margin: a fraction kept below every limit (0.05), or {label: fraction} (``{power_w: 0.05}``); the study judges a
+    surrogate's prediction by the upper end of its interval (constraints.Constraints.margins).
     sampler: None picks DEFAULT_SAMPLER by objective.  ranges: {name: [low, high]} — default: the surrogate's training ranges / the model's published space
     (ModelSpec.search_spaces).  n_trials: total complete trials of the study (a resumed study runs only the
     rest; default 600 on the surrogate, 200 on the simulator = simulator calls).  n_verify: points
@@ -55,6 +57,7 @@ class OptimiseConfig:
     max_decel_g: float | None = None
     objectives: list[str] | None = None
     allow_not_settled: bool = False
+    margin: float | dict | None = None
     n_verify: int = 10
     rel_tol: float = 0.10
     fallback_trials: int = 200
@@ -98,6 +101,7 @@ class OptimiseConfig:
         if not (self.rel_tol > 0):
             raise UserError(f"rel_tol must be > 0, got {self.rel_tol}")
         self.objective_list()
+        self.constraints()      # a margin names limited labels and fractions in [0, 1)
         if self.mode == "surrogate" and not self.surrogate:
             raise UserError("mode 'surrogate' needs a surrogate bundle (--surrogate DIR or MLflow run id)")
         return self
@@ -116,7 +120,8 @@ class OptimiseConfig:
         return parse_objectives(self.objectives or list(DEFAULT_PARETO), LABELS)
 
     def constraints(self) -> Constraints:
-        return Constraints(max_peak_force_n=self.max_peak_force_n, peak_force_static_ratio=self.peak_force_static_ratio,
+        cons = Constraints(max_peak_force_n=self.max_peak_force_n, peak_force_static_ratio=self.peak_force_static_ratio,
                            max_specific_energy_j_m=self.max_specific_energy_j_m, max_power_w=self.max_power_w,
                            max_decel_g=self.max_decel_g,
                            require_settled=not self.allow_not_settled, require_progress=self.objective == "pareto")
+        return replace(cons, margins=resolve_margins(self.margin, cons)) if self.margin is not None else cons

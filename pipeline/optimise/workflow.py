@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.optimise.config import DEFAULT_TRIALS, MODES, OptimiseConfig
-from pipeline.optimise.constraints import UPPER_LIMITS, Constraints, progress_force_floor
+from pipeline.optimise.constraints import LIMITED_LABELS, UPPER_LIMITS, Constraints, progress_force_floor
 from pipeline.optimise.coordination import batch_seed, guard_for
 from pipeline.optimise.space import Space, describe_bounds
 from pipeline.optimise.strategies import Problem, Strategies
@@ -110,12 +110,33 @@ def _n_startup(n_trials: int) -> int:
 
 
 def _binding(cons: Constraints, row) -> list[str]:
-    """Limits the verified point sits at (within 5 % below the limit): the constraints that shape the answer."""
+    """Limits the verified point sits at (within 5 % below the limit, less its margin): the constraints that shape
+    the answer."""
     out = []
     for key, (label, attr) in UPPER_LIMITS.items():
         lim, v = getattr(cons, attr), row.get(f"{label}_sim")
-        if lim is not None and v is not None and not pd.isna(v) and float(v) >= 0.95 * lim:
-            out.append(f"{label} {float(v):.4g} of its limit {lim:g}")
+        if lim is not None and v is not None and not pd.isna(v) and float(v) >= 0.95 * cons.limit_of(label, lim):
+            kept = f" less its margin, {cons.limit_of(label, lim):.4g}" if label in cons.margins else ""
+            out.append(f"{label} {float(v):.4g} of its limit {lim:g}{kept}")
+    return out
+
+
+def _margins(cons: Constraints, row) -> list[dict]:
+    """The margin kept on each limit with one: label, limit, margin (fraction), the value kept below, the simulated
+    value and its headroom below the limit (fraction of the limit, >= the margin when kept)."""
+    out = []
+    for label, attrs in LIMITED_LABELS.items():
+        if label not in cons.margins:
+            continue
+        for attr in attrs:
+            lim = getattr(cons, attr)
+            if lim is None or attr == "peak_force_static_ratio":
+                continue
+            v = row.get(f"{label}_sim")
+            v = None if v is None or pd.isna(v) else float(v)
+            out.append({"label": label, "limit": float(lim), "margin": float(cons.margins[label]),
+                        "kept_below": cons.limit_of(label, lim), "value_sim": v,
+                        "headroom": None if v is None else (lim - v) / lim})
     return out
 
 
@@ -125,6 +146,10 @@ def _outcome(rec: dict) -> str:
             + ", ".join(f"{n} = {v:.4g}" for n, v in rec["params"].items()))
     if rec.get("binding"):
         text += "; at the limit(s): " + ", ".join(rec["binding"])
+    if rec.get("margins"):
+        text += "; margin kept: " + ", ".join(
+            f"{m['label']} {m['value_sim']:.4g} <= {m['kept_below']:.4g} ({m['margin']:.0%} below {m['limit']:g})"
+            for m in rec["margins"] if m["value_sim"] is not None)
     if rec.get("on_bounds"):
         text += ("; ON THE EDGE of the search space: " + describe_bounds(rec["on_bounds"])
                  + " (the optimum may lie beyond it: widen that range to know)")
@@ -155,6 +180,8 @@ def _recommend(best, space: Space, cons: Constraints) -> dict:
            "status_sim": best["status_sim"], "surrogate_wrong": bool(best["surrogate_wrong"])}
     rec["on_bounds"] = space.on_bounds(rec["params"])
     rec["binding"] = _binding(cons, best)
+    if cons.margins:        # only then: report.json keeps the keys it always had
+        rec["margins"] = _margins(cons, best)
     return rec
 
 
