@@ -25,6 +25,8 @@ RADIUS_ATTR = "vibro_local_radius"
 """System attribute of a local move: the radius (unit cube) it was proposed with."""
 KIND_ATTR = "vibro_local_kind"
 """System attribute of a local move: 'model' (a quadratic fit's maximiser) or 'compass' (one coordinate stepped)."""
+ANCHOR_ATTR = "vibro_local_anchor"
+"""System attribute of a local move: the number of the trial whose local search it belongs to."""
 
 
 def _sobol(index: int, d: int) -> np.ndarray:
@@ -41,8 +43,10 @@ def _sobol(index: int, d: int) -> np.ndarray:
 class SobolLocalSampler(optuna.samplers.BaseSampler):
     """Space-filling Sobol' pass of ``n_startup`` trials, then a compass search with restarts (see the module)."""
 
-    def __init__(self, n_startup: int = 32, radius0: float = 0.25, radius_min: float = 0.004, seed: int = 0):
+    def __init__(self, n_startup: int = 32, radius0: float = 0.25, radius_min: float = 0.004, seed: int = 0,
+                 basin: float = 0.2):
         self.n_startup, self.radius0, self.radius_min = int(n_startup), float(radius0), float(radius_min)
+        self.basin = float(basin)
         self.seed = int(seed)       # orders the compass moves only
 
     # ------------------------------------------------------------------ optuna's sampler interface
@@ -60,10 +64,11 @@ class SobolLocalSampler(optuna.samplers.BaseSampler):
         if not space:
             return {}
         names = list(space)
-        u, radius, kind = self._propose(study, trial.number, names, space)
+        u, radius, kind, *anchor = self._propose(study, trial.number, names, space)
         if radius is not None:
             study._storage.set_trial_system_attr(trial._trial_id, RADIUS_ATTR, radius)
             study._storage.set_trial_system_attr(trial._trial_id, KIND_ATTR, kind)
+            study._storage.set_trial_system_attr(trial._trial_id, ANCHOR_ATTR, anchor[0])
         return {n: _from_unit(u[j], space[n]) for j, n in enumerate(names)}
 
     def before_trial(self, study, trial) -> None:
@@ -86,14 +91,27 @@ class SobolLocalSampler(optuna.samplers.BaseSampler):
         if not done:
             return _sobol(number + 1, d), None, None
         sign = 1.0 if study.direction == optuna.study.StudyDirection.MAXIMIZE else -1.0
-        inc = max(done, key=lambda t: _rank(t, sign))
-        x0 = np.array([_to_unit(inc.params[n], space[n]) for n in names])
         others = [t for t in trials if t.number != number]
         seen = np.array([[_to_unit(t.params[n], space[n]) for n in names] for t in others])
-        later = [t for t in others if t.number > inc.number]
+        U = np.array([[_to_unit(t.params[n], space[n]) for n in names] for t in done])
+        ranks = [_rank(t, sign) for t in done]
+        order = np.random.default_rng(self.seed).permutation(2 * d)    # workers sharing a study ask apart
+        # anchors: the best trial, then each trial no better trial lies within ``basin`` of (a local maximum of the
+        # trials at that scale), best first; the first whose local search is not converged moves (restarts)
+        by_rank = sorted(range(len(done)), key=lambda i: ranks[i], reverse=True)
+        for n_anchor, i in enumerate(by_rank):
+            if n_anchor and any(np.linalg.norm(U[j] - U[i]) < self.basin for j in by_rank[:n_anchor]):
+                continue
+            move = self._local_move(done[i], U[i], done, names, space, seen, others, order, sign, number)
+            if move is not None:
+                return move
+        return _sobol(number + 1, d), None, None    # every local search converged: explore on
+
+    def _local_move(self, inc, x0, done, names, space, seen, others, order, sign, number):
+        """The next move of the local search around ``inc`` (unit point ``x0``), None when it has converged."""
+        later = [t for t in others if t.system_attrs.get(ANCHOR_ATTR) == inc.number]
         r = min(self.radius0, 2.0 * inc.system_attrs[RADIUS_ATTR]) if RADIUS_ATTR in inc.system_attrs \
             else self.radius0
-        order = np.random.default_rng(self.seed).permutation(2 * d)    # workers sharing a study ask apart
         while r >= self.radius_min:
             # a round: the maximiser of a quadratic fitted around the incumbent (once), then the compass moves;
             # a move already asked (running ones included) is skipped, so a batch gets distinct moves
@@ -101,15 +119,15 @@ class SobolLocalSampler(optuna.samplers.BaseSampler):
                        for t in later):
                 x = _model_step(done, names, space, x0, r, sign, number)
                 if x is not None and not _present(x, seen):
-                    return x, r, "model"
+                    return x, r, "model", inc.number
             for k in order:
                 j, step = int(k) // 2, (r, -r)[int(k) % 2]
                 x = x0.copy()
                 x[j] = min(max(x0[j] + step, 0.0), 1.0)
                 if abs(x[j] - x0[j]) > 1e-12 and not _present(x, seen):
-                    return x, r, "compass"
+                    return x, r, "compass", inc.number
             r *= 0.5
-        return _sobol(number + 1, d), None, None    # converged: explore on; a better point restarts the search
+        return None
 
 
 def _present(x: np.ndarray, seen: np.ndarray) -> bool:
