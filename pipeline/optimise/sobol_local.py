@@ -4,10 +4,12 @@ Trials ``0 .. n_startup-1`` are the points of the (unscrambled) Sobol' sequence 
 centre first.  Every later trial is a move of a compass (pattern) search around the incumbent — the best feasible
 complete trial, else the one closest to feasibility: one coordinate stepped up or down by a radius in the unit cube,
 clipped to the box, so a bound is reached exactly and an optimum in a corner or on a face is found as well as an
-interior one.  A round tries every move that changes the point; a round without improvement halves the radius; an
-improvement restarts the rounds at twice the radius that found it.  When the radius falls below ``radius_min`` the
-search is converged and further trials continue the Sobol' sequence, whose best point, if better, starts a new
-local search (a restart).
+interior one.  Each round opens with the maximiser of quadratic fits (of the objective, and of every constraint)
+to the trials nearest the incumbent within twice the radius; then the compass moves that change the point.  A round
+without improvement halves the radius; an improvement restarts the rounds at twice the radius that found it.  When
+the radius falls below ``radius_min`` the search is converged, and the next one starts from the best trial that no
+better trial lies within ``basin`` of (another peak's basin: restarts); when every such search has converged,
+further trials continue the Sobol' sequence.
 
 Every proposal is a function of the trials before it (their parameters, values, constraints and the radius each
 local move records in ``system_attrs``), never of a random state, so a batch asked at once gets distinct moves
