@@ -17,6 +17,8 @@ what it writes under --out:
   history.png, importances.png, verification.png, pareto.png (with --objective pareto)
   the outcome line says which limits the recommendation sits at and whether it lies on a bound of the search
   space (which control, lower or upper): there the optimum may lie beyond the box.
+  shaker envelope: a rig file's 'exciter' (max_force_n against frequency_hz, max_stroke_m, max_velocity_m_s) is
+  honoured like the power and deceleration limits; a recommendation on it says "ON THE SHAKER'S ENVELOPE".
   feedback: verified points are appended to feedback/optimise.parquet at the project root, beside optuna.db
   (or --feedback FILE; never inside the surrogate's dvc-managed folder), from whichever folder it runs, so that
   training can include them (closing the loop).
@@ -195,6 +197,9 @@ def config_from_args(args):
         if base.get("mode", "surrogate") != "simulator":
             raise UserError(f"--rig {rig_path} needs --simulator (a surrogate carries the rig it was trained on)")
         rig = load_rig(rig_path, args.model, args.preset)
+        from pipeline.core.rigfile import read_exciter
+
+        base["exciter"] = read_exciter(rig_path)
         base["model"], base["preset"] = rig.model, rig.preset
         base["fixed"] = {**rig.overrides(), **(base.get("fixed") or {})}
         args.model = args.preset = None

@@ -26,7 +26,8 @@ class OptimiseConfig:
     an optional ``max:``/``min:`` prefix, ROP maximised and the rest minimised by default).  max_power_w [W],
     max_decel_g [g]: the exciter's power rating and the bit's deceleration limit (None = unconstrained).
     margin: a fraction kept below every limit (0.05), or {label: fraction} (``{power_w: 0.05}``); the study judges a
-    surrogate's prediction by the upper end of its interval (constraints.Constraints.margins).
+    surrogate's prediction by the upper end of its interval (constraints.Constraints.margins).  exciter: the rig
+    file's shaker envelope (pipeline/optimise/envelope.py), honoured as constraints.
     sampler: None picks DEFAULT_SAMPLER by objective.  ranges: {name: [low, high]} — default: the surrogate's training ranges / the model's published space
     (ModelSpec.search_spaces).  n_trials: total complete trials of the study (a resumed study runs only the
     rest; default 600 on the surrogate, 200 on the simulator = simulator calls).  n_verify: points
@@ -58,6 +59,7 @@ class OptimiseConfig:
     objectives: list[str] | None = None
     allow_not_settled: bool = False
     margin: float | dict | None = None
+    exciter: dict | None = None
     n_verify: int = 10
     rel_tol: float = 0.10
     fallback_trials: int = 200
@@ -124,4 +126,9 @@ class OptimiseConfig:
                            max_specific_energy_j_m=self.max_specific_energy_j_m, max_power_w=self.max_power_w,
                            max_decel_g=self.max_decel_g,
                            require_settled=not self.allow_not_settled, require_progress=self.objective == "pareto")
+        from pipeline.optimise.envelope import Envelope
+
+        env = Envelope.from_mapping(self.exciter, "rig file exciter")
+        if env is not None:
+            cons = replace(cons, envelope=env)
         return replace(cons, margins=resolve_margins(self.margin, cons)) if self.margin is not None else cons

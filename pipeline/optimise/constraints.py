@@ -71,7 +71,8 @@ class Constraints:
     peak_force_n <= k × static_force_n (seed 002: the impulsive force should stay below the
     static preload to avoid bit bounce).  max_specific_energy_j_m: specific_energy_j_m <= this [J/m].
     max_power_w: power_w <= this [W] (the exciter's power rating).  max_decel_g: peak_decel_g <= this [g]
-    (the bit's deceleration limit: tool life).
+    (the bit's deceleration limit: tool life).  envelope: the exciter's force-against-frequency, stroke and coil
+    velocity limits (pipeline/optimise/envelope.py), declared in the rig file.
     require_settled: status must be ok/no_contact (else not_settled is allowed; runaway/failed never are).
     require_progress: rop_m_s > 0 (set by the Pareto mode, where specific energy is otherwise infinite).
     margins: {label: fraction}: a point must stay that fraction below every limit on the label (0.05: power <=
@@ -87,6 +88,7 @@ class Constraints:
     require_settled: bool = True
     require_progress: bool = False
     margins: Mapping[str, float] = field(default_factory=dict)
+    envelope: object = None         # envelope.Envelope: the exciter's limits from the rig file, or None
 
     def limit_of(self, label: str, limit: float) -> float:
         """The limit a point must keep below on ``label``: ``limit`` less the label's margin (a fraction of it)."""
@@ -110,6 +112,8 @@ class Constraints:
         if self.max_specific_energy_j_m is not None:
             out.append("specific_energy")
         out += [key for key, (_, attr) in UPPER_LIMITS.items() if getattr(self, attr) is not None]
+        if self.envelope is not None:
+            out += list(self.envelope.values({}))
         return out
 
     def values(self, row: Mapping) -> dict[str, float]:
@@ -144,6 +148,8 @@ class Constraints:
                 lim = self.limit_of(label, lim)
                 v = self._with_uncertainty(row, label)
                 out[key] = 1.0 if v is None or math.isinf(v) else min((v - lim) / lim, 1e3)
+        if self.envelope is not None:
+            out.update(self.envelope.values(row))
         return out
 
     def feasible(self, row: Mapping) -> bool:
@@ -186,8 +192,10 @@ class Constraints:
     def to_dict(self) -> dict:
         out = asdict(self)
         out["margins"] = dict(self.margins)
-        if not self.margins:        # a study without margins keeps the signature it always had
-            del out["margins"]
+        out["envelope"] = None if self.envelope is None else self.envelope.to_dict()
+        for key in ("margins", "envelope"):     # a study without them keeps the signature it always had
+            if not out[key]:
+                del out[key]
         return out
 
 

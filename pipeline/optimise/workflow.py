@@ -150,6 +150,8 @@ def _outcome(rec: dict) -> str:
         text += "; margin kept: " + ", ".join(
             f"{m['label']} {m['value_sim']:.4g} <= {m['kept_below']:.4g} ({m['margin']:.0%} below {m['limit']:g})"
             for m in rec["margins"] if m["value_sim"] is not None)
+    if rec.get("on_envelope"):
+        text += "; ON THE SHAKER'S ENVELOPE: " + ", ".join(rec["on_envelope"])
     if rec.get("on_bounds"):
         text += ("; ON THE EDGE of the search space: " + describe_bounds(rec["on_bounds"])
                  + " (the optimum may lie beyond it: widen that range to know)")
@@ -170,7 +172,7 @@ def _verified_front(table: pd.DataFrame, objectives: list[tuple[str, str]], spac
             for _, r in front.iterrows()]
 
 
-def _recommend(best, space: Space, cons: Constraints) -> dict:
+def _recommend(best, space: Space, cons: Constraints, sim_row: dict | None = None) -> dict:
     """The recommendation of the best verified row: controls, simulated (and predicted) labels, bounds, limits."""
     rec = {"params": {n: float(best[n]) for n in space.names},
            **{k: (None if pd.isna(best.get(k)) else float(best[k])) for k in
@@ -182,6 +184,11 @@ def _recommend(best, space: Space, cons: Constraints) -> dict:
     rec["binding"] = _binding(cons, best)
     if cons.margins:        # only then: report.json keeps the keys it always had
         rec["margins"] = _margins(cons, best)
+    if cons.envelope is not None:
+        row = {**{n: float(best[n]) for n in space.names}, **(sim_row or {})}
+        rec["on_envelope"] = cons.envelope.on_envelope(row)
+        rec.update({f"{k}_sim": sim_row.get(k) for k in ("stroke_m", "coil_velocity_m_s")
+                    if sim_row and k in sim_row})
     return rec
 
 
@@ -242,7 +249,9 @@ def run_optimise(plan: OptimisePlan, progress: bool = True) -> OptimiseResult:
             outcome = (f"none of the {len(table)} points the study found feasible is feasible when simulated "
                        f"(statuses {dict(Counter(table['status_sim']))}): nothing recommended")
         else:
-            rec = _recommend(best, space, cons)
+            sim_row = simres.reset_index(drop=True).iloc[int(best.name)].to_dict()
+            rec = _recommend(best, space, cons, {k: v for k, v in sim_row.items() if k in space.names or
+                                                 k in ("stroke_m", "coil_velocity_m_s", "frequency_hz", "amplitude_n")})
             outcome = _outcome(rec)
         if cfg.objective == "pareto":
             front = _verified_front(table, objectives, space)
