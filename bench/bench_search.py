@@ -60,10 +60,16 @@ CASES = {
 
 def samplers() -> dict:
     """Name -> sampler factory (seed, n_objectives, n_startup), the command's own where it offers them."""
+    import importlib.util
+
     from pipeline.optimise import samplers as S
 
-    return {"tpe": S.tpe_sampler, "random": S.random_sampler, "cmaes": S.cmaes_sampler,
-            "sobol-local": S.sobol_local_sampler}
+    out = {"tpe": S.tpe_sampler, "random": S.random_sampler, "cmaes": S.cmaes_sampler,
+           "sobol-local": S.sobol_local_sampler}
+    if importlib.util.find_spec("cmaes") is None:      # optional: measured where installed
+        print("bench_search: the cmaes package is not installed: CMA-ES is skipped", file=sys.stderr)
+        del out["cmaes"]
+    return out
 
 
 def _evaluator(case: Case):
@@ -187,6 +193,9 @@ def main(argv: list[str] | None = None) -> int:
     res.mkdir(parents=True, exist_ok=True)
     table = samplers()
     names = args.samplers or list(table)
+    unknown = [n for n in names if n not in table]
+    if unknown:
+        ap.error(f"--samplers: unknown or unavailable {unknown}; available: {', '.join(table)}")
     out = {"model": MODEL, "preset": PRESET, "budget": args.budget, "seeds": args.seeds, "target": TARGET, "cases": {}}
     t0 = time.time()
     for cname in args.cases:
