@@ -42,6 +42,7 @@ examples:
   vibro optimise --surrogate models/surrogate --out results/optimise --max-power-w 18 --max-decel-g 4
   vibro optimise --surrogate models/surrogate --out results/optimise --max-power-w 18 --max-decel-g 4 --margin 0.05
   vibro optimise --simulator --max-power-w 18 --max-decel-g 4 --margin power_w=0.05 --margin peak_decel_g=0.1
+  vibro optimise --simulator --max-power-w 18 --max-decel-g 4 --margin 0.05 --limit-map --out results/o  # + maps
   vibro optimise --surrogate models/surrogate --out results/pareto --objective pareto --n-verify 12
   vibro optimise --surrogate models/surrogate --out results/pareto --objective pareto --objectives rop_m_s,peak_decel_g
   vibro optimise --simulator --model drill --preset lab --n-trials 200 --out results/optimise-sim
@@ -112,6 +113,10 @@ def add_parser(sub) -> None:
                    help="keep the recommendation this fraction below every limit (0.05 = 5 %%), or below one limit "
                         "(power_w=0.05; repeatable); on the surrogate a point is judged by the upper end of its "
                         "predicted interval, so it stays feasible within that uncertainty")
+    p.add_argument("--limit-map", action="store_true",
+                   help="also simulate two maps of ROP around the recommendation over the search box (frequency x "
+                        "static force at its amplitude, frequency x amplitude at its static force, 25 x 13 cells each) "
+                        "with the limits' contours, the margin's and the exciter's envelope: limit_map_*.png/.parquet")
     p.add_argument("--allow-not-settled", action="store_true",
                    help="accept not_settled (bounded but aperiodic) points; runaway and failed never are")
     p.add_argument("--n-verify", type=A.count(1, 10_000), help="distinct best points (or front points) re-simulated (default 10)")
@@ -219,6 +224,8 @@ def config_from_args(args):
         base["allow_not_settled"] = True
     if args.margin:
         base["margin"] = parse_margin(args.margin)
+    if args.limit_map:
+        base["limit_map"] = True
     if str(base.get("preset", "")).lower() == "none":
         base["preset"] = None
     check_workers(base.get("n_threads"))
@@ -360,7 +367,15 @@ def optimise_into(cfg, out_dir, bundle=None, metrics_path: str | None = None, pr
             failed, res = res, run_optimise(sim_plan, progress=progress)
         tables = outputs.write_tables(res, out)
         figs = outputs.write_figures(res, out)
+        map_sims = 0
+        if cfg.limit_map and res.recommendation is not None:
+            from pipeline.optimise.limitmap import write_limit_maps
+
+            maps, map_sims = write_limit_maps(res, out)
+            figs = [*figs, *maps]
         rep = outputs.report_dict(res, figs, rows, fb, failed=failed)
+        if map_sims:
+            rep["metrics"]["limit_map_simulations"] = map_sims
         reports = outputs.write_report(rep, res, out)
         if metrics_path:
             atomic_write_text(Path(metrics_path), dump_json(rep["metrics"]))

@@ -27,7 +27,8 @@ class OptimiseConfig:
     max_decel_g [g]: the exciter's power rating and the bit's deceleration limit (None = unconstrained).
     margin: a fraction kept below every limit (0.05), or {label: fraction} (``{power_w: 0.05}``); the study judges a
     surrogate's prediction by the upper end of its interval (constraints.Constraints.margins).  exciter: the rig
-    file's shaker envelope (pipeline/optimise/envelope.py), honoured as constraints.
+    file's shaker envelope (pipeline/optimise/envelope.py), honoured as constraints.  limit_map: also simulate and
+    draw maps of ROP around the recommendation with the limits' contours (pipeline/optimise/limitmap.py).
     sampler: None picks DEFAULT_SAMPLER by objective.  ranges: {name: [low, high]} — default: the surrogate's training ranges / the model's published space
     (ModelSpec.search_spaces).  n_trials: total complete trials of the study (a resumed study runs only the
     rest; default 600 on the surrogate, 200 on the simulator = simulator calls).  n_verify: points
@@ -60,6 +61,7 @@ class OptimiseConfig:
     allow_not_settled: bool = False
     margin: float | dict | None = None
     exciter: dict | None = None
+    limit_map: bool = False
     n_verify: int = 10
     rel_tol: float = 0.10
     fallback_trials: int = 200

@@ -101,6 +101,11 @@ class OptimiseResult:
                         "best_rop_rel_error": r.get("rop_rel_error"), "best_power_w": r.get("power_w_sim"),
                         "best_peak_decel_g": r.get("peak_decel_g_sim"), "best_n_on_bounds": len(r["on_bounds"]),
                         **{f"best_{n}": v for n, v in r["params"].items()}})
+            for m in r.get("margins", []):      # with --margin: the margin kept and the headroom left per limit
+                out[f"margin_{m['label']}"] = m["margin"]
+                out[f"headroom_{m['label']}"] = m["headroom"]
+            if "on_envelope" in r:              # with a rig's exciter envelope: how many of its limits bind
+                out["best_n_on_envelope"] = len(r["on_envelope"])
         return out
 
 

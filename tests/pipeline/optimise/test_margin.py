@@ -36,6 +36,11 @@ def test_margin_keeps_every_verified_point_feasible_under_the_stated_uncertainty
     for label, lim in (("power_w", 18.0), ("peak_decel_g", 4.0)):
         # every point called feasible stays under the limit when its value is off by ± the margin (5 % of the limit)
         assert (ok[f"{label}_sim"] + 0.05 * lim <= lim).all()
+    from pipeline.optimise.limitmap import write_limit_maps
+
+    pngs, n = write_limit_maps(res, tmp_path / "maps", shape=(7, 5))     # ROP around it, the limits drawn
+    assert n == 70 and sorted(p.split("/")[-1] for p in pngs) == ["limit_map_frequency_hz_amplitude_n.png",
+                                                                   "limit_map_frequency_hz_static_force_n.png"]
     plain = _run(tmp_path, "no-margin")
     assert "margins" not in plain.recommendation
     # without the margin the optimum sits closer to a limit than the margin allows
