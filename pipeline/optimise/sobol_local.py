@@ -101,24 +101,32 @@ class SobolLocalSampler(optuna.samplers.BaseSampler):
         # anchors: the best trial, then each trial no better trial lies within ``basin`` of (a local maximum of the
         # trials at that scale), best first; the first whose local search is not converged moves (restarts)
         by_rank = sorted(range(len(done)), key=lambda i: ranks[i], reverse=True)
-        for n_anchor, i in enumerate(by_rank):
-            if n_anchor and any(np.linalg.norm(U[j] - U[i]) < self.basin for j in by_rank[:n_anchor]):
+        pos = np.empty(len(done), dtype=int)
+        pos[by_rank] = np.arange(len(done))
+        near = np.linalg.norm(U[:, None, :] - U[None, :, :], axis=2) < self.basin
+        shadowed = np.any(near & (pos[None, :] < pos[:, None]), axis=1)     # a better trial lies within the basin
+        models: dict[int, set] = {}     # anchor -> radii its quadratic-model step was asked at
+        for t in others:
+            if t.system_attrs.get(KIND_ATTR) == "model":
+                models.setdefault(t.system_attrs.get(ANCHOR_ATTR), set()).add(t.system_attrs.get(RADIUS_ATTR))
+        for i in by_rank:
+            if shadowed[i]:
                 continue
-            move = self._local_move(done[i], U[i], done, names, space, seen, others, order, sign, number)
+            move = self._local_move(done[i], U[i], done, names, space, seen, models.get(done[i].number, set()),
+                                    order, sign, number)
             if move is not None:
                 return move
         return _sobol(number + 1, d), None, None    # every local search converged: explore on
 
-    def _local_move(self, inc, x0, done, names, space, seen, others, order, sign, number):
-        """The next move of the local search around ``inc`` (unit point ``x0``), None when it has converged."""
-        later = [t for t in others if t.system_attrs.get(ANCHOR_ATTR) == inc.number]
+    def _local_move(self, inc, x0, done, names, space, seen, modelled: set, order, sign, number):
+        """The next move of the local search around ``inc`` (unit point ``x0``), None when it has converged;
+        ``modelled``: the radii its quadratic-model step was already asked at."""
         r = min(self.radius0, 2.0 * inc.system_attrs[RADIUS_ATTR]) if RADIUS_ATTR in inc.system_attrs \
             else self.radius0
         while r >= self.radius_min:
             # a round: the maximiser of a quadratic fitted around the incumbent (once), then the compass moves;
             # a move already asked (running ones included) is skipped, so a batch gets distinct moves
-            if not any(t.system_attrs.get(KIND_ATTR) == "model" and t.system_attrs.get(RADIUS_ATTR) == r
-                       for t in later):
+            if r not in modelled:
                 x = _model_step(done, names, space, x0, r, sign, number)
                 if x is not None and not _present(x, seen):
                     return x, r, "model", inc.number

@@ -39,7 +39,7 @@ def test_default_simulator_study_reaches_the_corner_optimum_of_a_coil_rig(tmp_pa
     monkeypatch.setenv("VIBRO_HOME", str(tmp_path))
     rig = tmp_path / "rig.yaml"
     rig.write_text(COIL_RIG)
-    rc = cli_main(["optimise", "--simulator", "--rig", str(rig), "--n-trials", "120", "--n-verify", "1",
+    rc = cli_main(["optimise", "--simulator", "--rig", str(rig), "--n-trials", "100", "--n-verify", "1",
                    "--storage", f"sqlite:///{tmp_path / 'optuna.db'}", "--out", str(tmp_path / "o"), "--no-mlflow",
                    "--quiet"])
     assert rc == 0
