@@ -54,6 +54,8 @@ def resolve_margins(margin, cons: "Constraints") -> dict[str, float]:
         if lab not in limited:
             raise UserError(f"--margin {lab}: {lab} has no limit (give --{LIMITED_LABELS[lab][0].replace('_', '-')})")
         try:
+            if isinstance(m, bool):         # YAML's yes/no would pass float() as 1/0
+                raise TypeError
             v = float(m)
         except (TypeError, ValueError):
             raise UserError(f"--margin {lab}: '{m}' is not a number") from None

@@ -82,3 +82,7 @@ def test_bad_margin_is_one_line_exit_2(tmp_path, capsys, argv, msg):
 def test_margin_config_refuses_a_bad_fraction():
     with pytest.raises(UserError, match="margin"):
         OptimiseConfig(mode="simulator", max_power_w=18.0, margin=-0.1)
+    with pytest.raises(UserError, match="not a number"):
+        OptimiseConfig(mode="simulator", max_power_w=18.0, margin=False)        # params.yaml 'margin: no'
+    with pytest.raises(UserError, match="no limit"):
+        OptimiseConfig(mode="simulator", max_power_w=18.0, margin={"peak_decel_g": 0.1})
