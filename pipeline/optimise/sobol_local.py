@@ -84,7 +84,8 @@ class SobolLocalSampler(optuna.samplers.BaseSampler):
 
     # ------------------------------------------------------------------ the search
     def _propose(self, study, number: int, names: list[str], space: dict):
-        """(unit-cube point, radius or None, 'model' | 'compass' | None) of trial ``number``."""
+        """(unit-cube point, radius, 'model' | 'compass', anchor's trial number) of trial ``number``; (point, None,
+        None) for a point of the Sobol' sequence."""
         d = len(names)
         if number < self.n_startup:
             return _sobol(number + 1, d), None, None
@@ -103,8 +104,10 @@ class SobolLocalSampler(optuna.samplers.BaseSampler):
         by_rank = sorted(range(len(done)), key=lambda i: ranks[i], reverse=True)
         pos = np.empty(len(done), dtype=int)
         pos[by_rank] = np.arange(len(done))
-        near = np.linalg.norm(U[:, None, :] - U[None, :, :], axis=2) < self.basin
-        shadowed = np.any(near & (pos[None, :] < pos[:, None]), axis=1)     # a better trial lies within the basin
+        shadowed = np.zeros(len(done), dtype=bool)     # a better trial lies within the basin (rows in chunks: memory)
+        for a in range(0, len(done), 256):
+            near = np.linalg.norm(U[a:a + 256, None, :] - U[None, :, :], axis=2) < self.basin
+            shadowed[a:a + 256] = np.any(near & (pos[None, :] < pos[a:a + 256, None]), axis=1)
         models: dict[int, set] = {}     # anchor -> radii its quadratic-model step was asked at
         for t in others:
             if t.system_attrs.get(KIND_ATTR) == "model":
