@@ -22,6 +22,7 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from sim.files import atomic_write_bytes, atomic_write_text
+from surrogate.bundle_check import BundleContentError, check_contents, check_payload_size
 from surrogate.candidates import SubsampledGP
 from surrogate.errors import BundleError, DataError
 from surrogate.features import InputScaler, TargetTransform
@@ -33,6 +34,10 @@ PAYLOAD = "bundle.skops"
 MANIFEST = "manifest.json"
 MANIFEST_KIND = "vibro-surrogate-bundle"
 ARTIFACT_DIR = "surrogate"
+MAX_MANIFEST_BYTES = 2**20
+"""Largest manifest.json read [bytes]; a real one is under 1 kB."""
+MAX_FILE_BYTES = 256 * 2**20
+"""Largest file of a bundle [bytes] (the payload is compressed: a real one is a few MB)."""
 
 
 class ExtrapolationWarning(UserWarning):
@@ -211,6 +216,14 @@ def _versions() -> dict:
     return {"scikit-learn": sklearn.__version__, "numpy": np.__version__, "skops": skops.__version__}
 
 
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(2**20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
 def verify_bundle(path: str | os.PathLike) -> dict:
     """Check a bundle directory's manifest and every file's size and sha256 WITHOUT deserialising
     anything; returns the manifest.  BundleError (one line naming the file) when corrupt, foreign,
@@ -224,6 +237,9 @@ def verify_bundle(path: str | os.PathLike) -> dict:
     if not mpath.is_file():
         raise BundleError(f"{d}: an old-format surrogate bundle (bundle.joblib, a pickle without a manifest); it is not "
                         f"loaded because unpickling runs code: retrain it with 'vibro train'")
+    if mpath.is_file() and mpath.stat().st_size > MAX_MANIFEST_BYTES:
+        raise BundleError(f"{mpath}: {mpath.stat().st_size} bytes, not a bundle manifest "
+                          f"(at most {MAX_MANIFEST_BYTES})")
     try:
         man = json.loads(mpath.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
@@ -244,7 +260,10 @@ def verify_bundle(path: str | os.PathLike) -> dict:
             raise BundleError(f"{f}: missing (listed in the bundle manifest)")
         if f.stat().st_size != rec.get("size"):
             raise BundleError(f"{f}: {f.stat().st_size} bytes, the manifest says {rec.get('size')} (truncated or replaced)")
-        if hashlib.sha256(f.read_bytes()).hexdigest() != rec.get("sha256"):
+        if f.stat().st_size > MAX_FILE_BYTES:
+            raise BundleError(f"{f}: {f.stat().st_size // 2**20} MiB, more than the {MAX_FILE_BYTES // 2**20} MiB a "
+                              "bundle file may hold")
+        if _sha256(f) != rec.get("sha256"):
             raise BundleError(f"{f}: sha256 differs from the bundle manifest (damaged or tampered with)")
     return man
 
@@ -254,7 +273,8 @@ def load_bundle(ref: str | os.PathLike, model: str | None = None) -> Bundle:
 
     Order: manifest and hashes (:func:`verify_bundle`), then the skops payload's types against
     :data:`TRUSTED_TYPES` and the tree storage types, and only then are objects constructed; every
-    tree's node arrays are bounds-checked before the bundle is returned.  ``model``: raise BundleError unless
+    tree's node arrays are bounds-checked and every stored value checked (surrogate.bundle_check, with a bound on
+    the inflated size before loading) before the bundle is returned.  ``model``: raise BundleError unless
     the bundle was trained on that model's data."""
     import skops.io as sio
 
@@ -272,6 +292,10 @@ def load_bundle(ref: str | os.PathLike, model: str | None = None) -> Bundle:
     if foreign:
         raise BundleError(f"{f}: holds type(s) a vibro bundle never contains ({', '.join(foreign[:3])}); refusing to load")
     try:
+        check_payload_size(data)       # before any array is inflated
+    except BundleContentError as e:
+        raise BundleError(f"{f}: {e}; refusing to load") from None
+    try:
         b = sio.loads(data, trusted=list(untrusted))
     except Exception as e:  # noqa: BLE001 - damaged content of a verified file: a foreign writer
         raise BundleError(f"{f}: cannot be read ({type(e).__name__}: {str(e)[:120]})") from None
@@ -281,5 +305,9 @@ def load_bundle(ref: str | os.PathLike, model: str | None = None) -> Bundle:
         check_trees(b, len(b.inputs))
     except TreeStorageError as e:
         raise BundleError(f"{f}: a tree model is malformed ({e}); refusing to use it") from None
+    try:
+        check_contents(b, lambda X: b.predict(X, conditional=True))
+    except (BundleContentError, AttributeError) as e:       # AttributeError: a stored field is missing
+        raise BundleError(f"{f}: malformed bundle: {e}; refusing to use it") from None
     b.check_model(model)
     return b

@@ -18,14 +18,19 @@ UNITS = {"rop_m_s": "m/s", "peak_force_n": "N", "impacts_per_cycle": "-", "speci
 NAMES = {"rop_m_s": "ROP", "peak_force_n": "peak impact force", "impacts_per_cycle": "impacts per cycle",
          "specific_energy_j_m": "specific energy", "power_w": "power", "peak_decel_g": "peak deceleration"}
 """Targets in words (figure titles)."""
+SI = {t: (NAMES[t], UNITS[t], 1.0) for t in UNITS}
+"""The default display table, target -> (words, unit, factor from SI): SI as stored.  The application passes its
+own (engineering units: pipeline.core.units.ENGINEERING) so its figures and tables share one table."""
 
 
 def _save(fig, path: Path) -> str:
     return str(atomic_write_figure(path, fig, dpi=110))
 
 
-def parity(bundle, test: pd.DataFrame, path: Path) -> str:
-    """Predicted vs simulated value on the held-out split, one panel per target, with 90 % bars."""
+def parity(bundle, test: pd.DataFrame, path: Path, units: dict | None = None) -> str:
+    """Predicted vs simulated value on the held-out split, one panel per target, with 90 % bars; values shown in
+    ``units`` (target -> (words, unit, factor from SI); default :data:`SI`)."""
+    units = {**SI, **(units or {})}
     pred = bundle.predict(test, conditional=True)
     ts = list(bundle.regressors)
     ncol = min(3, max(len(ts), 1))
@@ -36,12 +41,13 @@ def parity(bundle, test: pd.DataFrame, path: Path) -> str:
     for ax, t in zip(axes.ravel(), ts):
         tm = bundle.regressors[t]
         m = domain_mask(test, t, tm.domain)
-        y = test[t].to_numpy(float)[m]
-        p, lo, hi = (pred[c].to_numpy(float)[m] for c in (t, f"{t}_lo", f"{t}_hi"))
+        words, unit, k = units.get(t, (t, "", 1.0))
+        y = test[t].to_numpy(float)[m] * k
+        p, lo, hi = (pred[c].to_numpy(float)[m] * k for c in (t, f"{t}_lo", f"{t}_hi"))
         r2 = bundle.report.get("held_out", {}).get("targets", {}).get(t, {}).get("r2")
-        name = f"{NAMES.get(t, t)} ({tm.name} on {tm.domain} points)"
+        name = f"{words} ({tm.name} on {tm.domain} points)"
         if y.size and np.ptp(y) <= 1e-9 * max(abs(float(y[0])), 1e-300):     # e.g. the peak force capped at Pr
-            ax.text(0.5, 0.5, f"constant {y[0]:.4g} {UNITS.get(t, '')} on every held-out point\n"
+            ax.text(0.5, 0.5, f"constant {y[0]:.4g} {unit} on every held-out point\n"
                     f"surrogate {np.nanmin(p):.4g} .. {np.nanmax(p):.4g}", ha="center", va="center",
                     transform=ax.transAxes, fontsize=10)
             ax.set_title(name, fontsize=10)
@@ -60,8 +66,8 @@ def parity(bundle, test: pd.DataFrame, path: Path) -> str:
             ax.set_xscale("log")
             ax.set_yscale("log")
         ax.set_title(name + (f"\nheld-out R² = {r2:.4f}" if r2 is not None else ""), fontsize=10)
-        ax.set_xlabel(f"simulated [{UNITS.get(t, '')}]")
-        ax.set_ylabel(f"surrogate [{UNITS.get(t, '')}]")
+        ax.set_xlabel(f"simulated {words} [{unit}]")
+        ax.set_ylabel(f"surrogate {words} [{unit}]")
         ax.grid(alpha=0.3)
     handles = [a for a in axes.ravel() if a.get_legend_handles_labels()[0]]
     if handles:

@@ -8,11 +8,13 @@ import pandas as pd
 from surrogate import plots
 
 
-def figures(bundle, test: pd.DataFrame, out: Path, adaptive: dict | None = None) -> dict[str, str]:
-    """parity.png, learning_curve.png, confusion.png (+ adaptive.png); returns name -> path."""
+def figures(bundle, test: pd.DataFrame, out: Path, adaptive: dict | None = None,
+            units: dict | None = None) -> dict[str, str]:
+    """parity.png, learning_curve.png, confusion.png (+ adaptive.png); returns name -> path.  ``units``: the
+    display table of the targets (``plots.parity``)."""
     out = Path(out)
     r = bundle.report
-    figs = {"parity": plots.parity(bundle, test, out / "parity.png"),
+    figs = {"parity": plots.parity(bundle, test, out / "parity.png", units),
             "confusion": plots.confusion(r["held_out"]["classification"], out / "confusion.png")}
     if r.get("learning_curve"):
         figs["learning_curve"] = plots.learning_curve(r["learning_curve"], list(bundle.regressors),

@@ -22,6 +22,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 from pipeline.core.errors import USER_ERRORS, machine_error, show_warnings  # noqa: E402
 
+QUIET_ENV = "VIBRO_QUIET"      # read by sim/compile_notice.py (not imported here: --help stays fast)
 SUBCOMMANDS = ("simulate", "sweep", "train", "optimise", "verify", "import", "diagnose", "synth", "map", "report",
                "models", "compare", "compile")
 MODULE_OF = {"import": "import_"}
@@ -106,6 +107,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     t0 = time.perf_counter()
+    quiet_before = os.environ.get(QUIET_ENV)
+    if getattr(args, "quiet", False):      # no compile notice either, in this process and its workers
+        os.environ[QUIET_ENV] = "1"
     try:
         with warnings.catch_warnings(record=True) as caught:     # shown after success, never before an error
             warnings.simplefilter("default")
@@ -134,5 +138,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"vibro {args.command}: internal error: {type(e).__name__}: {e} (rerun with --debug for details)",
               file=sys.stderr)
         return 1
+    finally:
+        if quiet_before is None:
+            os.environ.pop(QUIET_ENV, None)
+        else:
+            os.environ[QUIET_ENV] = quiet_before
 
 

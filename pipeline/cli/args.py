@@ -26,6 +26,7 @@ import math
 from typing import Callable
 
 from pipeline.core.errors import UserError
+from pipeline.core.numbers import number  # noqa: F401 - the one number parser, re-exported
 
 # upper bounds on the work one command may ask for (a typo like 1e12 is an error, not a MemoryError or a hang)
 MAX_POINTS = 10_000_000        # sweep / verify points, map grid cells
@@ -51,33 +52,6 @@ SETTINGS_BOUNDS: dict[str, tuple[bool, float, float, bool]] = {
 
 TEXT_SETTINGS = ("method",)
 """sim.Settings fields whose value is a word: ``method`` = auto | exact | dopri5 (sim.api.METHODS)."""
-
-
-def number(value, what: str, *, integer: bool = False, lo: float | None = None, hi: float | None = None,
-           lo_open: bool = False) -> float | int:
-    """``value`` (str, int or float) as a finite number in [lo, hi] (``(lo, hi]`` with ``lo_open``);
-    an int when ``integer`` (refusing 2.7); UserError naming ``what`` otherwise."""
-    if isinstance(value, bool):
-        raise UserError(f"{what}: expected a number, got {value!r}")
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise UserError(f"{what}: '{value}' is not a number") from None
-    if not math.isfinite(x):
-        raise UserError(f"{what}: must be finite, got {value!r}")
-    if integer:
-        if x != int(x):
-            raise UserError(f"{what}: must be an integer, got {value!r}")
-        x = int(x)
-    if lo is not None and (x < lo or (lo_open and x == lo)):
-        raise UserError(f"{what}: must be {'>' if lo_open else '>='} {_fmt(lo)}, got {value!r}")
-    if hi is not None and x > hi:
-        raise UserError(f"{what}: must be <= {_fmt(hi)} (an upper bound on the work), got {value!r}")
-    return x
-
-
-def _fmt(x: float) -> str:
-    return str(int(x)) if float(x).is_integer() and abs(x) < 1e15 else f"{x:g}"
 
 
 def arg_type(*, integer: bool = False, lo: float | None = None, hi: float | None = None,
@@ -136,10 +110,7 @@ def parse_ranges(items: list[str] | None, what: str = "--vary") -> dict[str, tup
         lo_s, sep2, hi_s = rest.partition(":")
         if not sep or not sep2 or not name.strip():
             raise UserError(f"{what} expects NAME=LOW:HIGH, got '{item}'")
-        try:
-            out[name.strip()] = (float(lo_s), float(hi_s))
-        except ValueError:
-            raise UserError(f"{what} {name.strip()}: '{rest}' is not LOW:HIGH numbers") from None
+        out[name.strip()] = (number(lo_s, f"{what} {name.strip()}: low"), number(hi_s, f"{what} {name.strip()}: high"))
     return out
 
 
@@ -209,15 +180,50 @@ def load_rig(path: str | None, model: str | None = None, preset: str | None = No
     return rig
 
 
+def check_plausible(model: str, preset: str | None, sets: dict[str, float], flag: str = "--set") -> None:
+    """UserError naming ``flag`` and the parameter when a value is not within :data:`PLAUSIBLE_FACTOR` of the
+    default (of ``preset``): 0 and a parameter whose default is 0 are always allowed.  Unknown names, models and
+    presets are left to the simulator's own checks."""
+    import math
+
+    import sim
+    from pipeline.core.numbers import PLAUSIBLE_FACTOR, plausible
+
+    if model not in sim.model_names():
+        return
+    spec = sim.get_model(model)
+    try:
+        defaults = spec.defaults(preset)
+    except sim.ParameterError:
+        return
+    for name, v in sets.items():
+        d = defaults.get(name)
+        if d is None or not isinstance(v, (int, float)) or not math.isfinite(v):
+            continue
+        if not plausible(v, d):
+            where = f"preset {preset}'s" if preset else "the model's default"
+            raise UserError(f"{flag} {name}={v:g}: not within a factor {PLAUSIBLE_FACTOR:g} of {where} {d:g}; "
+                            f"not a physical value for {model}")
+
+
 def model_and_overrides(model: str | None, preset: str | None, rig_path: str | None,
                         sets: dict[str, float]) -> tuple[str, str | None, dict[str, float]]:
-    """(model, preset, parameter overrides) of a command: the rig file's, then ``sets`` on top."""
+    """(model, preset, parameter overrides) of a command: the rig file's, then ``sets`` on top (each within
+    :data:`PLAUSIBLE_FACTOR` of its default)."""
+    from pipeline.core.rigfile import check_mode_complete
+
     rig = load_rig(rig_path, model, preset)
     if rig is None:
         if not model:
             raise UserError("give a MODEL (e.g. drill; 'vibro models' lists them) or --rig FILE")
-        return model, (None if preset is not None and str(preset).lower() == "none" else preset), dict(sets)
-    return rig.model, rig.preset, {**rig.overrides(), **sets}
+        preset = None if preset is not None and str(preset).lower() == "none" else preset
+        check_mode_complete(sets, "--set")
+        check_plausible(model, preset, sets)
+        return model, preset, dict(sets)
+    values = {**rig.overrides(), **sets}
+    check_mode_complete(values, "--set")
+    check_plausible(rig.model, rig.preset, sets)
+    return rig.model, rig.preset, values
 
 
 def check_settings(values: dict | None, what: str = "--setting") -> dict | None:

@@ -47,9 +47,9 @@ def _read_json(path, what: str) -> dict:
     import json
     from pathlib import Path
 
-    f = Path(path)
-    if not f.is_file():
-        raise UserError(f"{what} {f}: not found")
+    from pipeline.core.bounded import MAX_TEXT_BYTES, check_input_file
+
+    f = check_input_file(path, what, MAX_TEXT_BYTES)
     try:
         doc = json.loads(f.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as e:
@@ -77,7 +77,7 @@ def run(args) -> int:
     from pipeline.core.files import atomic_write_text
     from pipeline.core.jsonable import dump_json
     from pipeline.core.outdir import check_out, check_out_file, prepare_out, record_out_file
-    from pipeline.core.rigfile import read_rig
+    from pipeline.core.rigfile import read_rig, rig_name
     from pipeline.comparison.workflow import compare, markdown
 
     if args.samples < 1:
@@ -90,6 +90,10 @@ def run(args) -> int:
         else:
             cor = doc
     rig = read_rig(args.rig)
+    for flag, doc in (("--uncorrected", unc), ("--corrected", cor)):
+        if doc["tried"]["model"] != rig.model:
+            raise UserError(f"--rig {args.rig} describes model '{rig.model}', but the {flag} study optimised model "
+                            f"'{doc['tried']['model']}': give the rig of the model that was optimised")
     diag_file = Path(args.rig).parent / "report.json"
     inputs = [args.uncorrected, args.corrected, args.rig, diag_file if diag_file.is_file() else None]
     check_out(args.out, inputs=[*inputs, args.metrics], overwrite=args.overwrite, marker="compare")
@@ -99,16 +103,21 @@ def run(args) -> int:
     diag = _read_json(diag_file, "diagnosis report").get("rig") if diag_file.is_file() else None
     if isinstance(diag, dict) and "explained" not in diag:   # several systems: system -> entry
         diag = diag.get(rig.model)
-    with tracking.run("compare", {"uncorrected": args.uncorrected, "corrected": args.corrected, "rig": args.rig,
-                                  "samples": args.samples, "seed": args.seed}, enabled=not args.no_mlflow) as mlflow:
+    params = {"uncorrected": args.uncorrected, "corrected": args.corrected, "rig": args.rig, "samples": args.samples,
+              "seed": args.seed}
+    with tracking.chain("corrected", rig_name(args.rig)), \
+            tracking.run("compare", params, enabled=not args.no_mlflow) as mlflow:
         cmp = compare(unc, cor, rig, diag, n_samples=args.samples, seed=args.seed,
-                      n_threads=check_workers(args.threads))
+                      n_threads=check_workers(args.threads), rig_name=rig_name(args.rig))
         out = Path(args.out)
         with prepare_out(out, inputs=[*inputs, args.metrics], overwrite=args.overwrite, marker="compare") as tmp:
             atomic_write_text(tmp / "report.json", dump_json(cmp))
             atomic_write_text(tmp / "report.md", "# Closing the loop\n\n" + markdown(cmp))
         t = cmp["recommendations"]
         metrics = {"worth_mm_s": cmp["worth_mm_s"],
+                   "corrected_breaks_uncorrected_limits": float(bool(t["corrected"]["breaks_on_uncorrected"])),
+                   "corrected_surrogate_wrong": float(cmp["corrected_surrogate_wrong"] or 0),
+                   "corrected_surrogate_fallback": float(bool(cmp["corrected_fallback"])),
                    "uncorrected_rop_on_corrected_mm_s": t["uncorrected"]["rop_m_s_on_corrected"] * 1e3,
                    "corrected_rop_on_corrected_mm_s": t["corrected"]["rop_m_s_on_corrected"] * 1e3,
                    "uncorrected_rop_on_uncorrected_mm_s": t["uncorrected"]["rop_m_s_on_uncorrected"] * 1e3,

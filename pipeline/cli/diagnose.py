@@ -161,7 +161,7 @@ def scheduler_of(path: str | None, flag: str | None) -> str | None:
         return None
     if not isinstance(value, str):
         raise UserError(f"{path}: diagnose.scheduler must be tcp://host:port or local:N, got {value!r}")
-    return check_address(value)
+    return check_address(value, f"{path}: diagnose.scheduler")
 
 
 def run(args) -> int:
@@ -185,10 +185,6 @@ def run(args) -> int:
     if out.exists() and not out.is_dir():
         raise UserError(f"--out '{out}' exists and is not a directory")
     log = (lambda s: None) if args.quiet else (lambda s: tqdm.write(s, file=sys.stderr))
-    n_steps = 0
-    for system in ds.systems:
-        n = int((ds.runs["system"] == system).sum())
-        n_steps += 1 if n >= max(cfg.min_runs_holdout, 3) else n
     from dataclasses import asdict
 
     inputs = [args.dataset, args.params, args.metrics]
@@ -197,10 +193,11 @@ def run(args) -> int:
                        overwrite=args.overwrite)
     with open_executor(scheduler) as executor, \
             prepare_out(out, inputs=inputs, overwrite=args.overwrite, marker="diagnose") as tmp:
-        bar = tqdm(total=n_steps, desc="diagnose (folds)", disable=args.quiet, unit="fold", file=sys.stderr)
+        bar = StageBars(disable=args.quiet)
+        executor.on_task_done = bar.task_done
         with tracking.run("diagnose", {"dataset": args.dataset, **asdict(cfg), "scheduler": scheduler or "local"},
                           enabled=not args.no_mlflow, variant=Path(args.dataset).resolve().name) as mlflow:
-            result = diagnose(ds, cfg, log=log, progress=lambda: bar.update(1), executor=executor)
+            result = diagnose(ds, cfg, log=log, progress=bar, executor=executor)
             bar.close()
             report = result.report
             write_outputs(result, tmp)
@@ -218,9 +215,35 @@ def run(args) -> int:
         atomic_write_text(args.metrics, dump_json(headline))
         record_out_file(args.metrics, command="diagnose", kind="json")
     if not args.quiet:
-        print(dump_json(headline))
-        print(f"report: {out / 'report.md'}")
+        print("\n".join(summary_lines(report)))
+        print(f"report: {out / 'report.md'}" + (f"; headline numbers: {args.metrics}" if args.metrics else ""))
     return 0
+
+
+class StageBars:
+    """The diagnosis's progress on stderr (``pipeline.diagnosis.progress.Progress``): one line per stage with the
+    time the last one took, and a bar of its fit tasks with tqdm's estimate of the time left."""
+
+    def __init__(self, disable: bool = False) -> None:
+        self.disable, self.bar, self.k = disable, None, 0
+
+    def stage(self, name: str, tasks: int | None = None) -> None:
+        from tqdm import tqdm
+
+        self.close()
+        self.k += 1
+        self.bar = tqdm(total=tasks, desc=f"[stage {self.k}] {name}", unit="fit", disable=self.disable,
+                        file=sys.stderr, leave=True,
+                        bar_format=None if tasks else "{desc}: {elapsed}")
+
+    def task_done(self) -> None:
+        if self.bar is not None:
+            self.bar.update(1)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
 
 
 SIGNALS_CHECKED = ("accel_m_s2", "force_n")
@@ -257,6 +280,27 @@ def check_report(report: dict) -> None:
             if v is None or not math.isfinite(float(v)) or float(v) > 1e100:   # 1e100: an overflow, not a fit
                 raise UserError(f"diagnosis {key} = {v!r}: the dataset's features are degenerate "
                                 f"(the model cannot be compared with them); check the measured signals")
+
+
+VERDICT_WORDS = {"nothing missing": "nothing missing (the calibrated base model is adequate)",
+                 "unexplained": "unexplained (no §6 effect brings the model to the data)"}
+
+
+def summary_lines(report: dict) -> list[str]:
+    """A few lines per system for the terminal: the verdict, the held-out nrms before/after, error and noise floor
+    (report.md has the tables, report.json every number)."""
+    lines = []
+    for name, r in report["systems"].items():
+        verdict = f"{r['selected']} selected" if r["selected"] else VERDICT_WORDS.get(r["verdict"], r["verdict"])
+        if r.get("proposal_adopted"):
+            verdict += f"; adopted discrepancy term {' + '.join(r['proposal_adopted'])}"
+        lines.append(f"{name}: {verdict}")
+        lines.append(f"  held-out nrms {r['base_nrms']:.3g} (calibrated base) -> {r['final_nrms']:.3g} (final); "
+                     f"1 = the noise level")
+        if r["final_error"] is not None and r["noise_floor"] is not None:
+            lines.append(f"  held-out error {r['final_error']:.3g} against a noise floor of {r['noise_floor']:.3g} "
+                         f"(error / floor = nrms)")
+    return lines
 
 
 def _headline(report: dict) -> dict:

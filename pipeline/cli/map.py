@@ -7,6 +7,7 @@ from pathlib import Path
 from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_workers, count, finite,
                                model_and_overrides, parse_assignments, parse_settings)
 from pipeline.core.errors import UserError
+from pipeline.core.rigfile import rig_name
 
 KINDS = ("auto", "peterka", "rop", "label", "bifurcation")
 
@@ -130,7 +131,7 @@ def run(args) -> int:
     from pipeline.maps import compute as M
     from pipeline.maps.workflow import MapConfig, run_map
     from pipeline import tracking
-    from pipeline.core.outdir import check_out_file, record_out_file
+    from pipeline.core.outdir import check_out_file, check_out_prefix, record_out_file
 
     args.x, xr = _axis(args.x, args.x_range, "--x")
     args.y, yr = _axis(args.y, args.y_range, "--y")
@@ -151,6 +152,8 @@ def run(args) -> int:
     if args.y:
         ys = M.axis_values(args.model, args.y, yr[0], yr[1], args.ny, args.log_y, base)
     out = Path(args.out or f"maps/{args.model}_{kind}_{args.x}" + (f"_{args.y}" if args.y else ""))
+    if args.out is not None:
+        out = check_out_prefix(args.out)
     # validate the fixed parameters and settings before anything runs
     spec.resolve(args.preset, **{**fixed, args.x: float(xs[0]), **({args.y: float(ys[0])} if args.y else {})})
     sim.api.make_settings(spec, settings)
@@ -165,7 +168,8 @@ def run(args) -> int:
         written.append((out.with_name(out.name + ".strobe.parquet"), "parquet"))
     for path, file_kind in written:
         check_out_file(path, flag="--out", kind=file_kind, inputs=[args.rig], overwrite=args.overwrite)
-    with tracking.run("map", params, enabled=not args.no_mlflow) as mlflow:
+    with tracking.chain("corrected" if args.rig else "lab", rig_name(args.rig)), \
+            tracking.run("map", params, enabled=not args.no_mlflow) as mlflow:
         res = run_map(cfg, progress=not args.quiet)
         for path, file_kind in written:
             if Path(path) in map(Path, res.files):

@@ -59,6 +59,7 @@ examples:
 from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_workers, load_rig,  # noqa: E402
                                parse_assignments, parse_ranges)
 from pipeline.core.errors import UserError  # noqa: E402
+from pipeline.core.rigfile import rig_name  # noqa: E402
 from pipeline.optimise import samplers  # noqa: E402
 
 
@@ -254,6 +255,7 @@ def check_range_values(ranges: dict, model: str | None) -> None:
     = 0: the model's ``Param`` says > 0); the sampler may draw a bound itself.  Unknown names and malformed
     ranges are left to the search space's own check."""
     import sim
+    from pipeline.core.numbers import PLAUSIBLE_FACTOR, plausible
     from pipeline.optimise.space import space_from_mapping
     from sim.registry import DEFAULT_MODEL
 
@@ -269,6 +271,10 @@ def check_range_values(ranges: dict, model: str | None) -> None:
             except sim.ParameterError as e:
                 raise UserError(f"range '{name}': its {end} bound {v:g} is outside the parameter's valid values "
                                 f"({e})") from None
+            if name in by_name and not plausible(v, by_name[name].default):
+                raise UserError(f"range '{name}': its {end} bound {v:g} is not within a factor {PLAUSIBLE_FACTOR:g} "
+                                f"of the parameter's default {by_name[name].default:g} {by_name[name].unit}; "
+                                "not a physical range")
 
 
 def real_sqlite_url(url: str | None) -> str | None:
@@ -282,15 +288,27 @@ def real_sqlite_url(url: str | None) -> str | None:
     return "sqlite:///" + str(db.resolve())
 
 
-def surrogate_chain(surrogate) -> str | None:
-    """The chain a surrogate bundle folder was trained in (its report.json 'chain'), None when unknown."""
+def _surrogate_report(surrogate) -> dict:
+    """A surrogate bundle folder's report.json ({} when there is none, e.g. an MLflow run id)."""
     import json
 
     try:
-        chain = json.loads((Path(str(surrogate)) / "report.json").read_text()).get("chain")
-    except (OSError, ValueError, AttributeError):
-        return None
+        rep = json.loads((Path(str(surrogate)) / "report.json").read_text())
+    except (OSError, ValueError):
+        return {}
+    return rep if isinstance(rep, dict) else {}
+
+
+def surrogate_chain(surrogate) -> str | None:
+    """The chain a surrogate bundle folder was trained in (its report.json 'chain'), None when unknown."""
+    chain = _surrogate_report(surrogate).get("chain")
     return chain if chain in ("lab", "corrected") else None
+
+
+def surrogate_rig(surrogate) -> str | None:
+    """The name of the rig a surrogate bundle folder was trained for (report.json 'rig_name'), None if none."""
+    name = _surrogate_report(surrogate).get("rig_name")
+    return name if isinstance(name, str) and name else None
 
 
 # ------------------------------------------------------------------ strategies: the one place names become objects
@@ -405,12 +423,14 @@ def run(args) -> int:
 
     from pipeline.core.outdir import check_out_file, record_out_file
     from pipeline.optimise.coordination import sqlite_path
-    from pipeline.optimise.storages import journal_path
+    from pipeline.optimise.storages import check_storage_target, journal_path
     from pipeline.optimise.study import default_storage
 
     cfg = config_from_args(args)
     chain = A.chain_of(args, surrogate_chain(cfg.surrogate) if cfg.mode == "surrogate" else None)
+    rig = rig_name(args.rig) or (surrogate_rig(cfg.surrogate) if cfg.mode == "surrogate" else None)
     url = cfg.storage or default_storage()
+    check_storage_target(url)
     db = sqlite_path(url) or (journal_path(url) and Path(journal_path(url)))
     reads = [args.params, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None,
              args.rig, db, db and f"{db}.lock", args.out]
@@ -421,7 +441,7 @@ def run(args) -> int:
         check_out_file(cfg.feedback, flag="--feedback", kind="feedback", inputs=[*reads, args.metrics])
     inputs = [args.params, args.surrogate if args.surrogate and Path(args.surrogate).exists() else None,
               args.metrics, args.feedback, db]
-    with tracking.variant(cfg.objective), tracking.chain(chain), \
+    with tracking.variant(cfg.objective), tracking.chain(chain, rig), \
             prepare_out(args.out, inputs=inputs, overwrite=args.overwrite, marker="optimise") as tmp:
         rep = optimise_into(cfg, tmp, metrics_path=args.metrics, progress=not args.quiet,
                             mlflow_enabled=not args.no_mlflow, raise_if_none=False)

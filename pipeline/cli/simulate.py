@@ -16,7 +16,10 @@ def add_parser(sub) -> None:
                     "compiled kernel built by 'vibro compile' (run by 'make install'; about 0.2 s of CPU in all) "
                     "and, when that is missing or older than the sources, on numba's JIT kernel (about 1 s more "
                     "to load; 30-70 s to compile the first time); both give the same labels bit for bit.  "
-                    "VIBRO_NO_AOT=1 forces the JIT kernel.",
+                    "VIBRO_NO_AOT=1 forces the JIT kernel.\n\n"
+                    "Exit status: 0 when the point was simulated, whatever its status (ok, no_contact, runaway, failed, "
+                    "...: the status is a result, printed with its reason); 2 for a user error (a bad value, file or "
+                    "flag, named in one line); 1 only for a bug in vibro.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  vibro simulate drill --preset lab --set frequency_hz=120 --set amplitude_n=800\n"
                "  vibro simulate indenter-metal --preset table1-60hz --json\n"
@@ -45,6 +48,26 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
+PLOT_SAMPLES = 2**20
+"""Most history samples kept for ``--plot`` (about 110 bytes each in the simulator, a few times that while plotting:
+a few hundred MB at most, whatever window x samples_per_cycle asks for)."""
+
+
+def plot_settings(model: str, settings: dict | None) -> tuple[dict | None, str | None]:
+    """``settings`` with ``samples_per_cycle`` lowered so the plotted history holds at most :data:`PLOT_SAMPLES`
+    samples (the labels do not depend on it), and the line saying so, or None when nothing changed."""
+    from sim import get_model
+    from sim.api import make_settings
+
+    st = make_settings(get_model(model), settings)
+    if st.window * st.samples_per_cycle <= PLOT_SAMPLES:
+        return settings, None
+    spc = max(2, PLOT_SAMPLES // st.window)
+    return ({**(settings or {}), "samples_per_cycle": spc},
+            f"plot: {spc} samples per cycle instead of {st.samples_per_cycle} (at most {PLOT_SAMPLES} samples over "
+            f"the {st.window}-cycle window)")
+
+
 def run(args) -> int:
     from sim import simulate
 
@@ -56,6 +79,9 @@ def run(args) -> int:
     if args.plot is not None:
         plot = check_out_file(figure_path(args.plot), flag="--plot", kind="figure", inputs=[args.rig],
                               overwrite=args.overwrite)
+    note = None
+    if plot is not None:
+        settings, note = plot_settings(model, settings)
     res = simulate(model, preset=preset, settings=settings, history=plot is not None, **params)
     if args.json:
         print(dump_json(res.labels))
@@ -71,7 +97,9 @@ def run(args) -> int:
         if res.history is None:
             print(f"no plot: the run ended with status {res.status} ({res.labels['reason']})")
         else:
+            if note:
+                print(note)
             plot_time_history(res, plot)
             record_out_file(plot, command="simulate", kind="figure")
             print(f"plot saved to {plot}")
-    return 0 if res.status != "failed" else 1
+    return 0          # a status (even failed) is a result; exit 1 is reserved for bugs

@@ -9,6 +9,7 @@ from pipeline.cli import args as A
 from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_settings, load_rig, number, parse_assignments,
                                parse_settings)
 from pipeline.core.errors import UserError
+from pipeline.core.rigfile import rig_name
 
 EPILOG = """\
 spec (params.yaml section 'sweep'; command-line options override it):
@@ -115,6 +116,10 @@ def spec_from_args(args):
     raw = dict(raw)
     scheduler = args.scheduler or raw.pop("scheduler", None)
     raw.pop("scheduler", None)
+    if scheduler is not None:
+        from pipeline.core.dask_client import check_address
+
+        scheduler = check_address(scheduler, "--scheduler" if args.scheduler else f"{args.params}: sweep.scheduler")
     workers = args.workers if args.workers is not None else raw.pop("workers", None)
     raw.pop("workers", None)
     if workers is not None:
@@ -164,13 +169,17 @@ def run(args) -> int:
     if args.dry_run:
         print("\n".join(plan_lines(spec, args.out)))
         return 0
+    if scheduler is not None and not scheduler.startswith("local:"):
+        from pipeline.core.dask_client import probe
+
+        probe(scheduler)            # an unreachable scheduler is refused before --out is created
     params = {"model": spec.model, "preset": spec.preset, "rig": args.rig or "", "design": spec.design, "n_points": spec.n_points,
               "seed": spec.seed, "chunk_size": spec.chunk_size, "fingerprint": spec.fingerprint,
               "scheduler": scheduler or "local", "out": args.out,
               **{f"vary.{k}": f"{r.low:g}:{r.high:g}:{r.scale}" for k, r in spec.vary.items()},
               **{f"fixed.{k}": v for k, v in spec.fixed.items()},
               **{f"settings.{k}": v for k, v in spec.settings.items()}}
-    with tracking.chain(A.chain_of(args)), tracking.run("sweep", params, enabled=not args.no_mlflow) as mlflow, \
+    with tracking.chain(A.chain_of(args), rig_name(args.rig)), tracking.run("sweep", params, enabled=not args.no_mlflow) as mlflow, \
             tempfile.TemporaryDirectory(prefix="vibro-sweep-") as tmpdir:
         plot = Path(args.plot) if args.plot else (Path(tmpdir) / "sweep_overview.png" if mlflow is not None else None)
         job = SweepJob(spec=spec, out=Path(args.out), scheduler=scheduler, workers=workers,

@@ -7,6 +7,7 @@ from pathlib import Path
 from pipeline.cli import args as A
 from pipeline.cli.args import add_quiet, add_rig, add_workers, load_rig
 from pipeline.core.errors import UserError
+from pipeline.core.rigfile import rig_name
 
 EPILOG = """what it writes (in --out):
   bundle.skops, bundle.json    the chosen models, input schema (names, trained ranges), model/preset and the
@@ -68,7 +69,8 @@ def add_parser(sub) -> None:
     p.add_argument("--initial", type=A.count(2, A.MAX_POINTS), help="adaptive: initial space-filling points (default 128)")
     p.add_argument("--batch", type=A.count(1, A.MAX_POINTS), help="adaptive: points added per round (default 64)")
     p.add_argument("--budget", type=A.count(1, A.MAX_POINTS), help="adaptive: total simulations (default 768)")
-    add_rig(p, "with --adaptive, simulate")
+    add_rig(p, "name the surrogate for the rig the sweep ran on (checked against the dataset) and, with --adaptive, "
+               "simulate")
     A.add_chain(p)
     p.add_argument("--no-mlflow", action="store_true", help="do not log to MLflow")
     add_quiet(p)
@@ -112,9 +114,9 @@ def run(args) -> int:
     check_adaptive(cfg.adaptive)
     inputs_arg = [s.strip() for s in args.inputs.split(",")] if args.inputs else None
     data = load_training_data(args.dataset, args.model, inputs_arg)
-    if args.rig and not cfg.adaptive.enabled:
-        raise UserError(f"--rig {args.rig} is used by --adaptive (the only part of training that simulates)")
     rig = load_rig(args.rig, data.model)
+    if rig is not None:
+        check_rig_matches(rig, data.meta, args.rig, args.dataset)
     out = Path(args.out)
     check_out(out, inputs=[args.dataset, args.params, args.metrics], overwrite=args.overwrite, marker="train")
     if args.metrics:
@@ -122,13 +124,13 @@ def run(args) -> int:
                        overwrite=args.overwrite)
     check_some_rows_usable(data.df, args.dataset)
     chain = A.chain_of(args)
-    provenance = {"chain": chain, "rig": str(args.rig) if args.rig else None}
+    provenance = {"chain": chain, "rig": str(args.rig) if args.rig else None, "rig_name": rig_name(args.rig)}
     params = {"dataset": str(args.dataset), "model": data.model, "preset": data.preset, "fingerprint": data.fingerprint,
               "inputs": ",".join(data.inputs), "n_points": len(data.df), "rig": args.rig or "",
               **{f"train.{k}": v for k, v in cfg.to_dict().items()}}
-    tags = {"vibro.rig": str(args.rig)} if args.rig else None
+    tags = {"vibro.rig_file": str(args.rig)} if args.rig else None
     with prepare_out(out, inputs=[args.dataset, args.params, args.metrics], overwrite=args.overwrite,
-                     marker="train") as tmp, tracking.chain(chain), \
+                     marker="train") as tmp, tracking.chain(chain, rig_name(args.rig)), \
             tracking.run("train", params, tags=tags, enabled=not args.no_mlflow) as mlflow:
         res = run_training(data, cfg, tmp, rig=rig, progress=not args.quiet, provenance=provenance)
         bundle = res.bundle
@@ -146,6 +148,23 @@ def run(args) -> int:
     if mlflow is not None:
         print(f"MLflow run {run_id}  (pipeline.tracking.load_bundle('{run_id}'))")
     return 0
+
+
+def check_rig_matches(rig, meta: dict, path: str, dataset: str) -> None:
+    """UserError when rig file ``path`` is not the rig sweep ``dataset`` was simulated on (its preset, or a
+    parameter the rig sets that the sweep held at another value): the surrogate would be named for the wrong rig."""
+    import math
+
+    fixed = meta.get("fixed") or {}
+    if "preset" in meta and meta.get("preset") != rig.preset:
+        raise UserError(f"--rig {path}: preset {rig.preset!r}, but dataset '{dataset}' was simulated with preset "
+                        f"{meta.get('preset')!r}")
+    for name, value in rig.overrides().items():
+        got = fixed.get(name)
+        if got is None or not math.isclose(float(got), float(value), rel_tol=1e-9, abs_tol=0.0):
+            raise UserError(f"--rig {path}: {name} = {value:g}, but dataset '{dataset}' was simulated with "
+                            f"{name} = {'its preset value' if got is None else format(float(got), 'g')}; "
+                            f"give the rig file the sweep used")
 
 
 def check_adaptive(ad) -> None:
@@ -167,9 +186,12 @@ def model_name(model: str, chain: str) -> str:
 
 
 def describe(report: dict) -> str:
-    """What the surrogate stands for: ``'drill' (preset 'lab', rig my-rig.yaml)``."""
-    rig = f", rig {report['rig']}" if report.get("rig") else ""
-    return f"'{report['model']}' (preset {report['preset']!r}{rig})"
+    """What the surrogate stands for: ``rig 'my-rig' (model 'drill', preset 'lab', my-rig.yaml)`` on a rig file,
+    else ``'drill' (preset 'lab')``."""
+    if report.get("rig"):
+        name = report.get("rig_name") or rig_name(report["rig"])
+        return f"rig '{name}' (model '{report['model']}', preset {report['preset']!r}, {report['rig']})"
+    return f"'{report['model']}' (preset {report['preset']!r})"
 
 
 def _print_summary(bundle, out: Path, ad: dict | None) -> None:

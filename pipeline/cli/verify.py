@@ -6,6 +6,7 @@ import argparse
 from pipeline.cli import args as A
 from pipeline.cli.args import add_quiet, add_rig, add_set, add_workers, check_workers, load_rig
 from pipeline.core.errors import UserError
+from pipeline.core.rigfile import rig_name
 
 EPILOG = """\
 input: a CSV or Parquet file with one row per point and the input columns (frequency_hz, amplitude_n,
@@ -92,6 +93,12 @@ def run(args) -> int:
             preset = "lab" if args.preset is None else (None if str(args.preset).lower() == "none" else args.preset)
         settings = None
         names = sim.get_model(model).param_names
+        others = {p for m in sim.model_names() if m != model for p in sim.get_model(m).param_names} - set(names)
+        foreign = [c for c in points.columns if c in others]
+        if foreign:
+            where = f"rig file {args.rig} describes" if rig is not None else "this run simulates"
+            raise UserError(f"{args.points}: column(s) {', '.join(foreign[:4])} are parameters of another model, "
+                            f"but {where} model '{model}': the points were made for another model")
         inputs = args.inputs or [c for c in points.columns if c in names]
         if not inputs:
             raise UserError(f"{args.points}: no column is a parameter of model '{model}' "
@@ -115,6 +122,7 @@ def run(args) -> int:
                        constraints=cons, rel_tol=args.rel_tol, bundle=bundle, fixed=fixed, settings=settings,
                        n_threads=args.n_threads, feedback=args.feedback)
     with prepare_out(out, inputs=sources, overwrite=args.overwrite, marker="verify") as tmp, \
+            tracking.chain("corrected" if args.rig else "lab", rig_name(args.rig)), \
             tracking.run("verify", params, enabled=not args.no_mlflow) as mlflow:
         res = run_verify(cfg, tmp, progress=not args.quiet)
         summary = res.summary
@@ -125,8 +133,11 @@ def run(args) -> int:
             mlflow.log_metrics({k: float(v) for k, v in summary.items() if isinstance(v, (int, float))})
             for f in (res.figure, str(res.table_path), str(res.summary_path)):
                 mlflow.log_artifact(f)
+    med = summary["rop_rel_error_median"]
+    med = "n/a" if med is None else f"{100 * med:.2g} %"
+    counts = ", ".join(f"{k} {v}" for k, v in summary["status_sim_counts"].items())
     print(f"verified {summary['n_points']} point(s): surrogate wrong at {summary['n_surrogate_wrong']}, "
-          f"median ROP error {summary['rop_rel_error_median']}, statuses {summary['status_sim_counts']}")
+          f"median relative ROP error {med}, simulator statuses: {counts}")
     print(f"table: {out / 'verified.csv'}")
     return 0
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from typing import Mapping
 
+from pipeline.core.units import broken_words, point_words
 from pipeline.optimise.robustness import rop_spread
 
 UNEXPLAINED_WARNING = ("The diagnosis left the rig's residual unexplained: the recommendation rests on a model known to "
@@ -31,15 +32,33 @@ def model_rig(optimise_report: Mapping):
     return Rig(str(tried["model"]), tried.get("preset")).with_values(fixed)
 
 
-def _rop(rig, point: Mapping[str, float], settings: Mapping | None) -> tuple[float, str]:
+def _rop(rig, point: Mapping[str, float], settings: Mapping | None) -> tuple[float, str, dict]:
+    """(ROP [m/s], status, the label row: point, labels and status) of ``point`` simulated on ``rig``."""
     r = rig.simulate(**dict(point), settings=dict(settings or {}))
     rop = float(r.labels["rop_m_s"]) if r.status == "ok" and r.labels.get("rop_m_s") is not None else 0.0
-    return rop, str(r.status)
+    return rop, str(r.status), {**dict(point), **dict(r.labels), "status": str(r.status)}
+
+
+def broken_limits(optimise_report: Mapping, row: Mapping) -> dict[str, dict]:
+    """The limits of an optimisation (report.json 'tried.constraints') that the label ``row`` breaks: constraint
+    name -> {'label', 'value', 'limit'} (value and limit [SI]; None for a condition such as a steady state)."""
+    from pipeline.optimise.constraints import UPPER_LIMITS, Constraints
+
+    cons = Constraints(**(optimise_report.get("tried", {}).get("constraints") or {}))
+    out = {}
+    for name, v in cons.values(row).items():
+        if v > 0:
+            label, attr = UPPER_LIMITS.get(name, (None, None))
+            out[name] = {"label": label, "value": None if label is None else row.get(label),
+                         "limit": None if attr is None else getattr(cons, attr)}
+    return out
 
 
 def compare(uncorrected: Mapping, corrected: Mapping, rig, diagnosis: Mapping | None = None, n_samples: int = 32,
-            seed: int = 0, settings: Mapping | None = None, n_threads: int | None = None) -> dict:
-    """The side-by-side comparison (a JSON-able dict; ROP in m/s, ``worth_mm_s`` in mm/s).
+            seed: int = 0, settings: Mapping | None = None, n_threads: int | None = None,
+            rig_name: str | None = None) -> dict:
+    """The side-by-side comparison (a JSON-able dict; ROP in m/s, ``worth_mm_s`` in mm/s).  Each recommendation on
+    each model also says which of that model's optimisation limits it breaks (``breaks_on_<model>``).
 
     ``uncorrected`` / ``corrected``: optimise report.json mappings; ``rig``: the corrected ``sim.Rig``;
     ``diagnosis``: the diagnosis's report.json 'rig' entry (explained, model_error, noise_floor), if at hand."""
@@ -50,36 +69,32 @@ def compare(uncorrected: Mapping, corrected: Mapping, rig, diagnosis: Mapping | 
             raise UserError(f"{name} optimisation recommended nothing ({rep.get('outcome', 'no outcome')}); "
                             "nothing to compare")
     models = {"uncorrected": model_rig(uncorrected), "corrected": rig}
+    reports = {"uncorrected": uncorrected, "corrected": corrected}
     points = {"uncorrected": dict(uncorrected["recommendation"]["params"]),
               "corrected": dict(corrected["recommendation"]["params"])}
     table = {}
     for rec_name, point in points.items():
         table[rec_name] = {"point": point}
         for model_name, m in models.items():
-            rop, status = _rop(m, point, settings)
+            rop, status, row = _rop(m, point, settings)
             table[rec_name][f"rop_m_s_on_{model_name}"] = rop
             table[rec_name][f"status_on_{model_name}"] = status
+            table[rec_name][f"breaks_on_{model_name}"] = broken_limits(reports[model_name], row)
     worth = table["corrected"]["rop_m_s_on_corrected"] - table["uncorrected"]["rop_m_s_on_corrected"]
     spread = rop_spread(rig, points["corrected"], n_samples=n_samples, seed=seed, settings=settings, n_threads=n_threads)
     out = {"recommendations": table, "worth_mm_s": worth * 1e3,
            "uncorrected_model": models["uncorrected"].to_mapping(), "corrected_rig": rig.to_mapping(),
-           "spread": spread.to_dict(), "explained": True, "warning": None,
+           "spread": spread.to_dict(), "explained": True, "warning": None, "rig_name": rig_name,
            "corrected_surrogate_wrong": (corrected.get("metrics") or {}).get("n_surrogate_wrong"),
            "corrected_fallback": (corrected.get("fallback") or {}).get("text"),
            "corrected_limits": {k: corrected["recommendation"].get(k) for k in ("power_w_sim", "peak_decel_g_sim",
-                                                                              "binding")}}
+                                                                              "binding", "on_bounds")}}
     if diagnosis is not None and not diagnosis.get("explained", True):
         err, noise = float(diagnosis["model_error"]), float(diagnosis["noise_floor"])
         ratio = err / max(noise, 1e-300)
         out.update(explained=False, model_error_ratio=ratio,
                    warning=UNEXPLAINED_WARNING.format(error=err, noise=noise, ratio=ratio))
     return out
-
-
-def _pt(p: Mapping[str, float]) -> str:
-    units = {"frequency_hz": ("f", 1.0, "Hz"), "amplitude_n": ("F0", 1.0, "N"), "static_force_n": ("Fs", 1.0, "N")}
-    return ", ".join(f"{units.get(k, (k, 1.0, ''))[0]} = {v:.4g} {units.get(k, (k, 1.0, ''))[2]}".rstrip()
-                     for k, v in p.items())
 
 
 def markdown(cmp: Mapping) -> str:
@@ -90,8 +105,15 @@ def markdown(cmp: Mapping) -> str:
              "|---|---|---|---|"]
     for name, label in (("uncorrected", "uncorrected model"), ("corrected", "corrected rig")):
         r = t[name]
-        lines.append(f"| {label} | {_pt(r['point'])} | {r['rop_m_s_on_uncorrected'] * 1e3:.4g} | "
+        lines.append(f"| {label} | {point_words(r['point'])} | {r['rop_m_s_on_uncorrected'] * 1e3:.4g} | "
                      f"{r['rop_m_s_on_corrected'] * 1e3:.4g} |")
+    for name, label in (("uncorrected", "uncorrected model"), ("corrected", "corrected rig")):
+        other = "corrected" if name == "uncorrected" else "uncorrected"
+        broken = t[name].get(f"breaks_on_{other}")
+        if broken is not None:
+            words = broken_words(broken)
+            lines += ["", f"The {label}'s point on the {'corrected rig' if other == 'corrected' else 'uncorrected model'}"
+                      + (f" breaks that model's limits: {words}." if words else ": within that model's limits.")]
     lines += ["", f"**The correction is worth {cmp['worth_mm_s']:+.3g} mm/s** on the corrected rig: the uncorrected "
                   f"recommendation achieves {t['uncorrected']['rop_m_s_on_corrected'] * 1e3:.4g} mm/s there, the "
                   f"corrected one {t['corrected']['rop_m_s_on_corrected'] * 1e3:.4g} mm/s.", "",

@@ -3,6 +3,9 @@
 errors.py    UserError and the tuple of errors the CLI reports as one line
 files.py     the atomic-write helpers (text, bytes, JSON, Parquet, whole directories), from ``sim.files``
 params.py    the one params.yaml section reader
+numbers.py   the one number parser (flags, YAML, CSV cells): finite, integers as integers, no text coercion
+bounded.py   size-capped reads and the YAML loader (no aliases, duplicate keys, deep nesting or huge integers)
+rigfile.py   rig files read (every value through numbers.py) and written
 names.py     sweep statuses (from ``sim.statuses``), the objective's sense and display units
 jsonable.py  JSON-safe conversion and the nested-dict flattener, from ``sim.jsonable``
 dask_client.py  a Dask scheduler address (tcp://host:port or local:N) checked and connected

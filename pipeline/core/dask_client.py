@@ -24,13 +24,79 @@ def local_workers(address: str) -> int:
     return n
 
 
-def check_address(address: str) -> str:
-    """``address`` when it can name a scheduler: a ``local:N`` with N in range, or a non-empty address (UserError)."""
-    if not isinstance(address, str) or not address.strip():
-        raise UserError(f"--scheduler {address!r}: expected tcp://host:port or local:N")
+SCHEMES = ("tcp", "tls")
+"""Transports a scheduler address may name (``host:port`` alone means tcp)."""
+GREETING_S = 5.0
+"""Seconds a scheduler has to send its handshake when probed."""
+MAX_GREETING_BYTES = 2**24
+"""A Dask handshake frame is a few hundred bytes; a larger announced size means something else answered."""
+
+
+def check_address(address, what: str = "--scheduler") -> str:
+    """The scheduler address ``address`` names: ``local:N`` with N in range, or ``tcp://host:port`` (``tls://``,
+    or ``host:port`` meaning tcp) with a host and a port in 1..65535, IPv6 hosts in brackets.  UserError naming
+    ``what`` and the address otherwise; nothing is contacted."""
+    if not isinstance(address, str) or not address.strip() or len(address) > 300:
+        raise UserError(f"{what} {str(address)[:60]!r}: expected tcp://host:port or local:N")
+    address = address.strip()
     if address.startswith("local:"):
         local_workers(address)
-    return address
+        return address
+    scheme, sep, rest = address.partition("://")
+    if not sep:
+        scheme, rest = "tcp", address
+    if scheme not in SCHEMES:
+        raise UserError(f"{what} {address}: unknown protocol '{scheme}://' (expected tcp://host:port or local:N)")
+    if rest.startswith("["):
+        host, close, tail = rest[1:].partition("]")
+        if not close or not host or not tail.startswith(":"):
+            raise UserError(f"{what} {address}: an IPv6 host is written [addr]:port, e.g. tcp://[::1]:8786")
+        port_s = tail[1:]
+        import ipaddress
+
+        try:
+            ipaddress.IPv6Address(host)
+        except ValueError:
+            raise UserError(f"{what} {address}: '{host}' is not an IPv6 address") from None
+    else:
+        host, colon, port_s = rest.rpartition(":")
+        if not colon or not host or "/" in rest or "[" in rest or "]" in rest or ":" in host:
+            raise UserError(f"{what} {address}: expected tcp://host:port (e.g. tcp://10.0.0.5:8786) or local:N")
+    if not port_s.isdigit() or not 1 <= int(port_s[:6]) <= 65535:
+        raise UserError(f"{what} {address}: the port must be a number in 1..65535, got '{port_s[:20]}'")
+    return address if sep else f"tcp://{address}"
+
+
+def probe(address: str, what: str = "--scheduler", timeout_s: float = GREETING_S) -> None:
+    """UserError unless a Dask scheduler answers at the tcp:// ``address``: something must listen and send a
+    Dask handshake frame (an HTTP server or another service is named as such, never read as a frame size)."""
+    import socket
+    import struct
+
+    address = check_address(address, what)
+    scheme, _, rest = address.partition("://")
+    if scheme != "tcp":
+        return
+    host, _, port = rest.rpartition(":")
+    host = host.strip("[]")
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout_s) as sock:
+            head = b""
+            while len(head) < 8:
+                chunk = sock.recv(8 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+    except socket.timeout:
+        raise UserError(f"{what} {address}: not a Dask scheduler (something listens there but sent no Dask "
+                        f"handshake within {timeout_s:g} s); the scheduler's port is usually 8786, the dashboard's "
+                        "8787") from None
+    except OSError as e:
+        raise UserError(f"{what} {address}: cannot reach the Dask scheduler ({e.strerror or e})") from None
+    if len(head) < 8 or head[:4] in (b"HTTP", b"SSH-", b"<htm") or struct.unpack("<Q", head)[0] > MAX_GREETING_BYTES:
+        kind = "an HTTP server" if head.startswith(b"HTTP") else "not a Dask scheduler"
+        raise UserError(f"{what} {address}: {kind} answered; the scheduler's port is usually 8786, the "
+                        "dashboard's 8787")
 
 
 @contextlib.contextmanager
@@ -46,7 +112,8 @@ def connect(address: str) -> Iterator:
                 Client(cluster) as client:
             yield client
         return
-    _check_reachable(address)
+    address = check_address(address)
+    probe(address)
     try:
         client = Client(address, timeout="30s")
     except (OSError, TimeoutError) as e:
@@ -55,19 +122,3 @@ def connect(address: str) -> Iterator:
         yield client
     finally:
         client.close()
-
-
-def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
-    """Fail fast (one line) when nothing listens at a tcp:// scheduler address."""
-    import socket
-    from urllib.parse import urlsplit
-
-    if "://" not in address:
-        address = "tcp://" + address
-    u = urlsplit(address)
-    if u.scheme != "tcp" or not u.hostname or not u.port:
-        return                                    # other protocols: let distributed try
-    try:
-        socket.create_connection((u.hostname, u.port), timeout=timeout_s).close()
-    except OSError as e:
-        raise UserError(f"--scheduler {address}: cannot reach the Dask scheduler ({e})") from None

@@ -72,14 +72,32 @@ def machine_error(exc: BaseException) -> str | None:
     return None
 
 
+LIBRARY_NOTICES = (DeprecationWarning, PendingDeprecationWarning, FutureWarning)
+"""Warnings addressed to a library's developers: shown only when they point into the project's own code
+(something to fix here), never when a third-party package warns about its own or another package's internals."""
+
+
+def _project_file(filename: str) -> bool:
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    try:
+        rel = Path(filename).resolve().relative_to(root)
+    except (ValueError, OSError):
+        return False
+    return rel.parts[0] in ("sim", "surrogate", "pipeline", "bench", "tests") if rel.parts else False
+
+
 def show_warnings(caught: list) -> None:
     """Print each distinct recorded warning once (a command's warnings come after its success, never before
-    an error line)."""
+    an error line); a deprecation notice raised inside a third-party package is dropped (``LIBRARY_NOTICES``)."""
     import sys
     import warnings
 
     seen = set()
     for w in caught:
+        if issubclass(w.category, LIBRARY_NOTICES) and not _project_file(w.filename):
+            continue
         key = (w.category, str(w.message), w.filename, w.lineno)
         if key not in seen:
             seen.add(key)

@@ -65,9 +65,15 @@ class InlineExecutor:
     task_threads: int | None = None
     stats: TaskStats = field(default_factory=TaskStats)
     description: str = "local"
+    on_task_done: Callable[[], None] | None = None      # called after every task (progress bars)
 
     def map(self, fn: Callable[[Any, Any], Any], shared: Any, items: Sequence) -> list:
-        return self.stats.add([_timed(fn, shared, it, time.process_time) for it in items])
+        out = []
+        for it in items:
+            out.append(_timed(fn, shared, it, time.process_time))
+            if self.on_task_done is not None:
+                self.on_task_done()
+        return self.stats.add(out)
 
 
 class DaskExecutor:
@@ -81,6 +87,7 @@ class DaskExecutor:
         self.description = description
         self.stats = TaskStats()
         self._shared: tuple[Any, Any] | None = None     # (object, its future on the cluster)
+        self.on_task_done: Callable[[], None] | None = None     # called as each task finishes (progress bars)
 
     def _scatter(self, shared: Any):
         if self._shared is None or self._shared[0] is not shared:
@@ -91,6 +98,11 @@ class DaskExecutor:
         ref = self._scatter(shared)
         futures = [self.client.submit(_timed_in_thread, fn, ref, it, pure=False) for it in items]
         try:
+            if self.on_task_done is not None:
+                from distributed import as_completed
+
+                for _ in as_completed(futures):
+                    self.on_task_done()
             return self.stats.add(self.client.gather(futures))
         except BaseException:
             self.client.cancel(futures)

@@ -19,9 +19,10 @@ Temporary folders a killed run left beside ``out`` are removed on the next run (
 
 Single files (``--metrics``, ``--truth``, ``--plot``, ``--feedback``, ``map --out PREFIX``): the command calls
 ``check_out_file`` before any work and ``record_out_file`` after writing (atomically, ``pipeline.core.files``).
-Refused: a path that is, or lies inside, one of the command's inputs (real paths: symlinks resolved); a
-directory, device, pipe or socket; an existing file vibro did not write (no ``.NAME.vibro`` record whose
-checksum matches) unless ``overwrite`` — and then only a file of the kind the command writes (:data:`KINDS`).
+Refused: a path that is, or lies inside, one of the command's inputs (real paths: symlinks resolved) or a folder
+another command manages (its marker: the folder is replaced whole by that command's next run); a blank name or one
+ending in a folder separator; a directory, device, pipe or socket; an existing file vibro did not write (no
+``.NAME.vibro`` record whose checksum matches) unless ``overwrite`` — and then only a file of the kind the command writes (:data:`KINDS`).
 A ``kind="feedback"`` file is appended to, so an existing one must be a feedback file, ``overwrite`` or not.
 """
 from __future__ import annotations
@@ -228,19 +229,29 @@ def _inside(real: Path, inputs: Iterable[str | os.PathLike | None]) -> str | Non
     return None
 
 
+def _managed_folder(real: Path) -> tuple[Path, str] | None:
+    """The nearest folder above ``real`` holding a vibro output marker, with the command that wrote it, or None."""
+    for folder in real.parents:
+        if (folder / MARKER_NAME).is_file():
+            return folder, str((read_marker(folder) or {}).get("command", "?"))
+    return None
+
+
 def check_out_file(path: str | os.PathLike, *, flag: str, kind: str, inputs: Iterable[str | os.PathLike | None] = (),
                    overwrite: bool = False) -> Path:
     """Raise UserError unless the command may write the single file ``path`` (see the module docstring);
     removes the temporaries a killed writer of ``path`` left.  Returns ``path`` as a Path."""
     what, is_kind = KINDS[kind]
-    if not str(path).strip():
-        raise UserError(f"{flag} is empty; give a file path")
-    path = Path(path)
+    path = _file_target(path, flag)
     real = path.resolve()
     inp = _inside(real, inputs)
     if inp is not None:
         where = "is" if real == Path(inp).resolve() else "lies inside"
         raise UserError(f"{flag} {path} {where} the input {inp}; write it elsewhere")
+    managed = _managed_folder(real)
+    if managed is not None:
+        raise UserError(f"{flag} {path} lies inside {managed[0]}, the output folder of 'vibro {managed[1]}' "
+                        f"(replaced whole by its next run); write it elsewhere")
     if os.path.lexists(path):
         try:
             st = os.stat(path)
@@ -272,10 +283,45 @@ def record_out_file(path: str | os.PathLike, *, command: str, kind: str) -> None
     atomic_write_text(_record_path(path), json.dumps(doc) + "\n")
 
 
+def _file_target(path: str | os.PathLike, flag: str) -> Path:
+    """``path`` as a Path when it can name a file: not empty, not a blank name, not ending in a folder separator
+    (``out/`` means a folder: the file would land beside it, as ``out`` or ``out.png``)."""
+    raw = os.fspath(path)
+    if not raw.strip():
+        raise UserError(f"{flag} is empty; give a file path")
+    if raw.endswith(("/", os.sep)) or raw.rstrip("/" + os.sep) in ("", ".", ".."):
+        raise UserError(f"{flag} {raw} names a folder; give a file path (e.g. {raw.rstrip('/' + os.sep) or '.'}/name)")
+    p = Path(raw)
+    if not p.name.strip() or p.name != p.name.strip():
+        raise UserError(f"{flag} {raw!r}: the file name is blank or starts or ends with a space; give another name")
+    return p
+
+
+def check_out_prefix(prefix: str | os.PathLike, flag: str = "--out") -> Path:
+    """The output PREFIX of a command writing PREFIX.png, PREFIX.parquet, ...: a file-like name in an existing or
+    creatable folder; UserError naming ``flag`` when it names a folder, a device, a pipe or a blank name (``/dev/null``
+    would write ``/dev/null.png`` into /dev, ``user/`` would write ``user.png`` beside the folder)."""
+    p = _file_target(prefix, flag)
+    if os.path.lexists(p):
+        try:
+            st = os.stat(p)
+        except OSError:
+            raise UserError(f"{flag} {p} is a broken symbolic link; give another prefix") from None
+        if stat.S_ISDIR(st.st_mode):
+            raise UserError(f"{flag} {p} is a folder; give a file prefix inside it (e.g. {p}/name)")
+        if not stat.S_ISREG(st.st_mode):
+            raise UserError(f"{flag} {p} is a device, pipe or socket, not a prefix for files; give a file prefix")
+    parent = p.parent if str(p.parent) else Path(".")
+    if parent.exists() and not parent.is_dir():
+        raise UserError(f"{flag} {p}: {parent} is not a folder")
+    return p
+
+
 def figure_path(path: str | os.PathLike, flag: str = "--plot") -> Path:
     """``path`` with ``.png`` added when it has no suffix and does not exist (what matplotlib would write);
-    UserError naming the flag when its suffix is not a figure format matplotlib writes."""
-    path = Path(path)
+    UserError naming the flag when its suffix is not a figure format matplotlib writes, or when ``path`` cannot
+    name a file (empty, blank, ending in a folder separator)."""
+    path = _file_target(path, flag)
     fmt = path.suffix[1:].lower()
     if not fmt:
         # an existing path (/dev/null, a user's file) is checked as given, never silently turned into another

@@ -31,6 +31,18 @@ HEADER = """\
 """
 
 
+def rig_name(path: str | os.PathLike | None) -> str | None:
+    """A rig's name for people and MLflow: its file's stem (``my-rig.yaml`` -> ``my-rig``); a file the diagnosis
+    wrote (``rig.yaml``, ``rig-metal.yaml``) takes its folder's name (``results/diagnose/drill-rig/rig.yaml`` ->
+    ``drill-rig``).  None without a path."""
+    if not path:
+        return None
+    p = Path(path)
+    if p.stem == "rig" or p.stem.startswith("rig-"):
+        return p.parent.resolve().name + p.stem[3:]
+    return p.stem
+
+
 def read_rig(path: str | os.PathLike):
     """The validated ``sim.Rig`` of a rig file (UserError naming the file and the culprit)."""
     from pipeline.core.bounded import load_yaml
@@ -42,6 +54,9 @@ def read_rig(path: str | os.PathLike):
     data = load_yaml(p, f"rig file {p}", floats_12=True)
     if isinstance(data, dict):
         data = {k: v for k, v in data.items() if k != "exciter"}      # the command's (read_exciter), not the model's
+    data = _numbers_checked(data, f"rig file {p}")
+    if isinstance(data, dict) and isinstance(data.get("discrepancy"), dict):
+        check_mode_complete(data["discrepancy"], f"rig file {p}: discrepancy")
     try:
         return Rig.from_mapping(data)
     except ParameterError as e:
@@ -55,6 +70,38 @@ def read_exciter(path: str | os.PathLike) -> dict | None:
 
     data = load_yaml(Path(path), f"rig file {path}", floats_12=True)
     return data.get("exciter") if isinstance(data, dict) else None
+
+
+def check_mode_complete(values: dict, label: str) -> None:
+    """UserError when the hidden load-path mode's frequency or damping is given without its mass ratio: with
+    the ratio 0 (its default) the mode is off, and the other two would be silently ignored."""
+    from sim.models.discrepancy import MODE_PARAMS
+
+    ratio, *rest = MODE_PARAMS
+    given = [n for n in rest if values.get(n)]
+    if given and not values.get(ratio):
+        raise UserError(f"{label} {given[0]} without {ratio}: the mode is off while {ratio} is 0; "
+                        f"give {ratio} > 0 or leave the mode out")
+
+
+def _numbers_checked(data, label: str):
+    """``data`` with every value of parameters, effects, discrepancy and uncertainty through the one number parser
+    (quoted text, booleans and out-of-range integers refused naming the value); other shapes unchanged, for
+    ``Rig.from_mapping`` to name."""
+    from collections.abc import Mapping
+
+    from pipeline.core.numbers import number
+
+    if not isinstance(data, Mapping):
+        return data
+    out = dict(data)
+    for key in ("parameters", "discrepancy", "uncertainty"):
+        if isinstance(out.get(key), Mapping):
+            out[key] = {n: number(v, f"{label}: {key} '{n}'") for n, v in out[key].items()}
+    if isinstance(out.get("effects"), Mapping):
+        out["effects"] = {e: ({n: number(v, f"{label}: effect '{e}' parameter '{n}'") for n, v in vals.items()}
+                              if isinstance(vals, Mapping) else vals) for e, vals in out["effects"].items()}
+    return out
 
 
 def write_rig(path: str | os.PathLike, rig, comment: str = "") -> Path:

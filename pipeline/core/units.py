@@ -6,6 +6,8 @@ The other way, for data that arrive in a lab's units (``vibro import``): ``SI_UN
 """
 from __future__ import annotations
 
+from typing import Mapping
+
 from sim.layout import G_ACCEL
 
 ENGINEERING: dict[str, tuple[str, str, float]] = {
@@ -25,6 +27,13 @@ ENGINEERING: dict[str, tuple[str, str, float]] = {
     "period": ("period", "cycles", 1.0),
     "spectral_ratio": ("spectral ratio", "", 1.0),
     "Pr": ("Pr (progression threshold)", "kN", 1e-3),
+    # measured / simulated signals (time histories, spectra, bifurcation diagrams)
+    "t_s": ("time", "ms", 1e3),
+    "disp_m": ("displacement", "mm", 1e3),
+    "progression_m": ("progression", "mm", 1e3),
+    "force_n": ("contact force", "kN", 1e-3),
+    "accel_m_s2": ("acceleration", "m/s²", 1.0),
+    "peak_velocity_m_s": ("peak velocity", "m/s", 1.0),
 }
 SUFFIXES = ("_sim", "_pred", "_predicted", "_lo", "_hi", "_verified")
 """Name suffixes kept after the label: ``rop_m_s_sim`` -> ``ROP (sim) [mm/s]``."""
@@ -64,6 +73,23 @@ def factor(name: str) -> float:
     return ENGINEERING[base][2] if base in ENGINEERING else 1.0
 
 
+def set_label(ax, which: str, name: str, text: str | None = None) -> float:
+    """Label axis ``which`` ('x' or 'y') of matplotlib Axes ``ax`` with the
+    quantity ``name`` from the table (``text`` replaces the words, the unit stays); returns the factor the
+    plotted SI values must be multiplied by, so label and data take their unit from one place."""
+    base = label(name)
+    if text is not None:
+        unit = base[base.rfind(" ["):] if base.endswith("]") else ""
+        base = text + unit
+    {"x": ax.set_xlabel, "y": ax.set_ylabel}[which](base)
+    return factor(name)
+
+
+def unit_of(text: str) -> str | None:
+    """The unit in brackets at the end of an axis label (``'ROP [mm/s]'`` -> ``'mm/s'``), None without one."""
+    return text[text.rfind("[") + 1:-1] if text.endswith("]") and "[" in text else None
+
+
 def convert(name: str, value):
     """``value`` of ``name`` in engineering units (non-numbers unchanged)."""
     import numbers
@@ -71,6 +97,29 @@ def convert(name: str, value):
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         return value
     return value * factor(name)
+
+
+def broken_words(broken: Mapping[str, Mapping]) -> str:
+    """``power 19.1 W over its 18 W limit`` for each limit a point breaks (compare's ``breaks_on_<model>``), '' for none."""
+    out = []
+    for name, b in broken.items():
+        label, v, lim = b.get("label"), b.get("value"), b.get("limit")
+        if label in ENGINEERING and v is not None and lim is not None:
+            words, unit, k = ENGINEERING[label]
+            out.append(f"{words} {float(v) * k:.3g} {unit} over its {float(lim) * k:g} {unit} limit")
+        else:
+            out.append({"steady_state": "not in a steady state", "progress": "does not progress"}.get(name, name))
+    return "; ".join(out)
+
+
+SYMBOLS = {"frequency_hz": "f", "amplitude_n": "F0", "amplitude_m": "amplitude", "static_force_n": "Fs"}
+"""Short names of the controls in an operating point (units from the table above)."""
+
+
+def point_words(p: Mapping[str, float]) -> str:
+    """``f = 262 Hz, F0 = 2.7 kN, Fs = 1.79 kN``: an operating point in engineering units."""
+    return ", ".join(f"{SYMBOLS.get(k, k)} = {v * factor(k):.4g} {ENGINEERING.get(k, ('', ''))[1]}".rstrip()
+                     for k, v in p.items())
 
 
 # ------------------------------------------------------------------------------------------ units to SI

@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
+from pipeline.core.numbers import PLAUSIBLE_FACTOR, number, plausible
 from pipeline.core.bounded import MAX_CSV_BYTES, check_size
 from pipeline.core.files import atomic_directory, duplicate_csv_column
 
@@ -32,10 +33,20 @@ model has them as parameters: amplitude_n (indenter, drill, rimd) or amplitude_m
 static_force_n (indenter, drill)."""
 RUN_NUMERIC = {"frequency_hz": "positive", "amplitude_n": "nonnegative", "amplitude_m": "nonnegative",
                "static_force_n": "nonnegative", "gap_m": "nonnegative", "duration_s": "positive"}
+RUN_UPPER = {"frequency_hz": 1e6, "amplitude_n": 1e9, "amplitude_m": 10.0, "static_force_n": 1e9, "gap_m": 1.0,
+             "duration_s": 1e5}
+"""Largest physical value of each numeric runs.csv column [SI] (a lab rig is far inside; 1e300 is a typo)."""
 CONTROL_COLUMNS = ("amplitude_n", "amplitude_m", "static_force_n")
 """Controls needed only by the runs whose model has them as a parameter."""
 OPTIONAL_RUN_COLUMNS = {"record_start_s": "nonnegative"}
 """Optional numeric runs.csv columns; an empty cell means 'not given' for that run (record in steady state)."""
+MAX_RUNS = 500
+"""Most runs (rows of runs.csv, hence of summary.csv) of a measured dataset: a rig campaign holds tens; a diagnosis
+simulates every run at every fit step and its memory grows with the runs (2000 summary runs passed 2 GB, 500 stayed
+under 1 GB; 100 000 ended in std::bad_alloc)."""
+MAX_FROM_REST_CYCLES = 10_000
+"""Most forcing cycles from rest to the end of a record from rest (record_start_s + duration_s): the simulator's
+largest window (--setting window); a record that late is in steady state: leave record_start_s empty."""
 SERIES_SIGNALS = ("accel_m_s2", "force_n", "disp_m", "progression_m")
 SUMMARY_FEATURES = ("rop_m_s", "peak_force_n", "peak_decel_g", "impacts_per_cycle")
 SUMMARY_EXTRAS = ("spectral_ratio", "spectral_ratio_ref_hz", "spectral_peak_hz", "impacts_per_cycle_lower_bound")
@@ -66,9 +77,9 @@ def _where(file: str, line: int, column: str) -> str:
 
 
 def _read_csv(path: Path, label: str) -> pd.DataFrame:
-    if not path.is_file():
+    if not path.exists():
         raise UserError(f"{label}: file not found ({path})")
-    check_size(path, MAX_CSV_BYTES, label)
+    check_size(path, MAX_CSV_BYTES, label)          # a folder, device or FIFO is named as such
     try:
         df = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
     except pd.errors.EmptyDataError:
@@ -83,10 +94,10 @@ def _read_csv(path: Path, label: str) -> pd.DataFrame:
 
 
 def _numeric(df: pd.DataFrame, col: str, label: str, rule: str | None = None,
-             allow_empty: bool | np.ndarray = False) -> np.ndarray:
+             allow_empty: bool | np.ndarray = False, first_row: int = 0) -> np.ndarray:
     """Column as float; the first bad cell raises an error naming file, line and column.
     ``allow_empty``: an empty cell means "not measured" / "not needed" (NaN in memory); a boolean
-    array allows it row by row."""
+    array allows it row by row.  ``first_row``: the data row ``df`` starts at (a chunk of a longer file)."""
     raw = df[col].astype(str).str.strip()
     vals = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
     empty = (raw == "").to_numpy()
@@ -94,13 +105,17 @@ def _numeric(df: pd.DataFrame, col: str, label: str, rule: str | None = None,
     if bad.any():
         i = int(np.argmax(bad))
         what = "empty" if raw.iloc[i] == "" else f"'{raw.iloc[i]}' is not a finite number"
-        raise UserError(f"{_where(label, i + 2, col)}: {what}")
+        raise UserError(f"{_where(label, first_row + i + 2, col)}: {what}")
     if rule == "positive" and (vals <= 0).any():
         i = int(np.argmax(vals <= 0))
         raise UserError(f"{_where(label, i + 2, col)}: must be > 0, got {vals[i]:g}")
     if rule == "nonnegative" and (vals < 0).any():
         i = int(np.argmax(vals < 0))
         raise UserError(f"{_where(label, i + 2, col)}: must be >= 0, got {vals[i]:g}")
+    hi = RUN_UPPER.get(col) if label == "runs.csv" else None
+    if hi is not None and (np.nan_to_num(vals) > hi).any():
+        i = int(np.argmax(np.nan_to_num(vals) > hi))
+        raise UserError(f"{_where(label, i + 2, col)}: {vals[i]:g} is above {hi:g}, the largest physical value")
     return vals
 
 
@@ -115,6 +130,9 @@ def _load_runs(root: Path) -> pd.DataFrame:
                         f"(required: {', '.join(RUN_COLUMNS)})")
     if df.empty:
         raise UserError(f"{label}: no runs (the file has a header but no rows)")
+    if len(df) > MAX_RUNS:
+        raise UserError(f"{label}: {len(df)} runs, more than the {MAX_RUNS} a measured dataset may hold (MAX_RUNS: "
+                        f"each run is simulated at every step of a diagnosis); split the dataset")
     out = pd.DataFrame({"run_id": df["run_id"].str.strip(), "system": df["system"].str.strip()})
     for i, rid in enumerate(out["run_id"]):
         if not _RUN_ID.match(rid):
@@ -149,23 +167,73 @@ def _load_runs(root: Path) -> pd.DataFrame:
     for col, rule in OPTIONAL_RUN_COLUMNS.items():
         if col in df.columns:
             out[col] = _numeric(df, col, label, rule, allow_empty=True)
+    if "record_start_s" in out.columns:
+        cycles = (out["record_start_s"].to_numpy(dtype=float) + out["duration_s"].to_numpy(dtype=float)) \
+            * out["frequency_hz"].to_numpy(dtype=float)
+        over = np.nan_to_num(cycles, nan=0.0) > MAX_FROM_REST_CYCLES
+        if over.any():
+            i = int(np.argmax(over))
+            raise UserError(f"{_where(label, i + 2, 'record_start_s')}: {out['record_start_s'].iloc[i]:g} s is "
+                            f"{cycles[i]:.3g} forcing cycles from rest to the record's end, more than the "
+                            f"{MAX_FROM_REST_CYCLES} a record from rest may span (leave the cell empty for a "
+                            "steady-state record)")
     for col in df.columns:
         if col not in out.columns:
             out[col] = df[col].to_numpy()
     return out
 
 
-def _load_series(path: Path, rid: str) -> pd.DataFrame:
+MAX_SERIES_SAMPLES = 2**24
+"""Most samples (rows) of one series file: 16.8 M, 28 min at 10 kHz.  What is kept is 8 bytes per sample and
+column (at most 5 columns: 670 MB); the text is read in chunks of :data:`SERIES_CHUNK_ROWS` rows."""
+MAX_TOTAL_SAMPLES = 2**25
+"""Most samples of all series of a dataset together (at most 1.3 GB of floats)."""
+SERIES_CHUNK_ROWS = 2**18
+"""Rows parsed at a time: the text of one chunk (tens of MB) is all a series costs beyond its floats."""
+
+
+def _load_series(path: Path, rid: str, budget: int = MAX_SERIES_SAMPLES) -> pd.DataFrame:
+    """Series ``path`` as floats, read chunk by chunk; refused as soon as it passes ``budget`` samples."""
     label = f"series/{rid}.csv"
-    df = _read_csv(path, label)
-    if "t_s" not in df.columns:
-        raise UserError(f"{label}: missing required column 't_s'")
-    signals = [c for c in SERIES_SIGNALS if c in df.columns]
-    if not signals:
-        raise UserError(f"{label}: no signal column (need at least one of {', '.join(SERIES_SIGNALS)})")
-    if len(df) < 16:
-        raise UserError(f"{label}: only {len(df)} samples (need at least 16)")
-    out = pd.DataFrame({c: _numeric(df, c, label) for c in ["t_s", *signals]})
+    if not path.exists():
+        raise UserError(f"{label}: file not found ({path})")
+    check_size(path, MAX_CSV_BYTES, label)
+    limit = min(budget, MAX_SERIES_SAMPLES)
+    dup = duplicate_csv_column(path)
+    if dup:
+        raise UserError(f"{label}: column '{dup}' appears more than once")
+    parts: dict[str, list[np.ndarray]] = {}
+    n = 0
+    try:
+        reader = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True,
+                             chunksize=SERIES_CHUNK_ROWS)
+        for chunk in reader:
+            chunk.columns = [str(c).strip() for c in chunk.columns]
+            if not parts:
+                if "t_s" not in chunk.columns:
+                    raise UserError(f"{label}: missing required column 't_s'")
+                signals = [c for c in SERIES_SIGNALS if c in chunk.columns]
+                if not signals:
+                    raise UserError(f"{label}: no signal column (need at least one of {', '.join(SERIES_SIGNALS)})")
+                parts = {c: [] for c in ["t_s", *signals]}
+            if n + len(chunk) > limit:
+                raise UserError(f"{label}: more than {limit} samples (the most "
+                                f"{'one series' if limit == MAX_SERIES_SAMPLES else 'the rest of the dataset'} "
+                                f"may hold; MAX_SERIES_SAMPLES {MAX_SERIES_SAMPLES}, all series together "
+                                f"MAX_TOTAL_SAMPLES {MAX_TOTAL_SAMPLES})")
+            for c in parts:
+                parts[c].append(_numeric(chunk, c, label, first_row=n))
+            n += len(chunk)
+    except pd.errors.EmptyDataError:
+        raise UserError(f"{label}: file is empty") from None
+    except (pd.errors.ParserError, UnicodeDecodeError) as e:
+        raise UserError(f"{label}: not a readable CSV file ({str(e).splitlines()[0]})") from None
+    if not parts:         # a header and no rows
+        raise UserError(f"{label}: only 0 samples (need at least 16)")
+    if n < 16:
+        raise UserError(f"{label}: only {n} samples (need at least 16)")
+    out = pd.DataFrame({c: np.concatenate(v) if len(v) > 1 else v[0] for c, v in parts.items()})
+    del parts
     t = out["t_s"].to_numpy()
     dt = np.diff(t)
     if (dt <= 0).any():
@@ -245,12 +313,14 @@ def load_dataset(path: str | os.PathLike) -> Dataset:
     series: dict[str, pd.DataFrame] = {}
     sdir = root / "series"
     if sdir.exists():
+        left = MAX_TOTAL_SAMPLES
         for f in sorted(sdir.iterdir()):
             if f.suffix != ".csv":
                 continue
             if f.stem not in ids:
                 raise UserError(f"series/{f.name}: run '{f.stem}' is not in runs.csv")
-            series[f.stem] = _load_series(f, f.stem)
+            series[f.stem] = _load_series(f, f.stem, budget=left)
+            left -= len(series[f.stem])
     _check_durations(runs, series)
     summary = _load_summary(root, ids)
     known = known_parameters(runs)
@@ -288,10 +358,11 @@ def known_parameters(runs: pd.DataFrame) -> dict[str, dict[str, float]]:
             if col not in spec.param_names:
                 raise UserError(f"{_where(label, i + 2, col)}: '{col}' is not a parameter of system {row['system']} "
                                 f"(known: {', '.join(p for p in spec.param_names if p not in controls)})")
-            try:
-                vals[col] = float(cell)
-            except ValueError:
-                raise UserError(f"{_where(label, i + 2, col)}: '{cell}' is not a finite number") from None
+            vals[col] = number(cell, _where(label, i + 2, col))
+            default = spec.defaults(preset or None)[col]
+            if not plausible(vals[col], default):
+                raise UserError(f"{_where(label, i + 2, col)}: {vals[col]:g} is not within a factor "
+                                f"{PLAUSIBLE_FACTOR:g} of the model's default {default:g}; not a physical value")
         ctrl = {c: row[c] for c in RUN_NUMERIC if c in spec.param_names and c != "duration_s"
                 and c in row and np.isfinite(row[c])}
         try:

@@ -104,8 +104,11 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, *, backend: Backend | Non
     points = design_points(spec)
     validate_points(spec, points)
     meta_old = _prepare_out(out, spec, overwrite)       # all checks done before anything is written
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     lock = _acquire_lock(out)
+    wrote = False
+    undo = False
     try:
         if overwrite and meta_old is None:
             _wipe(out)
@@ -140,7 +143,8 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, *, backend: Backend | Non
         base_meta = {"vibro.fingerprint": spec.fingerprint, "vibro.model": spec.model}
 
         def write(k: int, df: pd.DataFrame) -> None:
-            nonlocal computed
+            nonlocal computed, wrote
+            wrote = True
             start, stop = spec.chunk_bounds(k)
             if len(df) != stop - start or not np.array_equal(df["point_id"].to_numpy(), np.arange(start, stop)):
                 raise RuntimeError(f"chunk {k}: got rows for the wrong points")
@@ -169,8 +173,15 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, *, backend: Backend | Non
                      "wall_time_s": round(sum(s.get("wall_time_s", 0.0) for s in meta["sessions"]), 3),
                      "finished": datetime.now(timezone.utc).isoformat(timespec="seconds")})
         atomic_write_json(out / META_NAME, meta)
+    except UserError:
+        undo = created and not wrote      # e.g. the scheduler failed: a folder this call made holds nothing of value
+        raise
     finally:
         lock.release()
+        if undo:
+            import shutil
+
+            shutil.rmtree(out, ignore_errors=True)
     return SweepSummary(out=str(out), n_points=spec.n_points, n_chunks=spec.n_chunks, computed=computed,
                         reused=n_done_pts, status_counts=counts, wall_time_s=wall, sims_per_s=rate,
                         fingerprint=spec.fingerprint, backend=description, metadata=meta)

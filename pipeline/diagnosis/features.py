@@ -47,6 +47,11 @@ def harmonic_count(frequency_hz: float, max_harmonic_hz: float) -> int:
     return max(1, int(math.floor(max_harmonic_hz / frequency_hz + 1e-9)))
 
 
+MAX_DESIGN_CELLS = 2**25
+"""Most cells (samples x columns) of one record's least-squares design: 268 MB, a few times that while its
+pseudo-inverse is formed, so a diagnosis of long records stays within a few GB."""
+
+
 def check_resolution(run_id: str, t: np.ndarray, f: float, k_max: int) -> None:
     """One clear line if the record cannot resolve ``k_max`` harmonics of ``f`` (Nyquist) or is shorter
     than MIN_CYCLES forcing cycles."""
@@ -56,6 +61,12 @@ def check_resolution(run_id: str, t: np.ndarray, f: float, k_max: int) -> None:
     if cycles < MIN_CYCLES:
         raise UserError(f"series/{run_id}.csv: the record holds {cycles:.2f} forcing cycles of {f:g} Hz "
                         f"({t[-1] - t[0] + dt:.4g} s); need at least {MIN_CYCLES:g}")
+    cells = t.size * (2 * k_max + DRIFT_DEGREE + 1)
+    if cells > MAX_DESIGN_CELLS:
+        raise UserError(f"series/{run_id}.csv: {t.size} samples x {2 * k_max + DRIFT_DEGREE + 1} harmonic columns "
+                        f"make a least-squares design of {cells:.3g} cells, more than the {MAX_DESIGN_CELLS} a "
+                        f"diagnosis holds (MAX_DESIGN_CELLS, 8 bytes each); resample the record, shorten it, or lower "
+                        f"diagnose.max_harmonic_hz")
     if k_max * f >= fs / 2:
         raise UserError(f"series/{run_id}.csv: sampling rate {fs:.6g} Hz cannot resolve harmonic {k_max} of "
                         f"{f:g} Hz ({k_max * f:g} Hz >= Nyquist {fs / 2:.6g} Hz); record at > {2 * k_max * f:g} Hz "
@@ -536,26 +547,38 @@ def model_on_record(tg: Target, h: pd.DataFrame, sig: str) -> np.ndarray:
     return h[sig].to_numpy()[_record_rows(tg, h)]
 
 
+DIVERGED = 1e100
+"""A simulated signal beyond this magnitude (any unit) has diverged: its least-squares features would overflow, so
+the run counts as one the model could not simulate (features None), like a failed one."""
+
+
+def _diverged(x: dict[str, np.ndarray]) -> bool:
+    """Whether any signal of ``x`` is non-finite or beyond :data:`DIVERGED`."""
+    return any(v.size and not (np.all(np.isfinite(v)) and float(np.max(np.abs(v))) < DIVERGED) for v in x.values())
+
+
 def simulated_halves(tg: Target, res) -> np.ndarray | None:
-    """The model's features of each half of a series record, (2, n) (None: no halves, or no history)."""
+    """The model's features of each half of a series record, (2, n) (None: no halves, no history, or diverged)."""
     if not tg.halves or res.history is None:
         return None
     x = {sig: model_on_record(tg, res.history, sig) for sig in tg.signals}
+    if _diverged(x):
+        return None
     return np.array([_features(tg.signals, _coefs(ops, x, sl), tg.record_start_s is not None) for sl, ops in tg.halves])
 
 
 def simulated_features(tg: Target, res) -> np.ndarray | None:
-    """The model's values of ``tg``'s features from a SimulationResult with history (None if the
-    run failed or ran away)."""
+    """The model's values of ``tg``'s features from a SimulationResult with history (None if the run has no
+    history — it failed or ran away — or its signals diverged, :data:`DIVERGED`)."""
     h = res.history
     if h is None:
         return None
     f = tg.frequency_hz
     if tg.kind == "series":
-        return _features(tg.signals, _coefs(tg.pinv, {sig: model_on_record(tg, h, sig) for sig in tg.signals}),
-                         tg.record_start_s is not None)
+        x = {sig: model_on_record(tg, h, sig) for sig in tg.signals}
+        return None if _diverged(x) else _features(tg.signals, _coefs(tg.pinv, x), tg.record_start_s is not None)
     t, hr = model_record(tg, h)
-    if t.size < 4:
+    if t.size < 4 or _diverged({c: hr[c].to_numpy(dtype=float) for c in hr.columns if c != "t_s"}):
         return None
     lab = res.labels
     vals = []

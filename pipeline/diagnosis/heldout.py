@@ -1,4 +1,5 @@
-"""Errors on held-out runs: noise-normalised (nrms, χ²), relative against the noise floor, and systematic (from the
+"""Errors on held-out runs: noise-normalised (nrms, χ²), relative against the noise floor (both noise-weighted, so
+their ratio is the nrms), and systematic (from the
 records' halves); ``fold_errors`` accumulates them over the folds of a diagnosis for any set of fitted models."""
 from __future__ import annotations
 
@@ -11,25 +12,33 @@ from pipeline.diagnosis.verdict import ModelStats
 
 
 def heldout_errors(ev: Evaluator, idx: list[int], res: list[np.ndarray]) -> dict:
-    """nrms, relative error and noise floor over runs ``idx`` given their residual vectors."""
-    num, den, noise = {}, {}, {}
+    """nrms, relative error and noise floor over runs ``idx`` given their noise-normalised residual vectors.
+
+    All three are on the noise-weighted scale the verdict uses (each feature divided by its noise sd):
+    ``error`` = ||r|| / ||y/sd|| (the residual relative to the measured features), ``noise_floor`` =
+    sqrt(n) / ||y/sd|| (the same for a residual of pure noise), so ``error / noise_floor == nrms``.  A feature the
+    noise swamps weighs little in both; a signal that is zero (a rig that does not progress) cannot divide by zero.
+    Per feature group the same pair (``error_by_group``, ``noise_by_group``; None for a group of zeros)."""
+    num, den, cnt = {}, {}, {}
     for i, r in zip(idx, res):
         tg = ev.targets[i]
-        d = r * tg.sd
+        yw = tg.y / tg.sd
         for g in dict.fromkeys(tg.group):     # first-seen order: sums independent of hashing
             m = np.array([x == g for x in tg.group])
-            num[g] = num.get(g, 0.0) + float((d[m] ** 2).sum())
-            den[g] = den.get(g, 0.0) + float((tg.y[m] ** 2).sum())
-            noise[g] = noise.get(g, 0.0) + float((tg.sd[m] ** 2).sum())
-    rel = {g: math.sqrt(num[g] / max(den[g], 1e-300)) for g in num}
-    nf = {g: math.sqrt(noise[g] / max(den[g], 1e-300)) for g in num}
+            num[g] = num.get(g, 0.0) + float((r[m] ** 2).sum())
+            den[g] = den.get(g, 0.0) + float((yw[m] ** 2).sum())
+            cnt[g] = cnt.get(g, 0) + int(m.sum())
     allr = np.concatenate(res) if res else np.zeros(1)
     by_run = {ev.targets[i].run_id: float(np.sqrt(np.mean(r ** 2))) for i, r in zip(idx, res)}
+    signal = sum(den.values())
+
+    def rel(x: float, d: float) -> float | None:
+        return math.sqrt(x / d) if d > 0 else None
     return {"nrms": float(np.sqrt(np.mean(allr ** 2))), "chi2": float(allr @ allr), "n": int(allr.size),
             "by_run_nrms": by_run,
-            "error": float(np.sqrt(np.mean([v ** 2 for v in rel.values()]))),
-            "noise_floor": float(np.sqrt(np.mean([v ** 2 for v in nf.values()]))),
-            "error_by_group": rel, "noise_by_group": nf}
+            "error": rel(float(allr @ allr), signal), "noise_floor": rel(float(allr.size), signal),
+            "error_by_group": {g: rel(num[g], den[g]) for g in num},
+            "noise_by_group": {g: rel(cnt[g], den[g]) for g in num}}
 
 
 def systematic_error(ev: Evaluator, idx: list[int], halves: list[np.ndarray | None]) -> float | None:

@@ -12,7 +12,7 @@ import numpy as np  # noqa: E402
 from scipy.stats import spearmanr  # noqa: E402
 
 from pipeline.core.files import atomic_write_figure  # noqa: E402
-from pipeline.core.units import ENGINEERING, factor, label  # noqa: E402
+from pipeline.core.units import ENGINEERING, factor, label, set_label  # noqa: E402
 from pipeline.diagnosis.features import harmonic_fit, model_record, record_time  # noqa: E402
 from pipeline.diagnosis.result import SimulatedRuns, SystemDiagnosis  # noqa: E402
 
@@ -99,11 +99,6 @@ def figure_names(diag: SystemDiagnosis) -> list[str]:
             + ([f"proposals_{tag}.png"] if (diag.report.get("discrepancy") or {}).get("proposals") else []))
 
 
-SIGNALS = {"accel_m_s2": "acceleration [m/s²]", "force_n": "contact force [N]", "disp_m": "displacement [m]",
-           "progression_m": "progression [m]"}
-"""Measured signals in words (figure axes)."""
-
-
 def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path) -> list[str]:
     """Residual before/after, residual structure, measured vs simulated time histories and spectra, drawn into
     directory ``out`` from the measured ``series`` (run id -> DataFrame); the file names."""
@@ -126,7 +121,7 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
         series_.append(("final_nrms", f"with {final} (after)", "s"))
     for (kind, key), a in zip(panels, ax.ravel()):
         if kind == "control":
-            k = factor(key)         # 1 for names without an engineering unit (peak velocity, m/s)
+            k = set_label(a, "x", key)
             for col, lab, mk in series_:
                 a.scatter([r[key] * k for r in rows], [r[col] for r in rows], marker=mk, label=lab, alpha=0.7)
             ho = [r for r in rows if r["held_out"]]
@@ -134,7 +129,6 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
                       label="held-out run")
             a.axhline(1.0, color="grey", ls="--", lw=1)
             a.set_yscale("log")
-            a.set_xlabel(label(key) if key in ENGINEERING else "peak velocity [m/s]")
             a.set_ylabel("residual / noise (nrms)")
         elif kind == "harmonics":
             a.bar([float(k) for k in hz], list(hz.values()), width=40)
@@ -167,7 +161,8 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
             for r_, sig in enumerate(sigs):
                 ph = np.linspace(0.0, 1.0, 200, endpoint=False)
                 basis = np.exp(2j * np.pi * np.outer(ph, np.arange(1, tg.k_max + 1)))
-                hm = harmonic_fit(record_time(tg, df["t_s"].to_numpy()), df[sig].to_numpy(), f, tg.k_max).c
+                ks = factor(sig)      # SI -> the signal's unit in pipeline.core.units
+                hm = harmonic_fit(record_time(tg, df["t_s"].to_numpy()), df[sig].to_numpy(), f, tg.k_max).c * ks
                 ax[r_, 0].plot(ph, (basis @ hm).real, "k", lw=2, label=f"measured (harmonics 1-{tg.k_max})")
                 spec_m = np.abs(hm)
                 kk = np.arange(1, tg.k_max + 1) * f
@@ -176,53 +171,50 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
                     if res is None or res.history is None:
                         continue
                     t, hr = model_record(tg, res.history)
-                    c = harmonic_fit(t, hr[sig].to_numpy(), f, tg.k_max).c
+                    c = harmonic_fit(t, hr[sig].to_numpy(), f, tg.k_max).c * ks
                     ax[r_, 0].plot(ph, (basis @ c).real, lw=1, label=name)
                     ax[r_, 1].plot(kk, np.abs(c), ".-", lw=1, label=name)
                 ax[r_, 0].set_xlabel("forcing phase [cycles]")
-                ax[r_, 0].set_ylabel(f"{SIGNALS.get(sig, sig)}, mean removed")
-                ax[r_, 1].set_xlabel("harmonic frequency [Hz]")
-                ax[r_, 1].set_ylabel(f"harmonic amplitude of {SIGNALS.get(sig, sig)}")
+                words = ENGINEERING[sig][0]
+                set_label(ax[r_, 0], "y", sig, f"{words}, mean removed")
+                set_label(ax[r_, 1], "x", "frequency_hz", "harmonic frequency")
+                set_label(ax[r_, 1], "y", sig, f"harmonic amplitude of {words}")
                 ax[r_, 1].set_yscale("log")
             ax[0, 0].legend(fontsize=7)
             fig.suptitle(f"{tg.run_id} (held out): measured vs simulated")
             files.append(_save(fig, out / f"timehist_{tg.run_id}.png"))
-    summ = [i for i in range(len(ev.targets)) if ev.targets[i].kind == "summary"]
     if _has_summary(diag):
-        feats = sorted({n for i in summ for n in ev.targets[i].names})
-        fig, ax = plt.subplots(1, len(feats), figsize=(4 * len(feats), 3.6), squeeze=False)
-        for a, feat in zip(ax[0], feats):
-            models = [("measured", None, "ko"), ("model defaults", default_runs, "x"), ("calibrated base", base_runs, "o")]
-            if final != "base":
-                models.append((f"with {final}", final_runs, "s"))
-            for lab, runs_, mk in models:
-                xs, ys = [], []
-                for k_, i in enumerate(range(len(ev.targets))):
-                    tg = ev.targets[i]
-                    if feat not in tg.names:
-                        continue
-                    j = tg.names.index(feat)
-                    xs.append(tg.controls["frequency_hz"])
-                    if runs_ is None:
-                        ys.append(tg.y[j])
-                    else:
-                        m = runs_[k_]["model"]
-                        ys.append(np.nan if m is None else m[j])
-                if runs_ is None:
-                    sd = [ev.targets[i].sd[ev.targets[i].names.index(feat)] for i in range(len(ev.targets))
-                          if feat in ev.targets[i].names]
-                    a.errorbar(xs, ys, yerr=sd, fmt="ko", label=lab)
-                else:
-                    a.plot(xs, ys, mk, label=lab, alpha=0.8)
-            a.set_xlabel("frequency [Hz]")
-            a.set_title(label(feat))
-        ax[0, 0].legend(fontsize=7)
-        fig.suptitle(f"{sysname}: summary features, measured vs model")
+        models = [("model defaults", default_runs, "x"), ("calibrated base", base_runs, "o")]
+        if final != "base":
+            models.append((f"with {final}", final_runs, "s"))
+        fig = summary_figure(ev.targets, models, f"{sysname}: summary features, measured vs model")
         files.append(_save(fig, out / f"summary_{tag}.png"))
     disc = diag.report.get("discrepancy") or {}
     if disc.get("proposals"):
         files.append(_proposals_figure(diag, disc, out / f"proposals_{tag}.png"))
     return files
+
+
+def summary_figure(targets: list, models: list[tuple[str, list[dict], str]], title: str):
+    """One panel per summary feature of ``targets`` against the frequency: the measured value with its noise sd and
+    each of ``models`` (label, per-target runs with a 'model' feature vector or None, marker); values [SI] drawn in
+    the feature's engineering unit (pipeline.core.units)."""
+    feats = sorted({n for tg in targets if tg.kind == "summary" for n in tg.names})
+    fig, ax = plt.subplots(1, len(feats), figsize=(4 * len(feats), 3.6), squeeze=False)
+    for a, feat in zip(ax[0], feats):
+        k = set_label(a, "y", feat)
+        set_label(a, "x", "frequency_hz")
+        rows = [(i, tg, tg.names.index(feat)) for i, tg in enumerate(targets) if feat in tg.names]
+        xs = [tg.controls["frequency_hz"] for _, tg, _ in rows]
+        a.errorbar(xs, [tg.y[j] * k for _, tg, j in rows], yerr=[tg.sd[j] * k for _, tg, j in rows], fmt="ko",
+                   label="measured")
+        for lab, runs_, mk in models:
+            ys = [np.nan if runs_[i]["model"] is None else runs_[i]["model"][j] * k for i, _, j in rows]
+            a.plot(xs, ys, mk, label=lab, alpha=0.8)
+        a.set_title(ENGINEERING[feat][0] if feat in ENGINEERING else feat)
+    ax[0, 0].legend(fontsize=7)
+    fig.suptitle(title)
+    return fig
 
 
 def _proposals_figure(diag: SystemDiagnosis, disc: dict, path: Path) -> str:
@@ -238,7 +230,7 @@ def _proposals_figure(diag: SystemDiagnosis, disc: dict, path: Path) -> str:
                   label=f"#{k} {' + '.join(p_['forms'])} (nrms {p_['nrms']:.3g})")
     a.axhline(1.0, color="grey", ls="--", lw=1, label="noise level")
     a.set_yscale("log")
-    a.set_xlabel("frequency [Hz]")
+    set_label(a, "x", "frequency_hz")
     a.set_ylabel("held-out residual / noise (nrms)")
     a.legend(fontsize=7)
     a.set_title(f"{diag.system}: proposals for the missing term, held-out runs")
@@ -263,9 +255,10 @@ def _param_line(n: str, v: dict) -> str:
 def markdown(report: dict, per_system: list[dict], seconds: float) -> str:
     """report.md text."""
     lines = [f"# Model diagnosis of `{report['dataset']}`", "",
-             f"Wall time {seconds:.0f} s. Errors are on held-out runs only (see 'split'). `error` = relative error "
-             "(RMS over feature groups of ||model - measured|| / ||measured||); `noise_floor` = the same for the "
-             "measurement noise alone; `nrms` = residual / noise (1 = at the noise level).", ""]
+             f"Wall time {seconds:.0f} s. Errors are on held-out runs only (see 'split'), all weighted by the "
+             "measurement noise of each feature: `error` = ||(model − measured)/sd|| / ||measured/sd||, the "
+             "residual relative to the measured features; `noise_floor` = the same for a residual of pure noise; "
+             "`nrms` = residual / noise = error / noise floor (1 = at the noise level; docs/diagnose.md).", ""]
     for rep in per_system:
         lines += [f"## {rep['system']} ({rep['n_runs']} runs, {', '.join(rep['data'])} data, {rep['split']['scheme']})", ""]
         verdict = {"nothing missing": "**nothing missing** (the calibrated base model is adequate)",

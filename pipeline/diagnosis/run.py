@@ -3,9 +3,9 @@ select one only if it brings the held-out residual to the noise level (the repor
 
 Errors (all on held-out runs, never on the runs a model was fitted to):
 - ``nrms``  = sqrt(mean of squared noise-normalised residuals) — 1 means "at the noise level";
-- ``error`` = relative error: per feature group (signal or summary label) ||model - measured|| /
-  ||measured||, then the RMS over groups; ``noise_floor`` is the same quantity for the noise alone
-  (sqrt(Σ sd²) / ||measured||), so ``error`` and ``noise_floor`` compare directly.
+- ``error`` = noise-weighted relative error ||(model - measured)/sd|| / ||measured/sd||; ``noise_floor`` is the
+  same quantity for a residual of pure noise (sqrt(n) / ||measured/sd||), so ``error / noise_floor = nrms``
+  (pipeline.diagnosis.heldout).
 Ranking: ``score`` = BIC on the calibration runs, χ² + k ln n (noise sd known from the data), summed
 over folds.  Selection: the best-scoring candidate whose BIC beats the base model's by ``bic_margin``
 and whose held-out nrms is <= ``explained_nrms``; if the calibrated base model is already within
@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from pipeline.diagnosis.config import DiagnoseConfig  # noqa: F401  (re-exported: the commands import it from here)
+from pipeline.diagnosis.progress import NoProgress, Progress, fit_tasks
 from pipeline.diagnosis.features import CONTROL_NAMES, Target, series_target, simulated_features, summary_target
 from pipeline.core.executors import Executor, InlineExecutor
 from pipeline.diagnosis.calibrate import fit_additions, fit_models
@@ -177,11 +178,14 @@ def _param_report(fr: FitResult) -> dict:
 
 
 def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log=print,
-                    progress=None, executor: Executor | None = None) -> SystemDiagnosis:
+                    progress: Progress | None = None, executor: Executor | None = None) -> SystemDiagnosis:
     """Diagnose one system's runs: its report entry, with the evaluator, the reported fits, the held-out runs
     and the final model the figures and the corrected rig need.  The fits run on ``executor`` (default: in this
-    process, on ``cfg.n_threads`` simulation threads)."""
+    process, on ``cfg.n_threads`` simulation threads); ``progress`` hears of each stage."""
     from dataclasses import replace
+
+    progress = progress or NoProgress()
+    progress.stage(f"{system}: checking the model's response is reproducible")
 
     cfg = replace(cfg, **{k: v for k, v in default_fit_settings(system).items() if getattr(cfg, k) is None})
     ev = Evaluator(system, targets, dict(cfg.sim_settings), cfg.fs_sim_hz, cfg.n_threads)
@@ -206,12 +210,19 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
     fits_per_fold = []
     warm = None
     executor = executor or InlineExecutor()
+
+    def n_fit_tasks(n_folds: int, warm_start: bool) -> int:
+        return fit_tasks(n_folds, len(cands), cfg.n_starts, cfg.candidate_starts, warm_start)
     if scheme != "holdout":   # reported parameters: a fit on all runs (also the folds' starting point)
         log(f"{system}: fit on all {len(targets)} runs (reported parameters)")
+        progress.stage(f"{system}: base + {len(cands)} candidates on all {len(targets)} runs", n_fit_tasks(1, False))
         [(warm, lines)] = fit_models(ev, [list(range(len(targets)))], cfg, cands, rng, executor)
         for line in lines:
             log(line)
+    progress.stage(f"{system}: base + {len(cands)} candidates on {len(folds)} fold(s)",
+                   n_fit_tasks(len(folds), bool(warm)))
     fold_fits = fit_models(ev, [cal for cal, _ in folds], cfg, cands, rng, executor, warm)
+    progress.stage(f"{system}: held-out errors of {len(cands) + 1} models")
     for fi, ((cal, test), (fits, lines)) in enumerate(zip(folds, fold_fits)):
         log(f"{system}: fold {fi + 1}/{len(folds)} ({len(cal)} calibration, {len(test)} held-out runs)")
         for line in lines:
@@ -225,8 +236,6 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
         for m in names:
             bic[m] += fits[m].bic()
             cal_chi2[m] += fits[m].chi2
-        if progress:
-            progress()
     err = {m: {**_errors(ev, test_idx, test_res[m]), "systematic": systematic_error(ev, test_idx, test_halves[m])}
            for m in test_res}
     # reported parameters: the single split's calibration fit, or a fit on all runs (leave-one-out)
@@ -240,6 +249,7 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
     if (cfg.max_effects >= 2 and v.leader is not None and v.checks[v.leader]["nrms"] > NOISE_NRMS
             and len(cands) > 1):
         log(f"{system}: {v.leader} improves on the base but leaves the residual above the noise: adding a second effect")
+        progress.stage(f"{system}: {v.leader} + each of {len(cands) - 1} other effects")
         pair_fits, pair_err, pair_stats, v2 = _second_effect(ev, cfg, scheme, folds, v.leader, cands, fits_per_fold,
                                                              warm, stats[v.leader], executor, log)
         second = _second_report(v.leader, pair_fits, pair_stats, v2, cfg.rule(), cal_names)
@@ -253,6 +263,7 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
     found = None
     if v.kind == UNEXPLAINED and cfg.max_proposals >= 1:
         log(f"{system}: no §6 effect explains the residual: proposing the missing term")
+        progress.stage(f"{system}: proposing the missing term")
         found = discover(ev, cfg, scheme, folds, fits_per_fold, warm, stats["base"], executor, log)
     if found is not None and found.accepted:
         final = found.accepted

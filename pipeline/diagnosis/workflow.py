@@ -57,6 +57,8 @@ def _diagnose(ds, cfg: DiagnoseConfig, log, progress, executor: Executor) -> Dia
     diags, runs = [], []
     for system, tgs in targets.items():
         diag = diagnose_system(system, tgs, cfg, log, progress, executor)
+        if progress is not None:
+            progress.stage(f"{system}: simulating the reported models for the figures")
         sim_runs = simulate_runs(diag)
         notes = [SUMMARY_NOTE] if "summary" in diag.report["data"] else []
         notes += [UNREPRODUCIBLE_NOTE.format(run=r, nrms=x) for r, x in diag.report["unreproducible"].items()]

@@ -130,20 +130,21 @@ def plot_bifurcation(points: pd.DataFrame, strobe: pd.DataFrame, param: str, pat
     """Top: stroboscopic displacement samples of the impacting mass against ``param`` (up / down
     continuation in two colours); bottom: peak impact force per point and direction."""
     sx, lx = _axis(param)
+    sd, sf = units.factor("disp_m"), units.factor("peak_force_n")
     fig, ax = plt.subplots(2, 1, figsize=(9, 8), sharex=True)
     style = {"up": dict(color="C0", marker=".", label="sweep up"), "down": dict(color="C1", marker="x", label="sweep down")}
     for d, st in style.items():
         s = strobe[strobe["direction"] == d]
         if not s.empty:
-            ax[0].plot(s[param] * sx, s["disp_m"] * 1e3, ls="none", ms=3 if d == "up" else 4, alpha=0.7,
+            ax[0].plot(s[param] * sx, s["disp_m"] * sd, ls="none", ms=3 if d == "up" else 4, alpha=0.7,
                        color=st["color"], marker=st["marker"], label=st["label"])
         p = points[points["direction"] == d]
         if not p.empty:
             f = pd.to_numeric(p["peak_force_n"], errors="coerce")
-            ax[1].plot(p[param] * sx, f, color=st["color"], marker=st["marker"], ms=4, lw=1, label=st["label"])
-    ax[0].set_ylabel("impacting mass at cycle start [mm]")
+            ax[1].plot(p[param] * sx, f * sf, color=st["color"], marker=st["marker"], ms=4, lw=1, label=st["label"])
+    units.set_label(ax[0], "y", "disp_m", "impacting mass at cycle start")
     ax[0].set_title("stroboscopic samples (one per forcing cycle, recorded window)")
-    ax[1].set_ylabel("peak impact force [N]")
+    units.set_label(ax[1], "y", "peak_force_n")
     ax[1].set_xlabel(lx)
     for a in ax:
         a.grid(alpha=0.3)

@@ -120,6 +120,10 @@ class OptimiseConfig:
         from sim import LABELS
 
         if self.objective == "rop":
+            if self.objectives:     # never silently ignored: named objectives ask for a Pareto study
+                parse_objectives(self.objectives, LABELS)
+                raise UserError("--objectives names the objectives of a Pareto study: add --objective pareto "
+                                "(without it the study maximises ROP alone)")
             return [("rop_m_s", "maximize")]
         return parse_objectives(self.objectives or list(DEFAULT_PARETO), LABELS)
 

@@ -26,16 +26,29 @@ TS = optuna.trial.TrialState
 LIVE = (TS.COMPLETE, TS.RUNNING, TS.WAITING)
 SURPLUS_ATTR = "vibro_surplus"
 """User attribute of a trial withdrawn (FAIL) because other workers had already asked the study's last trials."""
+MAX_GRACE_STRETCH = 10
+"""The grace grown from observed beat gaps is at most this many times the storage's."""
 
 
 class HeartbeatGuard:
-    """The study guard of a shared storage (same interface as coordination.StudyGuard, no locks)."""
+    """The study guard of a shared storage (same interface as coordination.StudyGuard, no locks).
+
+    Heartbeats come from one background thread, independent of the objective, for every trial this worker holds
+    from its ``ask`` to the end of its ``beating`` block (told by then), every half heartbeat interval.  The grace
+    after which another worker's silent trial is failed grows with how late this worker's own beats ran
+    (:meth:`grace_s`): a machine loaded enough to delay its beats delays the other workers' too, and a live but
+    descheduled worker is not declared dead."""
 
     waits = True     # a worker waits for the other workers' trials before it stops
 
     def __init__(self, poll_s: float = 1.0) -> None:
         self.poll_s = poll_s        # seconds between two looks at a study whose last trials run elsewhere
         self.token = int.from_bytes(os.urandom(4), "little")
+        self._held: set[int] = set()            # ids of the trials this worker holds RUNNING
+        self._mutex = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.worst_gap_s = 0.0      # longest time between two of this worker's beat rounds [s]
 
     def sampler_key(self, n_done: int) -> int:
         """What seeds the sampler of the batch starting at ``n_done``: distinct per worker, since two workers that
@@ -49,20 +62,40 @@ class HeartbeatGuard:
         pass
 
     def close(self) -> None:
-        pass
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+        with self._mutex:
+            self._held.clear()
+
+    def grace_s(self, storage) -> float:
+        """The grace period used to judge other workers' trials: the storage's, or GRACE_FACTOR times the longest
+        gap between this worker's own beat rounds when that is longer (at most MAX_GRACE_STRETCH times the
+        storage's: a suspended laptop must not keep a killed worker's trials from ever being re-run)."""
+        from pipeline.optimise.storages import GRACE_FACTOR, grace_of
+
+        grace = float(grace_of(storage))
+        return min(max(grace, GRACE_FACTOR * self.worst_gap_s), MAX_GRACE_STRETCH * grace)
 
     def fail_stale(self, study) -> None:
-        """Mark FAIL the running trials whose heartbeat stopped (optuna's callback re-queues each)."""
-        with warnings.catch_warnings():
+        """Mark FAIL the running trials whose heartbeat stopped (optuna's callback re-queues each), with the grace
+        of :meth:`grace_s`."""
+        from pipeline.optimise.storages import grace_for
+
+        with warnings.catch_warnings(), grace_for(study._storage, self.grace_s(study._storage)):
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
             optuna.storages.fail_stale_trials(study)
 
     def ask(self, study, distributions: dict):
-        """A new trial (or a queued retry), with its first heartbeat recorded at once."""
+        """A new trial (or a queued retry), with its first heartbeat recorded at once and beaten from then on."""
         with warnings.catch_warnings():     # optuna warns that its heartbeat expects Study.optimize: we beat here
             warnings.filterwarnings("ignore", message="Heartbeat of storage is supposed to be used with Study.optimize")
             trial = study.ask(distributions)
         study._storage.record_heartbeat(trial._trial_id)
+        with self._mutex:
+            self._held.add(trial._trial_id)
+        self._start(study)
         return trial
 
     def settle(self, study, trials: list, n_trials: int) -> list:
@@ -73,6 +106,7 @@ class HeartbeatGuard:
             return trials
         keep, drop = trials[:max(len(trials) - excess, 0)], trials[max(len(trials) - excess, 0):]
         for t in drop:
+            self._release([t])
             with contextlib.suppress(optuna.exceptions.UpdateFinishedTrialError):
                 t.set_user_attr(SURPLUS_ATTR, True)
                 study.tell(t, state=TS.FAIL)
@@ -81,26 +115,45 @@ class HeartbeatGuard:
 
     @contextlib.contextmanager
     def beating(self, study, trials: list):
-        """Record a heartbeat of each of ``trials`` every heartbeat interval while the block runs."""
-        interval = study._storage.get_heartbeat_interval()
-        stop = threading.Event()
-
-        def beat() -> None:
-            while not stop.wait(interval):
-                for t in trials:
-                    with contextlib.suppress(Exception):    # told or failed meanwhile: nothing to keep alive
-                        study._storage.record_heartbeat(t._trial_id)
-
-        thread = threading.Thread(target=beat, name="vibro-heartbeat", daemon=True)
-        thread.start()
+        """Keep ``trials`` beating while the block runs (evaluated and told inside it); released at its end."""
+        self._start(study)
         try:
             yield
         finally:
-            stop.set()
-            thread.join()
+            self._release(trials)
+
+    def _release(self, trials: list) -> None:
+        with self._mutex:
+            for t in trials:
+                self._held.discard(t._trial_id)
+
+    def _start(self, study) -> None:
+        """The beat thread of this worker (one per guard), started on first use."""
+        if self._thread is not None:
+            return
+        storage = study._storage
+        period = max(float(storage.get_heartbeat_interval() or 1) / 2.0, 0.1)
+        self._stop.clear()
+
+        def beat() -> None:
+            last = time.monotonic()
+            while not self._stop.wait(period):
+                with self._mutex:
+                    held = list(self._held)
+                for trial_id in held:
+                    with contextlib.suppress(Exception):    # told or failed meanwhile: nothing to keep alive
+                        storage.record_heartbeat(trial_id)
+                now = time.monotonic()
+                self.worst_gap_s = max(self.worst_gap_s, now - last)
+                last = now
+
+        self._thread = threading.Thread(target=beat, name="vibro-heartbeat", daemon=True)
+        self._thread.start()
 
     def fail_orphans(self, study) -> None:
-        """Nothing to do: an interrupted worker's trials stop beating and become stale."""
+        """Stop beating: an interrupted worker's trials become stale and are re-run by the others."""
+        with self._mutex:
+            self._held.clear()
 
     def wait(self) -> None:
         time.sleep(self.poll_s)

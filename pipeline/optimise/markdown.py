@@ -37,9 +37,14 @@ def markdown(rep: dict, table: pd.DataFrame | None) -> str:
     """report.md of the report dict ``rep`` (outputs.report_dict) and the verified table (None when nothing was)."""
     t = rep["tried"]
     lines = [f"# Optimisation report — {rep['study_name']}", "", f"**Outcome:** {rep['outcome']}", ""]
-    if rep.get("fallback"):
-        lines += [f"**Surrogate failed its verification:** {rep['fallback']['text']}.  The surrogate study "
-                  f"({rep['fallback']['surrogate_study']}) said: {rep['fallback']['surrogate_outcome']}.", ""]
+    fb = rep.get("fallback")
+    if fb:
+        said = ""
+        if fb.get("surrogate_best_rop_m_s_pred") is not None and fb.get("surrogate_best_rop_m_s_sim") is not None:
+            said = (f"  The surrogate study ({fb['surrogate_study']}) predicted "
+                    f"{_eng('rop_m_s', fb['surrogate_best_rop_m_s_pred'])} mm/s at its best verified point, where the "
+                    f"simulator gave {_eng('rop_m_s', fb['surrogate_best_rop_m_s_sim'])} mm/s.")
+        lines += [f"**Surrogate failed its verification:** {fb['text']}.{said}", ""]
     rec = rep.get("recommendation")
     if rec:
         labels = [k for k in ("rop_m_s", "power_w", "peak_decel_g", "peak_force_n", "specific_energy_j_m")

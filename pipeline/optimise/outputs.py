@@ -77,18 +77,24 @@ def report_dict(res: OptimiseResult, figures: list[str], feedback_rows: int | No
             rep["surrogate_note"] = surrogate_note(first, feedback_file)
     if failed is not None:
         why = surrogate_failed(failed)
+        best = failed.recommendation or {}
         rep["fallback"] = {"reason": why, "surrogate_study": failed.study_name,
                            "surrogate_outcome": failed.outcome, "simulator_study": res.study_name,
                            "n_trials": int(len(res.trials)),
+                           "surrogate_n_wrong": failed.n_surrogate_wrong,
+                           "surrogate_n_verified": int(len(failed.verified)),
+                           "surrogate_best_rop_m_s_pred": best.get("rop_m_s_pred"),
+                           "surrogate_best_rop_m_s_sim": best.get("rop_m_s_sim"),
                            "text": f"{why}: the recommendation comes from a study of "
-                                   f"{len(res.trials)} trials straight on the simulator ({res.study_name}), not "
-                                   f"from the surrogate"}
+                                   f"{len(res.trials)} trials straight on the simulator, not from the surrogate"}
     rep["outcome"] = res.outcome
     if res.pareto_verified is not None:
         rep["pareto_verified"] = res.pareto_verified
         rep["objectives"] = res.objective_names
     rep["figures"] = figures
-    rep["metrics"] = {**res.metrics(), "surrogate_fallback": failed is not None}
+    # the surrogate's wrong count is the surrogate study's, also when the simulator study replaced it: one number
+    rep["metrics"] = {**res.metrics(), "n_surrogate_wrong": first.n_surrogate_wrong,
+                      "surrogate_fallback": failed is not None}
     return rep
 
 

@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-MM = 1e3   # m/s -> mm/s for display
+from pipeline.core import units  # noqa: E402
 
 
 def _save(fig, path: Path) -> str:
@@ -28,14 +28,14 @@ def plot_history(trials: pd.DataFrame, path: Path, title: str) -> str:
     if len(trials):
         t = trials.sort_values("trial")
         f = t["feasible"].to_numpy(bool)
-        v = t["value"].to_numpy(float) * MM
+        v = t["value"].to_numpy(float) * units.factor("rop_m_s")
         ax.scatter(t["trial"][f], v[f], s=8, color="C0", label="feasible")
         ax.scatter(t["trial"][~f], v[~f], s=8, marker="x", color="0.6", label="infeasible")
         best = np.maximum.accumulate(np.where(f, v, -np.inf))
         ok = np.isfinite(best)
         ax.step(t["trial"][ok], best[ok], where="post", color="C3", label="best feasible so far")
     ax.set_xlabel("trial")
-    ax.set_ylabel("ROP [mm/s]")
+    units.set_label(ax, "y", "rop_m_s")
     ax.set_title(title)
     ax.legend(loc="lower right")
     return _save(fig, path)
@@ -69,12 +69,9 @@ def plot_pareto(trials: pd.DataFrame, front: pd.DataFrame, verified: pd.DataFram
                 title: str, names: list[str] | tuple[str, str] = ("rop_m_s", "power_w")) -> str:
     """First objective (y) against the second (x), in engineering units: feasible trials, their front,
     and the verified points (arrow from the study's value to the simulator's)."""
-    from pipeline.core.names import display
-
     (ny, nx) = names[0], names[1]
-    (_, uy), (_, ux) = display(ny, 0.0), display(nx, 0.0)
-    fy, fx = display(ny, 1.0)[0], display(nx, 1.0)[0]
     fig, ax = plt.subplots(figsize=(8, 5))
+    fy, fx = units.set_label(ax, "y", ny), units.set_label(ax, "x", nx)
     feas = trials[trials["feasible"] & np.isfinite(trials["value_2"].astype(float))]
     ax.scatter(feas["value_2"] * fx, feas["value"] * fy, s=6, color="0.7", label="feasible trials")
     f = front.sort_values("value_2")
@@ -89,8 +86,6 @@ def plot_pareto(trials: pd.DataFrame, front: pd.DataFrame, verified: pd.DataFram
                    label="verified by the simulator")
     if len(feas) and (feas["value_2"] > 0).all() and feas["value_2"].max() > 30 * feas["value_2"].min():
         ax.set_xscale("log")
-    ax.set_xlabel(f"{nx} [{ux}]")
-    ax.set_ylabel(f"{ny} [{uy}]")
     ax.set_title(title)
     ax.legend()
     return _save(fig, path)
@@ -99,11 +94,12 @@ def plot_pareto(trials: pd.DataFrame, front: pd.DataFrame, verified: pd.DataFram
 def plot_verification(table: pd.DataFrame, path: Path, title: str) -> str:
     """Predicted against simulated ROP [mm/s] with the 90 % interval when the surrogate gives one."""
     fig, ax = plt.subplots(figsize=(5.5, 5))
-    p = table["rop_m_s_pred"].astype(float) * MM
-    s = table["rop_m_s_sim"].astype(float).fillna(0.0) * MM
+    k = units.factor("rop_m_s")
+    p = table["rop_m_s_pred"].astype(float) * k
+    s = table["rop_m_s_sim"].astype(float).fillna(0.0) * k
     if "rop_m_s_lo" in table and "rop_m_s_hi" in table:
-        lo = table["rop_m_s_lo"].astype(float) * MM
-        hi = table["rop_m_s_hi"].astype(float) * MM
+        lo = table["rop_m_s_lo"].astype(float) * k
+        hi = table["rop_m_s_hi"].astype(float) * k
         ax.errorbar(s, p, yerr=[np.clip(p - lo, 0, None), np.clip(hi - p, 0, None)], fmt="none", ecolor="0.6")
     wrong = table["surrogate_wrong"].to_numpy(bool)
     ax.scatter(s[~wrong], p[~wrong], color="C0", label="agrees")
@@ -114,8 +110,8 @@ def plot_verification(table: pd.DataFrame, path: Path, title: str) -> str:
         a, b = float(vals.min()), float(vals.max())
         pad = 0.05 * (b - a if b > a else max(abs(b), 1e-6))
         ax.plot([a - pad, b + pad], [a - pad, b + pad], "k--", lw=0.8)
-    ax.set_xlabel("simulated ROP [mm/s]")
-    ax.set_ylabel("predicted ROP [mm/s]")
+    units.set_label(ax, "x", "rop_m_s_sim")
+    units.set_label(ax, "y", "rop_m_s_pred")
     ax.set_title(title)
     ax.legend()
     return _save(fig, path)

@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
+from pipeline.core.numbers import number
 from sim.unitcube import to_unit
 
 
@@ -111,13 +112,16 @@ def space_from_mapping(d: dict) -> Space:
     for name, v in (d or {}).items():
         try:
             if isinstance(v, dict):
-                lo, hi = float(v["low"]), float(v["high"])
+                pair = (v["low"], v["high"])
                 if str(v.get("scale", "linear")) == "log":
                     log.add(name)
             else:
-                lo, hi = (float(x) for x in v)
+                pair = tuple(v)
+                if len(pair) != 2 or isinstance(v, (str, bytes)):
+                    raise ValueError
         except (KeyError, TypeError, ValueError):
             raise UserError(f"range '{name}': expected [low, high] or {{low, high, scale}}, got {v!r}") from None
+        lo, hi = (number(x, f"range '{name}' {end}") for x, end in zip(pair, ("low", "high")))
         ranges[name] = (lo, hi)
     return Space(ranges, frozenset(log))
 

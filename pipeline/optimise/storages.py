@@ -10,6 +10,8 @@
 """
 from __future__ import annotations
 
+import contextlib
+import math
 import time
 import warnings
 from pathlib import Path
@@ -48,9 +50,10 @@ def journal_path(url: str) -> str | None:
 
 
 def open_storage(url: str, heartbeat_s: int = DEFAULT_HEARTBEAT_S):
-    """Optuna storage for ``url``.  A SQLite file is opened in WAL mode with synchronous=NORMAL (several times
-    fewer fsyncs per trial); a server or journal storage with a heartbeat every ``heartbeat_s`` seconds, a grace
-    period of GRACE_FACTOR heartbeats and up to MAX_RETRY re-runs of a stale trial."""
+    """Optuna storage for ``url``, checked first with :func:`check_storage_target`.  A SQLite file is opened in WAL
+    mode with synchronous=NORMAL (several times fewer fsyncs per trial); a server or journal storage with a heartbeat
+    every ``heartbeat_s`` seconds, a grace period of GRACE_FACTOR heartbeats and up to MAX_RETRY re-runs of a stale
+    trial."""
     if is_sqlite(url):
         return _open_sqlite(url)
     if heartbeat_s is None or int(heartbeat_s) < 1:
@@ -110,6 +113,41 @@ def _open_journal(url: str, path: str, hb: dict):
                                        hb["heartbeat_stale_trial_callback"])
     except OSError as e:
         raise UserError(f"--storage '{url}': {e.strerror or e}") from None
+
+
+def grace_of(storage) -> float:
+    """The grace period [s] of a heartbeat storage (an RDB server's or a journal's)."""
+    if isinstance(storage, JournalHeartbeatStorage):
+        return storage.grace_s
+    grace = getattr(storage, "grace_period", None)
+    return float(grace if grace is not None else 2 * (storage.get_heartbeat_interval() or 0))
+
+
+@contextlib.contextmanager
+def grace_for(storage, seconds: float):
+    """``storage`` judging stale trials with a grace of ``seconds`` (whole, rounded up) inside the block."""
+    attr = "grace_s" if isinstance(storage, JournalHeartbeatStorage) else "grace_period"
+    old = getattr(storage, attr, None)
+    setattr(storage, attr, int(math.ceil(seconds)))
+    try:
+        yield
+    finally:
+        setattr(storage, attr, old)
+
+
+def check_storage_target(url: str) -> None:
+    """UserError unless the file behind a ``sqlite:///`` or ``journal:///`` URL is absent, empty or optuna's own
+    (an SQLite database with optuna's tables, an optuna journal); device files, folders and FIFOs are refused.
+    Runs before optuna or the worker locks touch anything, so another application's file is never written."""
+    from pipeline.optimise.storage_files import check_journal_file, check_sqlite_file, sqlite_file
+
+    journal = journal_path(url)
+    if journal is not None:
+        check_journal_file(Path(journal), f"--storage '{url}'")
+    elif is_sqlite(url):
+        db = sqlite_file(url)
+        if db is not None:
+            check_sqlite_file(db, f"--storage '{url}'")
 
 
 class JournalHeartbeatStorage(JournalStorage, BaseHeartbeat):

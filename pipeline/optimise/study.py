@@ -83,12 +83,13 @@ def open_study(storage: str | None, name: str, objectives: list[tuple[str, str]]
     import sqlalchemy.exc
 
     from pipeline.optimise.coordination import guard_for
-    from pipeline.optimise.storages import DEFAULT_HEARTBEAT_S, open_storage
+    from pipeline.optimise.storages import DEFAULT_HEARTBEAT_S, check_storage_target, open_storage
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     directions = [d for _, d in objectives]
     objective = ",".join(n for n, _ in objectives)
     url = storage or default_storage()
+    check_storage_target(url)       # before the worker locks: a file that is not optuna's stays untouched
     try:
         with guard_for(url).lock():   # concurrent creation of a new SQLite store
             study = optuna.create_study(storage=open_storage(url, heartbeat_s or DEFAULT_HEARTBEAT_S),
@@ -193,18 +194,18 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
                 if not trials:
                     continue
                 X = pd.DataFrame([t.params for t in trials], columns=space.names)
-                with guard.beating(study, trials):
+                with guard.beating(study, trials):      # beating until told: a slow tell is not a dead worker
                     out = evaluate(X)
-                for t, row in zip(trials, out.to_dict("records")):
-                    try:
-                        t.set_user_attr("labels", {k: _clean(row[k]) for k in ATTR_KEYS if k in row})
-                        for key, val in constraints.values(row).items():
-                            t.set_constraint(key, val)
-                        study.tell(t, _objective_values(row, objectives))
-                    except optuna.exceptions.UpdateFinishedTrialError:
-                        continue        # failed as stale meanwhile (a stalled worker): its retry runs instead
-                    ran += 1
-                    bar.update(1)
+                    for t, row in zip(trials, out.to_dict("records")):
+                        try:
+                            t.set_user_attr("labels", {k: _clean(row[k]) for k in ATTR_KEYS if k in row})
+                            for key, val in constraints.values(row).items():
+                                t.set_constraint(key, val)
+                            study.tell(t, _objective_values(row, objectives))
+                        except optuna.exceptions.UpdateFinishedTrialError:
+                            continue        # failed as stale meanwhile (a stalled worker): its retry runs instead
+                        ran += 1
+                        bar.update(1)
             except BaseException:
                 for t in trials:
                     try:

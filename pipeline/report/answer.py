@@ -41,12 +41,28 @@ def _power_words(power: float) -> str:
     return f"power {power * 1e-3:.2f} kW" if power >= 1e3 else f"power {power:.1f} W"
 
 
+def _bounds_words(hits) -> str:
+    """``F0 at its upper bound 2.70 kN`` for every control a recommendation sits on (optimise 'on_bounds')."""
+    if not isinstance(hits, list):
+        return ""
+    sym = {key: (s, unit, k, f) for key, s, unit, k, f in CONTROLS}
+    out = []
+    for h in hits:
+        if not isinstance(h, dict) or "name" not in h:
+            continue
+        s, unit, k, f = sym.get(h["name"], (h["name"], "", 1.0, "{:g}"))
+        side = "upper" if h.get("side") == "high" else "lower"
+        out.append(f"{s} at its {side} bound {f.format(float(h['bound']) * k)} {unit}".rstrip())
+    return ", ".join(out)
+
+
 def _corrected(cl: dict) -> str | None:
     """The corrected rig's recommendation in words (None without one)."""
     pt, rop = cl.get("corrected_point"), _number(cl, ("corrected_rop_mm_s",))
     if not isinstance(pt, dict) or rop is None:
         return None
-    text = f"Answer (corrected rig): {_point(pt)} -> ROP {rop:.2f} mm/s on the corrected rig"
+    rig = f"corrected rig '{cl['rig_name']}'" if cl.get("rig_name") else "corrected rig"
+    text = f"Answer ({rig}): {_point(pt)} -> ROP {rop:.2f} mm/s on the corrected rig"
     spread = cl.get("spread_mm_s")
     if isinstance(spread, list) and len(spread) == 2:
         text += f" (5-95 %: {spread[0]:.2f}-{spread[1]:.2f})"
@@ -58,6 +74,13 @@ def _corrected(cl: dict) -> str | None:
         text += f", peak deceleration {decel:.2f} g"
     if lim.get("binding"):
         text += " (binding: " + "; ".join(map(_binding_words, lim["binding"])) + ")"
+    if _bounds_words(lim.get("on_bounds")):
+        text += "; on the edge of the search space: " + _bounds_words(lim["on_bounds"])
+    broken = cl.get("breaks_on_uncorrected")
+    if isinstance(broken, dict) and broken:
+        from pipeline.core.units import broken_words
+
+        text += f"; on the lab model this point breaks its limits ({broken_words(broken)})"
     lab = _number(cl, ("uncorrected_rop_on_corrected_mm_s",))
     if lab is not None:
         text += f"; the lab model's point gives {lab:.2f} mm/s there ({cl.get('worth_mm_s', rop - lab):+.2f} mm/s)"
@@ -68,8 +91,8 @@ def _corrected(cl: dict) -> str | None:
     if isinstance(cl.get("fallback"), str):
         text += f". Corrected-rig surrogate: {cl['fallback']}"
     elif (_number(cl, ("surrogate_wrong",)) or 0) > 0:
-        text += (". The corrected-rig surrogate was wrong at some verified points; the point is the best the "
-                 "simulator verified, not the surrogate's optimum")
+        text += (f". The corrected-rig surrogate was wrong at {int(cl['surrogate_wrong'])} verified point(s); the "
+                 "point is the best the simulator verified, not the surrogate's optimum")
     return text
 
 
@@ -88,6 +111,8 @@ def answer_line(summary: dict, report_path: str | Path | None = None) -> str | N
         power = _number(rec, POWER_KEYS)
         if power is not None:
             lab += ", " + _power_words(power)
+        if _bounds_words(rec.get("on_bounds")):
+            lab += "; on the edge of the search space: " + _bounds_words(rec["on_bounds"])
     corrected = _corrected(summary.get("closed_loop") or {})
     if corrected is None and lab is None:
         return None

@@ -23,7 +23,7 @@ import pandas as pd  # noqa: E402
 
 from pipeline.core.errors import UserError  # noqa: E402
 from pipeline.report.doc import Document, Figure, Heading, Para, Table, fmt, to_html, to_markdown  # noqa: E402
-from pipeline.core.units import ENGINEERING, convert, factor, label, split  # noqa: E402
+from pipeline.core.units import ENGINEERING, convert, factor, label, set_label, split  # noqa: E402
 from pipeline.core.files import atomic_write_bytes, atomic_write_text  # noqa: E402
 from pipeline.core.jsonable import dump_json, flatten  # noqa: E402
 from sim.models.discrepancy import PARAM_OF  # noqa: E402
@@ -215,15 +215,14 @@ def section_sweep(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
     if {"frequency_hz", "rop_m_s"} <= set(df.columns) and len(ok):
         fig, ax = plt.subplots(1, 2, figsize=(11, 4))
         xcol = "amplitude_n" if "amplitude_n" in df else (inputs[1] if len(inputs) > 1 else "frequency_hz")
-        sc = ax[0].scatter(ok["frequency_hz"], ok[xcol], c=pd.to_numeric(ok["rop_m_s"]) * 1e3, s=12, cmap="viridis")
-        fig.colorbar(sc, ax=ax[0], label="ROP [mm/s]")
-        ax[0].set_xlabel(label("frequency_hz"))
-        ax[0].set_ylabel(f"{xcol} [SI]")
+        fx, fy = (set_label(ax[0], "x", "frequency_hz"), set_label(ax[0], "y", xcol))
+        set_label(ax[1], "x", "frequency_hz"), set_label(ax[1], "y", xcol)
+        sc = ax[0].scatter(ok["frequency_hz"] * fx, ok[xcol] * fy, c=pd.to_numeric(ok["rop_m_s"]) * factor("rop_m_s"),
+                           s=12, cmap="viridis")
+        fig.colorbar(sc, ax=ax[0], label=label("rop_m_s"))
         ax[0].set_title("ROP over the sweep (status ok)")
         for st, grp in df.groupby("status"):
-            ax[1].scatter(grp["frequency_hz"], grp[xcol], s=8, label=f"{st} ({len(grp)})")
-        ax[1].set_xlabel(label("frequency_hz"))
-        ax[1].set_ylabel(f"{xcol} [SI]")
+            ax[1].scatter(grp["frequency_hz"] * fx, grp[xcol] * fy, s=8, label=f"{st} ({len(grp)})")
         ax[1].set_title("status of every point")
         ax[1].legend(fontsize=8)
         doc.add(Figure(figs.save(fig, "sweep-rop-map"), "Sweep: ROP of the progressing points (left) and the "
@@ -386,9 +385,7 @@ def section_optimise(doc: Document, figs: _Figs, inp: ReportInputs, summary: dic
         if ycol and xcol:
             fig, ax = plt.subplots(figsize=(6, 4))
             f2 = front.sort_values(xcol)
-            ax.plot(f2[xcol] * factor(xcol), f2[ycol] * factor(ycol), "o-")
-            ax.set_xlabel(label(xcol))
-            ax.set_ylabel(label(ycol))
+            ax.plot(f2[xcol] * set_label(ax, "x", xcol), f2[ycol] * set_label(ax, "y", ycol), "o-")
             ax.set_title("Pareto front (verified by the simulator)")
             ax.grid(alpha=0.3)
             doc.add(Figure(figs.save(fig, "pareto-front"), f"Pareto front: {label(ycol)} against {label(xcol)}."))
@@ -447,10 +444,11 @@ def section_diagnose(doc: Document, figs: _Figs, inp: ReportInputs, summary: dic
         return
     rows = [r for name, rep in reports.items() for r in _diag_rows(name, rep)]
     summary["diagnose"] = rows
-    doc.add(Para("Relative feature error of the model against each measured dataset (RMS over feature groups of "
-                 "||model − measured|| / ||measured||): with the default parameters, after calibrating the uncertain "
-                 "parameters (**before** adding an effect), and **after** the selected §6 effect; the noise floor is "
-                 "the same quantity for the measurement noise alone."))
+    doc.add(Para("Relative feature error of the model against each measured dataset, every feature weighted by its "
+                 "measurement noise (||(model − measured)/sd|| / ||measured/sd||): with the default parameters, after "
+                 "calibrating the uncertain parameters (**before** adding an effect), and **after** the selected §6 "
+                 "effect; the noise floor is the same quantity for a residual of pure noise, so error / noise floor "
+                 "is the held-out nrms (docs/diagnose.md)."))
     doc.add(Table(["dataset", "system", *[label for _, label in DIAG_COLUMNS]],
                   [[r["dataset"], r["system"], *[r.get(k) for k, _ in DIAG_COLUMNS]] for r in rows],
                   "Diagnosis: errors before / after"))

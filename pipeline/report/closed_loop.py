@@ -4,11 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from pipeline.core.units import broken_words, point_words
 from pipeline.report.doc import Heading, Para, Table
-
-
-def _pt(p: dict) -> str:
-    return ", ".join(f"{k} = {v:.4g}" for k, v in p.items())
 
 
 def section_closed_loop(doc, figs, inp, summary: dict) -> None:
@@ -22,7 +19,7 @@ def section_closed_loop(doc, figs, inp, summary: dict) -> None:
         return
     cmp = json.loads(path.read_text())
     t, s = cmp["recommendations"], cmp["spread"]
-    rows = [[label, _pt(t[k]["point"]), t[k]["rop_m_s_on_uncorrected"] * 1e3, t[k]["rop_m_s_on_corrected"] * 1e3]
+    rows = [[label, point_words(t[k]["point"]), t[k]["rop_m_s_on_uncorrected"] * 1e3, t[k]["rop_m_s_on_corrected"] * 1e3]
             for k, label in (("uncorrected", "uncorrected model"), ("corrected", "corrected rig"))]
     doc.add(Para(f"The rig log was diagnosed into a corrected rig ({cmp['corrected_rig'].get('source', '')}); the "
                  "surrogate chain (sweep → train → optimise, verified by the simulator) ran again on it.  Each "
@@ -35,6 +32,13 @@ def section_closed_loop(doc, figs, inp, summary: dict) -> None:
                  f"corrected recommendation drills {s['median_rop_m_s'] * 1e3:.4g} mm/s median, "
                  f"{s['p5_rop_m_s'] * 1e3:.4g}–{s['p95_rop_m_s'] * 1e3:.4g} mm/s (5–95 %); "
                  f"{s['fraction_progressing']:.0%} of the samples progress."))
+    for name, label, other, where in (("corrected", "corrected rig", "uncorrected", "uncorrected model"),
+                                      ("uncorrected", "uncorrected model", "corrected", "corrected rig")):
+        broken = t[name].get(f"breaks_on_{other}")
+        if broken is not None:
+            doc.add(Para(f"The {label}'s point on the {where}: "
+                         + (f"breaks that model's limits ({broken_words(broken)})." if broken
+                            else "within that model's limits.")))
     if cmp.get("warning"):
         doc.add(Para(f"**Warning.** {cmp['warning']}"))
     summary["closed_loop"] = {"worth_mm_s": cmp["worth_mm_s"], "explained": cmp["explained"],
@@ -45,4 +49,6 @@ def section_closed_loop(doc, figs, inp, summary: dict) -> None:
                               "model_error_ratio": cmp.get("model_error_ratio"),
                               "surrogate_wrong": cmp.get("corrected_surrogate_wrong"),
                               "fallback": cmp.get("corrected_fallback"),
+                              "rig_name": cmp.get("rig_name"),
+                              "breaks_on_uncorrected": t["corrected"].get("breaks_on_uncorrected"),
                               "limits": cmp.get("corrected_limits") or {}}

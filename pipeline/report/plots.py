@@ -9,6 +9,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from pipeline.core import units  # noqa: E402
+
 
 def amplitude_spectrum(t: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One-sided amplitude spectrum of a uniformly sampled signal over whole cycles (Hann window)."""
@@ -27,22 +29,19 @@ def plot_time_history(res, path: str | os.PathLike) -> str:
     t_rel = t - t[0]
     f = res.params["frequency_hz"]
     fig, ax = plt.subplots(3, 1, figsize=(9, 9))
-    ax[0].plot(t_rel * 1e3, h["disp_m"] * 1e3, lw=1)
-    ax[0].set_ylabel("impacting mass disp. [mm]")
+    ft = units.set_label(ax[1], "x", "t_s", "time in recorded window")
+    ax[0].plot(t_rel * ft, h["disp_m"] * units.set_label(ax[0], "y", "disp_m", "impacting mass disp."), lw=1)
     ax[0].set_title(f"{res.model}: f = {f:g} Hz, status {res.status}, "
                     f"{res.labels.get('impacts_per_cycle')} impacts/cycle, period {res.labels.get('period')}")
-    ax[1].plot(t_rel * 1e3, h["force_n"], lw=1, color="C3")
-    ax[1].set_ylabel("contact force [N]")
-    ax[1].set_xlabel("time in recorded window [ms]")
+    ax[1].plot(t_rel * ft, h["force_n"] * units.set_label(ax[1], "y", "force_n"), lw=1, color="C3")
     freq, amp = amplitude_spectrum(t, h["accel_m_s2"].to_numpy())
     # a model with a measured-acceleration sensor (the sensor_lowpass effect) shows its spectrum to 1 kHz
     from sim import get_model
 
     fmax = 1000.0 if "sensor_lowpass" in get_model(res.model).effects else 12 * f
     keep = freq <= fmax
-    ax[2].plot(freq[keep], amp[keep] / 9.81, lw=1, color="C2")
-    ax[2].set_xlabel("frequency [Hz]")
-    ax[2].set_ylabel("accel. amplitude [g]")
+    ax[2].plot(freq[keep] * units.set_label(ax[2], "x", "frequency_hz"),
+               amp[keep] * units.set_label(ax[2], "y", "accel_m_s2", "accel. amplitude"), lw=1, color="C2")
     for a in ax:
         a.grid(alpha=0.3)
     fig.tight_layout()

@@ -50,6 +50,29 @@ OUTSIDE = {
 """Physics outside the library, for the 'unexplained' test.  The default mount resonance of a rig is its
 ``synth.mount_hz`` (inside the harmonics the diagnosis uses)."""
 
+OUTSIDE_PARAMS: dict[str, dict[str, tuple[float, float, str]]] = {
+    "mount_resonance": {"fr_hz": (1.0, math.inf, "Hz, below half the sample rate --fs"),
+                        "zeta": (1e-4, 100.0, "damping ratio")},
+    "contact_hertz": {"kh": (1.0, 1e15, "N/m^1.5")},
+}
+"""The --outside-param names of each outside physics with their (low, high) bounds [inclusive] and unit."""
+
+
+def check_outside_params(outside: str | None, values: dict[str, float], fs_hz: float) -> None:
+    """UserError naming an --outside-param that its --outside does not have, or a value out of its bounds
+    (``fr_hz`` also below the Nyquist frequency ``fs_hz / 2``, where the bilinear filter is defined)."""
+    if values and outside is None:
+        raise UserError(f"--outside-param {next(iter(values))}: give --outside (one of {', '.join(OUTSIDE)}) too")
+    table = OUTSIDE_PARAMS.get(outside or "", {})
+    for name, v in values.items():
+        if name not in table:
+            raise UserError(f"--outside-param {name}: --outside {outside} has no parameter '{name}' "
+                            f"(its parameters: {', '.join(table)})")
+        lo, hi, unit = table[name]
+        hi = min(hi, 0.5 * fs_hz * (1 - 1e-9)) if name == "fr_hz" else hi
+        if not lo <= v <= hi:
+            raise UserError(f"--outside-param {name}={v:g}: must be in [{lo:g}, {hi:g}] ({unit})")
+
 
 @dataclass
 class SynthConfig:
@@ -283,6 +306,20 @@ def check_sampling(cfg: SynthConfig) -> None:
                         f"(--frequencies); need >= {MIN_SAMPLES_PER_CYCLE}: raise --fs or lower the frequencies")
 
 
+def check_from_rest(cfg: SynthConfig) -> None:
+    """UserError when a record from rest (``record_start_s``) would end more than MAX_FROM_REST_CYCLES forcing
+    cycles after the start at the highest frequency: the simulation from rest would hold them all."""
+    from pipeline.datasets.measured import MAX_FROM_REST_CYCLES
+
+    f_hi = max(cfg.frequencies_hz)
+    for start in cfg.record_start_s or ():
+        cycles = start * f_hi + cfg.cycles
+        if cycles > MAX_FROM_REST_CYCLES:
+            raise UserError(f"--record-start {start:g}: {cycles:.3g} forcing cycles from rest at {f_hi:g} Hz, more "
+                            f"than the {MAX_FROM_REST_CYCLES} a record from rest may span; a record that late is in "
+                            "steady state (omit --record-start)")
+
+
 def synthesize(cfg: SynthConfig, progress: bool = False) -> tuple[Dataset, dict]:
     """Build the dataset in memory: (Dataset, truth) — nothing is written here."""
     import os
@@ -304,6 +341,8 @@ def synthesize(cfg: SynthConfig, progress: bool = False) -> tuple[Dataset, dict]
     if cfg.cycles < 2.5:
         raise UserError(f"--cycles must be >= 2.5, got {cfg.cycles:g}")
     check_sampling(cfg)
+    check_outside_params(cfg.outside, dict(cfg.outside_params), float(cfg.fs_hz))
+    check_from_rest(cfg)
     truth = true_parameters(cfg)
     runs = run_table(cfg)
     known = known_parameters(runs)

@@ -17,6 +17,11 @@
    ``mlflow ui`` command to browse the runs.
 
 Extra arguments are passed to ``dvc repro`` (e.g. ``-f`` to force every stage, or stage names).
+
+With ``--exp`` it runs ``dvc exp run``: before it starts it names the stages a ``-S section.key=value`` reruns (the
+stages that read that section of params.yaml and every stage downstream of them) with their estimated time; and
+when the experiment fails or is interrupted, it puts the workspace back as it was (params.yaml and dvc.lock
+restored, the outputs checked out of the dvc cache), so a stopped variant never leaves files half-updated.
 """
 from __future__ import annotations
 
@@ -204,18 +209,95 @@ def run_repro(root: Path, dvc: str, command: list[str], repro_args: list[str],
     proc = subprocess.Popen([dvc, *command, *repro_args], cwd=root, env=env, stdout=subprocess.PIPE,
                             stderr=None, text=True, bufsize=1)
     assert proc.stdout is not None
-    for line in proc.stdout:
-        m = _RUNNING.search(line)
-        if m and m.group(1) not in ran:
-            ran.append(m.group(1))
-            if clock is not None:
-                clock.start(m.group(1))
-        sys.stdout.write(line)
-        sys.stdout.flush()
+    try:
+        for line in proc.stdout:
+            m = _RUNNING.search(line)
+            if m and m.group(1) not in ran:
+                ran.append(m.group(1))
+                if clock is not None:
+                    clock.start(m.group(1))
+            sys.stdout.write(line)
+            sys.stdout.flush()
+    except KeyboardInterrupt:       # dvc got the same Ctrl-C: let it stop its stage before anything is restored
+        proc.wait()
+        raise
     rc = proc.wait()
     if clock is not None:
         clock.finish()
     return rc, ran
+
+
+def _stage_table(root: Path) -> dict[str, tuple[set[str], set[str], set[str]]]:
+    """dvc.yaml's stages (``foreach`` expanded to ``name@item``): stage -> (params sections, deps, outs)."""
+    import yaml
+
+    doc = yaml.safe_load((root / "dvc.yaml").read_text()) or {}
+    out = {}
+
+    def paths(items, item=None) -> set[str]:
+        names = set()
+        for e in items or []:
+            name = next(iter(e)) if isinstance(e, dict) else str(e)
+            names.add(name.replace("${item}", str(item)) if item is not None else name)
+        return names
+
+    for name, st in (doc.get("stages") or {}).items():
+        if "foreach" in st:
+            body = st.get("do") or {}
+            for item in st["foreach"]:
+                out[f"{name}@{item}"] = (paths(body.get("params")), paths(body.get("deps"), item),
+                                         paths(body.get("outs"), item))
+        else:
+            out[name] = (paths(st.get("params")), paths(st.get("deps")), paths(st.get("outs")))
+    return out
+
+
+def exp_stages(root: Path, repro_args: list[str]) -> list[str]:
+    """The stages ``dvc exp run`` reruns for the ``-S section.key=value`` in ``repro_args``: those that read a set
+    section and every stage downstream of them, in dvc.yaml's order ([] without a ``-S``)."""
+    sections = set()
+    for i, a in enumerate(repro_args):
+        value = repro_args[i + 1] if a in ("-S", "--set-param") and i + 1 < len(repro_args) else None
+        if value is None and a.startswith("--set-param="):
+            value = a.split("=", 1)[1]
+        if value:
+            sections.add(value.split("=", 1)[0].split(".", 1)[0])
+    if not sections:
+        return []
+    table = _stage_table(root)
+    hit = {s for s, (ps, _, _) in table.items() if ps & sections}
+    changed = True
+    while changed:          # downstream: a stage whose dependency is (inside) an output of a hit stage
+        outs = {o for s in hit for o in table[s][2]}
+        more = {s for s, (_, deps, _) in table.items() if s not in hit
+                and any(d == o or d.startswith(o.rstrip("/") + "/") or o.startswith(d.rstrip("/") + "/")
+                        for d in deps for o in outs)}
+        changed = bool(more)
+        hit |= more
+    return [s for s in table if s in hit]
+
+
+WORKSPACE_FILES = ("params.yaml", "dvc.lock")
+"""What ``dvc exp run`` rewrites in the workspace besides the stage outputs."""
+
+
+def snapshot_workspace(root: Path) -> dict[str, bytes | None]:
+    """The bytes of :data:`WORKSPACE_FILES` (None for a missing one), to put back after a failed experiment."""
+    return {rel: (root / rel).read_bytes() if (root / rel).exists() else None for rel in WORKSPACE_FILES}
+
+
+def restore_workspace(root: Path, dvc: str, snap: dict[str, bytes | None], env: dict[str, str]) -> bool:
+    """Put back params.yaml and dvc.lock as ``snap`` holds them and check the outputs out of the dvc cache
+    (``dvc checkout --force``): the workspace as before a failed or interrupted experiment.  Whether it worked."""
+    from pipeline.core.files import atomic_write_bytes
+
+    for rel, data in snap.items():
+        if data is None:
+            (root / rel).unlink(missing_ok=True)
+        else:
+            atomic_write_bytes(root / rel, data)
+    p = subprocess.run([dvc, "checkout", "--force", "-q"], cwd=root, env=env, capture_output=True, text=True)
+    return p.returncode == 0
 
 
 def _log_pipeline_files(mlflow, root: Path) -> None:
@@ -264,12 +346,18 @@ def _run(root: Path, repro_args: list[str], exp: bool = False) -> int:
     dvc = dvc_executable()
     forced = any(a in ("-f", "--force", "-F", "--force-downstream") for a in repro_args)
     targets = [a for a in repro_args if not a.startswith("-")]
-    stale = {} if exp else stale_stages(root, dvc, targets)
+    stale = dict.fromkeys(exp_stages(root, repro_args)) if exp else stale_stages(root, dvc, targets)
     if not stale and not forced and not exp:
         print("Pipeline is up to date: dvc has nothing to reproduce, so no stage ran and no MLflow run was created.")
         print_where(root)
         return 0
     print(f"Out-of-date stages: {', '.join(stale) or ('(experiment)' if exp else '(forced)')}")
+    if stale:
+        known = read_stage_times(root)
+        total = sum(known.get(s, TYPICAL_S.get(s, 60.0)) for s in stale)
+        print(f"This runs {len(stale)} stage(s), about {_mmss(total)} (estimate from "
+              f"{'the last run on this machine' if all(s in known for s in stale) else 'typical stage times'})")
+    snap = snapshot_workspace(root) if exp else None
     t0 = time.time()
     use_mlflow = not os.environ.get("VIBRO_NO_MLFLOW")
     env_extra: dict[str, str] = {}
@@ -290,7 +378,14 @@ def _run(root: Path, repro_args: list[str], exp: bool = False) -> int:
     clock = StageClock(list(stale), read_stage_times(root))
     try:
         command = ["exp", "run"] if exp else ["repro"]
-        rc, ran = run_repro(root, dvc, command, repro_args, dvc_env(env_extra), clock)
+        try:
+            rc, ran = run_repro(root, dvc, command, repro_args, dvc_env(env_extra), clock)
+        finally:            # also on Ctrl-C: a failed experiment leaves the workspace as it found it
+            if snap is not None and rc != 0:
+                ok = restore_workspace(root, dvc, snap, dvc_env())
+                print("Experiment failed or interrupted: workspace restored (params.yaml, dvc.lock, outputs)"
+                      if ok else "Experiment failed or interrupted: restored params.yaml and dvc.lock, but "
+                                 "'dvc checkout --force' failed; run it to restore the outputs", file=sys.stderr)
         if rc == 0:
             write_stage_times(root, clock.times)
     finally:

@@ -10,7 +10,8 @@ differ) and ``dvc_exp`` (``$DVC_EXP_NAME``, set by ``dvc exp run``; ``workspace`
 run name that tells variants apart (``optimise-rop``, ``diagnose-seed000-published``).  The tag
 ``vibro.chain`` says which chain a run belongs to: ``lab`` (the preset's model) or ``corrected`` (a rig
 file, e.g. the diagnosis's corrected rig); runs of the corrected chain end in ``-corrected``
-(``train-corrected``, ``optimise-rop-corrected``).  The experiment is created as classic model development
+(``train-corrected``, ``optimise-rop-corrected``), or in the rig's name when the command knows its rig file
+(``sweep-my-rig``, tag ``vibro.rig``: ``pipeline.core.rigfile.rig_name``).  The experiment is created as classic model development
 (tag ``mlflow.experimentKind``), so the MLflow UI opens it as a machine-learning experiment, not in the
 GenAI view.
 """
@@ -81,18 +82,21 @@ _VARIANT: contextvars.ContextVar[str | None] = contextvars.ContextVar("vibro_run
 CHAINS = ("lab", "corrected")
 """Values of the ``vibro.chain`` tag: the preset's model, or a rig file (the corrected rig)."""
 _CHAIN: contextvars.ContextVar[str] = contextvars.ContextVar("vibro_run_chain", default="lab")
+_RIG: contextvars.ContextVar[str | None] = contextvars.ContextVar("vibro_run_rig", default=None)
 
 
 @contextlib.contextmanager
-def chain(name: str):
-    """Runs opened inside belong to chain ``name`` (one of :data:`CHAINS`): tag ``vibro.chain``, name suffix."""
+def chain(name: str, rig: str | None = None):
+    """Runs opened inside belong to chain ``name`` (one of :data:`CHAINS`): tag ``vibro.chain``, name suffix; with
+    ``rig`` (a rig's name) they carry it as tag ``vibro.rig`` and as the name's suffix instead of the chain's."""
     if name not in CHAINS:
         raise ValueError(f"chain '{name}': one of {', '.join(CHAINS)}")
-    token = _CHAIN.set(name)
+    token, rig_token = _CHAIN.set(name), _RIG.set(rig or None)
     try:
         yield
     finally:
         _CHAIN.reset(token)
+        _RIG.reset(rig_token)
 
 
 def current_chain() -> str:
@@ -110,10 +114,13 @@ def variant(name: str | None):
         _VARIANT.reset(token)
 
 
-def run_name(stage: str, variant: str | None = None, chain: str = "lab") -> str:
-    """``stage`` or ``stage-variant`` (e.g. ``optimise-rop``), ending in ``-<chain>`` outside the lab chain
-    (``optimise-rop-corrected``): distinct names for the variants of a stage and for the two chains."""
+def run_name(stage: str, variant: str | None = None, chain: str = "lab", rig: str | None = None) -> str:
+    """``stage`` or ``stage-variant`` (e.g. ``optimise-rop``), ending in ``-<rig>`` on a named rig
+    (``optimise-rop-drill-rig``), else in ``-<chain>`` outside the lab chain (``optimise-rop-corrected``): distinct
+    names for the variants of a stage, the two chains and the rigs."""
     name = f"{stage}-{variant}" if variant and variant != stage else stage
+    if rig:
+        return f"{name}-{rig}"
     return name if chain == "lab" else f"{name}-{chain}"
 
 
@@ -182,11 +189,12 @@ def run(stage: str, params: dict | None = None, tags: dict | None = None, enable
         yield None
         return
     mlflow = setup()
-    all_tags = {"vibro.stage": stage, "vibro.chain": current_chain(), **run_tags(), **(tags or {})}
+    all_tags = {"vibro.stage": stage, "vibro.chain": current_chain(), **run_tags(),
+                **({"vibro.rig": _RIG.get()} if _RIG.get() else {}), **(tags or {})}
     parent = os.environ.get("VIBRO_PARENT_RUN_ID")
     if parent:
         all_tags["mlflow.parentRunId"] = parent
-    name = run_name(stage, variant or _VARIANT.get(), current_chain())
+    name = run_name(stage, variant or _VARIANT.get(), current_chain(), _RIG.get())
     with mlflow.start_run(run_name=name, tags=all_tags):
         if params:
             log_params(mlflow, params)

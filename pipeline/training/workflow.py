@@ -110,7 +110,9 @@ def run_training(data: TrainingData, cfg, out_dir: str | Path, rig=None, progres
         bundle.report["adaptive"] = ad
     bundle.report.update(provenance or {})
     bundle.save(out)
-    figs = report.figures(bundle, test, out, ad)
+    from pipeline.core.units import ENGINEERING
+
+    figs = report.figures(bundle, test, out, ad, units=ENGINEERING)
     r = bundle.report
     headline = {"held_out": r["held_out"], "goals_met": r["goals_met"],
                 "goals_notes": r.get("goals_notes", {}),

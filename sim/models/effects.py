@@ -22,6 +22,7 @@ class EffectParam:
 
     bound: FitBound
     meaning: str
+    least: float = 0.0      # smallest physical value when on (0 is off); below it the effect means nothing
 
 
 @dataclass(frozen=True)
@@ -49,7 +50,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "k -> k (1 + γ progression / 1 mm)"),
     Effect("suspension_hardening", (EffectParam(FitBound("kappa", 1e2, 1e8, "1/m^2"), "cubic hardening"),),
            "k φ -> k φ (1 + κ φ²)"),
-    Effect("sensor_lowpass", (EffectParam(FitBound("fc", 50.0, 5000.0, "Hz"), "accelerometer bandwidth"),),
+    Effect("sensor_lowpass", (EffectParam(FitBound("fc", 50.0, 5000.0, "Hz"), "accelerometer bandwidth", least=1.0),),
            "2nd-order Butterworth on the recorded acceleration"),
 )}
 
@@ -74,5 +75,5 @@ def effect_params(names: Iterable[str], acts_on: Mapping[str, str]) -> tuple[Par
             raise ValueError(f"effect '{name}': say where it acts in the model (acts_on)")
         for p in e.params:
             text = f"{name}: {p.meaning}, {e.form} on {acts_on[name]}; 0 = off"
-            out.append(Param(p.bound.name, 0.0, p.bound.unit, text, nonnegative=True))
+            out.append(Param(p.bound.name, 0.0, p.bound.unit, text, nonnegative=True, least=p.least))
     return tuple(out)

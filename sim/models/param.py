@@ -19,6 +19,7 @@ class Param:
     positive: bool = False
     nonnegative: bool = False
     integer: bool = False
+    least: float = 0.0          # smallest value other than 0 (off): below it the parameter means nothing physical
 
     def validate(self, value) -> float:
         try:
@@ -31,6 +32,9 @@ class Param:
             raise ParameterError(f"parameter '{self.name}' must be > 0 [{self.unit}], got {v:g}")
         if self.nonnegative and v < 0.0:
             raise ParameterError(f"parameter '{self.name}' must be >= 0 [{self.unit}], got {v:g}")
+        if self.least and v != 0.0 and abs(v) < self.least:
+            raise ParameterError(f"parameter '{self.name}' must be 0 (off) or >= {self.least:g} [{self.unit}], "
+                                 f"got {v:g}")
         return v
 
 

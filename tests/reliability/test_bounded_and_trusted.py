@@ -274,9 +274,9 @@ def test_mlflow_http_limits_default_small_but_user_wins(monkeypatch):
 def test_unreachable_tracking_server_is_one_line_exit_2(tmp_path):
     env = {**os.environ, "MLFLOW_TRACKING_URI": "http://127.0.0.1:9", "MLFLOW_HTTP_REQUEST_TIMEOUT": "2"}
     env.pop("VIBRO_NO_MLFLOW", None)
-    # sweep opens its run first; the bad scheduler ends it right after, should the server ever answer
+    # sweep opens its run before simulating (a bad --scheduler is refused before either: not usable here)
     r = subprocess.run([sys.executable, "-m", "pipeline.cli", "sweep", "--out", str(tmp_path / "s"),
-                        "--scheduler", "local:100000"], cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+                        "--n-points", "1"], cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
     _one_line_exit_2(r.returncode, r.stderr, "http://127.0.0.1:9", "did not answer")
 
 

@@ -5,6 +5,7 @@ command had written before must survive byte for byte."""
 from __future__ import annotations
 
 import errno
+import json
 import os
 import resource
 import subprocess
@@ -148,3 +149,18 @@ def test_corrupt_optuna_database_is_exit_2_and_untouched(tmp_path, capsys, monke
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert rc == 2 and len(lines) == 1 and "internal error" not in lines[0], err
     assert db.read_bytes() == before and not (tmp_path / "o").exists()
+
+
+def test_failed_simulation_is_a_result_exit_0(capsys):
+    """A point stopped by its work limit is labelled ``failed``: a result printed with exit 0 (exit 1 means a bug),
+    as ``vibro simulate --help`` and docs/reliability.md say."""
+    from pipeline.cli import build_parser, main
+
+    rc = main(["simulate", "drill", "--preset", "lab", "--setting", "max_steps=1000", "--json"])
+    out = capsys.readouterr().out
+    assert rc == 0
+    assert json.loads(out)["status"] == "failed"
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    help_text = sub.choices["simulate"].format_help()
+    assert "whatever its status" in help_text and "1 only for a bug" in help_text
+    assert "exits 0 for every status" in (Path(__file__).resolve().parents[2] / "docs" / "reliability.md").read_text()

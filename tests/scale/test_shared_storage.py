@@ -44,7 +44,23 @@ def _key(t) -> tuple:
     return tuple(sorted(t.params.items()))
 
 
-def test_four_independent_optimise_workers_run_exactly_n_trials(storage_url, tmp_path):
+@pytest.fixture
+def cpu_burner():
+    """A loaded machine: busy-looping processes (twice the cores, at least 4) for at most 300 s, stopped at the
+    end of the test.  A live but descheduled worker must not be declared dead."""
+    n = max(4, 2 * (os.cpu_count() or 1))
+    code = "import time\nend = time.monotonic() + 300\nwhile time.monotonic() < end:\n    pass\n"
+    burners = [subprocess.Popen([sys.executable, "-c", code]) for _ in range(n)]
+    yield burners
+    for b in burners:
+        b.kill()
+        b.wait()
+
+
+def test_four_independent_optimise_workers_run_exactly_n_trials(storage_url, tmp_path, cpu_burner):
+    """Under load (the failure this guards against: a 2 s heartbeat missed at load ~7 on 2 cores, a live worker's
+    trial failed and re-run)."""
+    assert all(b.poll() is None for b in cpu_burner)
     n = 24
     procs = [subprocess.Popen(
         [sys.executable, "-m", "pipeline.cli", "optimise", "--simulator", "--model", "drill", "--preset", "lab",
@@ -128,6 +144,7 @@ def test_concurrent_asks_beyond_n_trials_are_withdrawn(tmp_path):
     mine_b = [guard.ask(b, dist) for _ in range(3)]
     kept_a = guard.settle(a, mine_a, 4)
     kept_b = guard.settle(b, mine_b, 4)
+    guard.close()
     assert len(kept_a) + len(kept_b) == 4
     states = [t.state for t in a.get_trials(deepcopy=False)]
     assert states.count(TS.RUNNING) == 4 and states.count(TS.FAIL) == 2
@@ -148,6 +165,57 @@ def test_journal_heartbeat_fails_a_silent_trial_and_queues_it_again(tmp_path):
     trials = study.get_trials(deepcopy=False)
     assert [t.state for t in trials] == [TS.FAIL, TS.RUNNING, TS.WAITING]
     assert trials[2].params == trials[0].params and RETRY.retried_trial_number(trials[2]) == 0
+
+
+def _beat_age(study, trial) -> float:
+    t = next(x for x in study.get_trials(deepcopy=False) if x._trial_id == trial._trial_id)
+    return time.time() - float(t.system_attrs[HEARTBEAT_ATTR])
+
+
+def test_a_held_trial_beats_from_ask_until_released(tmp_path):
+    """Heartbeats come from the guard's own thread from the ask on (not only while the objective runs): the
+    time spent asking the rest of a batch, settling and telling is covered; a released trial stops beating."""
+    from pipeline.optimise.heartbeat import HeartbeatGuard
+
+    storage = open_storage(f"journal://{tmp_path / 's.log'}", 1)
+    study = optuna.create_study(storage=storage, study_name="s")
+    guard = HeartbeatGuard(poll_s=0.01)
+    try:
+        trial = guard.ask(study, {"x": optuna.distributions.FloatDistribution(0, 1)})
+        time.sleep(2.2)                 # no beating block yet: still beaten every half interval
+        assert _beat_age(study, trial) < 1.0
+        with guard.beating(study, [trial]):
+            time.sleep(1.2)
+            assert _beat_age(study, trial) < 1.0
+        time.sleep(2.2)
+        assert _beat_age(study, trial) > 1.5
+        assert guard.worst_gap_s >= 0.5
+    finally:
+        guard.close()
+
+
+def test_grace_grows_with_the_observed_beat_gap(tmp_path):
+    """A worker whose own beats ran 5 s apart (a loaded machine) gives other workers' trials 3 x 5 s, not the
+    storage's 3 s; the storage's grace is restored afterwards."""
+    from pipeline.optimise.heartbeat import HeartbeatGuard
+    from pipeline.optimise.storages import grace_of
+
+    storage = open_storage(f"journal://{tmp_path / 's.log'}", 1)
+    study = optuna.create_study(storage=storage, study_name="s")
+    quiet = study.ask({"x": optuna.distributions.FloatDistribution(0, 1)})
+    storage.record_heartbeat(quiet._trial_id)
+    time.sleep(3.5)
+    guard = HeartbeatGuard(poll_s=0.01)
+    guard.worst_gap_s = 5.0
+    assert guard.grace_s(storage) == 15.0
+    guard.fail_stale(study)
+    assert study.get_trials(deepcopy=False)[0].state == TS.RUNNING
+    assert grace_of(storage) == 3
+    guard.worst_gap_s = 1e6             # a suspended machine: the stretch is capped
+    assert guard.grace_s(storage) == 30.0
+    guard.worst_gap_s = 0.0
+    guard.fail_stale(study)
+    assert study.get_trials(deepcopy=False)[0].state == TS.FAIL
 
 
 @pytest.mark.parametrize("url, words", [("journal://", "name the journal file"),

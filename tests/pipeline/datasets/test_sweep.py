@@ -373,3 +373,57 @@ def test_cli_stage_writes_dataset_metrics_and_mlflow_run(tmp_path, monkeypatch, 
                             ("ok", "no_contact", "not_settled", "runaway", "failed")), 12)
     arts = {a.path for a in mlflow.MlflowClient().list_artifacts(runs.loc[0, "run_id"])}
     assert {"metadata.json", "sweep_overview.png"} <= arts
+
+
+def _first_refused_by_loop(spec, cols: dict) -> int | None:
+    import sim
+
+    mspec = sim.get_model(spec.model)
+    for i in range(len(next(iter(cols.values())))):
+        try:
+            mspec.resolve(spec.preset, **spec.fixed, **{k: float(v[i]) for k, v in cols.items()})
+        except ParameterError:
+            return i
+    return None
+
+
+@pytest.mark.parametrize("model", ["drill", "pendulum", "indenter-metal", "rimd"])
+def test_vectorised_validation_agrees_with_resolve_row_by_row(model):
+    """pipeline.datasets.spec.first_refused (column checks + resolve on the rows that decide) refuses a design
+    exactly when resolving every row would, on hostile values (0, negatives, inf, nan, discrepancy terms the model
+    lacks, a hidden mode without its frequency)."""
+    import sim
+    from pipeline.datasets.spec import first_refused
+    from sim.models.discrepancy import PARAM_OF
+
+    mspec = sim.get_model(model)
+    spec = make_spec({"model": model, "vary": {"frequency_hz": {"low": 1.0, "high": 2.0}}, "n_points": 4})
+    rng = np.random.default_rng(0)
+    names = [p.name for p in mspec.params][:6] + [p for p in PARAM_OF if p in mspec.param_names][:4]
+    hostile = np.array([0.0, -1.0, 1.0, 2.5, np.inf, np.nan, 1e-9])
+    for trial in range(30):
+        cols = {k: rng.uniform(0.5, 2.0, 50) * (mspec.defaults()[k] or 1.0) for k in names}
+        for k in names:
+            if k in PARAM_OF:
+                cols[k][:] = 0.0
+        if trial % 3:       # plant a few hostile cells
+            for _ in range(int(rng.integers(1, 4))):
+                k = names[int(rng.integers(len(names)))]
+                cols[k][int(rng.integers(50))] = hostile[int(rng.integers(len(hostile)))]
+        want = _first_refused_by_loop(spec, cols)
+        got = first_refused(spec, cols)
+        assert (got is None) == (want is None), (trial, want, got)
+
+
+def test_ten_million_points_are_validated_in_seconds():
+    from pipeline.datasets.spec import validate_points
+
+    spec = make_spec(raw_spec(n_points=10_000_000, settings={}))
+    pts = pd.DataFrame({"point_id": np.arange(spec.n_points)} | {k: np.full(spec.n_points, r.high)
+                                                                   for k, r in spec.vary.items()})
+    t0 = time.perf_counter()
+    validate_points(spec, pts)
+    assert time.perf_counter() - t0 < 20.0
+    pts.loc[7_654_321, "frequency_hz"] = -1.0
+    with pytest.raises(UserError, match="point 7654321 .*frequency_hz"):
+        validate_points(spec, pts)

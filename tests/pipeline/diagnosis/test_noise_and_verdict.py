@@ -167,3 +167,25 @@ def test_systematic_error_is_the_models_and_not_the_noise():
     s_w = sum(float(a[weak] @ b[weak]) for a, b in ra) / sum(float(t.y_halves[0][weak] @ t.y_halves[0][weak])
                                                               for t in ev.targets)
     assert abs(s_w) ** 0.5 > 5 * max(zeros)
+
+
+def test_heldout_error_and_noise_floor_are_on_the_nrms_scale():
+    """The error and its noise floor weigh every feature by its noise, so error / floor is the nrms: an error below
+    the floor can never sit beside an nrms above 1.  A group whose measured features are all zero (a rig that does not
+    progress) has no relative error instead of an astronomically large floor."""
+    from types import SimpleNamespace
+
+    from pipeline.diagnosis.heldout import heldout_errors
+
+    rng = np.random.default_rng(0)
+    targets, res = [], []
+    for k in range(3):
+        y = np.concatenate([rng.normal(0, 1e3, 8), rng.normal(0, 1e-3, 8), [0.0, 0.0]])
+        sd = np.concatenate([np.full(8, 1.0), np.full(8, 1e-4), [1e-6, 1e-6]])   # loud harmonics, quiet ones, no ROP
+        targets.append(SimpleNamespace(run_id=f"r{k}", y=y, sd=sd, group=["accel"] * 8 + ["force"] * 8 + ["rop"] * 2))
+        res.append(rng.normal(0, 2.7, y.size))          # the model 2.7 x the noise off everywhere
+    e = heldout_errors(SimpleNamespace(targets=targets), [0, 1, 2], res)
+    assert e["error"] / e["noise_floor"] == pytest.approx(e["nrms"], rel=1e-12)
+    assert e["error"] > e["noise_floor"] and e["nrms"] > 2
+    assert e["error_by_group"]["rop"] is None and e["noise_by_group"]["rop"] is None
+    assert all(0 < e["noise_by_group"][g] < 1 for g in ("accel", "force"))

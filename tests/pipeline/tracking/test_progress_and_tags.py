@@ -134,13 +134,15 @@ def test_answer_leads_with_the_corrected_rig_when_the_loop_was_closed():
                                "corrected_rop_mm_s": 3.61, "uncorrected_rop_on_corrected_mm_s": 2.15,
                                "worth_mm_s": 1.46, "spread_mm_s": [3.2, 3.9], "explained": True,
                                "limits": {"power_w_sim": 17.78, "peak_decel_g_sim": 3.976,
-                                          "binding": ["power_w 17.78 of its limit 18"]},
-                               "surrogate_wrong": 12}}
+                                          "binding": ["power_w 17.78 of its limit 18"],
+                                          "on_bounds": [{"name": "amplitude_n", "side": "high", "bound": 2700.0}]},
+                               "surrogate_wrong": 12, "rig_name": "drill-rig"}}
     first, second = answer_line(summary, "r.html").split("\n")
-    assert first.startswith("Answer (corrected rig): f = 305 Hz, F0 = 2.70 kN, Fs = 1.57 kN -> ROP 3.61 mm/s")
+    assert first.startswith("Answer (corrected rig 'drill-rig'): f = 305 Hz, F0 = 2.70 kN, Fs = 1.57 kN -> ROP 3.61 mm/s")
+    assert "on the edge of the search space: F0 at its upper bound 2.70 kN" in first
     assert "5-95 %: 3.20-3.90), power 17.8 W, peak deceleration 3.98 g (binding: power 17.8 W of its 18 W limit)" in first
     assert "gives 2.15 mm/s there (+1.46 mm/s)" in first
-    assert "wrong at some verified points" in first and "CAUTION" not in first
+    assert "wrong at 12 verified point(s)" in first and "CAUTION" not in first
     assert second.startswith("Lab model's answer (before the diagnosis): f = 210 Hz") and second.endswith("r.html")
     summary["closed_loop"].update(explained=False, model_error_ratio=25.5, surrogate_wrong=0)
     first = answer_line(summary).split("\n")[0]

@@ -1,0 +1,96 @@
+"""What an optuna storage file may be before optuna opens it: absent, empty, or optuna's own.
+
+optuna appends to any journal file and adds its tables to any SQLite database it is given; these checks read
+(never write) the file first, so a user's text, another application's database or a device is refused untouched.
+"""
+from __future__ import annotations
+
+import json
+import os
+import stat
+from pathlib import Path
+from urllib.parse import quote
+
+from pipeline.core.errors import UserError
+
+SQLITE_MAGIC = b"SQLite format 3\x00"
+OPTUNA_TABLES = frozenset({"studies", "version_info"})
+"""Tables every optuna RDB schema has (optuna/storages/_rdb/models.py)."""
+MAX_JOURNAL_LINE = 2**20
+"""Bytes read to find a journal's first record."""
+
+
+def sqlite_file(url: str) -> Path | None:
+    """The database file of a ``sqlite:`` URL (query string dropped), None for ``:memory:``; UserError when the
+    URL names no file (``sqlite:///`` would be a throw-away in-memory database)."""
+    rest = url[len("sqlite:"):].split("?", 1)[0]
+    path = rest[3:] if rest.startswith("///") else ""
+    if path == ":memory:":
+        return None
+    if not path:
+        raise UserError(f"--storage '{url}': name the database file, e.g. sqlite:///optuna.db "
+                        "(sqlite:////abs/path.db for an absolute path)")
+    return Path(path)
+
+
+def _existing_regular(path: Path, label: str, kind: str) -> int | None:
+    """Size of ``path`` when it is a regular file, None when absent; UserError for a folder, device or FIFO."""
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        return None
+    except OSError as e:
+        raise UserError(f"{label}: {path}: {e.strerror or e}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise UserError(f"{label}: {path} is a folder, not {kind}")
+    if not stat.S_ISREG(st.st_mode):
+        raise UserError(f"{label}: {path} is a device or pipe, not {kind}")
+    return st.st_size
+
+
+def check_journal_file(path: Path, label: str) -> None:
+    """UserError unless ``path`` is absent, empty or an optuna journal (its first line a journal record)."""
+    size = _existing_regular(path, label, "an optuna journal file")
+    if not size:
+        return
+    try:
+        with open(path, "rb") as fh:
+            first = fh.readline(MAX_JOURNAL_LINE)
+    except OSError as e:
+        raise UserError(f"{label}: {path}: {e.strerror or e}") from None
+    try:
+        rec = json.loads(first.decode("utf-8")) if first.endswith(b"\n") else None
+    except (UnicodeDecodeError, ValueError):
+        rec = None
+    if not (isinstance(rec, dict) and isinstance(rec.get("op_code"), int) and "worker_id" in rec):
+        raise UserError(f"{label}: {path} exists and is not an optuna journal; it was left unchanged "
+                        "(name a new or empty file)")
+
+
+def check_sqlite_file(path: Path, label: str) -> None:
+    """UserError unless ``path`` is absent, empty, or an SQLite database that is empty or has optuna's schema."""
+    import sqlite3
+
+    size = _existing_regular(path, label, "an SQLite database file")
+    if not size:
+        return
+    try:
+        with open(path, "rb") as fh:
+            magic = fh.read(len(SQLITE_MAGIC))
+    except OSError as e:
+        raise UserError(f"{label}: {path}: {e.strerror or e}") from None
+    if magic != SQLITE_MAGIC:
+        raise UserError(f"{label}: {path} exists and is not an SQLite database; it was left unchanged "
+                        "(name a new file)")
+    try:      # immutable: no lock, journal or WAL file is created next to a file that may not be ours
+        con = sqlite3.connect(f"file:{quote(os.fspath(path.resolve()))}?mode=ro&immutable=1", uri=True)
+        try:
+            tables = {r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+        finally:
+            con.close()
+    except sqlite3.Error as e:
+        raise UserError(f"{label}: {path}: not a readable SQLite database ({e})") from None
+    if tables and not OPTUNA_TABLES <= tables:
+        shown = ", ".join(sorted(tables)[:4]) + (", ..." if len(tables) > 4 else "")
+        raise UserError(f"{label}: {path} is another application's database (tables {shown}), not an optuna "
+                        "storage; it was left unchanged (name a new file)")
