@@ -19,8 +19,10 @@ BENCH_DIR = Path(__file__).resolve().parent
 # argparse mains: the arguments ``make bench`` gives them (reduced but honest: smaller budget / grid / point
 # count than their own defaults, every method still run); ``--quick`` is smaller still
 ARGS = {"bench_optimise": ["--budget", "300", "--grid", "16", "12", "12", "--initial", "200", "--rounds", "1"],
-        "bench_sweep": ["--points", "256", "--peer-points", "8"]}
-QUICK_ARGS = {"bench_optimise": ["--budget", "80", "--grid", "4", "4", "4", "--initial", "60", "--rounds", "1",
+        "bench_sweep": ["--points", "256", "--peer-points", "8"], "bench_search": ["--seeds", "0"]}
+QUICK_ARGS = {"bench_search": ["--budget", "60", "--seeds", "0", "--cases", "lab", "--scan", "8", "4", "4", "--refine",
+                                "3", "--results", str(BENCH_DIR / "results" / "quick")],
+              "bench_optimise": ["--budget", "80", "--grid", "4", "4", "4", "--initial", "60", "--rounds", "1",
                                  "--results", str(BENCH_DIR / "results" / "quick")],
               "bench_sweep": ["--points", "32", "--peer-points", "2",
                               "--out", str(BENCH_DIR / "results" / "quick" / "sweep.json")],   # never the full results

@@ -17,6 +17,8 @@ what it writes under --out:
   history.png, importances.png, verification.png, pareto.png (with --objective pareto)
   the outcome line says which limits the recommendation sits at and whether it lies on a bound of the search
   space (which control, lower or upper): there the optimum may lie beyond the box.
+  shaker envelope: a rig file's 'exciter' (max_force_n against frequency_hz, max_stroke_m, max_velocity_m_s) is
+  honoured like the power and deceleration limits; a recommendation on it says "ON THE SHAKER'S ENVELOPE".
   feedback: verified points are appended to feedback/optimise.parquet at the project root, beside optuna.db
   (or --feedback FILE; never inside the surrogate's dvc-managed folder), from whichever folder it runs, so that
   training can include them (closing the loop).
@@ -38,11 +40,15 @@ examples:
   vibro optimise --surrogate models/surrogate --out results/optimise
   vibro optimise --surrogate models/surrogate --out results/optimise --max-peak-force-n 3000 --peak-force-static-ratio 2.5
   vibro optimise --surrogate models/surrogate --out results/optimise --max-power-w 18 --max-decel-g 4
+  vibro optimise --surrogate models/surrogate --out results/optimise --max-power-w 18 --max-decel-g 4 --margin 0.05
+  vibro optimise --simulator --max-power-w 18 --max-decel-g 4 --margin power_w=0.05 --margin peak_decel_g=0.1
+  vibro optimise --simulator --max-power-w 18 --max-decel-g 4 --margin 0.05 --limit-map --out results/o  # + maps
   vibro optimise --surrogate models/surrogate --out results/pareto --objective pareto --n-verify 12
   vibro optimise --surrogate models/surrogate --out results/pareto --objective pareto --objectives rop_m_s,peak_decel_g
   vibro optimise --simulator --model drill --preset lab --n-trials 200 --out results/optimise-sim
   vibro optimise --simulator --preset lab --vary frequency_hz=150:350 --set static_force_n=1200 --out results/f-scan
   vibro optimise --simulator --rig my-rig.yaml --n-trials 200 --out results/my-rig      # your own rig
+  vibro optimise --simulator --rig my-rig.yaml --sampler tpe --out results/my-rig-tpe   # optuna's TPE instead
   vibro optimise --params params.yaml --metrics metrics/optimise.json
   vibro optimise --surrogate models/surrogate --out results/optimise --fallback-trials 0   # report a failed surrogate, no fallback
   vibro optimise --simulator --storage postgresql://user@host/optuna --study-name rig-a --n-trials 400
@@ -61,7 +67,7 @@ def add_parser(sub) -> None:
     p = sub.add_parser(
         "optimise", help="optimise the operating point for ROP (optuna), verified by the simulator",
         description="Search the controls (frequency_hz, amplitude_n, static_force_n) for maximum rate of penetration "
-                    "with optuna (TPE by default), on a trained surrogate (then re-simulate the best distinct points) "
+                    "with optuna (a Sobol' pass then a local search by default), on a trained surrogate (then re-simulate the best distinct points) "
                     "or directly on the simulator, under constraints: a bounded settled steady state (never "
                     "runaway), optional upper limits on peak impact force (absolute, or k × static force: seed 002's "
                     "bit-bounce rule), on specific energy, on the exciter's mean power and on the bit's peak "
@@ -88,8 +94,10 @@ def add_parser(sub) -> None:
     p.add_argument("--objectives", metavar="LABEL,LABEL[,...]",
                    help="Pareto objectives (default rop_m_s,power_w): any labels; rop_m_s is maximised, the others "
                         "minimised, or say max:LABEL / min:LABEL")
-    p.add_argument("--sampler", choices=["tpe", "gp", "nsga2", "random"],
-                   help="optuna sampler (default tpe: constraints, batches, no extra package; gp needs PyTorch)")
+    p.add_argument("--sampler", choices=["tpe", "sobol-local", "gp", "nsga2", "random"],
+                   help="optuna sampler (default: sobol-local for --objective rop, a Sobol' pass then a local search "
+                        "that reaches the box's bounds and the limits exactly, the only one within 0.995 of a dense "
+                        "scan on every case of bench/bench_search.py; tpe for pareto; gp needs PyTorch)")
     p.add_argument("--n-trials", type=A.n_trials, help="total complete trials of the study (default 600 on the surrogate, "
                                                  "200 on the simulator = simulator calls)")
     p.add_argument("--batch-size", type=A.count(1, 10_000), help="trials proposed and evaluated together (default 8)")
@@ -102,6 +110,14 @@ def add_parser(sub) -> None:
                    help="constraint: the excitation's mean power power_w <= W watts (the exciter's power rating)")
     p.add_argument("--max-decel-g", type=A.positive, metavar="G",
                    help="constraint: the bit's peak deceleration peak_decel_g <= G (in g; tool life)")
+    p.add_argument("--margin", action="append", metavar="FRACTION|LABEL=FRACTION",
+                   help="keep the recommendation this fraction below every limit (0.05 = 5 %%), or below one limit "
+                        "(power_w=0.05; repeatable); on the surrogate a point is judged by the upper end of its "
+                        "predicted interval, so it stays feasible within that uncertainty")
+    p.add_argument("--limit-map", action="store_true",
+                   help="also simulate two maps of ROP around the recommendation over the search box (frequency x "
+                        "static force at its amplitude, frequency x amplitude at its static force, 25 x 13 cells each) "
+                        "with the limits' contours, the margin's and the exciter's envelope: limit_map_*.png/.parquet")
     p.add_argument("--allow-not-settled", action="store_true",
                    help="accept not_settled (bounded but aperiodic) points; runaway and failed never are")
     p.add_argument("--n-verify", type=A.count(1, 10_000), help="distinct best points (or front points) re-simulated (default 10)")
@@ -187,6 +203,9 @@ def config_from_args(args):
         if base.get("mode", "surrogate") != "simulator":
             raise UserError(f"--rig {rig_path} needs --simulator (a surrogate carries the rig it was trained on)")
         rig = load_rig(rig_path, args.model, args.preset)
+        from pipeline.core.rigfile import read_exciter
+
+        base["exciter"] = read_exciter(rig_path)
         base["model"], base["preset"] = rig.model, rig.preset
         base["fixed"] = {**rig.overrides(), **(base.get("fixed") or {})}
         args.model = args.preset = None
@@ -204,6 +223,10 @@ def config_from_args(args):
             base[key] = v
     if args.allow_not_settled:
         base["allow_not_settled"] = True
+    if args.margin:
+        base["margin"] = parse_margin(args.margin)
+    if args.limit_map:
+        base["limit_map"] = True
     if str(base.get("preset", "")).lower() == "none":
         base["preset"] = None
     check_workers(base.get("n_threads"))
@@ -212,6 +235,19 @@ def config_from_args(args):
     _feedback_path(base)
     base["storage"] = real_sqlite_url(base.get("storage"))
     return OptimiseConfig.from_mapping(base)
+
+
+def parse_margin(items: list[str]) -> float | dict:
+    """``["0.05"]`` -> 0.05 (every limit); ``["power_w=0.05", "peak_decel_g=0.1"]`` -> {label: fraction}."""
+    if len(items) == 1 and "=" not in items[0]:
+        return A.number(items[0], "--margin")
+    out = {}
+    for item in items:
+        name, sep, val = item.partition("=")
+        if not sep or not name.strip():
+            raise UserError(f"--margin expects FRACTION or LABEL=FRACTION (repeatable), got '{item}'")
+        out[name.strip()] = A.number(val, f"--margin {name.strip()}")
+    return out
 
 
 def check_range_values(ranges: dict, model: str | None) -> None:
@@ -294,7 +330,7 @@ def _simulator_study(cfg, sampler, bundle=None):
 MODES = {"surrogate": _surrogate_study, "simulator": _simulator_study}
 """--surrogate / --simulator (config 'mode') -> builder of the study's problem, evaluator, executor and simulator."""
 
-SAMPLERS = {"tpe": samplers.tpe_sampler, "gp": samplers.gp_sampler, "nsga2": samplers.nsga2_sampler,
+SAMPLERS = {"tpe": samplers.tpe_sampler, "sobol-local": samplers.sobol_local_sampler, "gp": samplers.gp_sampler, "nsga2": samplers.nsga2_sampler,
             "random": samplers.random_sampler}
 """--sampler (config 'sampler') -> sampler factory (pipeline/optimise/samplers.py)."""
 
@@ -349,7 +385,15 @@ def optimise_into(cfg, out_dir, bundle=None, metrics_path: str | None = None, pr
             failed, res = res, run_optimise(sim_plan, progress=progress)
         tables = outputs.write_tables(res, out)
         figs = outputs.write_figures(res, out)
+        map_sims = 0
+        if cfg.limit_map and res.recommendation is not None:
+            from pipeline.optimise.limitmap import write_limit_maps
+
+            maps, map_sims = write_limit_maps(res, out)
+            figs = [*figs, *maps]
         rep = outputs.report_dict(res, figs, rows, fb, failed=failed)
+        if map_sims:
+            rep["metrics"]["limit_map_simulations"] = map_sims
         reports = outputs.write_report(rep, res, out)
         if metrics_path:
             atomic_write_text(Path(metrics_path), dump_json(rep["metrics"]))

@@ -9,6 +9,10 @@ Format (README.md "Rig files")::
       shaker_coil: {tau: 1.0e-4, beta: 3000.0}
     uncertainty: {K1: 2.0e7}      # optional: standard deviation of fitted values [same unit]
     source: "vibro diagnose measured/drill-rig"   # optional free text
+    exciter:                      # optional: the shaker's envelope, honoured by optimise (pipeline/optimise/envelope.py)
+      max_force_n: {frequency_hz: [100, 450], amplitude_n: [2700, 2000]}
+      max_stroke_m: 1.5e-3
+      max_velocity_m_s: 0.4
 
 Unknown keys, models, presets, parameters and effects are refused with one line naming them.
 """
@@ -48,6 +52,8 @@ def read_rig(path: str | os.PathLike):
     if not p.exists():
         raise UserError(f"rig file {p}: not found")
     data = load_yaml(p, f"rig file {p}", floats_12=True)
+    if isinstance(data, dict):
+        data = {k: v for k, v in data.items() if k != "exciter"}      # the command's (read_exciter), not the model's
     data = _numbers_checked(data, f"rig file {p}")
     if isinstance(data, dict) and isinstance(data.get("discrepancy"), dict):
         check_mode_complete(data["discrepancy"], f"rig file {p}: discrepancy")
@@ -55,6 +61,15 @@ def read_rig(path: str | os.PathLike):
         return Rig.from_mapping(data)
     except ParameterError as e:
         raise UserError(f"rig file {p}: {str(e).removeprefix('rig: ')}") from None
+
+
+def read_exciter(path: str | os.PathLike) -> dict | None:
+    """The ``exciter`` mapping of a rig file (the shaker's envelope), None when it declares none; the rig itself is
+    checked by :func:`read_rig`, the mapping by ``pipeline.optimise.envelope.Envelope.from_mapping``."""
+    from pipeline.core.bounded import load_yaml
+
+    data = load_yaml(Path(path), f"rig file {path}", floats_12=True)
+    return data.get("exciter") if isinstance(data, dict) else None
 
 
 def check_mode_complete(values: dict, label: str) -> None:

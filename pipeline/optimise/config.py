@@ -1,14 +1,17 @@
 """``OptimiseConfig``: the ``optimise`` section of params.yaml (CLI flags override it), checked when built."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 from pipeline.core.errors import UserError
-from pipeline.optimise.constraints import Constraints
+from pipeline.optimise.constraints import Constraints, resolve_margins
 from pipeline.optimise.study import DEFAULT_PARETO, OBJECTIVES, SAMPLERS, parse_objectives
 from sim.registry import DEFAULT_MODEL
 
 MODES = ("surrogate", "simulator")
+DEFAULT_SAMPLER = {"rop": "sobol-local", "pareto": "tpe"}
+"""Sampler of a study that names none: the space-filling pass + local search for ROP (bench/bench_search.py: the only
+one within 0.995 of a dense scan on every case), TPE for a Pareto front."""
 DEFAULT_TRIALS = {"surrogate": 600, "simulator": 200}
 """Complete trials of a study when ``n_trials`` is not given (on the simulator: simulator calls)."""
 
@@ -22,7 +25,11 @@ class OptimiseConfig:
     ``objectives``, default ROP against the mean power: ``["rop_m_s", "power_w"]``; any labels, each with
     an optional ``max:``/``min:`` prefix, ROP maximised and the rest minimised by default).  max_power_w [W],
     max_decel_g [g]: the exciter's power rating and the bit's deceleration limit (None = unconstrained).
-    ranges: {name: [low, high]} — default: the surrogate's training ranges / the model's published space
+    margin: a fraction kept below every limit (0.05), or {label: fraction} (``{power_w: 0.05}``); the study judges a
+    surrogate's prediction by the upper end of its interval (constraints.Constraints.margins).  exciter: the rig
+    file's shaker envelope (pipeline/optimise/envelope.py), honoured as constraints.  limit_map: also simulate and
+    draw maps of ROP around the recommendation with the limits' contours (pipeline/optimise/limitmap.py).
+    sampler: None picks DEFAULT_SAMPLER by objective.  ranges: {name: [low, high]} — default: the surrogate's training ranges / the model's published space
     (ModelSpec.search_spaces).  n_trials: total complete trials of the study (a resumed study runs only the
     rest; default 600 on the surrogate, 200 on the simulator = simulator calls).  n_verify: points
     re-simulated (distinct best / spread along the front).  rel_tol: relative ROP error above which the
@@ -41,7 +48,7 @@ class OptimiseConfig:
     objective: str = "rop"
     ranges: dict = field(default_factory=dict)
     fixed: dict = field(default_factory=dict)
-    sampler: str = "tpe"
+    sampler: str | None = None
     n_trials: int | None = None
     batch_size: int = 8
     seed: int = 0
@@ -52,6 +59,9 @@ class OptimiseConfig:
     max_decel_g: float | None = None
     objectives: list[str] | None = None
     allow_not_settled: bool = False
+    margin: float | dict | None = None
+    exciter: dict | None = None
+    limit_map: bool = False
     n_verify: int = 10
     rel_tol: float = 0.10
     fallback_trials: int = 200
@@ -79,6 +89,8 @@ class OptimiseConfig:
             raise UserError(f"mode must be one of {MODES}, got '{self.mode}'")
         if self.objective not in OBJECTIVES:
             raise UserError(f"objective must be one of {OBJECTIVES}, got '{self.objective}'")
+        if self.sampler is None:        # by the measurement (docs/optimise.md "Which search")
+            self.sampler = DEFAULT_SAMPLER[self.objective] if self.objective in DEFAULT_SAMPLER else "tpe"
         if self.sampler not in SAMPLERS:
             raise UserError(f"sampler must be one of {SAMPLERS}, got '{self.sampler}'")
         for name in ("batch_size", "n_verify"):
@@ -93,6 +105,7 @@ class OptimiseConfig:
         if not (self.rel_tol > 0):
             raise UserError(f"rel_tol must be > 0, got {self.rel_tol}")
         self.objective_list()
+        self.constraints()      # a margin names limited labels and fractions in [0, 1)
         if self.mode == "surrogate" and not self.surrogate:
             raise UserError("mode 'surrogate' needs a surrogate bundle (--surrogate DIR or MLflow run id)")
         return self
@@ -115,7 +128,13 @@ class OptimiseConfig:
         return parse_objectives(self.objectives or list(DEFAULT_PARETO), LABELS)
 
     def constraints(self) -> Constraints:
-        return Constraints(max_peak_force_n=self.max_peak_force_n, peak_force_static_ratio=self.peak_force_static_ratio,
+        cons = Constraints(max_peak_force_n=self.max_peak_force_n, peak_force_static_ratio=self.peak_force_static_ratio,
                            max_specific_energy_j_m=self.max_specific_energy_j_m, max_power_w=self.max_power_w,
                            max_decel_g=self.max_decel_g,
                            require_settled=not self.allow_not_settled, require_progress=self.objective == "pareto")
+        from pipeline.optimise.envelope import Envelope
+
+        env = Envelope.from_mapping(self.exciter, "rig file exciter")
+        if env is not None:
+            cons = replace(cons, envelope=env)
+        return replace(cons, margins=resolve_margins(self.margin, cons)) if self.margin is not None else cons

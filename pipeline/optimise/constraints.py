@@ -8,7 +8,7 @@ Inputs are label rows: ``status`` (MODELS.md §5 status; surrogate regimes are m
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Mapping
 
 from pipeline.core.errors import UserError
@@ -31,6 +31,39 @@ def _num(x) -> float | None:
 UPPER_LIMITS = {"power": ("power_w", "max_power_w"), "decel": ("peak_decel_g", "max_decel_g")}
 """Plain upper limits on a label: constraint key -> (label, Constraints field)."""
 
+LIMITED_LABELS = {"peak_force_n": ("max_peak_force_n", "peak_force_static_ratio"),
+                  "specific_energy_j_m": ("max_specific_energy_j_m",), "power_w": ("max_power_w",),
+                  "peak_decel_g": ("max_decel_g",)}
+"""Label -> the Constraints fields that limit it: the labels a margin may name."""
+
+
+def resolve_margins(margin, cons: "Constraints") -> dict[str, float]:
+    """``margin`` (a fraction for every limited label, or {label: fraction}) -> {label: fraction} over the labels
+    ``cons`` limits; UserError naming a bad fraction, an unknown label or a label without a limit."""
+    if margin is None:
+        return {}
+    limited = [lab for lab, attrs in LIMITED_LABELS.items() if any(getattr(cons, a) is not None for a in attrs)]
+    if not isinstance(margin, dict):
+        margin = {lab: margin for lab in limited}
+        if not limited:
+            raise UserError("--margin: no limit to keep a margin from (give --max-power-w, --max-decel-g, ...)")
+    out = {}
+    for lab, m in margin.items():
+        if lab not in LIMITED_LABELS:
+            raise UserError(f"--margin {lab}: not a limited label (known: {', '.join(LIMITED_LABELS)})")
+        if lab not in limited:
+            raise UserError(f"--margin {lab}: {lab} has no limit (give --{LIMITED_LABELS[lab][0].replace('_', '-')})")
+        try:
+            if isinstance(m, bool):         # YAML's yes/no would pass float() as 1/0
+                raise TypeError
+            v = float(m)
+        except (TypeError, ValueError):
+            raise UserError(f"--margin {lab}: '{m}' is not a number") from None
+        if not (0.0 <= v < 1.0):
+            raise UserError(f"--margin {lab}: a fraction of the limit in [0, 1) is needed (0.05 = 5 %), got {m}")
+        out[lab] = v
+    return out
+
 
 @dataclass(frozen=True)
 class Constraints:
@@ -40,9 +73,13 @@ class Constraints:
     peak_force_n <= k × static_force_n (seed 002: the impulsive force should stay below the
     static preload to avoid bit bounce).  max_specific_energy_j_m: specific_energy_j_m <= this [J/m].
     max_power_w: power_w <= this [W] (the exciter's power rating).  max_decel_g: peak_decel_g <= this [g]
-    (the bit's deceleration limit: tool life).
+    (the bit's deceleration limit: tool life).  envelope: the exciter's force-against-frequency, stroke and coil
+    velocity limits (pipeline/optimise/envelope.py), declared in the rig file.
     require_settled: status must be ok/no_contact (else not_settled is allowed; runaway/failed never are).
     require_progress: rop_m_s > 0 (set by the Pareto mode, where specific energy is otherwise infinite).
+    margins: {label: fraction}: a point must stay that fraction below every limit on the label (0.05: power <=
+    0.95 × max_power_w), and a predicted row is judged by the upper end of its interval (``label_hi``), so the
+    recommendation stays feasible within the surrogate's uncertainty and a simulated one within ± the margin.
     """
 
     max_peak_force_n: float | None = None
@@ -52,6 +89,19 @@ class Constraints:
     max_decel_g: float | None = None
     require_settled: bool = True
     require_progress: bool = False
+    margins: Mapping[str, float] = field(default_factory=dict)
+    envelope: object = None         # envelope.Envelope: the exciter's limits from the rig file, or None
+
+    def limit_of(self, label: str, limit: float) -> float:
+        """The limit a point must keep below on ``label``: ``limit`` less the label's margin (a fraction of it)."""
+        return limit * (1.0 - float(self.margins.get(label, 0.0)))
+
+    def _with_uncertainty(self, row: Mapping, label: str) -> float | None:
+        """The label's value; under a margin, the upper end of its predicted interval (``label_hi``) when the row
+        has one (a surrogate's prediction), so the point stays below the limit within that uncertainty."""
+        v = _num(row.get(label))
+        hi = _num(row.get(f"{label}_hi")) if label in self.margins else None
+        return v if hi is None or v is None else max(v, hi)
 
     def names(self) -> list[str]:
         out = ["steady_state"]
@@ -64,6 +114,8 @@ class Constraints:
         if self.max_specific_energy_j_m is not None:
             out.append("specific_energy")
         out += [key for key, (_, attr) in UPPER_LIMITS.items() if getattr(self, attr) is not None]
+        if self.envelope is not None:
+            out += list(self.envelope.values({}))
         return out
 
     def values(self, row: Mapping) -> dict[str, float]:
@@ -74,12 +126,13 @@ class Constraints:
         rop = _num(row.get("rop_m_s"))
         if self.require_progress:
             out["progress"] = -1.0 if (rop is not None and rop > 0) else 1.0
-        pk = _num(row.get("peak_force_n"))
+        pk = self._with_uncertainty(row, "peak_force_n")
         if self.max_peak_force_n is not None:
-            out["peak_force"] = 1.0 if pk is None else (pk - self.max_peak_force_n) / self.max_peak_force_n
+            lim = self.limit_of("peak_force_n", self.max_peak_force_n)
+            out["peak_force"] = 1.0 if pk is None else (pk - lim) / lim
         if self.peak_force_static_ratio is not None:
             fs = _num(row.get("static_force_n"))
-            lim = None if fs is None else self.peak_force_static_ratio * fs
+            lim = None if fs is None else self.limit_of("peak_force_n", self.peak_force_static_ratio * fs)
             if pk is None or lim is None:
                 out["peak_vs_static"] = 1.0
             elif lim <= 0:
@@ -87,15 +140,18 @@ class Constraints:
             else:
                 out["peak_vs_static"] = (pk - lim) / lim
         if self.max_specific_energy_j_m is not None:
-            se = _num(row.get("specific_energy_j_m"))
-            lim = self.max_specific_energy_j_m
+            se = self._with_uncertainty(row, "specific_energy_j_m")
+            lim = self.limit_of("specific_energy_j_m", self.max_specific_energy_j_m)
             # inf (nothing progresses) -> a large finite violation: optuna stores finite constraints only
             out["specific_energy"] = 1.0 if se is None else (1e3 if math.isinf(se) else min((se - lim) / lim, 1e3))
         for key, (label, attr) in UPPER_LIMITS.items():
             lim = getattr(self, attr)
             if lim is not None:
-                v = _num(row.get(label))
+                lim = self.limit_of(label, lim)
+                v = self._with_uncertainty(row, label)
                 out[key] = 1.0 if v is None or math.isinf(v) else min((v - lim) / lim, 1e3)
+        if self.envelope is not None:
+            out.update(self.envelope.values(row))
         return out
 
     def feasible(self, row: Mapping) -> bool:
@@ -136,7 +192,13 @@ class Constraints:
                     f"{floor:g} N the tool must reach to progress{extra}")
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        out = asdict(self)
+        out["margins"] = dict(self.margins)
+        out["envelope"] = None if self.envelope is None else self.envelope.to_dict()
+        for key in ("margins", "envelope"):     # a study without them keeps the signature it always had
+            if not out[key]:
+                del out[key]
+        return out
 
 
 def progress_force_floor(model: str, values: Mapping[str, float]) -> float | None:

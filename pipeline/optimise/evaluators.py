@@ -20,9 +20,10 @@ class SimulatorEvaluator:
     kind = "simulator"
 
     def __init__(self, model: str, preset: str | None, fixed: dict | None = None, settings=None,
-                 n_threads: int | None = None):
+                 n_threads: int | None = None, history_labels: bool = False):
         import sim
 
+        self.history_labels = history_labels     # add envelope.ENVELOPE_LABELS (stroke, coil velocity) per row
         self.model, self.preset, self.fixed = model, preset, dict(fixed or {})
         self.settings, self.n_threads = settings, n_threads
         self.calls = 0
@@ -37,6 +38,13 @@ class SimulatorEvaluator:
                 table[k] = v
         out = sim.simulate_batch(self.model, table, preset=self.preset, settings=self.settings,
                                  n_threads=self.n_threads)
+        if self.history_labels:
+            from pipeline.optimise.envelope import history_labels
+
+            extra = history_labels(self.model, self.preset, table, self.settings)
+            out = out.reset_index(drop=True)
+            for c in extra.columns:
+                out[c] = extra[c].to_numpy()
         self.calls += len(table)
         return out
 

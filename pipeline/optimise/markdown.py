@@ -1,6 +1,8 @@
 """The Markdown report of an optimisation (``report.md``), written from its report.json dict by the command."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import math
 
 import numpy as np
@@ -56,6 +58,17 @@ def markdown(rep: dict, table: pd.DataFrame | None) -> str:
                   + f" | {_eng('rop_m_s', rec.get('rop_m_s_pred'))} | {rec['status_sim']} |", ""]
         if rec.get("binding"):
             lines += ["At the limit(s): " + ", ".join(rec["binding"]) + ".", ""]
+        if rec.get("margins"):
+            lines += ["Margin kept: " + ", ".join(
+                f"{m['label']} {m['value_sim']:.4g} ≤ {m['kept_below']:.4g} ({m['margin']:.0%} below the limit "
+                f"{m['limit']:g}; headroom {m['headroom']:.1%})" for m in rec["margins"] if m["value_sim"] is not None)
+                      + ".", ""]
+        if rec.get("on_envelope"):
+            lines += ["**On the shaker's envelope:** " + ", ".join(rec["on_envelope"]) + ".", ""]
+        maps = [Path(f).name for f in rep.get("figures") or [] if Path(f).name.startswith("limit_map_")]
+        if maps:
+            lines += ["ROP around the recommendation, with the limits (solid), the limits less their margin (dashed) "
+                      "and the exciter's envelope:", "", *(f"![{m}]({m})" for m in maps), ""]
         if rec.get("on_bounds"):
             lines += ["**On the edge of the search space:** " + describe_bounds(rec["on_bounds"])
                       + ". The optimum may lie beyond this bound; widen that range (sweep and train on it) to know.", ""]

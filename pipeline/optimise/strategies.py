@@ -94,6 +94,14 @@ def _check_surrogate_labels(evaluate: Evaluator, space: Space, objectives: list[
                         f"{', '.join(missing)} among train.targets, or optimise with --simulator")
 
 
+def _envelope(cfg: OptimiseConfig, space: Space):
+    """The rig's exciter envelope (None without one), checked against the search space."""
+    env = cfg.constraints().envelope
+    if env is not None:
+        env.check_space(space.ranges)
+    return env
+
+
 def surrogate_strategies(cfg: OptimiseConfig, bundle, sampler: SamplerFactory) -> Strategies:
     """A study on ``bundle`` (its model, preset, fixed values and training ranges, narrowed by ``cfg``), verified by
     the simulator under the bundle's conditions."""
@@ -112,6 +120,10 @@ def surrogate_strategies(cfg: OptimiseConfig, bundle, sampler: SamplerFactory) -
     settings = cfg.settings if cfg.settings is not None else (bundle.settings or None)
     problem = Problem(bundle.model, bundle.preset, fixed, space, settings)
     _check_problem(problem)
+    env = _envelope(cfg, space)
+    if env is not None and env.needs_history:
+        raise UserError("the rig's exciter limits on stroke or velocity need --simulator: the surrogate predicts "
+                        "neither (its force envelope alone works on the surrogate)")
     simulator = SimulatorEvaluator(problem.model, problem.preset, fixed, settings=settings, n_threads=cfg.n_threads)
     evaluator = SurrogateEvaluator(bundle, fixed)
     _check_surrogate_labels(evaluator, space, [n for n, _ in cfg.objective_list()], cfg.constraints(), cfg.surrogate)
@@ -127,6 +139,7 @@ def simulator_strategies(cfg: OptimiseConfig, sampler: SamplerFactory) -> Strate
                         f"'{cfg.preset}' publishes no default space")
     problem = Problem(cfg.model, cfg.preset, dict(cfg.fixed), space, cfg.settings)
     _check_problem(problem)
+    env = _envelope(cfg, space)
     simulator = SimulatorEvaluator(problem.model, problem.preset, problem.fixed, settings=cfg.settings,
-                                   n_threads=cfg.n_threads)
+                                   n_threads=cfg.n_threads, history_labels=env is not None and env.needs_history)
     return Strategies(problem, sampler, simulator, run_direct, simulator)

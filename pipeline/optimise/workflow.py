@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.optimise.config import DEFAULT_TRIALS, MODES, OptimiseConfig
-from pipeline.optimise.constraints import UPPER_LIMITS, Constraints, progress_force_floor
+from pipeline.optimise.constraints import LIMITED_LABELS, UPPER_LIMITS, Constraints, progress_force_floor
 from pipeline.optimise.coordination import batch_seed, guard_for
 from pipeline.optimise.space import Space, describe_bounds
 from pipeline.optimise.strategies import Problem, Strategies
@@ -101,6 +101,11 @@ class OptimiseResult:
                         "best_rop_rel_error": r.get("rop_rel_error"), "best_power_w": r.get("power_w_sim"),
                         "best_peak_decel_g": r.get("peak_decel_g_sim"), "best_n_on_bounds": len(r["on_bounds"]),
                         **{f"best_{n}": v for n, v in r["params"].items()}})
+            for m in r.get("margins", []):      # with --margin: the margin kept and the headroom left per limit
+                out[f"margin_{m['label']}"] = m["margin"]
+                out[f"headroom_{m['label']}"] = m["headroom"]
+            if "on_envelope" in r:              # with a rig's exciter envelope: how many of its limits bind
+                out["best_n_on_envelope"] = len(r["on_envelope"])
         return out
 
 
@@ -110,12 +115,33 @@ def _n_startup(n_trials: int) -> int:
 
 
 def _binding(cons: Constraints, row) -> list[str]:
-    """Limits the verified point sits at (within 5 % below the limit): the constraints that shape the answer."""
+    """Limits the verified point sits at (within 5 % below the limit, less its margin): the constraints that shape
+    the answer."""
     out = []
     for key, (label, attr) in UPPER_LIMITS.items():
         lim, v = getattr(cons, attr), row.get(f"{label}_sim")
-        if lim is not None and v is not None and not pd.isna(v) and float(v) >= 0.95 * lim:
-            out.append(f"{label} {float(v):.4g} of its limit {lim:g}")
+        if lim is not None and v is not None and not pd.isna(v) and float(v) >= 0.95 * cons.limit_of(label, lim):
+            kept = f" less its margin, {cons.limit_of(label, lim):.4g}" if label in cons.margins else ""
+            out.append(f"{label} {float(v):.4g} of its limit {lim:g}{kept}")
+    return out
+
+
+def _margins(cons: Constraints, row) -> list[dict]:
+    """The margin kept on each limit with one: label, limit, margin (fraction), the value kept below, the simulated
+    value and its headroom below the limit (fraction of the limit, >= the margin when kept)."""
+    out = []
+    for label, attrs in LIMITED_LABELS.items():
+        if label not in cons.margins:
+            continue
+        for attr in attrs:
+            lim = getattr(cons, attr)
+            if lim is None or attr == "peak_force_static_ratio":
+                continue
+            v = row.get(f"{label}_sim")
+            v = None if v is None or pd.isna(v) else float(v)
+            out.append({"label": label, "limit": float(lim), "margin": float(cons.margins[label]),
+                        "kept_below": cons.limit_of(label, lim), "value_sim": v,
+                        "headroom": None if v is None else (lim - v) / lim})
     return out
 
 
@@ -125,6 +151,12 @@ def _outcome(rec: dict) -> str:
             + ", ".join(f"{n} = {v:.4g}" for n, v in rec["params"].items()))
     if rec.get("binding"):
         text += "; at the limit(s): " + ", ".join(rec["binding"])
+    if rec.get("margins"):
+        text += "; margin kept: " + ", ".join(
+            f"{m['label']} {m['value_sim']:.4g} <= {m['kept_below']:.4g} ({m['margin']:.0%} below {m['limit']:g})"
+            for m in rec["margins"] if m["value_sim"] is not None)
+    if rec.get("on_envelope"):
+        text += "; ON THE SHAKER'S ENVELOPE: " + ", ".join(rec["on_envelope"])
     if rec.get("on_bounds"):
         text += ("; ON THE EDGE of the search space: " + describe_bounds(rec["on_bounds"])
                  + " (the optimum may lie beyond it: widen that range to know)")
@@ -145,7 +177,7 @@ def _verified_front(table: pd.DataFrame, objectives: list[tuple[str, str]], spac
             for _, r in front.iterrows()]
 
 
-def _recommend(best, space: Space, cons: Constraints) -> dict:
+def _recommend(best, space: Space, cons: Constraints, sim_row: dict | None = None) -> dict:
     """The recommendation of the best verified row: controls, simulated (and predicted) labels, bounds, limits."""
     rec = {"params": {n: float(best[n]) for n in space.names},
            **{k: (None if pd.isna(best.get(k)) else float(best[k])) for k in
@@ -155,6 +187,13 @@ def _recommend(best, space: Space, cons: Constraints) -> dict:
            "status_sim": best["status_sim"], "surrogate_wrong": bool(best["surrogate_wrong"])}
     rec["on_bounds"] = space.on_bounds(rec["params"])
     rec["binding"] = _binding(cons, best)
+    if cons.margins:        # only then: report.json keeps the keys it always had
+        rec["margins"] = _margins(cons, best)
+    if cons.envelope is not None:
+        row = {**{n: float(best[n]) for n in space.names}, **(sim_row or {})}
+        rec["on_envelope"] = cons.envelope.on_envelope(row)
+        rec.update({f"{k}_sim": sim_row.get(k) for k in ("stroke_m", "coil_velocity_m_s")
+                    if sim_row and k in sim_row})
     return rec
 
 
@@ -215,7 +254,9 @@ def run_optimise(plan: OptimisePlan, progress: bool = True) -> OptimiseResult:
             outcome = (f"none of the {len(table)} points the study found feasible is feasible when simulated "
                        f"(statuses {dict(Counter(table['status_sim']))}): nothing recommended")
         else:
-            rec = _recommend(best, space, cons)
+            sim_row = simres.reset_index(drop=True).iloc[int(best.name)].to_dict()
+            rec = _recommend(best, space, cons, {k: v for k, v in sim_row.items() if k in space.names or
+                                                 k in ("stroke_m", "coil_velocity_m_s", "frequency_hz", "amplitude_n")})
             outcome = _outcome(rec)
         if cfg.objective == "pareto":
             front = _verified_front(table, objectives, space)
