@@ -156,7 +156,13 @@ def _estimators(est, depth: int = 0):
 
 
 def _check_estimator(est, n_in: int, what: str) -> None:
+    from sklearn.dummy import DummyRegressor
+
     for e in _estimators(est):
+        if isinstance(e, DummyRegressor):     # a constant target: predicts its constant whatever the inputs
+            if not np.isfinite(np.asarray(getattr(e, "constant_", np.nan), dtype=float)).all():
+                raise BundleContentError(f"{what}: constant model holds a non-finite value")
+            continue
         n = getattr(e, "n_features_in_", None)
         if n is not None and (isinstance(n, bool) or not isinstance(n, (int, np.integer)) or int(n) != n_in):
             raise BundleContentError(f"{what}: fitted on {n!r} inputs, the bundle lists {n_in}")
