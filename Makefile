@@ -1,5 +1,6 @@
 # One-command set-up: `make run` (install + the dvc pipeline on the embedded defaults),
-# `make test` (install + the test suite).  Everything lives in .venv.
+# `make test` (install + the test suite).  Everything lives in .venv.  The install compiles no kernel: a command
+# compiles the kernels it uses on first use (bench/compile_cost.py; `vibro compile` builds all ahead of time).
 PYTHON ?= python3.11
 VENV   := .venv
 BIN    := $(VENV)/bin
@@ -16,10 +17,9 @@ $(STAMP): pyproject.toml requirements.lock
 	@$(BIN)/python -m pip install --progress-bar off -c requirements.lock -e ".[dev]" \
 	  | grep --line-buffered -E "^(Collecting|Successfully installed)" | sed -u 's/^/    /' || true
 	@$(BIN)/python -c "import pipeline, sim, surrogate" || { echo "install failed: rerun 'make install' to see pip's errors"; exit 1; }
-	@echo "==> compiling the simulation kernels ahead of time (vibro compile: a few minutes on 2 cores, once; it prints the time it took)"
-	@$(BIN)/vibro compile --quiet || echo "    (ahead-of-time kernels not built: vibro simulate falls back to numba's JIT)"
 	@touch $(STAMP)
 	@echo "==> installed; .venv/bin/vibro --version: $$($(BIN)/vibro --version)"
+	@echo "    each model's kernel compiles on first use (numba's cache, once); 'vibro compile' builds them all ahead of time"
 
 install: $(STAMP)
 

@@ -46,7 +46,9 @@ def add_parser(sub) -> None:
                     "JIT kernel's.  Modules are named by the hash of the kernel's sources and kept beside numba's "
                     "cache ($VIBRO_KERNEL_DIR, else .numba_cache/ in the repository, else ~/.cache/vibro); after a "
                     "change to sim/ the old modules go unused and simulate falls back to the JIT kernel until this "
-                    "is rerun.  'make install' runs it.  An existing module is not rebuilt.  Set VIBRO_NO_AOT=1 to "
+                    "is rerun.  'make install' does not run it: without these modules each command compiles the "
+                    "kernels it uses on first use (numba's cache, once per kernel).  An existing module is not "
+                    "rebuilt.  Set VIBRO_NO_AOT=1 to "
                     "ignore the modules.  Kernels are built in parallel processes, those of the models the pipeline "
                     "uses (params.yaml's sweep model, then the systems of measured/*/runs.csv) first; one line per kernel as it finishes, with the "
                     "elapsed time and an estimate of the time left, and the total at the end.",
