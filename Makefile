@@ -6,7 +6,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install run test test-all bench clean
+.PHONY: install kernels-jit run test test-all bench clean
 
 $(STAMP): pyproject.toml requirements.lock
 	@test -x $(BIN)/python || { echo "==> [install 1/3] creating $(VENV) with $(PYTHON)"; $(PYTHON) -m venv $(VENV); }
@@ -27,14 +27,19 @@ run: install
 	@echo "==> running the pipeline: dvc repro under one MLflow parent run (python -m pipeline.tracking.repro)"
 	@$(BIN)/python -m pipeline.tracking.repro
 
-test: install
+# the suite uses every kernel: compiled once each, in parallel, rather than by both test workers at once
+kernels-jit: install
+	@$(BIN)/vibro compile --jit-only --quiet || echo "    (kernels not precompiled: the tests compile them on first use)"
+
+test: kernels-jit
 	$(BIN)/python -m pytest -q -n 2 --dist loadgroup
 
-test-all: install
+test-all: kernels-jit
 	$(BIN)/python -m pytest -q -n 2 --dist loadgroup -m "slow or not slow"
 
 bench: install
 	$(BIN)/python -m pip install --quiet heyoka==7.13.2 CyRK==0.20.0 || true   # the bench extra by name: keeps the editable install
+	$(BIN)/vibro compile --quiet    # the ahead-of-time kernels the benchmarks time (bench_precision says which it ran)
 	$(BIN)/python -m bench.run_all $(BENCH_FLAGS)   # BENCH_FLAGS=--quick for the short version
 
 clean:

@@ -28,10 +28,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 
 _SETUP = ("import sys; from sim import get_model, aot; from sim.compiled import kernels\n"
+          "from pipeline.cli.compile import jit_argument_types\n"
           "spec = get_model(sys.argv[1]); exact = sys.argv[2] or None\n")
+_JIT = _SETUP + "kernels(spec.funcs, spec.n_bounded, exact).compile(jit_argument_types())\n"
 STEPS = {
-    "jit compile": _SETUP + "kernels(spec.funcs, spec.n_bounded, exact).compile(aot.RUN_POINT_SIGNATURE)\n",
-    "jit load": _SETUP + "kernels(spec.funcs, spec.n_bounded, exact).compile(aot.RUN_POINT_SIGNATURE)\n",
+    "jit compile": _JIT,
+    "jit load": _JIT,
     "aot compile": _SETUP + "aot.build(spec.funcs, spec.n_bounded, exact)\n",
     "aot load": _SETUP + "assert aot.load(spec.funcs, exact) is not None\n",
 }
