@@ -5,13 +5,15 @@
 1. **install**: ``make install`` (the venv, pip's install of the pinned dependencies; no kernel is compiled);
 2. **compile**: the numba kernels the pipeline's models need (``params.yaml``'s sweep model and the systems of
    ``measured/*/runs.csv``: :func:`pipeline.cli.compile.pipeline_models`), compiled into the clone's cache as the
-   pipeline's stages would on first use (``sim.registry.warm``), so this phase is measured apart from the stages;
+   pipeline's stages would on first use (``vibro compile --jit-only MODEL ...``), so this phase is measured apart
+   from the stages;
 3. **pipeline**: ``make run`` (the install is up to date, so: the dvc pipeline).
 
 CPU = user + sys of every process a phase ran (``resource.getrusage(RUSAGE_CHILDREN)`` before and after: make,
 pip, dvc and the stages are all waited-for descendants); load = the 1-minute load average before and after the phase
 (on a shared machine the wall time follows the load, the CPU seconds much less).  ``--phases install,compile``
-stops early; ``--keep`` keeps the clone.  Not a test: nothing asserts a timing.
+stops early; ``--keep`` keeps the clone; ``--clone DIR`` runs the phases in such a kept clone instead of a new one.
+Not a test: nothing asserts a timing.
 """
 from __future__ import annotations
 
@@ -29,19 +31,15 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 PHASES = ("install", "compile", "pipeline")
 
-_WARM = ("import sys; from pipeline.cli.compile import pipeline_models; from sim.registry import warm\n"
-         "models = pipeline_models()\n"
-         "for m in models:\n"
-         "    warm(m)\n"
-         "print(' '.join(models))\n")
-
 
 def phase_command(phase: str, clone: Path) -> list[str]:
     """The command a phase runs in ``clone``."""
     if phase == "install":
         return ["make", "install"]
     if phase == "compile":
-        return [str(clone / ".venv" / "bin" / "python"), "-c", _WARM]
+        from pipeline.cli.compile import pipeline_models
+
+        return [str(clone / "bin" / "vibro"), "compile", "--jit-only", *pipeline_models(clone)]
     if phase == "pipeline":
         return ["make", "run"]
     raise ValueError(f"unknown phase {phase!r}; phases: {', '.join(PHASES)}")
@@ -95,17 +93,25 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--phases", default=",".join(PHASES), help="comma-separated, in order (default: all three)")
     ap.add_argument("--keep", action="store_true", help="keep the clone (its path is printed)")
     ap.add_argument("--json", type=Path, help="also write the rows here")
+    ap.add_argument("--clone", type=Path, help="run in this existing clone (e.g. one kept by --keep)")
     args = ap.parse_args(argv)
     phases = [p for p in args.phases.split(",") if p]
     for p in phases:
-        phase_command(p, ROOT)            # an unknown phase fails before the clone
+        try:
+            phase_command(p, ROOT)            # an unknown phase fails before the clone
+        except ValueError as e:
+            ap.error(str(e))
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True,
                             check=True).stdout.strip()
     tmp = Path(tempfile.mkdtemp(prefix="vibro-first-run-"))
-    clone = tmp / "vibro"
+    clone = args.clone.resolve() if args.clone else tmp / "vibro"
     rows: list[dict] = []
     try:
-        subprocess.run(["git", "clone", "--quiet", "--no-hardlinks", str(ROOT), str(clone)], check=True)
+        if args.clone is None:
+            subprocess.run(["git", "clone", "--quiet", "--no-hardlinks", str(ROOT), str(clone)], check=True)
+        else:
+            commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=clone, capture_output=True,
+                                    text=True, check=True).stdout.strip()
         for p in phases:
             row = run_phase(p, clone, tmp / f"{p}.log")
             rows.append(row)
