@@ -1,8 +1,9 @@
 """What a kernel costs to compile, and what each process pays to load it afterwards: numba's JIT cache against the
 ahead-of-time module (``vibro compile``, sim/aot.py).
 
-Per kernel, each step in a fresh subprocess with its own empty kernel folder (``VIBRO_KERNEL_DIR``), CPU = user +
-sys of the child (``RUSAGE_CHILDREN``) beside the wall time and the load average:
+Per kernel, each step in a fresh subprocess, the JIT pair and the ahead-of-time pair each in its own empty kernel
+folder (``VIBRO_KERNEL_DIR``: neither reuses what the other compiled), CPU = user + sys of the child
+(``RUSAGE_CHILDREN``) beside the wall time and the load average:
 
 * ``jit compile``: ``sim.compiled.kernels(...)`` compiled into numba's cache (what a sweep, a batch or a diagnosis
   does on first use);
@@ -10,8 +11,10 @@ sys of the child (``RUSAGE_CHILDREN``) beside the wall time and the load average
 * ``aot compile``: ``sim.aot.build`` (what ``vibro compile MODEL`` does per kernel);
 * ``aot load``: ``sim.aot.load`` in a new process.
 
-``python -m bench.compile_cost [MODEL ...]`` (default: drill) prints one row per kernel.  Not a test: nothing
-asserts a timing.
+``python -m bench.compile_cost [MODEL ...] [--kernel numerical|exact] [--only jit|aot]`` (default: drill, both
+kernels, both pairs) prints one row per kernel.  A kernel compiled first into an empty folder also compiles the
+functions it shares with the model's other kernels; a later kernel finds them cached.  Not a test: nothing asserts a
+timing.
 """
 from __future__ import annotations
 
@@ -59,8 +62,9 @@ def run_step(code: str, model: str, exact: str | None, kernel_dir: Path) -> dict
     return {"cpu_s": cpu, "wall_s": wall, "load_before": load0, "load_after": os.getloadavg()[0]}
 
 
-def kernel_rows(models: list[str]) -> list[dict]:
-    """One row per kernel of ``models``: every step of :data:`STEPS` in its own empty kernel folder."""
+def kernel_rows(models: list[str], kernel: str | None = None, only: str | None = None) -> list[dict]:
+    """One row per kernel of ``models`` (``kernel``: only the numerical or the exact one): the steps of
+    :data:`STEPS` (``only``: those starting "jit" or "aot"), each pair in its own empty kernel folder."""
     from sim import get_model
     from sim.registry import kernel_variants
 
@@ -68,13 +72,19 @@ def kernel_rows(models: list[str]) -> list[dict]:
     for model in models:
         spec = get_model(model)
         for exact in kernel_variants(spec):
-            with tempfile.TemporaryDirectory(prefix="vibro-compile-cost-") as tmp:
-                row = {"model": model, "kernel": "exact" if exact else "numerical"}
-                for step, code in STEPS.items():
-                    row[step] = run_step(code, model, exact, Path(tmp))
-                    print(f"  {model} {row['kernel']}: {step} {row[step]['cpu_s']:.1f} s CPU, "
-                          f"{row[step]['wall_s']:.1f} s wall, load {row[step]['load_before']:.1f}", file=sys.stderr)
-                rows.append(row)
+            row = {"model": model, "kernel": "exact" if exact else "numerical"}
+            if kernel not in (None, row["kernel"]):
+                continue
+            for pair in ("jit", "aot"):
+                if only not in (None, pair):
+                    continue
+                with tempfile.TemporaryDirectory(prefix="vibro-compile-cost-") as tmp:
+                    for step in (s for s in STEPS if s.startswith(pair)):
+                        row[step] = run_step(STEPS[step], model, exact, Path(tmp))
+                        print(f"  {model} {row['kernel']}: {step} {row[step]['cpu_s']:.1f} s CPU, "
+                              f"{row[step]['wall_s']:.1f} s wall, load {row[step]['load_before']:.1f}",
+                              file=sys.stderr)
+            rows.append(row)
     return rows
 
 
@@ -84,7 +94,8 @@ def table(rows: list[dict]) -> str:
              "| kernel | " + " | ".join(f"{s} CPU s (wall s, load)" for s in STEPS) + " |",
              "|---|" + "---|" * len(STEPS)]
     for r in rows:
-        cells = [f"{r[s]['cpu_s']:.1f} ({r[s]['wall_s']:.1f}, {r[s]['load_before']:.1f})" for s in STEPS]
+        cells = [f"{r[s]['cpu_s']:.1f} ({r[s]['wall_s']:.1f}, {r[s]['load_before']:.1f})" if s in r else "-"
+                 for s in STEPS]
         lines.append(f"| {r['model']} {r['kernel']} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -92,9 +103,11 @@ def table(rows: list[dict]) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.compile_cost", description=__doc__.split("\n\n")[0])
     ap.add_argument("models", nargs="*", default=["drill"], help="models (default: drill)")
+    ap.add_argument("--kernel", choices=("numerical", "exact"), help="only this kernel of each model")
+    ap.add_argument("--only", choices=("jit", "aot"), help="only the JIT or the ahead-of-time pair of steps")
     ap.add_argument("--json", type=Path, help="also write the rows here")
     args = ap.parse_args(argv)
-    rows = kernel_rows(args.models)
+    rows = kernel_rows(args.models, args.kernel, args.only)
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
     print(table(rows))
