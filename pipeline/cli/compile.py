@@ -32,7 +32,7 @@ def pipeline_models(root: Path = ROOT) -> tuple[str, ...]:
             continue
     return tuple(dict.fromkeys(names))
 
-Job = tuple[str, "str | None", bool]               # (model, exact propagator or None, also fill the JIT cache)
+Job = tuple[str, "str | None", bool, bool]      # (model, exact propagator or None, fill the JIT cache, build the AOT module)
 Result = tuple[str, str, "str | None", "float | None"]   # (label, path, error or None, seconds or None: up to date)
 
 
@@ -46,7 +46,9 @@ def add_parser(sub) -> None:
                     "JIT kernel's.  Modules are named by the hash of the kernel's sources and kept beside numba's "
                     "cache ($VIBRO_KERNEL_DIR, else .numba_cache/ in the repository, else ~/.cache/vibro); after a "
                     "change to sim/ the old modules go unused and simulate falls back to the JIT kernel until this "
-                    "is rerun.  'make install' runs it.  An existing module is not rebuilt.  Set VIBRO_NO_AOT=1 to "
+                    "is rerun.  'make install' does not run it: without these modules each command compiles the "
+                    "kernels it uses on first use (numba's cache, once per kernel).  An existing module is not "
+                    "rebuilt.  Set VIBRO_NO_AOT=1 to "
                     "ignore the modules.  Kernels are built in parallel processes, those of the models the pipeline "
                     "uses (params.yaml's sweep model, then the systems of measured/*/runs.csv) first; one line per kernel as it finishes, with the "
                     "elapsed time and an estimate of the time left, and the total at the end.",
@@ -55,12 +57,16 @@ def add_parser(sub) -> None:
                "  vibro compile                 # every model: a few minutes on 2 cores; it prints the time it took\n"
                "  vibro compile drill           # the drill's two kernels\n"
                "  vibro compile --workers 1\n"
-               "  vibro compile --jit           # also fill numba's JIT cache (threads: sweeps, batches, diagnosis)")
+               "  vibro compile --jit           # also fill numba's JIT cache (threads: sweeps, batches, diagnosis)\n"
+               "  vibro compile --jit-only      # only numba's JIT cache, each kernel once (make test runs it)")
     p.add_argument("models", nargs="*", metavar="MODEL", help="models to compile (default: all)")
     p.add_argument("--workers", type=int, default=None,
                    help="kernels compiled at once, one process each (default: the number of cores)")
     p.add_argument("--jit", action="store_true", help="also compile the GIL-free JIT kernels into numba's cache "
                                                       "(30-70 s per kernel the first time)")
+    p.add_argument("--jit-only", action="store_true",
+                   help="only fill numba's JIT cache, no ahead-of-time module: what threads, batches and the test "
+                        "suite load; compiled once here instead of by every process that first needs a kernel")
     p.add_argument("--quiet", action="store_true", help="short per-kernel lines (no module paths)")
     p.set_defaults(func=run)
 
@@ -143,10 +149,10 @@ def run(args) -> int:
                 continue
             seen.add((spec.funcs, exact))
             path = aot.module_path(spec.funcs, exact)
-            if path.exists() and not args.jit:      # up to date: reported without starting a worker
+            if path.exists() and not (args.jit or args.jit_only):     # up to date: no worker started
                 current.append((_label(n, exact), str(path), None, None))
             else:
-                todo.append((n, exact, args.jit))
+                todo.append((n, exact, args.jit or args.jit_only, not args.jit_only))
     workers = min(args.workers or os.cpu_count() or 1, max(len(todo), 1))
     clock = CompileClock(len(current) + len(todo), workers)
     if todo:
@@ -188,20 +194,34 @@ def _label(model: str, exact: str | None) -> str:
     return f"{model} ({'exact propagator' if exact else 'numerical integrator'})"
 
 
-def compile_kernel(model: str, exact: str | None, jit: bool) -> Result:
-    """Build one kernel's AOT module (and with ``jit`` its numba cache): (label, path, error or None,
-    seconds or None when it was already built).  Runs in a worker process."""
+def jit_argument_types() -> tuple:
+    """The argument types sim.api calls ``run_point`` with (C-contiguous arrays), as a tuple: numba keys its cache by
+    what ``compile`` was given, and a call looks its types up, so a kernel compiled from the signature's text would be
+    compiled again by the first call."""
+    from numba.core import sigutils
+
+    from sim import aot
+
+    args, _ = sigutils.normalize_signature(aot.RUN_POINT_SIGNATURE)
+    return tuple(args)
+
+
+def compile_kernel(model: str, exact: str | None, jit: bool, ahead: bool = True) -> Result:
+    """Build one kernel's AOT module (``ahead``) and/or its numba cache (``jit``): (label, path, error or None,
+    seconds or None when both were already built).  Runs in a worker process."""
     from sim import aot, get_model
-    from sim.compiled import kernels
+    from sim.compiled import kernel_path, kernels
 
     spec = get_model(model)
     label = _label(model, exact)
     t0 = time.perf_counter()
-    existed = aot.module_path(spec.funcs, exact).exists()
+    existed = aot.module_path(spec.funcs, exact).exists() or not ahead
     try:
-        path = aot.build(spec.funcs, spec.n_bounded, exact)
-        if jit:       # the signature sim.api calls with: C-contiguous arrays
-            kernels(spec.funcs, spec.n_bounded, exact).compile(aot.RUN_POINT_SIGNATURE)
+        path = aot.build(spec.funcs, spec.n_bounded, exact) if ahead else kernel_path(spec.funcs, exact)
+        if jit:
+            run_point = kernels(spec.funcs, spec.n_bounded, exact)
+            run_point.compile(jit_argument_types())
+            existed = existed and sum(run_point.stats.cache_misses.values()) == 0     # loaded, not compiled
     except Exception as e:  # noqa: BLE001 - a compiler problem: named, and the JIT kernel still serves
         return label, "", f"{type(e).__name__}: {e}", None
     return label, str(path), None, None if existed else time.perf_counter() - t0

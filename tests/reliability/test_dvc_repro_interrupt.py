@@ -41,7 +41,7 @@ pytestmark = [pytest.mark.slow, pytest.mark.skipif(not DVC.exists(), reason="dvc
 
 def _project(root: Path) -> dict:
     root.mkdir()
-    env = {**os.environ, "PYTHONPATH": str(REPO), "NUMBA_CACHE_DIR": str(REPO / ".numba_cache"),
+    env = {**os.environ, "PYTHONPATH": str(REPO),     # the suite's kernel cache: compiled once, not per project
            "GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t", "GIT_COMMITTER_EMAIL": "t@t"}
     for cmd in (["git", "init", "-q"], [str(DVC), "init", "-q"]):
         subprocess.run(cmd, cwd=root, check=True, env=env, capture_output=True)

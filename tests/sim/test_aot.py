@@ -35,11 +35,27 @@ def _run(run_point, model: str, preset: str | None, exact: str | None):
     return labels, y, z, ph
 
 
+_SUITE_DIR = os.environ.get("VIBRO_KERNEL_DIR")     # the suite's kernel folder, before a test empties it
+
+
+def _suite_kernel(spec, exact: str | None):
+    """The JIT kernel from the suite's cache (compiled once for every test), not recompiled in a test's empty folder."""
+    saved = os.environ.pop("VIBRO_KERNEL_DIR", None)
+    if _SUITE_DIR is not None:
+        os.environ["VIBRO_KERNEL_DIR"] = _SUITE_DIR
+    try:
+        return kernels(spec.funcs, spec.n_bounded, exact)
+    finally:
+        os.environ.pop("VIBRO_KERNEL_DIR", None)
+        if saved is not None:
+            os.environ["VIBRO_KERNEL_DIR"] = saved
+
+
 def _assert_bit_identical(model: str, exact: str | None, presets) -> None:
     spec = sim.get_model(model)
     run_aot = aot.load(spec.funcs, exact)
     assert run_aot is not None, "the AOT module was built but does not load"
-    run_jit = kernels(spec.funcs, spec.n_bounded, exact)
+    run_jit = _suite_kernel(spec, exact)
     for preset in presets:
         a, b = _run(run_aot, model, preset, exact), _run(run_jit, model, preset, exact)
         assert a[0][I.L_STEPS] > 0 or exact, "the kernel did not integrate"
@@ -55,8 +71,10 @@ def kernel_dir(tmp_path, monkeypatch):
 
 
 def _fresh(code: str, env: dict) -> str:
+    """stdout of ``code`` in a fresh interpreter; ``env`` adds variables (None: removes one)."""
+    full = {**os.environ, **env}
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
-                          env={**os.environ, **env})
+                          env={k: v for k, v in full.items() if v is not None})
     assert proc.returncode == 0, proc.stderr
     return proc.stdout.strip()
 
@@ -71,6 +89,7 @@ def test_drill_exact_aot_kernel_is_bit_identical_and_loads_without_numba(kernel_
     """Built here (about 10 s) from the same generated source as the JIT kernel; the labels of the `lab` preset and
     the default point, and the final state, must agree to the last bit."""
     spec = sim.get_model("drill")
+    _suite_kernel(spec, spec.exact)                                    # loaded before the folder is emptied
     assert aot.load(spec.funcs, spec.exact) is None                    # nothing built yet in this folder
     path = aot.build(spec.funcs, spec.n_bounded, spec.exact)
     assert path.exists() and path.parent == kernel_dir and not list(kernel_dir.glob(".*.tmp"))
@@ -82,8 +101,9 @@ def test_drill_exact_aot_kernel_is_bit_identical_and_loads_without_numba(kernel_
     assert numba_loaded == "False"
     assert (float(rop), float(decel), int(events)) == (jit.labels["rop_m_s"], jit.labels["peak_decel_g"],
                                                        jit.labels["n_events"])
-    # VIBRO_NO_AOT=1 ignores the module: numba's JIT kernel serves, with the same labels
-    out = _fresh(_PROBE, {"VIBRO_KERNEL_DIR": str(kernel_dir), "VIBRO_NO_AOT": "1"}).split()
+    # VIBRO_NO_AOT=1 ignores the module: numba's JIT kernel serves (the suite's, not one compiled afresh in the
+    # empty folder), with the same labels
+    out = _fresh(_PROBE, {"VIBRO_KERNEL_DIR": _SUITE_DIR, "VIBRO_NO_AOT": "1"}).split()
     assert out[3] == "True" and out[:3] == [rop, decel, events]
 
 
@@ -91,12 +111,14 @@ def test_rimd_hybrid_aot_kernel_is_bit_identical(kernel_dir):
     """The RIMD's hybrid kernel (the template with sim/exact/rimd.py's free-phase hook) built ahead of time: labels
     and final state of an impacting and a non-impacting point agree with its JIT kernel to the last bit."""
     spec = sim.get_model("rimd")
+    _suite_kernel(spec, spec.exact)
     aot.build(spec.funcs, spec.n_bounded, spec.exact)
     _assert_bit_identical("rimd", spec.exact, (None, "gap-3mm"))
 
 
 def test_a_stale_or_missing_module_falls_back_to_the_jit_kernel(kernel_dir):
     spec = sim.get_model("drill")
+    _suite_kernel(spec, spec.exact)           # the fallback loads the suite's JIT kernel, compiled once
     path = aot.module_path(spec.funcs, spec.exact)
     assert "vibro_aot_" in path.name and path.parent == kernel_dir
     assert aot.load(spec.funcs, spec.exact) is None
@@ -113,6 +135,7 @@ def test_every_aot_kernel_is_bit_identical(model, kernel_dir):
     """Every model's kernels (the numerical integrator; the drill's exact propagator too), every preset."""
     spec = sim.get_model(model)
     for exact in kernel_variants(spec):
+        _suite_kernel(spec, exact)
         aot.build(spec.funcs, spec.n_bounded, exact)
         _assert_bit_identical(model, exact, (None, *spec.presets))
 

@@ -1,8 +1,9 @@
 """Verdicts on rig logs this project did not make: the independent generator (tests/independent: scipy reference,
 samples at the DAQ's instants, a rig's noise) writes the log, ``vibro diagnose`` judges it at its defaults.
 
-One short log per system runs by default; the slow subset covers every kind of verdict on every system at both
-noise models of the identification matrix (``python -m bench.identification`` runs the whole matrix)."""
+Every kind of verdict runs by default on short drill logs, and the pendulum's; the other systems' short logs and the
+slow subset cover every kind of verdict on every system at both noise models of the identification matrix
+(``python -m bench.identification`` runs the whole matrix)."""
 from __future__ import annotations
 
 import json
@@ -49,14 +50,20 @@ def _check(rep: dict, truth: dict, spec: LogSpec) -> None:
     assert rep["call"]["text"] and rep["heldout_n"] > 0
 
 
+# every verdict by default on the drill's logs (about 40 s of CPU each, bench/results/identification.json) and the
+# pendulum's (its chaotic run); the indenters' and the RIMD's short logs cost 2-3 times a drill log and run with the
+# slow subset
 FAST = [LogSpec("drill", effect="shaker_coil", noise="rig", seed=0, n_runs=8),
-        LogSpec("indenter-metal", noise="white2", seed=1, n_runs=8),
-        LogSpec("indenter-sandstone", effect="tip_blunting", noise="rig", seed=0, n_runs=8),
-        LogSpec("pendulum", effect="sensor_lowpass", noise="white2", seed=0, n_runs=8),
-        LogSpec("rimd", outside="quadratic_damping", noise="rig", seed=1, n_runs=8)]
+        LogSpec("drill", noise="rig", seed=1, n_runs=8),
+        LogSpec("drill", outside="quadratic_damping", noise="rig", seed=1, n_runs=8),
+        LogSpec("pendulum", effect="sensor_lowpass", noise="white2", seed=0, n_runs=8)]
+SLOW_SHORT = [LogSpec("indenter-metal", noise="white2", seed=1, n_runs=8),
+              LogSpec("indenter-sandstone", effect="tip_blunting", noise="rig", seed=0, n_runs=8),
+              LogSpec("rimd", outside="quadratic_damping", noise="rig", seed=1, n_runs=8)]
 
 
-@pytest.mark.parametrize("spec", FAST, ids=lambda s: s.name)
+@pytest.mark.parametrize("spec", [*FAST, *(pytest.param(s, marks=pytest.mark.slow) for s in SLOW_SHORT)],
+                         ids=lambda s: s.name)
 def test_verdict_on_an_independent_log(tmp_path, spec):
     rep, truth = _diagnose(tmp_path, spec)
     _check(rep, truth, spec)

@@ -29,7 +29,10 @@ def _env(root: Path, experiment: str = "vibro-test") -> dict[str, str]:
     for key in ("MLFLOW_TRACKING_URI", "VIBRO_PARENT_RUN_ID", "VIBRO_NO_MLFLOW", "MLFLOW_RUN_ID"):
         env.pop(key, None)
     env.update(VIBRO_HOME=str(root), VIBRO_EXPERIMENT=experiment, DVC_NO_ANALYTICS="1",
-               PATH=str(BIN) + os.pathsep + env.get("PATH", ""), NUMBA_CACHE_DIR=str(REPO / ".numba_cache"))
+               PATH=str(BIN) + os.pathsep + env.get("PATH", ""),
+               # the suite's kernels (a copied project's stages would otherwise compile every one again)
+               VIBRO_KERNEL_DIR=env.get("VIBRO_KERNEL_DIR") or str(REPO / ".numba_cache"))
+    env.pop("NUMBA_CACHE_DIR", None)
     return env
 
 
