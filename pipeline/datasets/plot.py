@@ -9,7 +9,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
-_MARKERS = {"no_contact": ("s", "0.6"), "not_settled": ("^", "C1"), "runaway": ("x", "C3"), "failed": ("X", "k")}
+_MARKERS = {"aperiodic": ("d", "C2"), "no_contact": ("s", "0.6"), "not_settled": ("^", "C1"), "runaway": ("x", "C3"),
+            "failed": ("X", "k")}
 
 
 def plot_sweep(df: pd.DataFrame, xname: str, yname: str, path: str | os.PathLike, title: str = "") -> str:
