@@ -5,7 +5,8 @@ Free of numpy, so the pipeline and the surrogate can name statuses without loadi
 What each means (docs/simulate.md "Statuses"; every result is checked against these by sim.invariants):
   ok           periodic steady state: period n >= 1 (MODELS.md §5), labels are means over a window of whole periods
   aperiodic    bounded and statistically steady (the window's two halves agree on ROP, peak force, impact rate and
-               work) but with no period <= 8: chaotic or quasi-periodic; period 0, labels are window means
+               work) but with no period <= 8 within the period tolerance: chaotic, quasi-periodic, or a periodic
+               orbit still converging (a short transient); period 0, labels are window means
   no_contact   settled without a contact in the window (ROP 0, no impacts)
   not_settled  still transient when the window was recorded (reason says how); labels are window means
   runaway      no bounded steady state (drill: Fs >= Pr); no labels

