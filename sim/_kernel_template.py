@@ -585,12 +585,12 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
             labels[L_REASON] = REASON_DRIFT if growing else REASON_PRECHECK
             labels[L_DRIFT_ACC] = dd_last / (period * period)
             return labels
-    # ---- recorded window, in two halves
+    # ---- recorded window, in two halves (room for the cycles that make a periodic response's window whole periods)
     n1 = n_win // 2
     n2 = n_win - n1
-    ws = np.zeros((n_win, N_BOUNDED))
-    wmin = np.zeros((n_win, N_BOUNDED))
-    wmax = np.zeros((n_win, N_BOUNDED))
+    ws = np.zeros((n_win + MAX_PERIOD, N_BOUNDED))
+    wmin = np.zeros((n_win + MAX_PERIOD, N_BOUNDED))
+    wmax = np.zeros((n_win + MAX_PERIOD, N_BOUNDED))
     acc1 = np.zeros(N_ACC)
     acc2 = np.zeros(N_ACC)
     t_win = t
@@ -616,6 +616,24 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
                              hist_t, hist_y, hist_obs, hist_ph, 1.0 if hist_t.shape[0] > 0 else 0.0, counters, wk, gk)
     if _record_counters(labels, counters):
         return labels
+    # period over the window; a contact's period that does not divide it: the second half goes on to whole periods
+    # (the labels of an ok run are then means over whole periods, as MODELS.md §5 means them; a run without contact
+    # keeps its window)
+    ranges = np.empty(N_BOUNDED)
+    span_ranges(wmin, wmax, 0, n_win - 1, ranges)
+    per = periodicity(ws, ranges, s[S_PERIOD_TOL], n_win)
+    in_contact = acc1[6] > 0.0 or acc2[6] > 0.0 or max(acc1[0], acc2[0]) > 0.0
+    if in_contact and per > 0 and n_win % per != 0:
+        extra = per - n_win % per
+        t = integrate_cycles(p, y, z, ph_arr, t, period, extra, s,
+                             atol, True, ws[n_win:n_win + extra], wmin[n_win:n_win + extra],
+                             wmax[n_win:n_win + extra], acc2, hist_t, hist_y, hist_obs, hist_ph,
+                             1.0 if hist_t.shape[0] > 0 else 0.0, counters, wk, gk)
+        if _record_counters(labels, counters):
+            return labels
+        n_win += extra
+        n2 += extra
+    labels[L_WINDOW] = n_win
     prog1 = _progress(t, y, z, ph_arr[0], p, obs, dy)
     w1 = y[IW]
     t_w = n_win * period
@@ -638,20 +656,17 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
     labels[L_ENERGY] = (w1 - w0) / n_win
     dprog = prog1 - prog0
     labels[L_SPEC_E] = (w1 - w0) / dprog if dprog > 0.0 else np.inf
-    # period over the window
-    ranges = np.empty(N_BOUNDED)
-    span_ranges(wmin, wmax, 0, n_win - 1, ranges)
-    per = periodicity(ws, ranges, s[S_PERIOD_TOL], n_win)
     labels[L_PERIOD] = per
-    in_contact = acc1[6] > 0.0 or acc2[6] > 0.0 or peak > 0.0
     if not in_contact:
         labels[L_STATUS] = STATUS_NO_CONTACT
         labels[L_ROP] = 0.0 if abs(labels[L_ROP]) < 1e-15 else labels[L_ROP]
         return labels
-    if settled or per > 0:
+    # ok: periodic (MODELS.md §5 period >= 1) over a window of whole periods.  A transient that settled (``settled``)
+    # without a period in the window is judged like one that did not: steady or not by its half-windows
+    if per > 0:
         labels[L_STATUS] = STATUS_OK
         return labels
-    # non-periodic: steady if the two half-windows agree statistically
+    # non-periodic: aperiodic (chaotic or quasi-periodic, statistically steady) if the two half-windows agree
     tol = s[S_STAT_TOL]
     r1 = (prog_mid - prog0) / (n1 * period)
     r2 = (prog1 - prog_mid) / (n2 * period)
@@ -663,8 +678,8 @@ def run_point(p, y, z, ph_io, period, s, atol, hist_t, hist_y, hist_obs, hist_ph
               and _rel_close(i1, i2, tol, 0.0)
               and _rel_close(w_mid - w0, w1 - w_mid, tol, 1e-12))
     if steady:
-        labels[L_STATUS] = STATUS_OK
+        labels[L_STATUS] = STATUS_APERIODIC
     else:
         labels[L_STATUS] = STATUS_NOT_SETTLED
-        labels[L_REASON] = REASON_NOT_PERIODIC
+        labels[L_REASON] = REASON_LOST_PERIOD if settled else REASON_NOT_PERIODIC
     return labels

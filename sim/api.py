@@ -12,8 +12,11 @@ import numpy as np
 from sim import layout as I
 from sim.compiled import kernels
 from sim.compile_notice import announce_compile
+from sim.errors import did_you_mean
+from sim.invariants import violation
 from sim.models.base import ModelSpec, ParameterError
 from sim.registry import get_model
+from sim.statuses import BOUNDED_STATUSES
 
 if TYPE_CHECKING:                  # pandas is imported only where a table is built (history, batch)
     import pandas as pd
@@ -28,8 +31,8 @@ energy_per_cycle_j × frequency_hz (null where the energy is null)."""
 
 DIAGNOSTICS = ("transient_cycles", "n_steps", "n_events")
 
-STATUS_NAMES = {I.STATUS_OK: "ok", I.STATUS_NO_CONTACT: "no_contact", I.STATUS_RUNAWAY: "runaway",
-                I.STATUS_NOT_SETTLED: "not_settled", I.STATUS_FAILED: "failed"}
+STATUS_NAMES = {I.STATUS_OK: "ok", I.STATUS_APERIODIC: "aperiodic", I.STATUS_NO_CONTACT: "no_contact",
+                I.STATUS_RUNAWAY: "runaway", I.STATUS_NOT_SETTLED: "not_settled", I.STATUS_FAILED: "failed"}
 REASONS = {
     I.REASON_NONE: "",
     I.REASON_STEP_UNDERFLOW: "step size underflow (the integrator could not advance)",
@@ -38,6 +41,8 @@ REASONS = {
     I.REASON_DRIFT: "centre of mass accelerates every cycle: no bounded steady state",
     I.REASON_PRECHECK: "pre-check: static force exceeds the progression threshold",
     I.REASON_NOT_PERIODIC: "no period <= 8 found and the two half-windows disagree: still transient at the cap",
+    I.REASON_LOST_PERIOD: "the transient repeated with a period, but the window shows none and its two halves "
+                          "disagree: still drifting",
     I.REASON_WORK_LIMIT: "work limit: more integration steps than the setting max_steps allows for one point "
                          "(a stiffness or frequency far outside the model's range?)",
 }
@@ -122,9 +127,10 @@ def make_settings(spec: ModelSpec, settings: Settings | dict | None) -> Settings
         return base.validate()
     if isinstance(settings, Settings):
         return settings.validate()
-    unknown = set(settings) - set(SETTING_NAMES)
+    unknown = sorted(set(settings) - set(SETTING_NAMES))
     if unknown:
-        raise ParameterError(f"unknown setting(s) {sorted(unknown)}; known: {', '.join(SETTING_NAMES)}")
+        raise ParameterError(f"unknown setting(s) {unknown}{did_you_mean(unknown[0], SETTING_NAMES)}; "
+                             f"known: {', '.join(SETTING_NAMES)}")
     return replace(base, **settings).validate()
 
 
@@ -151,7 +157,9 @@ def _power_w(energy_per_cycle_j, frequency_hz: float) -> float | None:
     return None if energy_per_cycle_j is None else float(energy_per_cycle_j) * float(frequency_hz)
 
 
-def _labels_from_vector(v: np.ndarray, precheck_msg: str | None) -> dict:
+def _labels_from_vector(v: np.ndarray, precheck_msg: str | None, spec: ModelSpec, values: dict) -> dict:
+    """The labels of one run's kernel vector ``v``, checked against the invariants of every result (sim.invariants):
+    a result that breaks one is ``failed`` with that reason and no labels."""
     status_code = int(v[I.L_STATUS])
     status = STATUS_NAMES[status_code]
     reason = REASONS.get(int(v[I.L_REASON]), "")
@@ -160,7 +168,7 @@ def _labels_from_vector(v: np.ndarray, precheck_msg: str | None) -> dict:
         reason = precheck_msg + (f"; confirmed by the drift: the bit's progression accelerates at {drift:.3g} m/s^2"
                                  if int(v[I.L_REASON]) == I.REASON_DRIFT else "")
     out = {}
-    valid = status in ("ok", "no_contact", "not_settled")
+    valid = status in BOUNDED_STATUSES
     idxs = (I.L_ROP, I.L_PEAK_F, I.L_MEAN_PEAK_F, I.L_IMPACTS, I.L_PERIOD, I.L_DECEL, I.L_ENERGY, I.L_SPEC_E)
     lost = [name for name, idx in zip(KERNEL_LABELS, idxs) if math.isnan(float(v[idx]))]
     if valid and lost:     # a label is null only with a failure status and a reason
@@ -174,6 +182,9 @@ def _labels_from_vector(v: np.ndarray, precheck_msg: str | None) -> dict:
             out[name] = int(val) if name == "period" else val
     out["status"] = status
     out["reason"] = reason
+    broken = violation(out, int(v[I.L_WINDOW]), spec.min_work_per_m, values)
+    if broken is not None:
+        out.update(dict.fromkeys(KERNEL_LABELS), status="failed", reason=f"invariant broken: {broken}")
     out["transient_cycles"] = int(v[I.L_TRANSIENT])
     out["n_steps"] = int(v[I.L_STEPS])
     out["n_events"] = int(v[I.L_EVENTS])
@@ -298,7 +309,7 @@ def simulate(model: str, preset: str | None = None, settings: Settings | dict | 
         announce_compile(spec, exact)
         run_one = kernels(spec.funcs, spec.n_bounded, exact)
     v = run_one(p, y, z, ph, period, s, atol, ht, hy, ho, hp)
-    labels = _labels_from_vector(v, msg)
+    labels = _labels_from_vector(v, msg, spec, values)
     hist = None
     if history and labels["status"] not in ("runaway", "failed"):
         import pandas as pd
@@ -370,7 +381,7 @@ def simulate_batch(model: str, table, preset: str | None = None, settings: Setti
 
         with ThreadPoolExecutor(max_workers=workers) as pool:
             list(pool.map(work, range(len(rows))))
-    labels = [_labels_from_vector(out[i], msgs[i]) for i in range(len(rows))]
+    labels = [_labels_from_vector(out[i], msgs[i], spec, rows[i]) for i in range(len(rows))]
     res = pd.concat([pd.DataFrame(rows), pd.DataFrame(labels)], axis=1)
     for i, values in enumerate(rows):
         if spec.needs_history(values):   # e.g. the sensor low-pass works on the time history

@@ -20,13 +20,16 @@ S_MAX_STEPS = 11         # accepted steps of the whole run: a point's work limit
 N_SETTINGS = 12
 
 # ----------------------------------------------------------------------------- label layout
+# L_WINDOW: the recorded window's length in forcing cycles (the setting ``window``, made whole periods of a periodic
+# response); the labels' invariants check it (sim.invariants)
 L_STATUS, L_ROP, L_PEAK_F, L_MEAN_PEAK_F, L_IMPACTS, L_PERIOD, L_DECEL, L_ENERGY, L_SPEC_E, \
-    L_TRANSIENT, L_REASON, L_STEPS, L_EVENTS, L_DRIFT_ACC = range(14)
-N_LABELS = 14
+    L_TRANSIENT, L_REASON, L_STEPS, L_EVENTS, L_DRIFT_ACC, L_WINDOW = range(15)
+N_LABELS = 15
 
-STATUS_OK, STATUS_NO_CONTACT, STATUS_RUNAWAY, STATUS_NOT_SETTLED, STATUS_FAILED = 0, 1, 2, 3, 4
+# STATUS_APERIODIC: bounded and statistically steady (the window's two halves agree), with no period <= 8
+STATUS_OK, STATUS_NO_CONTACT, STATUS_RUNAWAY, STATUS_NOT_SETTLED, STATUS_FAILED, STATUS_APERIODIC = 0, 1, 2, 3, 4, 5
 REASON_NONE, REASON_STEP_UNDERFLOW, REASON_TOO_MANY_STEPS, REASON_NONFINITE, REASON_DRIFT, \
-    REASON_PRECHECK, REASON_NOT_PERIODIC, REASON_WORK_LIMIT = range(8)
+    REASON_PRECHECK, REASON_NOT_PERIODIC, REASON_WORK_LIMIT, REASON_LOST_PERIOD = range(9)
 
 OBS_FORCE, OBS_ACCEL, OBS_DISP, OBS_PROGRESS, OBS_VEL = 0, 1, 2, 3, 4
 N_OBS = 5

@@ -4,7 +4,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING
 
-from sim.errors import ParameterError
+from sim.errors import ParameterError, did_you_mean
 
 if TYPE_CHECKING:                  # the models (numpy, numba) are imported on the first get_model
     from sim.models.base import ModelSpec
@@ -30,7 +30,7 @@ def model_names() -> tuple[str, ...]:
 def get_model(name: str) -> ModelSpec:
     """The ModelSpec of ``name`` (ParameterError naming the known models otherwise)."""
     if name not in _MODULES:
-        raise ParameterError(f"unknown model '{name}'; known models: {', '.join(_MODULES)}")
+        raise ParameterError(f"unknown model '{name}'{did_you_mean(name, _MODULES)}; known models: {', '.join(_MODULES)}")
     mod = importlib.import_module(_MODULES[name])
     specs = getattr(mod, "SPECS", None)
     if specs is not None:

@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Iterator, Mapping
 
-from sim.errors import ParameterError
+from sim.errors import ParameterError, did_you_mean
 from sim.models.discrepancy import PARAM_OF as DISCREPANCY_PARAMS
 from sim.registry import get_model, model_names
 
@@ -43,14 +43,12 @@ class Rig:
 
     def __post_init__(self) -> None:
         if self.model not in model_names():
-            raise ParameterError(f"rig: unknown model '{self.model}'; known models: {', '.join(model_names())}")
+            raise ParameterError(f"rig: unknown model '{self.model}'{did_you_mean(self.model, model_names())}; "
+                                 f"known models: {', '.join(model_names())}")
         spec = get_model(self.model)
         spec.defaults(self.preset)                      # unknown preset -> ParameterError naming the known ones
         known = set(spec.param_names)
-        for name in self.parameters:
-            if name not in known:
-                raise ParameterError(f"rig: unknown parameter '{name}' for model '{self.model}'; "
-                                     f"known: {', '.join(spec.param_names)}")
+        spec.check_names(self.parameters, "rig")
         effect_params = {p for ps in spec.effects.values() for p in ps}
         for name in self.parameters:
             if name in DISCREPANCY_PARAMS:
@@ -61,8 +59,8 @@ class Rig:
                                      f"({self._effect_of(spec, name)}: {{{name}: value}})")
         for eff, vals in self.effects.items():
             if eff not in spec.effects:
-                raise ParameterError(f"rig: unknown effect '{eff}' for model '{self.model}'; "
-                                     f"known: {', '.join(spec.effects) or 'none'}")
+                raise ParameterError(f"rig: unknown effect '{eff}' for model '{self.model}'"
+                                     f"{did_you_mean(eff, spec.effects)}; known: {', '.join(spec.effects) or 'none'}")
             if not isinstance(vals, Mapping):
                 raise ParameterError(f"rig: effect '{eff}' must map its parameters to values, e.g. "
                                      f"{{{spec.effects[eff][0]}: value}}; got {vals!r}")
@@ -71,18 +69,21 @@ class Rig:
                                      f"{{{', '.join(f'{n}: value' for n in spec.effects[eff])}}} or remove it")
             for name in vals:
                 if name not in spec.effects[eff]:
-                    raise ParameterError(f"rig: effect '{eff}' has no parameter '{name}'; "
+                    raise ParameterError(f"rig: effect '{eff}' has no parameter '{name}'"
+                                         f"{did_you_mean(name, spec.effects[eff])}; "
                                          f"its parameters: {', '.join(spec.effects[eff])}")
         for name in self.discrepancy:
             if name not in spec.discrepancy:
-                raise ParameterError(f"rig: discrepancy term '{name}' is not a term of model '{self.model}'; "
+                raise ParameterError(f"rig: discrepancy term '{name}' is not a term of model '{self.model}'"
+                                     f"{did_you_mean(name, spec.discrepancy)}; "
                                      f"its terms: {', '.join(spec.discrepancy) or 'none'}")
         for what, v in self._values():
             if isinstance(v, bool):     # YAML's true/false would pass float() as 1/0
                 raise ParameterError(f"rig: {what} must be a number, got {str(v).lower()} (a yes/no, not a value)")
         for name, sd in self.uncertainty.items():
             if name not in known:
-                raise ParameterError(f"rig: uncertainty of unknown parameter '{name}' for model '{self.model}'")
+                raise ParameterError(f"rig: uncertainty of unknown parameter '{name}' for model '{self.model}'"
+                                     f"{did_you_mean(name, spec.param_names)}")
             try:
                 ok = math.isfinite(float(sd)) and float(sd) >= 0.0
             except (TypeError, ValueError):
@@ -160,7 +161,8 @@ class Rig:
             raise ParameterError(f"rig: expected a mapping with keys {', '.join(RIG_KEYS)}, got {type(data).__name__}")
         for key in data:
             if key not in RIG_KEYS:
-                raise ParameterError(f"rig: unknown key '{key}'; known keys: {', '.join(RIG_KEYS)}")
+                raise ParameterError(f"rig: unknown key '{key}'{did_you_mean(key, RIG_KEYS)}; "
+                                     f"known keys: {', '.join(RIG_KEYS)}")
         if "model" not in data:
             raise ParameterError("rig: missing key 'model'")
         for key in ("parameters", "effects", "discrepancy", "uncertainty"):

@@ -1,7 +1,7 @@
 """Training data (in memory): check a sweep frame, name its inputs and ranges, derive the regime label.
 
-Regimes (one per point): ``progressing`` (status ok and rop_m_s > 0), ``no_progress``
-(status ok / no_contact with rop_m_s = 0: the bit does not advance the rock), and the
+Regimes (one per point): ``progressing`` (status ok or aperiodic, and rop_m_s > 0), ``no_progress``
+(status ok / aperiodic / no_contact with rop_m_s = 0: the bit does not advance the rock), and the
 simulator's own ``runaway``, ``not_settled`` and ``failed``.
 """
 from __future__ import annotations
@@ -11,7 +11,7 @@ import hashlib
 import numpy as np
 import pandas as pd
 
-from sim.statuses import BOUNDED_STATUSES, SETTLED_STATUSES
+from sim.statuses import BOUNDED_STATUSES, IMPACTING_STATUSES, SETTLED_STATUSES, STATUSES
 from surrogate.errors import ConfigError, DataError
 from surrogate.names import CONTROLS, REGIMES
 
@@ -29,11 +29,10 @@ def regime_of(df: pd.DataFrame) -> pd.Series:
     rop = pd.to_numeric(df["rop_m_s"], errors="coerce")
     out = status.copy()
     out[status.isin(list(SETTLED_STATUSES))] = "no_progress"
-    out[(status == "ok") & (rop > 0)] = "progressing"
+    out[status.isin(list(IMPACTING_STATUSES)) & (rop > 0)] = "progressing"
     unknown = sorted(set(out) - set(REGIMES))
     if unknown:
-        raise DataError(f"column 'status' has unknown value(s) {unknown}; expected ok, no_contact, runaway, "
-                        "not_settled or failed")
+        raise DataError(f"column 'status' has unknown value(s) {unknown}; expected one of {', '.join(STATUSES)}")
     return out
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import sys
 import time
 import warnings
@@ -21,6 +22,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 from pipeline.core.errors import USER_ERRORS, machine_error, show_warnings  # noqa: E402
+from sim.errors import did_you_mean  # noqa: E402
 
 QUIET_ENV = "VIBRO_QUIET"      # read by sim/compile_notice.py (not imported here: --help stays fast)
 SUBCOMMANDS = ("simulate", "sweep", "train", "optimise", "verify", "import", "diagnose", "synth", "map", "report",
@@ -58,8 +60,45 @@ class _VersionAction(argparse.Action):
         parser.exit()
 
 
+_INVALID_CHOICE = re.compile(r"^(argument .*?): invalid choice: '(.*)' \(choose from (.*)\)$")
+
+
+class VibroParser(argparse.ArgumentParser):
+    """argparse with a did-you-mean (``sim.errors.did_you_mean``) on a mistyped flag or choice, in one line naming
+    the subcommand: ``vibro sweep: error: unknown option --npoints (did you mean --n-points?)``.  Its subcommands'
+    parsers are of this class too (argparse makes them of their parent's class)."""
+
+    def parse_args(self, args=None, namespace=None):
+        ns, extra = self.parse_known_args(args, namespace)
+        if extra:
+            self._unknown(ns, extra)
+        return ns
+
+    def _unknown(self, ns, extra: list[str]) -> None:
+        """Exit 2 with one line naming the first unknown option (and its likely spelling) or the stray arguments."""
+        commands = getattr(self, "commands", {})
+        parser = commands.get(getattr(ns, "command", None), self)
+        flag = next((a for a in extra if a.startswith("-") and len(a) > 1), None)
+        if flag is not None:
+            flag = flag.partition("=")[0]
+            options = [o for a in parser._actions for o in a.option_strings if o.startswith("--")]
+            message = f"unknown option {flag}{did_you_mean(flag, options)}"
+        else:
+            message = f"unexpected argument(s) {' '.join(extra)} (see '{parser.prog} --help')"
+        parser.exit(2, f"{parser.prog}: error: {message}\n")
+
+    def error(self, message: str):
+        m = _INVALID_CHOICE.match(message)
+        if m is None:
+            super().error(message)
+        what, word, choices = m.groups()
+        options = re.findall(r"'([^']*)'", choices)
+        self.exit(2, f"{self.prog}: error: {what}: invalid choice '{word}'{did_you_mean(word, options)}; "
+                     f"choose from {', '.join(options)}\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = VibroParser(
         prog="vibro",
         description="Simulate vibro-impact drilling systems, build labelled datasets, learn surrogates, "
                     "optimise the operating point for rate of penetration, and diagnose the model against "
@@ -77,6 +116,7 @@ def build_parser() -> argparse.ArgumentParser:
                 continue
             raise
         mod.add_parser(sub)
+    parser.commands = sub.choices      # name -> its parser (VibroParser names the one a mistyped flag went to)
     return parser
 
 
@@ -106,6 +146,9 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    from pipeline.cli.args import PROG
+
+    PROG[0] = f"vibro {args.command}"
     t0 = time.perf_counter()
     quiet_before = os.environ.get(QUIET_ENV)
     if getattr(args, "quiet", False):      # no compile notice either, in this process and its workers

@@ -23,10 +23,12 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import Callable
+import sys
+from typing import Callable, Mapping
 
 from pipeline.core.errors import UserError
 from pipeline.core.numbers import number  # noqa: F401 - the one number parser, re-exported
+from sim.errors import did_you_mean
 
 # upper bounds on the work one command may ask for (a typo like 1e12 is an error, not a MemoryError or a hang)
 MAX_POINTS = 10_000_000        # sweep / verify points, map grid cells
@@ -114,6 +116,20 @@ def parse_ranges(items: list[str] | None, what: str = "--vary") -> dict[str, tup
     return out
 
 
+PROG = ["vibro"]
+"""The running command's name for warning lines (``vibro simulate``; set by pipeline.cli.main)."""
+
+
+def warn_out_of_range(model: str, preset: str | None, values: Mapping, source: str = "") -> None:
+    """One stderr line per value (or sweep range) in ``values`` outside the ranges the model or its preset was
+    validated on, naming the likely mistake (``ModelSpec.out_of_range``); the run goes on.  ``source`` prefixes
+    the lines (e.g. ``rig file r.yaml: ``)."""
+    from sim import get_model
+
+    for line in get_model(model).out_of_range(preset, values):
+        print(f"{PROG[0]}: warning: {source}{line}", file=sys.stderr, flush=True)
+
+
 def add_set(p, aliases: tuple[str, ...] = (), help: str | None = None) -> None:
     """``--set NAME=VALUE`` (dest ``sets``): hold a model parameter at a value."""
     p.add_argument("--set", *aliases, dest="sets", action="append", metavar="NAME=VALUE",
@@ -177,6 +193,7 @@ def load_rig(path: str | None, model: str | None = None, preset: str | None = No
                       dict(rig.uncertainty), rig.source, dict(rig.discrepancy))
         except ParameterError as e:
             raise UserError(f"rig file {path} with --preset {preset}: {str(e).removeprefix('rig: ')}") from None
+    warn_out_of_range(rig.model, rig.preset, rig.overrides(), f"rig file {path}: ")
     return rig
 
 
@@ -243,7 +260,8 @@ def check_settings(values: dict | None, what: str = "--setting") -> dict | None:
             out[name] = v
             continue
         if name not in SETTINGS_BOUNDS:
-            raise UserError(f"{what} '{name}' is unknown (known: {', '.join((*SETTINGS_BOUNDS, *TEXT_SETTINGS))})")
+            known = (*SETTINGS_BOUNDS, *TEXT_SETTINGS)
+            raise UserError(f"{what} '{name}' is unknown{did_you_mean(name, known)} (known: {', '.join(known)})")
         integer, lo, hi, lo_incl = SETTINGS_BOUNDS[name]
         out[name] = number(v, f"{what} {name}", integer=integer, lo=lo, hi=hi, lo_open=not lo_incl)
     if out.get("max_transient", math.inf) < out.get("min_transient", 0):

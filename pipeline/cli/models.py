@@ -62,6 +62,11 @@ def describe(name: str, full: bool) -> list[str]:
         for preset, space in spec.search_spaces.items():
             rng = ", ".join(f"{k} {lo:g}..{hi:g} {units.get(k, '')}".rstrip() for k, (lo, hi) in space.items())
             lines.append(f"    {preset or '(defaults)':<16} {rng}")
+    if spec.validated:
+        lines.append("  validated on (a value outside draws a warning; with the calibratable bounds above):")
+        for preset, space in spec.validated.items():
+            rng = ", ".join(f"{k} {lo:g}..{hi:g} {units.get(k, '')}".rstrip() for k, (lo, hi) in space.items())
+            lines.append(f"    {preset or '(defaults)':<16} {rng or 'its own values only'}")
     return lines
 
 
@@ -69,9 +74,11 @@ def run(args) -> int:
     from sim import model_names
 
     from pipeline.core.errors import UserError
+    from sim.errors import did_you_mean
 
     if args.model and args.model not in model_names():
-        raise UserError(f"unknown model '{args.model}'; known models: {', '.join(model_names())}")
+        raise UserError(f"unknown model '{args.model}'{did_you_mean(args.model, model_names())}; "
+                        f"known models: {', '.join(model_names())}")
     names = [args.model] if args.model else list(model_names())
     for name in names:
         print("\n".join(describe(name, full=bool(args.model))))

@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import argparse
 
-from pipeline.cli.args import add_rig, add_set, model_and_overrides, parse_assignments, parse_settings
+from pipeline.cli.args import (add_rig, add_set, model_and_overrides, parse_assignments, parse_settings,
+                               warn_out_of_range)
 from pipeline.core.jsonable import dump_json
 
 
@@ -69,12 +70,15 @@ def plot_settings(model: str, settings: dict | None) -> tuple[dict | None, str |
 
 
 def run(args) -> int:
-    from sim import simulate
+    from sim import get_model, simulate
 
     from pipeline.core.outdir import check_out_file, figure_path, record_out_file
 
-    model, preset, params = model_and_overrides(args.model, args.preset, args.rig, parse_assignments(args.sets))
+    sets = parse_assignments(args.sets)
+    model, preset, params = model_and_overrides(args.model, args.preset, args.rig, sets)
     settings = parse_settings(args.settings) or None
+    get_model(model).resolve(preset, **params)      # a value that cannot be is an error before any warning
+    warn_out_of_range(model, preset, sets)
     plot = None
     if args.plot is not None:
         plot = check_out_file(figure_path(args.plot), flag="--plot", kind="figure", inputs=[args.rig],

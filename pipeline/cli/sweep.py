@@ -135,17 +135,23 @@ def spec_from_args(args):
     raw.pop("rig", None)
     rig = load_rig(rig_path, args.model, args.preset)
     args.rig = rig_path
+    own = dict(raw.get("fixed") or {}) if isinstance(raw.get("fixed"), dict) else {}   # the user's, not the rig's
     if rig is not None:            # the rig's model, preset, parameters and effects; 'fixed' and --set on top
         raw["model"], raw["preset"] = rig.model, rig.preset
         raw["fixed"] = {**rig.overrides(), **(raw.get("fixed") or {})}
     if args.sets:
-        raw["fixed"] = {**(raw.get("fixed") or {}), **parse_assignments(args.sets, "--set")}
+        sets = parse_assignments(args.sets, "--set")
+        own.update(sets)
+        raw["fixed"] = {**(raw.get("fixed") or {}), **sets}
     if args.vary:
         raw["vary"] = _parse_vary(args.vary)
     if args.settings:
         raw["settings"] = {**(raw.get("settings") or {}), **parse_settings(args.settings)}
     spec = make_spec(raw, model=None if rig else args.model, preset=None if rig else args.preset, design=args.design, n_points=args.n_points,
                      seed=args.seed, chunk_size=args.chunk_size)
+    # before any work (--dry-run too): the user's values and ranges outside what the model was validated on
+    A.warn_out_of_range(spec.model, spec.preset, {**{k: spec.fixed[k] for k in own if k in spec.fixed},
+                                                  **{k: (r.low, r.high) for k, r in spec.vary.items()}})
     return spec, scheduler, workers
 
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 from typing import Mapping
 
 from pipeline.core.units import broken_words, point_words
+from pipeline.core.names import SETTLED_STATUSES
 from pipeline.optimise.robustness import rop_spread
 
 UNEXPLAINED_WARNING = ("The diagnosis left the rig's residual unexplained: the recommendation rests on a model known to "
@@ -35,7 +36,7 @@ def model_rig(optimise_report: Mapping):
 def _rop(rig, point: Mapping[str, float], settings: Mapping | None) -> tuple[float, str, dict]:
     """(ROP [m/s], status, the label row: point, labels and status) of ``point`` simulated on ``rig``."""
     r = rig.simulate(**dict(point), settings=dict(settings or {}))
-    rop = float(r.labels["rop_m_s"]) if r.status == "ok" and r.labels.get("rop_m_s") is not None else 0.0
+    rop = float(r.labels["rop_m_s"]) if r.status in SETTLED_STATUSES and r.labels.get("rop_m_s") is not None else 0.0
     return rop, str(r.status), {**dict(point), **dict(r.labels), "status": str(r.status)}
 
 

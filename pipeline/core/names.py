@@ -5,9 +5,10 @@ its contract (``surrogate.names``)."""
 from __future__ import annotations
 
 from pipeline.core.units import ENGINEERING
-from sim.statuses import BOUNDED_STATUSES, SETTLED_STATUSES, STATUSES
+from sim.statuses import BOUNDED_STATUSES, IMPACTING_STATUSES, SETTLED_STATUSES, STATUSES
 
-__all__ = ["STATUSES", "SETTLED_STATUSES", "BOUNDED_STATUSES", "MAXIMISED", "DISPLAY_UNITS", "display"]
+__all__ = ["STATUSES", "SETTLED_STATUSES", "BOUNDED_STATUSES", "IMPACTING_STATUSES", "MAXIMISED", "DISPLAY_UNITS",
+           "display"]
 
 MAXIMISED = ("rop_m_s",)
 """Labels an optimisation objective maximises by default; every other label is minimised (a cost)."""

@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Iterable
 
 from pipeline.core.errors import UserError
+from sim.errors import did_you_mean
 
 
 def read_params(path: str | os.PathLike, missing_ok: bool = False) -> dict:
@@ -46,5 +47,6 @@ def read_section(path: str | os.PathLike | None, section: str, *, section_requir
     if known is not None:
         unknown = sorted(set(sec) - set(known))
         if unknown:
-            raise UserError(f"{p}: {section}.{unknown[0]} is not a known key (known: {', '.join(sorted(known))})")
+            raise UserError(f"{p}: {section}.{unknown[0]} is not a known key{did_you_mean(unknown[0], known)} "
+                            f"(known: {', '.join(sorted(known))})")
     return dict(sec)

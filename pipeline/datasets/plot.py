@@ -11,14 +11,15 @@ import pandas as pd  # noqa: E402
 
 from pipeline.core import units  # noqa: E402
 
-_MARKERS = {"no_contact": ("s", "0.6"), "not_settled": ("^", "C1"), "runaway": ("x", "C3"), "failed": ("X", "k")}
+_MARKERS = {"aperiodic": ("d", "C2"), "no_contact": ("s", "0.6"), "not_settled": ("^", "C1"), "runaway": ("x", "C3"),
+            "failed": ("X", "k")}
 
 
 def plot_sweep(df: pd.DataFrame, xname: str, yname: str, path: str | os.PathLike, title: str = "") -> str:
     """Scatter of ``yname`` against ``xname`` (engineering units): ``ok`` points coloured by ROP, every other status
     with its own marker (nothing left out).  Saved as PNG at ``path`` (atomically); returns the path."""
     fig, ax = plt.subplots(figsize=(7.5, 5.5))
-    ok = df["status"] == "ok"
+    ok = df["status"] == "ok"     # aperiodic points keep their own marker
     fx, fy = units.set_label(ax, "x", xname), units.set_label(ax, "y", yname)
     rop = df.loc[ok, "rop_m_s"].to_numpy(dtype=float) * units.factor("rop_m_s")
     sc = ax.scatter(df.loc[ok, xname] * fx, df.loc[ok, yname] * fy, c=rop, s=14, cmap="viridis",

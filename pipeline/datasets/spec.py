@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
+from sim.errors import did_you_mean
 from sim.unitcube import from_unit
 
 FORMAT_VERSION = 1
@@ -156,7 +157,10 @@ def _parse_range(name: str, raw) -> Range:
         raise UserError(f"{where} must be a mapping {{low, high, scale}}, got {raw!r}")
     unknown = set(raw) - {"low", "high", "scale", "levels"}
     if unknown:
-        raise UserError(f"{where}: unknown key(s) {sorted(unknown)}; known: low, high, scale, levels")
+        first = sorted(map(str, unknown))[0]
+        keys = ("low", "high", "scale", "levels")
+        raise UserError(f"{where}: unknown key(s) {sorted(unknown)}{did_you_mean(first, keys)}; "
+                        f"known: {', '.join(keys)}")
     for key in ("low", "high"):
         if key not in raw:
             raise UserError(f"{where} has no '{key}'")
@@ -203,7 +207,9 @@ def make_spec(raw: dict | None = None, **overrides) -> SweepSpec:
     d.update({k: v for k, v in overrides.items() if v is not None})
     unknown = set(d) - set(SPEC_KEYS) - set(EXEC_KEYS)
     if unknown:
-        raise UserError(f"sweep: unknown key(s) {sorted(unknown)}; known: {', '.join(SPEC_KEYS + EXEC_KEYS)}")
+        first = sorted(map(str, unknown))[0]
+        raise UserError(f"sweep: unknown key(s) {sorted(unknown)}{did_you_mean(first, SPEC_KEYS + EXEC_KEYS)}; "
+                        f"known: {', '.join(SPEC_KEYS + EXEC_KEYS)}")
     for key in ("model", "vary", "n_points"):
         if key not in d:
             raise UserError(f"sweep: missing key '{key}'")
@@ -225,12 +231,8 @@ def make_spec(raw: dict | None = None, **overrides) -> SweepSpec:
         raise UserError(f"sweep.vary must be a mapping name -> {{low, high, scale}}, got {vary_raw!r}")
     if not vary_raw:
         raise UserError("sweep.vary is empty: give at least one parameter to vary")
-    known = set(mspec.param_names)
     for where, names in (("fixed", fixed_raw), ("vary", vary_raw)):
-        for name in names:
-            if name not in known:
-                raise UserError(f"sweep.{where}: unknown parameter '{name}' for model '{model}'; "
-                                f"known: {', '.join(mspec.param_names)}")
+        mspec.check_names(names, f"sweep.{where}")
     both = set(fixed_raw) & set(vary_raw)
     if both:
         raise UserError(f"sweep: parameter(s) {sorted(both)} are both fixed and varied")

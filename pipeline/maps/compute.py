@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
+from sim.errors import did_you_mean
 from pipeline.core.files import atomic_write_parquet
 
 # ----------------------------------------------------------------------------- impact-pattern classes
@@ -122,7 +123,8 @@ def axis_values(model: str, name: str, lo: float | None, hi: float | None, n: in
 
     spec = get_model(model)
     if name not in spec.param_names:
-        raise UserError(f"'{name}' is not a parameter of model '{model}'; known: {', '.join(spec.param_names)}")
+        raise UserError(f"'{name}' is not a parameter of model '{model}'{did_you_mean(name, spec.param_names)}; "
+                        f"known: {', '.join(spec.param_names)}")
     if lo is None or hi is None:
         rng = spec.map_ranges.get(name)
         if rng is None:
@@ -210,7 +212,8 @@ def bifurcation(model: str, param: str, values: Iterable[float], direction: str 
         raise UserError(f"a bifurcation sweep of '{param}' needs at least 2 values")
     spec = sim.get_model(model)
     if param not in spec.param_names:
-        raise UserError(f"'{param}' is not a parameter of model '{model}'; known: {', '.join(spec.param_names)}")
+        raise UserError(f"'{param}' is not a parameter of model '{model}'{did_you_mean(param, spec.param_names)}; "
+                        f"known: {', '.join(spec.param_names)}")
     fixed = {k: v for k, v in dict(fixed or {}).items() if k != param}
     st = sim.api.make_settings(spec, settings)
     st = sim.Settings(**{**st.__dict__, "samples_per_cycle": 2})     # 2 samples per cycle: index 0, 2, 4 ...

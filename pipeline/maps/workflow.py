@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pipeline.core.names import BOUNDED_STATUSES
 from pipeline.maps import compute as M
 from pipeline.maps import plot as P
 
@@ -80,7 +81,7 @@ def run_map(cfg: MapConfig, progress: bool = True) -> MapResult:
             P.plot_peterka(table, cfg.x, cfg.y, png, color=cfg.color, title=title)
         else:
             if cfg.kind == "label" or "rop_region" not in table:
-                table = table.assign(rop_region=[M.ROP_OK if s in ("ok", "no_contact", "not_settled") else
+                table = table.assign(rop_region=[M.ROP_OK if s in BOUNDED_STATUSES else
                                                  (M.ROP_RUNAWAY if s == "runaway" else M.ROP_FAILED)
                                                  for s in table["status"]])
             P.plot_rop(table, cfg.x, cfg.y, png, color=cfg.color, title=title)

@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
+from pipeline.core.names import SETTLED_STATUSES
 
 ENVELOPE_LABELS = ("stroke_m", "coil_velocity_m_s")
 """Labels the envelope's stroke and velocity limits read (from the simulator's history)."""
@@ -139,7 +140,7 @@ def history_labels(model: str, preset: str | None, rows: pd.DataFrame, settings=
             out.append((math.nan, math.nan))
             continue
         h = r.history
-        if r.status not in ("ok", "no_contact") or h is None or not len(h):
+        if r.status not in SETTLED_STATUSES or h is None or not len(h):
             out.append((math.nan, math.nan))
             continue
         rel = (h["x1"] - h["x2"]).to_numpy(float)

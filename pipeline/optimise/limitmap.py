@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pipeline.core.names import SETTLED_STATUSES
 from pipeline.optimise.constraints import UPPER_LIMITS, Constraints
 
 PAIRS = (("frequency_hz", "static_force_n", "amplitude_n"), ("frequency_hz", "amplitude_n", "static_force_n"))
@@ -71,7 +72,7 @@ def plot_limit_map(m: LimitMap, cons: Constraints, rec: dict, path: Path, title:
     nx, ny = t[m.x].nunique(), t[m.y].nunique()
     X = t[m.x].to_numpy(float).reshape(nx, ny)
     Y = t[m.y].to_numpy(float).reshape(nx, ny)
-    settled = t["status"].isin(["ok", "no_contact"]).to_numpy().reshape(nx, ny)
+    settled = t["status"].isin(SETTLED_STATUSES).to_numpy().reshape(nx, ny)
     rop = np.where(settled, t["rop_m_s"].to_numpy(float).reshape(nx, ny) * 1e3, np.nan)
     fig, ax = plt.subplots(figsize=(8, 5.5))
     pc = ax.pcolormesh(X, Y, rop, shading="nearest", cmap="viridis")

@@ -17,6 +17,8 @@ from typing import Mapping
 
 import numpy as np
 
+from pipeline.core.names import SETTLED_STATUSES
+
 
 @dataclass(frozen=True)
 class RopSpread:
@@ -82,7 +84,7 @@ def rop_spread(rig, point: Mapping[str, float], n_samples: int = 32, seed: int =
     base = rig.resolve(**dict(point))          # every row holds every parameter (no NaN columns in the batch)
     table = [base] + [{**base, **s} for s in samples]
     df = sim.simulate_batch(rig.model, table, preset=rig.preset, settings=dict(settings or {}), n_threads=n_threads)
-    ok = (df["status"] == "ok").to_numpy()
+    ok = df["status"].isin(list(SETTLED_STATUSES)).to_numpy()
     rop = np.where(ok, df["rop_m_s"].astype(float).fillna(0.0).to_numpy(), 0.0)
     rs = rop[1:]
     counts = df["status"].iloc[1:].value_counts().to_dict()

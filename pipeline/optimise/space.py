@@ -9,6 +9,7 @@ import pandas as pd
 
 from pipeline.core.errors import UserError
 from pipeline.core.numbers import number
+from sim.errors import did_you_mean
 from sim.unitcube import to_unit
 
 
@@ -39,7 +40,8 @@ class Space:
             raise UserError("the search space is empty: give at least one range (e.g. --range frequency_hz=10:400)")
         for name, (lo, hi) in self.ranges.items():
             if known is not None and name not in known:
-                raise UserError(f"range '{name}': not a parameter of the model (known: {', '.join(known)})")
+                raise UserError(f"unknown parameter '{name}'{did_you_mean(name, known)}: range '{name}' is not a "
+                                f"parameter of the model (known: {', '.join(known)})")
             if not (math.isfinite(lo) and math.isfinite(hi)):
                 raise UserError(f"range '{name}': bounds must be finite numbers, got [{lo}, {hi}]")
             if not hi > lo:

@@ -109,6 +109,11 @@ def surrogate_strategies(cfg: OptimiseConfig, bundle, sampler: SamplerFactory) -
     full = Space({n: (float(bundle.ranges[n][0]), float(bundle.ranges[n][1])) for n in bundle.inputs})
     space = space_from_mapping(cfg.ranges) if cfg.ranges else full
     if cfg.ranges:
+        space.validate(sim.get_model(bundle.model).param_names)    # a mistyped name first, with its likely spelling
+        not_inputs = [n for n in space.ranges if n not in full.ranges]
+        if not_inputs:
+            raise UserError(f"range(s) {not_inputs}: not an input of the surrogate {cfg.surrogate} (its inputs: "
+                            f"{', '.join(bundle.inputs)}); sweep and train with them varied, or optimise with --simulator")
         for n in bundle.inputs:     # inputs the user did not restrict keep the surrogate's range
             if n not in space.ranges:
                 space.ranges[n] = full.ranges[n]

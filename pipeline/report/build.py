@@ -22,6 +22,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from pipeline.core.errors import UserError  # noqa: E402
+from pipeline.core.names import IMPACTING_STATUSES  # noqa: E402
 from pipeline.report.doc import Document, Figure, Heading, Para, Table, fmt, to_html, to_markdown  # noqa: E402
 from pipeline.core.units import ENGINEERING, convert, factor, label, set_label, split  # noqa: E402
 from pipeline.core.files import atomic_write_bytes, atomic_write_text  # noqa: E402
@@ -188,7 +189,7 @@ def section_sweep(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
     df, meta = load_sweep(path)
     n = len(df)
     status = df["status"].value_counts().to_dict() if "status" in df else {}
-    ok = df[df["status"] == "ok"] if "status" in df else df
+    ok = df[df["status"].isin(list(IMPACTING_STATUSES))] if "status" in df else df     # steady and impacting
     model, preset = meta.get("model"), meta.get("preset")     # sweep metadata.json (pipeline/datasets/store.py)
     expected = meta.get("n_points")
     partial = "" if meta.get("complete", True) and (expected in (None, n)) else \
@@ -205,7 +206,7 @@ def section_sweep(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
     for c in inputs + labels:
         col = pd.to_numeric(ok[c], errors="coerce").replace([np.inf, -np.inf], np.nan).dropna()
         k = factor(c)
-        rows.append([label(c), "input" if c in inputs else "label (ok points)", col.min() * k if len(col) else None,
+        rows.append([label(c), "input" if c in inputs else "label (ok, aperiodic points)", col.min() * k if len(col) else None,
                      col.median() * k if len(col) else None, col.max() * k if len(col) else None])
     if rows:
         doc.add(Table(["column", "kind", "min", "median", "max"], rows, "Ranges over the dataset"))
@@ -220,7 +221,7 @@ def section_sweep(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
         sc = ax[0].scatter(ok["frequency_hz"] * fx, ok[xcol] * fy, c=pd.to_numeric(ok["rop_m_s"]) * factor("rop_m_s"),
                            s=12, cmap="viridis")
         fig.colorbar(sc, ax=ax[0], label=label("rop_m_s"))
-        ax[0].set_title("ROP over the sweep (status ok)")
+        ax[0].set_title("ROP over the sweep (status ok or aperiodic)")
         for st, grp in df.groupby("status"):
             ax[1].scatter(grp["frequency_hz"] * fx, grp[xcol] * fy, s=8, label=f"{st} ({len(grp)})")
         ax[1].set_title("status of every point")

@@ -59,6 +59,9 @@ RHO_H = 2.0        # bound on (spectral radius estimate) x grid step
 # rows of the per-phase workspace block (each row has NZ entries) after A, Φ, M
 R_G0, R_G1, R_G0A, R_G1A, R_F, R_FA, R_D, R_DA, R_INFO = range(9)
 VB = 3 * NZ + 9    # first of NZ rows holding row i's non-zeros of A, packed (columns in gk[ph, i, 1:])
+# the phase each guard leads to (MODELS.md §2): I's onset -> II (or III: on_event's phase check), II's release -> I,
+# II's threshold -> III, III's stop of the slider -> II; -1: no such guard
+TARGET = np.array([[1, -1], [0, 2], [1, -1]], dtype=np.int64)
 
 
 def exact_applies(values: dict, effects: dict) -> bool:
@@ -227,6 +230,37 @@ def _to_y(zz, w, y):
     for i in range(NY - 1):
         y[i] = zz[i]
     y[IW] = w
+
+
+@njit(cache=True, inline="always")
+def _switch(t, y, z, ph, p, k, zz, wk, eta):
+    """The phase after guard k of phase ph fired at the state y (zz: the same state as the rows see it, updated).
+
+    The model's switch (``on_event``: the rock surface's reset at an onset or a release, then its phase check) decides,
+    except that a guard that fired always leaves its phase (``TARGET``), and a phase is never entered past one of its
+    own guards: that guard's switch is taken at once (a zero-length visit).  Both follow the rows, the arithmetic that
+    located the switch.  The phase check works on x1 - xb, the rows on x1 and xb apart: once the slider has progressed
+    far (|xb| >> Pr/K1, e.g. at a frequency of 1 Hz) they disagree near a surface by more than the rows' rounding band
+    eta; a switch the rows located was then refused (III -> III), the state hovered on the surface, and once a segment
+    began with the slider's guard already positive no rise through 0 was ever seen again: the slider followed the bit
+    backwards in phase III (a negative ROP).  Where the two agree (every run whose slider stays within ~1e4 contact
+    deflections of its start) nothing here changes a bit."""
+    rr = 3 * NZ
+    for _ in range(4):
+        new = on_event(t, y, z, ph, p, k)
+        if new == ph:
+            new = TARGET[ph, k]
+        ph = new
+        for i in range(NY - 1):
+            zz[i] = y[i]
+        k = -1
+        for gi in range(int(wk[ph, rr + R_INFO, 0])):
+            if _rdot(wk, ph, rr + R_G0 + gi, zz) - eta[ph, gi] > 0.0:
+                k = gi
+                break
+        if k < 0:
+            break
+    return ph
 
 
 @njit(cache=True, nogil=True)
@@ -409,9 +443,7 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                         ph_arr[0] = ph
                         return t_new
                     old = ph
-                    ph = on_event(t_new, y, z, ph, p, k_ev)
-                    for i in range(NY - 1):
-                        zz[i] = y[i]
+                    ph = _switch(t_new, y, z, ph, p, k_ev, zz, wk, eta)
                     if record:
                         window_switch(acc, old, ph)
                         if ph > 0:

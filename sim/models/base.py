@@ -8,10 +8,12 @@ from typing import Callable, Mapping
 import numpy as np
 
 from sim.errors import ParameterError  # noqa: F401  (re-exported: the models and sim.api raise it from here)
+from sim.errors import did_you_mean
 from sim.models.discrepancy import MODE, MODE_PARAMS, PARAM_OF as DISCREPANCY_PARAMS
 from sim.models.effects import EFFECT_FIT_BOUNDS, EFFECTS, effect
 from sim.models.fitbound import FitBound  # noqa: F401  (re-exported: the models build their bounds from here)
 from sim.models.param import Param  # noqa: F401  (re-exported: the models declare their parameters from here)
+from sim.models.ranges import out_of_range
 
 
 DIAGNOSE_FIT_KEYS = ("candidate_starts", "max_nfev")
@@ -127,10 +129,18 @@ class ModelSpec:
     calibratable: tuple[FitBound, ...] = ()                   # MODELS.md §6 "Calibratable parameters", with fit bounds
     effect_bounds: dict[str, FitBound] = field(default_factory=dict)   # effect parameter -> fit bounds; off = 0
     search_spaces: dict[str, dict[str, tuple[float, float]]] = field(default_factory=dict)  # preset ("" = defaults) -> control ranges
+    # the ranges [SI] the model or a preset was validated on: preset ("" = the defaults and every preset without an
+    # entry of its own) -> parameter -> (lo, hi); with the calibratable fit bounds, a value outside them draws a
+    # warning naming the likely unit slip (sim.models.ranges; `vibro simulate`, `vibro sweep`, rig files)
+    validated: dict[str, dict[str, tuple[float, float]]] = field(default_factory=dict)
     map_kind: str = ""                                        # "pattern" or "rop" (MAP_KINDS)
     map_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)   # default map axis ranges [SI]
     map_relative_to: dict[str, str] = field(default_factory=dict)  # axis -> parameter its map range is a multiple of
     progress_force_floor: Callable[[Mapping[str, float]], float | None] = lambda v: None  # force needed to progress [N]
+    # energy balance of a periodic steady state (sim.invariants): the least work the excitation does per metre of
+    # progression [J/m] (drill: Pr - Fs; a passive model that does not progress: 0, the work covers its losses); None:
+    # the labels hold no balance to check (a source of work they do not record, e.g. the indenter's pneumatic piston)
+    min_work_per_m: Callable[[Mapping[str, float]], float] | None = None
     diagnose_max_harmonic_hz: float = 1000.0                  # highest harmonic the diagnosis uses as a feature [Hz]
     diagnose_fit: dict[str, int] = field(default_factory=lambda: {"candidate_starts": 1, "max_nfev": 10})
     # diagnosis fit effort: random starts per candidate, least-squares iterations (DIAGNOSE_FIT_KEYS)
@@ -169,12 +179,13 @@ class ModelSpec:
         for key, b in [(b.name, b) for b in self.calibratable] + list(self.effect_bounds.items()):
             if key != b.name or b.name not in names:
                 raise ValueError(f"{where}: fit bound '{key}' is not a parameter")
-        for preset, space in self.search_spaces.items():
-            if preset != "" and preset not in self.presets:
-                raise ValueError(f"{where}: search space for unknown preset '{preset}'")
-            for n, (lo, hi) in space.items():
-                if n not in names or not lo < hi:
-                    raise ValueError(f"{where}: search space '{preset}': bad range {n} = ({lo}, {hi})")
+        for what, table in (("search space", self.search_spaces), ("validated ranges", self.validated)):
+            for preset, space in table.items():
+                if preset != "" and preset not in self.presets:
+                    raise ValueError(f"{where}: {what} for unknown preset '{preset}'")
+                for n, (lo, hi) in space.items():
+                    if n not in names or not lo < hi:
+                        raise ValueError(f"{where}: {what} '{preset}': bad range {n} = ({lo}, {hi})")
         if self.map_kind not in ("",) + MAP_KINDS:
             raise ValueError(f"{where}: map_kind '{self.map_kind}' is not one of {MAP_KINDS}")
         for n, (lo, hi) in self.map_ranges.items():
@@ -206,19 +217,16 @@ class ModelSpec:
         values = {p.name: p.default for p in self.params}
         if preset is not None:
             if preset not in self.presets:
-                raise ParameterError(
-                    f"unknown preset '{preset}' for model '{self.name}'; known: {', '.join(sorted(self.presets)) or 'none'}")
+                raise ParameterError(f"unknown preset '{preset}' for model '{self.name}'"
+                                     f"{did_you_mean(preset, self.presets)}; "
+                                     f"known: {', '.join(sorted(self.presets)) or 'none'}")
             values.update(self.presets[preset])
         return values
 
     def resolve(self, preset: str | None = None, **overrides) -> dict[str, float]:
         """Validated full parameter dict: defaults ← preset ← overrides ← derived."""
         values = self.defaults(preset)
-        known = set(values)
-        for key in overrides:
-            if key not in known:
-                raise ParameterError(
-                    f"unknown parameter '{key}' for model '{self.name}'; known: {', '.join(self.param_names)}")
+        self.check_names(overrides)
         values.update(overrides)
         by_name = {p.name: p for p in self.params}
         out = {}
@@ -241,6 +249,20 @@ class ModelSpec:
             if v is None:
                 raise ParameterError(f"parameter '{name}' of model '{self.name}' has no value")
         return out
+
+    def check_names(self, names, where: str = "") -> None:
+        """ParameterError naming the first of ``names`` that is no parameter of the model, with the likely one
+        (``where``: a prefix naming the source, e.g. ``sweep.fixed``)."""
+        known = self.param_names
+        for key in names:
+            if key not in known:
+                raise ParameterError(f"{where + ': ' if where else ''}unknown parameter '{key}' for model '{self.name}'"
+                                     f"{did_you_mean(key, known)}; known: {', '.join(known)}")
+
+    def out_of_range(self, preset: str | None, values: Mapping[str, float | tuple[float, float]]) -> list[str]:
+        """One warning line per value (or sweep range) outside what the model or ``preset`` was validated on
+        (``validated``, the calibratable fit bounds), naming the likely unit slip (sim.models.ranges)."""
+        return out_of_range(self, preset, values)
 
     def vector(self, values: dict[str, float]) -> np.ndarray:
         return np.array([values[p.name] for p in self.params], dtype=np.float64)

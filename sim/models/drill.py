@@ -345,6 +345,9 @@ PRESETS = {
 # hole F0 < min(Fs, Pr - Fs) (neither lift-off impacts nor Fs + F0 reaching Pr); Fs <= 0.6 Pr stays well
 # clear of the runaway Fs >= Pr and of the near-threshold region where ROP shoots up.
 LAB_SPACE = {"frequency_hz": (100.0, 450.0), "amplitude_n": (1800.0, 2700.0), "static_force_n": (600.0, 1800.0)}
+# The MODELS.md §2 ranges of the default (starting-point) parameters, Pr = 1.5 kN: f 10-400 Hz, F0 0-2 Pr,
+# Fs 0.05-0.95 Pr, where the independent high-accuracy solution is known.
+START_SPACE = {"frequency_hz": (10.0, 400.0), "amplitude_n": (0.0, 3000.0), "static_force_n": (75.0, 1425.0)}
 
 # `vibro synth`'s lab drilling rig (lab preset, MODELS.md §2): 8 frequencies across the RED resonance x two
 # weights on bit; a 25.6 kHz DAQ logs 28.3-cycle stretches at different times (depths) after spud-in (blunting
@@ -399,8 +402,12 @@ SPEC = ModelSpec(
                         "tool_quadratic_drag": FitBound("tool_quadratic_drag", 2e4, 5e6, "N s^2/m^2")},
     # "lab": LAB_SPACE above; "": the MODELS.md §2 ranges at the default Pr = 1.5 kN (f 10-400 Hz,
     # F0 0-2 Pr, Fs 0.05-0.95 Pr).
-    search_spaces={"lab": LAB_SPACE,
-                   "": {"frequency_hz": (10.0, 400.0), "amplitude_n": (0.0, 3000.0), "static_force_n": (75.0, 1425.0)}},
+    search_spaces={"lab": LAB_SPACE, "": START_SPACE},
+    # validated: the lab preset over LAB_SPACE (docs/simulate.md), the defaults (and models-start) over the MODELS.md §2
+    # ranges; seed-003 is the seed's own runaway table, validated at its one point only
+    validated={"lab": LAB_SPACE, "": START_SPACE, "seed-003": {}},
+    # energy balance: over a period the excitation and Fs put in W + Fs Δxb, the slider alone dissipates Pr Δxb
+    min_work_per_m=lambda v: float(v["Pr"]) - float(v["static_force_n"]),
     # ROP maps; forces as multiples of the resolved Pr: F0 in [0, 1] Pr and Fs in [0.05, 1.1] Pr, so the
     # non-progressing (small F0) and runaway (Fs >= Pr) regions are on the map.
     map_kind="rop",

@@ -407,6 +407,7 @@ def _spec(name: str, funcs: tuple, z: tuple, bounded: tuple, presets: dict, effe
         calibratable=calibratable,
         map_kind=map_kind,
         map_ranges=MAP_RANGES,
+        validated={"": MAP_RANGES},     # Table 1's frequencies and amplitudes, the cylinder's static forces
         # impacts ring up to ~1 kHz; the base fit can absorb a missing effect in pm, so each candidate also
         # starts at the default base: 2 starts, 15 iterations
         diagnose_max_harmonic_hz=1000.0,

@@ -181,6 +181,10 @@ PRESETS = {
 
 # The slow mode (4.16 Hz) decays at about 0.1 1/s without impacts (≈ 10 s, 40–80 cycles per e-fold at
 # 4–8 Hz): non-impacting runs need hundreds of cycles to settle; impacting ones settle much faster.
+SEED_RANGES = {"frequency_hz": (3.0, 12.0), "gap_m": (0.0, 3.0e-3), "amplitude_n": (0.25, 2.0)}
+"""Seed 002's ranges (Table 3: gaps 0-3 mm, first and second impact resonances; F0 around its ~1 N): the map axes, and
+the ranges the model is validated on (MODELS.md §4's independent solution)."""
+
 DEFAULT_SETTINGS = {"min_transient": 40, "max_transient": 800, "window": 32, "max_step_frac": 0.02}
 
 SPEC = ModelSpec(
@@ -227,7 +231,9 @@ SPEC = ModelSpec(
                         "tool_quadratic_drag": FitBound("tool_quadratic_drag", 0.5, 300.0, "N s^2/m^2")},
     # impact-pattern maps over the seed's ranges (seed 002 Table 3: gaps 0-3 mm)
     map_kind="pattern",
-    map_ranges={"frequency_hz": (3.0, 12.0), "gap_m": (0.0, 3.0e-3), "amplitude_n": (0.25, 2.0)},
+    map_ranges=SEED_RANGES,
+    validated={"": SEED_RANGES},
+    min_work_per_m=lambda v: 0.0,     # passive beam and hammer, no progression: F0's work covers the losses
     # `vibro synth` (seed 002): across the first impact resonance at gap 0, two forcing levels, 10 kHz DAQ; impact
     # velocity ~0.1 m/s: alpha 2 s/m is +20 %; beam amplitude ~2 mm: kappa x1^2 ~ 0.4; mount resonance 60 Hz
     synth=SynthRig(frequencies_hz=(5.0, 6.0, 6.5, 7.0, 7.5, 8.0, 9.0, 10.0), level_name="amplitude_n", levels=(0.5, 1.0),

@@ -14,25 +14,27 @@ import itertools
 import numpy as np
 import pytest
 
+from sim.statuses import IMPACTING_STATUSES
+
 GRID = {"frequency_hz": np.linspace(100.0, 450.0, 22), "amplitude_n": np.linspace(1800.0, 2700.0, 4),
         "static_force_n": np.linspace(600.0, 1800.0, 4)}
 """sim.models.drill.LAB_SPACE on a 22 x 4 x 4 grid (16.7 Hz, 300 N, 400 N steps)."""
 
 
 def _best(rig):
-    """(point, ROP) of the grid's best progressing point on ``rig`` (status ok only)."""
+    """(point, ROP) of the grid's best progressing point on ``rig`` (status ok or aperiodic only)."""
     import sim
 
     table = [{k: float(x) for k, x in zip(GRID, v)} for v in itertools.product(*GRID.values())]
     df = sim.simulate_batch(rig.model, [{**rig.overrides(), **p} for p in table], preset=rig.preset)
-    rop = np.where(df["status"] == "ok", df["rop_m_s"].astype(float).fillna(0.0), 0.0)
+    rop = np.where(df["status"].isin(IMPACTING_STATUSES), df["rop_m_s"].astype(float).fillna(0.0), 0.0)
     i = int(np.argmax(rop))
     return table[i], float(rop[i])
 
 
 def _rop(rig, point) -> float:
     r = rig.simulate(**point)
-    return float(r.labels["rop_m_s"]) if r.status == "ok" else 0.0
+    return float(r.labels["rop_m_s"]) if r.status in IMPACTING_STATUSES else 0.0
 
 
 @pytest.mark.slow

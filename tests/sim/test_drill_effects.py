@@ -30,7 +30,7 @@ def _compare(overrides: dict, transient: int = TRANSIENT, window: int = WINDOW, 
     ref = reference_run("drill", params, transient, window, method="DOP853", rtol=1e-10)
     got = sim.simulate("drill", preset=preset, settings={"min_transient": transient, "max_transient": transient,
                                                          "window": window}, **overrides).labels
-    assert got["status"] in ("ok", "not_settled")
+    assert got["status"] in ("ok", "aperiodic", "not_settled")
     assert got["impacts_per_cycle"] == ref["impacts_per_cycle"]
     if ref["period"] > 0:
         assert got["period"] == ref["period"]

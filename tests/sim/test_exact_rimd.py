@@ -16,6 +16,7 @@ from scipy.linalg import expm
 
 import sim
 from sim.exact import rimd as hy
+from sim.statuses import IMPACTING_STATUSES
 from tests.reference_solutions import reference_run
 
 COMPARED = ("peak_force_n", "mean_peak_force_n", "peak_decel_g", "energy_per_cycle_j")
@@ -33,13 +34,13 @@ def _pair(overrides, rtol=1e-11):
     {},                                                     # gap 0, 8 Hz: the first impact resonance (MODELS.md §4)
     {"gap_m": 3e-3, "frequency_hz": 4.5},                   # gap 3 mm, impacting from rest below 4.5 Hz
     {"gap_m": 1e-3, "frequency_hz": 5.0},                   # gap 1 mm below its first resonance, period 1
-    {"frequency_hz": 6.0},                                  # gap 0 below the resonance: steady, not periodic
+    {"frequency_hz": 6.0},                                  # gap 0 below the resonance: steady, not periodic (aperiodic)
     {"alpha": 2.0},                                         # rate_stiffening: acts in contact (numerical there)
     {"lambda_i": 80.0},                                     # release by the damping indicator 1 + λi ẋ2 while δ > 0
 ], ids=["gap0-8hz", "gap3mm-4.5hz", "gap1mm-5hz", "gap0-6hz", "alpha", "lambda80"])
 def test_hybrid_matches_tight_dopri5(overrides):
     hyb, num = _pair(overrides)
-    assert hyb["status"] == num["status"] == "ok"
+    assert hyb["status"] == num["status"] and hyb["status"] in IMPACTING_STATUSES    # 6 Hz: aperiodic
     assert hyb["impacts_per_cycle"] == num["impacts_per_cycle"] > 0
     assert hyb["period"] == num["period"]
     for k in COMPARED:

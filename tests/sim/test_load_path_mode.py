@@ -45,7 +45,7 @@ def test_load_path_mode_against_the_independent_generator(model):
                                                        "rtol": SIM_RTOL}, **s).labels
     ref = reference_run(with_load_path_mode(model), {**PARAMS[model], **g}, n, w, method="DOP853", rtol=1e-10)
     base = reference_run(model, PARAMS[model], n, w, method="DOP853", rtol=1e-10)
-    assert got["status"] in ("ok", "not_settled") and ref["status"] == "ok"
+    assert got["status"] in ("ok", "aperiodic", "not_settled") and ref["status"] == "ok"
     assert got["impacts_per_cycle"] == ref["impacts_per_cycle"]
     # the mode is visible: some label moves by > 1 % against the base model
     assert max(_rel(ref[k], base[k]) for k in LABELS if base[k]) > 1e-2

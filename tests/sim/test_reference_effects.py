@@ -114,7 +114,7 @@ def test_effect_against_reference(model, effect):
     lowpass = name == "sensor_lowpass"
     spc = LOWPASS_SAMPLES.get(model, LOWPASS_SAMPLES_DEFAULT)
     got = _sim(model, values, rtol=SIM_RTOL, **({"samples_per_cycle": spc} if lowpass else {}))
-    assert got["status"] in ("ok", "not_settled") and ref["status"] == "ok"
+    assert got["status"] in ("ok", "aperiodic", "not_settled") and ref["status"] == "ok"
     assert got["impacts_per_cycle"] == ref["impacts_per_cycle"]
     assert got["period"] == ref["period"]
     for k in LABELS:

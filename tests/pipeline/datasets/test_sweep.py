@@ -24,6 +24,7 @@ from pipeline.datasets.runner import LocalBackend, run_sweep
 from pipeline.datasets.spec import Range, design_points, make_spec, unit_design
 from pipeline.datasets.store import load_dataset
 from sim import ParameterError
+from sim.statuses import STATUSES
 
 REPO = Path(__file__).resolve().parents[3]
 SHORT = {"window": 8, "max_transient": 100}
@@ -170,7 +171,7 @@ def test_dataset_columns_order_and_labels(clean):
     pts = design_points(spec)
     for name in spec.vary:                      # the inputs are the design points, exactly
         np.testing.assert_array_equal(clean[name].to_numpy(), pts[name].to_numpy())
-    assert set(clean["status"]) <= {"ok", "no_contact", "not_settled", "runaway", "failed"}
+    assert set(clean["status"]) <= set(STATUSES)
     meta = clean.attrs["metadata"]
     for key in ("model", "preset", "vary", "fixed", "design", "n_points", "seed", "fingerprint", "created",
                 "git_commit", "versions", "wall_time_s", "status_counts", "settings"):
@@ -336,7 +337,7 @@ def test_cli_stage_writes_dataset_and_metrics(tmp_path, clean, capsys):
     m = json.loads(metrics.read_text())
     assert m["n_points"] == 12 and sum(m["status_counts"].values()) == 12 and m["computed"] == 12
     assert m["status_counts"] == clean["status"].value_counts().to_dict() | {
-        k: 0 for k in ("ok", "no_contact", "not_settled", "runaway", "failed") if k not in set(clean["status"])}
+        k: 0 for k in STATUSES if k not in set(clean["status"])}
     assert m["sims_per_s"] > 0
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # CLI flags override the params file: another seed into another directory
@@ -369,8 +370,7 @@ def test_cli_stage_writes_dataset_metrics_and_mlflow_run(tmp_path, monkeypatch, 
     runs = mlflow.search_runs(experiment_names=["test-sweep"])
     assert len(runs) == 1
     assert runs.loc[0, "metrics.n_points"] == 12 and runs.loc[0, "params.design"] == "sobol"
-    assert math.isclose(sum(runs.loc[0, f"metrics.count_{k}"] for k in
-                            ("ok", "no_contact", "not_settled", "runaway", "failed")), 12)
+    assert math.isclose(sum(runs.loc[0, f"metrics.count_{k}"] for k in STATUSES), 12)
     arts = {a.path for a in mlflow.MlflowClient().list_artifacts(runs.loc[0, "run_id"])}
     assert {"metadata.json", "sweep_overview.png"} <= arts
 
