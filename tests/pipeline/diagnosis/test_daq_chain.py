@@ -52,8 +52,10 @@ def test_filter_column_is_validated_with_a_did_you_mean():
     fir = parse_filter("fir:129:4000:16", "x", fs=10_000.0)
     assert fir.fir_delay_s == pytest.approx(64 / 160_000.0)        # (taps - 1) / 2 at 16 x fs
     assert abs(h[0]) == pytest.approx(1.0, abs=1e-6) and abs(h[1]) == pytest.approx(2 ** -0.5, rel=1e-9)
-    e = DaqFilter("ellip", 6, 1000.0).response(np.array([500.0, 3000.0]))
-    assert 0.98 < abs(e[0]) <= 1.0 + 1e-9 and abs(e[1]) < 1e-2        # pass band ripple, stop band
+    e = DaqFilter("ellip", 6, 1000.0).response(np.array([0.0, 500.0, 3000.0]))
+    ripple = 10 ** (0.1 / 20)                                       # the default 0.1 dB pass-band ripple
+    assert abs(e[0]) == pytest.approx(1.0, abs=1e-12)               # a calibrated channel: gain 1 at DC
+    assert 1 / ripple - 1e-9 < abs(e[1]) < ripple + 1e-9 and abs(e[2]) < 1e-2   # pass band ripple, stop band
 
 
 def test_bad_daq_cell_is_one_line_naming_the_row(tmp_path):
