@@ -103,7 +103,8 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
   record_window [64]       a steady-state series is compared over its first this many cycles (0 = all)
   summary_sd [{}]          e.g. {peak_decel_g: [rel, 0.05], impacts_per_cycle: [abs, 0.5]}
   seed [0]                 seed of the random starts
-  estimate_chain [true]    estimate an undeclared DAQ chain (delay per channel, clock) as nuisance (false: none)
+  estimate_chain [false]   estimate an undeclared DAQ chain (delay per channel, clock) as nuisance; set it in
+                           --params (a per-channel delay would also take up the sensor_lowpass effect's phase)
   scheduler [null]         Dask scheduler (tcp://host:8786) or local:N that runs the fits; null = this process
                            (--threads simulation threads); not part of the report: the numbers are the same
 examples:

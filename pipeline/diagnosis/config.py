@@ -103,7 +103,9 @@ class DiagnoseConfig:
     summary_sd: dict = field(default_factory=dict)   # e.g. {"peak_decel_g": ["rel", 0.05]}
     seed: int = 0
     n_threads: int | None = None
-    estimate_chain: bool = True         # estimate an undeclared DAQ chain (delay per channel, clock) as nuisance
+    estimate_chain: bool = False        # estimate an undeclared DAQ chain (delay per channel, clock) as nuisance;
+    #                                     off by default: a per-channel delay also takes up an accelerometer's own
+    #                                     low-pass (the sensor_lowpass effect), so it is asked for, not assumed
 
     def __post_init__(self) -> None:
         check_config(self)

@@ -148,7 +148,9 @@ def _diagnose(tmp_path, data, *args):
     from pipeline.cli import main
 
     out = tmp_path / (data.name + "-diag")
-    assert main(["diagnose", str(data), "--out", str(out), "--quiet", "--no-mlflow", *args]) == 0
+    params = tmp_path / "params-chain.yaml"
+    params.write_text("diagnose:\n  estimate_chain: true\n")        # the undeclared chain's estimate is opt-in
+    assert main(["diagnose", str(data), "--out", str(out), "--quiet", "--no-mlflow", "--params", str(params), *args]) == 0
     return json.loads((out / "report.json").read_text()), (out / "report.md").read_text()
 
 
