@@ -286,7 +286,7 @@ def test_discrepancy_term_against_reference(model, term):
     got = sim.simulate(model, preset=preset, settings={"min_transient": n, "max_transient": n, "window": w,
                                                        "rtol": SIM_RTOL}, **{term: value}).labels
     ref = _ref(model, {term: value})
-    assert got["status"] in ("ok", "not_settled") and ref["status"] == "ok"
+    assert got["status"] in ("ok", "aperiodic", "not_settled") and ref["status"] == "ok"
     assert got["impacts_per_cycle"] == ref["impacts_per_cycle"]
     assert got["period"] == ref["period"]
     for k in LABELS:
