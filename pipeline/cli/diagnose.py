@@ -90,8 +90,7 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
                            other effect to it and judge the pairs against it by the same rule (report.json
                            'second_effect', and 'pair_stage': whether it ran and why; the rig file then carries
                            both); 1: one effect only
-  pair_nrms [1]            the pair stage's trigger: the noise floor, so a weaker second effect within
-                           explained_nrms is looked for too (2: pairs only for clearly inadequate leaders)
+  pair_nrms [2]            the pair stage's trigger (1: also look for a weaker second effect within explained_nrms)
   max_proposals [3]        unexplained: re-fit at most this many discrepancy proposals (0: no discovery)
   model_floor [0.001]      feature sd floor: this x the signal's RMS harmonic amplitude, in quadrature with
                            the noise (what two correct simulations and a rig's sampling may differ by)

@@ -89,8 +89,7 @@ class DiagnoseConfig:
     #                                     the noise estimate is checked to a factor 2); further above the noise is an error
     max_effects: int = 2                # 2: a leader that improves but leaves held-out nrms above pair_nrms is fitted with
     #                                     each other effect (1: one effect only)
-    pair_nrms: float = 1.0              # ... the pair stage's trigger: the noise floor, so a weaker second effect hiding
-    #                                     within explained_nrms is still looked for (2: only clearly inadequate leaders)
+    pair_nrms: float = 2.0              # ... the pair stage's trigger (1: also look for a weaker effect within explained_nrms)
     max_proposals: int = 3              # unexplained: fit at most this many discrepancy proposals (0: no discovery)
     model_floor: float = 1e-3           # feature sd floor: this x the signal's RMS harmonic amplitude (model error)
     summary_floor: float = 0.01         # summary feature sd floor: this x the value
