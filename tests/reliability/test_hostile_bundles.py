@@ -5,7 +5,6 @@ and stay under a memory bound (the inflating bundle runs in a child under RLIMIT
 ``BUNDLE_CASES`` is counted by tests/reliability/corpus_summary.py."""
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import subprocess
@@ -16,18 +15,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.reliability.test_bounded_and_trusted import _rehash
 from tests.reliability.test_hostile_parsing import MEMORY_LIMIT, _limit_memory, one_error_line, snapshot
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _rehash(d: Path) -> None:
-    """What someone who controls the folder can do: make the manifest match the files again."""
-    man = json.loads((d / "manifest.json").read_text())
-    for name, rec in man["files"].items():
-        b = (d / name).read_bytes()
-        rec.update(sha256=hashlib.sha256(b).hexdigest(), size=len(b))
-    (d / "manifest.json").write_text(json.dumps(man))
 
 
 @pytest.fixture(scope="module")
