@@ -54,7 +54,7 @@ def number(value, what: str, *, integer: bool = False, lo: float | None = None, 
 
 def _as_float(value, what: str) -> float:
     if isinstance(value, bool):
-        raise UserError(f"{what}: expected a number, got {str(value).lower()}")
+        raise UserError(f"{what}: must be a number, got {str(value).lower()} (a yes/no, not a value)")
     if isinstance(value, QuotedNumber):
         raise UserError(f"{what}: '{value}' is quoted text, not a number; write it without quotes")
     if isinstance(value, int):

@@ -95,9 +95,10 @@ def _numbers_checked(data, label: str):
     if not isinstance(data, Mapping):
         return data
     out = dict(data)
-    for key in ("parameters", "discrepancy", "uncertainty"):
+    for key, what in (("parameters", "parameter"), ("discrepancy", "discrepancy term"),
+                      ("uncertainty", "uncertainty of")):
         if isinstance(out.get(key), Mapping):
-            out[key] = {n: number(v, f"{label}: {key} '{n}'") for n, v in out[key].items()}
+            out[key] = {n: number(v, f"{label}: {what} '{n}'") for n, v in out[key].items()}
     if isinstance(out.get("effects"), Mapping):
         out["effects"] = {e: ({n: number(v, f"{label}: effect '{e}' parameter '{n}'") for n, v in vals.items()}
                               if isinstance(vals, Mapping) else vals) for e, vals in out["effects"].items()}

@@ -26,6 +26,8 @@ TS = optuna.trial.TrialState
 LIVE = (TS.COMPLETE, TS.RUNNING, TS.WAITING)
 SURPLUS_ATTR = "vibro_surplus"
 """User attribute of a trial withdrawn (FAIL) because other workers had already asked the study's last trials."""
+MAX_REASKS = 8
+"""Times a worker asks again for a trial whose point an earlier trial holds."""
 MAX_GRACE_STRETCH = 10
 """The grace grown from observed beat gaps is at most this many times the storage's."""
 
@@ -88,15 +90,40 @@ class HeartbeatGuard:
             optuna.storages.fail_stale_trials(study)
 
     def ask(self, study, distributions: dict):
-        """A new trial (or a queued retry), with its first heartbeat recorded at once and beaten from then on."""
-        with warnings.catch_warnings():     # optuna warns that its heartbeat expects Study.optimize: we beat here
-            warnings.filterwarnings("ignore", message="Heartbeat of storage is supposed to be used with Study.optimize")
-            trial = study.ask(distributions)
-        study._storage.record_heartbeat(trial._trial_id)
-        with self._mutex:
-            self._held.add(trial._trial_id)
-        self._start(study)
+        """A new trial (or a queued retry), with its first heartbeat recorded at once and beaten from then on.
+
+        A trial whose point an earlier-numbered live trial already holds (two workers proposed from the same
+        state) is withdrawn as surplus and asked again: the later number always yields, so one of the two runs."""
+        for _ in range(MAX_REASKS):
+            with warnings.catch_warnings():     # optuna warns that its heartbeat expects Study.optimize: we beat here
+                warnings.filterwarnings("ignore",
+                                        message="Heartbeat of storage is supposed to be used with Study.optimize")
+                trial = study.ask(distributions)
+            study._storage.record_heartbeat(trial._trial_id)
+            with self._mutex:
+                self._held.add(trial._trial_id)
+            self._start(study)
+            if not self._duplicated(study, trial):
+                return trial
+            self._release([trial])
+            with contextlib.suppress(optuna.exceptions.UpdateFinishedTrialError):
+                trial.set_user_attr(SURPLUS_ATTR, True)
+                study.tell(trial, state=TS.FAIL)
         return trial
+
+    def _duplicated(self, study, trial, wait_s: float = 5.0) -> bool:
+        """True when a live trial numbered below ``trial`` holds its point; an earlier trial still without
+        parameters (asked at this moment elsewhere) is waited for, at most ``wait_s``."""
+        names = set(trial.params)
+        end = time.monotonic() + wait_s
+        while True:
+            earlier = [t for t in study.get_trials(deepcopy=False, states=(TS.RUNNING, TS.COMPLETE))
+                       if t.number < trial.number]
+            if any(t.params == trial.params for t in earlier):
+                return True
+            if time.monotonic() > end or all(names <= set(t.params) for t in earlier if t.state == TS.RUNNING):
+                return False
+            time.sleep(0.05)
 
     def settle(self, study, trials: list, n_trials: int) -> list:
         """Withdraw this worker's trials beyond ``n_trials`` live ones (another worker asked at the same moment);

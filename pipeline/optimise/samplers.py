@@ -47,7 +47,8 @@ def gp_sampler(seed: int, n_objectives: int, n_startup: int = 20):
 
 def sobol_local_sampler(seed: int, n_objectives: int, n_startup: int = 20):
     """A Sobol' pass of twice ``n_startup`` trials, then a compass search that reaches the box's bounds exactly, with
-    restarts (pipeline/optimise/sobol_local.py); ``seed`` only orders the compass moves.  One objective."""
+    restarts (pipeline/optimise/sobol_local.py); a function of the trials alone (``seed`` is unused), so workers
+    sharing a study propose distinct points.  One objective."""
     if n_objectives > 1:
         raise UserError("sampler 'sobol-local' searches one objective; use --sampler tpe or nsga2 for a Pareto study")
     from pipeline.optimise.sobol_local import SobolLocalSampler

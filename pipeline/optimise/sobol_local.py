@@ -49,18 +49,20 @@ class SobolLocalSampler(optuna.samplers.BaseSampler):
                  basin: float = 0.2):
         self.n_startup, self.radius0, self.radius_min = int(n_startup), float(radius0), float(radius_min)
         self.basin = float(basin)
-        self.seed = int(seed)       # orders the compass moves only
+        self.seed = int(seed)       # kept for the samplers' common signature: the search is a function of the trials
 
     # ------------------------------------------------------------------ optuna's sampler interface
     def infer_relative_search_space(self, study, trial) -> dict:
         for t in study.get_trials(deepcopy=False):
             if t.number != trial.number and t.distributions:
                 return dict(t.distributions)
-        return {}       # the study's first trial: sample_independent puts it at the centre
+        return {}       # no trial holds parameters yet: sample_independent gives this one its Sobol' point
 
     def sample_independent(self, study, trial, name, dist):
-        lo, hi = dist.low, dist.high
-        return math.sqrt(lo * hi) if getattr(dist, "log", False) else 0.5 * (lo + hi)
+        """A trial asked before any other trial holds parameters (the study's first, or one asked at the same
+        moment by another worker): coordinate ``j`` (its j-th parameter) of its Sobol' point."""
+        j = sum(1 for n in trial.params if n != name)
+        return _from_unit(_sobol(trial.number + 1, j + 1)[j], dist)
 
     def sample_relative(self, study, trial, space: dict) -> dict:
         if not space:
@@ -85,20 +87,38 @@ class SobolLocalSampler(optuna.samplers.BaseSampler):
     # ------------------------------------------------------------------ the search
     def _propose(self, study, number: int, names: list[str], space: dict):
         """(unit-cube point, radius, 'model' | 'compass', anchor's trial number) of trial ``number``; (point, None,
-        None) for a point of the Sobol' sequence."""
+        None) for a point of the Sobol' sequence.
+
+        Trials asked just before this one (by another worker on the shared study) that hold no parameters yet are
+        proposed for first, in their order, exactly as they propose for themselves: this trial then takes the
+        next move, not the same one."""
+        trials = study.get_trials(deepcopy=False)
+        running = optuna.trial.TrialState.RUNNING
+        pending = [t.number for t in trials
+                   if t.number < number and t.state == running and not all(n in t.params for n in names)]
+        ahead: list[tuple] = []
+        for m in pending:
+            ahead.append(self._propose_one(trials, study.direction, m, names, space, ahead))
+        return self._propose_one(trials, study.direction, number, names, space, ahead)
+
+    def _propose_one(self, trials, direction, number: int, names: list[str], space: dict, ahead: list[tuple]):
+        """:meth:`_propose` for trial ``number``, given the proposals ``ahead`` of trials asked before it."""
         d = len(names)
         if number < self.n_startup:
             return _sobol(number + 1, d), None, None
-        trials = [t for t in study.get_trials(deepcopy=False) if all(n in t.params for n in names)]
+        trials = [t for t in trials if all(n in t.params for n in names)]
         done = [t for t in trials if t.state == optuna.trial.TrialState.COMPLETE]
         if not done:
             return _sobol(number + 1, d), None, None
-        sign = 1.0 if study.direction == optuna.study.StudyDirection.MAXIMIZE else -1.0
+        sign = 1.0 if direction == optuna.study.StudyDirection.MAXIMIZE else -1.0
         others = [t for t in trials if t.number != number]
-        seen = np.array([[_to_unit(t.params[n], space[n]) for n in names] for t in others])
+        seen = np.array([[_to_unit(t.params[n], space[n]) for n in names] for t in others]
+                        + [list(a[0]) for a in ahead]).reshape(-1, d)
         U = np.array([[_to_unit(t.params[n], space[n]) for n in names] for t in done])
         ranks = [_rank(t, sign) for t in done]
-        order = np.random.default_rng(self.seed).permutation(2 * d)    # workers sharing a study ask apart
+        # the compass order is a function of the trial's number, not of a worker's seed, so that a worker can
+        # propose for another's trial exactly (``ahead``), and trials asked at once start from different moves
+        order = np.random.default_rng(number).permutation(2 * d)
         # anchors: the best trial, then each trial no better trial lies within ``basin`` of (a local maximum of the
         # trials at that scale), best first; the first whose local search is not converged moves (restarts)
         by_rank = sorted(range(len(done)), key=lambda i: ranks[i], reverse=True)
@@ -112,6 +132,9 @@ class SobolLocalSampler(optuna.samplers.BaseSampler):
         for t in others:
             if t.system_attrs.get(KIND_ATTR) == "model":
                 models.setdefault(t.system_attrs.get(ANCHOR_ATTR), set()).add(t.system_attrs.get(RADIUS_ATTR))
+        for _, radius, kind, *anchor in ahead:
+            if kind == "model":
+                models.setdefault(anchor[0], set()).add(radius)
         for i in by_rank:
             if shadowed[i]:
                 continue

@@ -16,6 +16,12 @@ from pipeline.core.errors import UserError
 SQLITE_MAGIC = b"SQLite format 3\x00"
 OPTUNA_TABLES = frozenset({"studies", "version_info"})
 """Tables every optuna RDB schema has (optuna/storages/_rdb/models.py)."""
+OPTUNA_SCHEMA = frozenset({"studies", "study_directions", "study_system_attributes", "study_user_attributes",
+                           "trial_heartbeats", "trial_intermediate_values", "trial_params", "trial_system_attributes",
+                           "trial_user_attributes", "trial_values", "trials", "version_info", "alembic_version",
+                           "sqlite_sequence"})
+"""Every table optuna's RDB storage creates: a file holding only some of them is one another worker is
+creating at this moment, not another application's."""
 MAX_JOURNAL_LINE = 2**20
 """Bytes read to find a journal's first record."""
 
@@ -67,6 +73,26 @@ def check_journal_file(path: Path, label: str) -> None:
                         "(name a new or empty file)")
 
 
+def _tables(path: Path, label: str, attempts: int = 5) -> set[str]:
+    """The table names of the SQLite file ``path``, read without locking it.  An immutable read of a file
+    another worker is writing may see a torn page: read again a few times (0.2 s apart) before refusing it."""
+    import sqlite3
+    import time
+
+    for i in range(attempts):
+        try:      # immutable: no lock, journal or WAL file is created next to a file that may not be ours
+            con = sqlite3.connect(f"file:{quote(os.fspath(path.resolve()))}?mode=ro&immutable=1", uri=True)
+            try:
+                return {r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+            finally:
+                con.close()
+        except sqlite3.Error as e:
+            if i == attempts - 1:
+                raise UserError(f"{label}: {path}: not a readable SQLite database ({e})") from None
+            time.sleep(0.2)
+    return set()
+
+
 def check_sqlite_file(path: Path, label: str) -> None:
     """UserError unless ``path`` is absent, empty, or an SQLite database that is empty or has optuna's schema."""
     import sqlite3
@@ -82,15 +108,8 @@ def check_sqlite_file(path: Path, label: str) -> None:
     if magic != SQLITE_MAGIC:
         raise UserError(f"{label}: {path} exists and is not an SQLite database; it was left unchanged "
                         "(name a new file)")
-    try:      # immutable: no lock, journal or WAL file is created next to a file that may not be ours
-        con = sqlite3.connect(f"file:{quote(os.fspath(path.resolve()))}?mode=ro&immutable=1", uri=True)
-        try:
-            tables = {r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")}
-        finally:
-            con.close()
-    except sqlite3.Error as e:
-        raise UserError(f"{label}: {path}: not a readable SQLite database ({e})") from None
-    if tables and not OPTUNA_TABLES <= tables:
+    tables = _tables(path, label)
+    if tables and not (OPTUNA_TABLES <= tables or tables <= OPTUNA_SCHEMA):
         shown = ", ".join(sorted(tables)[:4]) + (", ..." if len(tables) > 4 else "")
         raise UserError(f"{label}: {path} is another application's database (tables {shown}), not an optuna "
                         "storage; it was left unchanged (name a new file)")

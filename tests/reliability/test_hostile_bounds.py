@@ -162,14 +162,18 @@ _CHILD = ("import resource, sys\n"
           "try:\n"
           "    rc = main(sys.argv[1:])\n"
           "finally:\n"
-          "    peak = max(resource.getrusage(w).ru_maxrss for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))\n"
+          "    hwm = [ln.split()[1] for ln in open('/proc/self/status') if ln.startswith('VmHWM:')]\n"
+          "    peak = max(int(hwm[0]) if hwm else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,\n"
+          "               resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n"
           "    sys.stderr.write('\\n{tag}%d\\n' % peak)\n"
           "sys.exit(rc)\n")
 
 
 def run_limited(argv: list[str], cwd: Path, timeout: float = 600) -> tuple[int, str, str, float]:
     """(exit code, stdout, stderr, peak RSS [MB]) of ``vibro argv`` in a child process under :data:`LIMIT_AS`
-    (the peak of the child itself and of its own workers, as it reports it on exit)."""
+    (the peak of the child itself and of its own workers, as it reports it on exit).  The child's own peak is
+    VmHWM, not RUSAGE_SELF: Linux carries ru_maxrss across exec, so the latter would report the pytest worker
+    that spawned it."""
     env = {**os.environ, "VIBRO_NO_MLFLOW": "1", "PYTHONPATH": str(ROOT)}
     code = _CHILD.format(lim=LIMIT_AS, tag=RSS_TAG)
     try:

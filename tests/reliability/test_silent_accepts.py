@@ -108,7 +108,7 @@ CASES: dict[str, tuple[Callable[[Path], list[str]], tuple[str, ...]]] = {
     "rig effect value false": (_rig_effect_bool, ("rig.yaml", "effect 'shaker_coil' parameter 'beta'")),
     "rig effect {}": (_rig_empty_effect, ("rig.yaml", "effect 'shaker_coil' gives no parameters")),
     "params sweep.fixed K1: true": (_params_bool, ("sweep.fixed.K1", "must be a number")),
-    "params optimise.fixed K1: true": (_optimise_params_bool, ("optimise.fixed.K1", "expected a number")),
+    "params optimise.fixed K1: true": (_optimise_params_bool, ("optimise.fixed.K1", "must be a number")),
     "optimise --vary frequency_hz=0:400": (_optimise_zero_hz, ("range 'frequency_hz'", "low bound 0", "> 0")),
     "train on a label as input": (lambda d: _train(d, _training_set(d), "frequency_hz,rop_m_s"),
                                   ("input 'rop_m_s' is a label",)),

@@ -151,6 +151,30 @@ def test_concurrent_asks_beyond_n_trials_are_withdrawn(tmp_path):
     assert all(t.user_attrs.get(SURPLUS_ATTR) for t in a.get_trials(deepcopy=False) if t.state == TS.FAIL)
 
 
+class _RepeatingSampler(optuna.samplers.RandomSampler):
+    """Proposes x = 0.5 for trials 0 and 1 (two workers that proposed from the same state), then 0.9."""
+
+    def sample_independent(self, study, trial, name, dist):
+        return 0.5 if trial.number < 2 else 0.9
+
+
+def test_a_trial_repeating_an_earlier_live_point_is_withdrawn_and_asked_again(tmp_path):
+    from pipeline.optimise.heartbeat import HeartbeatGuard
+
+    study = optuna.create_study(storage=open_storage(f"journal://{tmp_path / 's.log'}", 1), study_name="s",
+                                sampler=_RepeatingSampler())
+    dist = {"x": optuna.distributions.FloatDistribution(0, 1)}
+    guard = HeartbeatGuard(poll_s=0.01)
+    try:
+        first, second = guard.ask(study, dist), guard.ask(study, dist)
+    finally:
+        guard.close()
+    assert (first.number, first.params) == (0, {"x": 0.5})
+    assert (second.number, second.params) == (2, {"x": 0.9})
+    withdrawn = study.get_trials(deepcopy=False)[1]
+    assert withdrawn.state == TS.FAIL and withdrawn.user_attrs.get(SURPLUS_ATTR)
+
+
 def test_journal_heartbeat_fails_a_silent_trial_and_queues_it_again(tmp_path):
     url = f"journal://{tmp_path / 's.log'}"
     storage = open_storage(url, 1)

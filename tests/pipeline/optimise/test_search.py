@@ -86,6 +86,31 @@ def test_sobol_local_is_a_function_of_the_trials_and_asks_a_batch_apart():
     assert a.trials[0].params == {"x": 5.0, "y": 5.0, "z": 5.0}               # the centre opens the design
 
 
+def test_sobol_local_trials_asked_at_once_by_several_workers_are_distinct():
+    """Workers sharing a study: trials another worker has asked but not yet given parameters are proposed for
+    first, so the trial asked after them takes another move (four workers once asked one point twice)."""
+    study = _study(24)
+    sampler = study.sampler
+    dists = {n: optuna.distributions.FloatDistribution(0.0, 10.0) for n in "xyz"}
+    bare = [study._storage.create_new_trial(study._study_id) for _ in range(3)]     # asked, no parameters yet
+    last = study.ask(dists)
+    names = list(dists)
+    points = [tuple(np.round(sampler._propose(study, study._storage.get_trial_number_from_id(tid), names, dists)[0],
+                             12)) for tid in bare]
+    points.append(tuple(round((last.params[n] - 0.0) / 10.0, 12) for n in names))
+    assert len(set(points)) == 4, points
+
+
+def test_sobol_local_second_trial_asked_before_the_first_has_parameters_is_not_the_centre():
+    """The study's first two trials asked at once by two workers: both used to get the box's centre."""
+    optuna.logging.set_verbosity(optuna.logging.ERROR)
+    study = optuna.create_study(direction="maximize", sampler=sobol_local_sampler(0, 1, 10))
+    dists = {n: optuna.distributions.FloatDistribution(0.0, 10.0) for n in "xyz"}
+    study._storage.create_new_trial(study._study_id)          # trial 0, asked, no parameters yet
+    second = study.ask(dists)
+    assert second.params == {"x": 7.5, "y": 2.5, "z": 2.5}     # the Sobol' sequence's third point (0.75, 0.25, 0.25)
+
+
 def test_sobol_local_refuses_a_pareto_study():
     from pipeline.core.errors import UserError
 
