@@ -8,7 +8,7 @@ import json
 import pytest
 
 from pipeline.core.errors import UserError
-from pipeline.optimise.config import MODES, OptimiseConfig
+from pipeline.optimise.config import MODES, OptimiseConfig, check_numbers
 from pipeline.optimise.outcome import OptimiseOutcome, optimise
 from pipeline.optimise.strategies import BUILDERS, SAMPLER_FACTORIES, build_strategies
 from pipeline.optimise.study import SAMPLERS
@@ -53,6 +53,12 @@ def test_config_validates_itself():
         OptimiseConfig(sampler="cmaes")
     with pytest.raises(UserError, match="at least two"):
         OptimiseConfig(objective="pareto", objectives=["rop_m_s"])
+    # one table of bounds (config.BOUNDS) for the params.yaml section and the built config, with one message
+    with pytest.raises(UserError, match=r"^optimise\.rel_tol: must be > 0, got 0$"):
+        OptimiseConfig(rel_tol=0)
+    with pytest.raises(UserError, match=r"^p\.yaml: optimise\.n_trials: must be >= 1, got 0$"):
+        check_numbers({"n_trials": 0}, "p.yaml: optimise")
+    assert check_numbers({"seed": 3.0, "fixed": {"K1": "3e8"}}) == {"seed": 3, "fixed": {"K1": 3e8}}
 
 
 @pytest.mark.parametrize("mode", ["simulator", "surrogate"])
@@ -109,8 +115,10 @@ def test_a_surrogate_the_simulator_contradicts_never_makes_the_recommendation(di
     store = f"sqlite:///{dirs / 'db' / 'optuna.db'}"
     cfg = OptimiseConfig(mode="surrogate", surrogate=str(dirs / "home"), ranges=SMALL, n_trials=16, n_verify=3,
                          batch_size=4, storage=store, fallback_trials=8)
-    out = optimise(cfg, dirs / "out", bundle=ToyBundle(rop_scale=3.0), progress=False)
+    said = []
+    out = optimise(cfg, dirs / "out", bundle=ToyBundle(rop_scale=3.0), progress=False, notify=said.append)
     rep = out.report
+    assert said == [f"{rep['fallback']['reason']}; running 8 trials straight on the simulator"]
     assert isinstance(out, OptimiseOutcome) and out.fell_back and out.failed.config.mode == "surrogate"
     assert out.verification_failed == rep["fallback"]["reason"] and out.result.study_name == rep["study_name"]
     assert list(rep) == [k for k in REPORT_KEYS if k not in ("pareto_verified", "objectives")]
