@@ -27,13 +27,11 @@ import sys
 from typing import Callable, Mapping
 
 from pipeline.core.errors import UserError
-from pipeline.core.numbers import number  # noqa: F401 - the one number parser, re-exported
+from pipeline.core.numbers import MAX_THREADS, MAX_TRIALS, number  # noqa: F401 - the one number parser, re-exported
 from sim.errors import did_you_mean
 
 # upper bounds on the work one command may ask for (a typo like 1e12 is an error, not a MemoryError or a hang)
 MAX_POINTS = 10_000_000        # sweep / verify points, map grid cells
-MAX_TRIALS = 1_000_000         # optimisation trials
-MAX_THREADS = 1024
 MAX_CYCLES = 1_000_000         # recorded/transient forcing cycles
 
 # simulator settings (sim.Settings): (integer?, low, high, low inclusive) — bounds on work included
