@@ -24,6 +24,7 @@ from pipeline.core.errors import UserError
 from pipeline.datasets.measured import Dataset
 from sim.controls import CONTROLS
 
+
 def effect_defaults(system: str) -> dict[str, dict[str, float]]:
     """Default (clearly visible) effect strengths of ``system``: its ModelSpec's ``synth.effect_strengths``."""
     return {k: dict(v) for k, v in rig_of(system).effect_strengths.items()}
