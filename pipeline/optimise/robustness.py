@@ -71,23 +71,6 @@ class RopSpread:
                 "combined_half_width_m_s": self.combined_half_width_m_s, "model_error_basis": self.model_error_basis}
 
 
-def spread_words(spread: Mapping) -> str:
-    """``parameter spread ±a, model error ±b (held-out rms e %), combined ±c mm/s, 5-95 %`` of a
-    :meth:`RopSpread.to_dict` mapping (report.json 'spread'); the model error said to be not given when the rig has
-    none."""
-    from pipeline.core.units import ENGINEERING
-
-    _, unit, k = ENGINEERING["rop_m_s"]
-    a = float(spread.get("parameter_half_width_m_s", 0.5 * (spread["p95_rop_m_s"] - spread["p5_rop_m_s"])))
-    b, c = spread.get("model_error_half_width_m_s"), spread.get("combined_half_width_m_s")
-    if b is None or c is None:
-        return (f"parameter spread ±{a * k:.3g} {unit}, 5-95 %; model error not given (the rig file has no "
-                f"model_error), so no combined spread")
-    e = 100 * spread["model_error_rel"]
-    return (f"parameter spread ±{a * k:.3g}, model error ±{b * k:.3g} (held-out rms {e:.3g} %), "
-            f"combined ±{c * k:.3g} {unit}, 5-95 %")
-
-
 def fit_bounds(model: str) -> dict[str, tuple[float, float]]:
     """(low, high) of every fitted parameter of ``model`` (calibratable, §6 effect parameters, discrepancy terms)."""
     import sim

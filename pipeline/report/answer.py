@@ -64,7 +64,7 @@ def _corrected(cl: dict) -> str | None:
     rig = f"corrected rig '{cl['rig_name']}'" if cl.get("rig_name") else "corrected rig"
     text = f"Answer ({rig}): {_point(pt)} -> ROP {rop:.2f} mm/s on the corrected rig"
     if isinstance(cl.get("spread"), dict):
-        from pipeline.optimise.robustness import spread_words
+        from pipeline.core.units import spread_words
 
         text += f" ({spread_words(cl['spread'])})"
     elif isinstance(cl.get("spread_mm_s"), list) and len(cl["spread_mm_s"]) == 2:     # a summary from before

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pipeline.core.units import broken_words, point_words
-from pipeline.optimise.robustness import spread_words
+from pipeline.core.units import broken_words, point_words, spread_words
 from pipeline.report.doc import Heading, Para, Table
 
 

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from pipeline.optimise.robustness import (Z_90, combined_half_widths, fit_bounds, parameter_samples, rop_spread,
-                                          spread_words)
+from pipeline.core.units import spread_words
+from pipeline.optimise.robustness import Z_90, combined_half_widths, fit_bounds, parameter_samples, rop_spread
 from sim import ModelError, Rig
 
 POINT = {"frequency_hz": 280.0, "amplitude_n": 2250.0, "static_force_n": 1200.0}   # the lab preset's default point
