@@ -76,8 +76,9 @@ class ModelError:
                                      f"known: {', '.join(MODEL_ERROR_KEYS)}")
         if "rop_rel" not in data:
             raise ParameterError("rig: model_error needs rop_rel (relative sd of the model's ROP)")
+        basis = data.get("basis")
         return cls(rop_rel=data["rop_rel"], noise_floor_rel=data.get("noise_floor_rel"),
-                   basis=str(data.get("basis") or ""))
+                   basis="" if basis is None else basis)
 
 
 @dataclass(frozen=True)

@@ -60,6 +60,7 @@ def test_with_values_routes_effect_parameters():
     ({"model": "drill", "model_error": {"basis": "x"}}, "model_error needs rop_rel"),
     ({"model": "drill", "model_error": {"rop_rel": -0.1}}, "model_error rop_rel must be a finite number >= 0"),
     ({"model": "drill", "model_error": {"rop_rel": True}}, "model_error rop_rel"),
+    ({"model": "drill", "model_error": {"rop_rel": 0.1, "basis": [1]}}, "model_error basis must be text"),
     ({"model": "drill", "model_error": {"rop_rel": 0.1, "noise_floor_rel": float("nan")}}, "noise_floor_rel"),
     ([1, 2], "expected a mapping"),
 ])
