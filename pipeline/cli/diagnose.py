@@ -327,8 +327,8 @@ def summary_lines(report: dict) -> list[str]:
         err = (r.get("rig") or {}).get("rop_model_error")
         if err:         # the rig file's model_error, which compare's ROP spread adds to the parameters'
             floor = err.get("noise_floor_rel")
-            lines.append(f"  model error in the rig file: held-out ROP error {100 * err['rop_rel']:.3g} % (rms, relative"
-                         + ("" if floor is None else f"; noise floor {100 * floor:.3g} %") + ")")
+            lines.append(f"  model error in the rig file: held-out ROP error {100 * err['rop_rel']:.3g} % (rms, "
+                         f"relative" + ("" if floor is None else f"; noise floor {100 * floor:.3g} %") + ")")
     return lines
 
 

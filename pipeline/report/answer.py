@@ -1,9 +1,9 @@
 """The pipeline's answer: the recommended operating point, its verified ROP and power.
 
 When the pipeline diagnosed a rig log, the answer is the corrected rig's recommendation (its ROP on the corrected
-rig with its 5-95 % spread over the fitted parameters, the model error and both combined, and what it is worth against the lab model's point on the
-same rig); the lab model's answer follows on a second line, named as such.  Read from the report's
-``summary.json`` (``vibro report``), printed at the end of ``make run``.
+rig with its 5-95 % spread over the fitted parameters, the model error and both combined, and what it is worth
+against the lab model's point on the same rig); the lab model's answer follows on a second line, named as such.
+Read from the report's ``summary.json`` (``vibro report``), printed at the end of ``make run``.
 """
 from __future__ import annotations
 
