@@ -87,3 +87,14 @@ def test_runs_that_disagree_on_a_known_parameter_are_noted():
 def test_file_names():
     assert rig_file_name("drill", 1) == "rig.yaml"
     assert rig_file_name("indenter-metal", 2) == "rig-indenter-metal.yaml"
+
+
+def test_the_terminal_summary_says_the_rigs_rop_model_error():
+    from pipeline.cli.diagnose import summary_lines
+
+    entry = {"selected": None, "verdict": "explained", "base_nrms": 3.0, "final_nrms": 1.1, "final_error": 0.02,
+             "noise_floor": 0.018, "rig": {"rop_model_error": {"rop_rel": 0.034, "noise_floor_rel": 0.012}}}
+    lines = summary_lines({"systems": {"drill": entry}})
+    assert "held-out ROP error 3.4 % (rms, relative; noise floor 1.2 %)" in lines[-1]
+    entry["rig"]["rop_model_error"] = None
+    assert not any("model error in the rig file" in ln for ln in summary_lines({"systems": {"drill": entry}}))
