@@ -188,7 +188,7 @@ def load_rig(path: str | None, model: str | None = None, preset: str | None = No
         p = None if str(preset).lower() == "none" else preset
         try:
             rig = Rig(rig.model, p, dict(rig.parameters), {e: dict(v) for e, v in rig.effects.items()},
-                      dict(rig.uncertainty), rig.source, dict(rig.discrepancy))
+                      dict(rig.uncertainty), rig.source, dict(rig.discrepancy), rig.model_error)
         except ParameterError as e:
             raise UserError(f"rig file {path} with --preset {preset}: {str(e).removeprefix('rig: ')}") from None
     warn_out_of_range(rig.model, rig.preset, rig.overrides(), f"rig file {path}: ")
