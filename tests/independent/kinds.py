@@ -27,8 +27,8 @@ supports and drives
                        impacting mass and the mounted mass (δ = x − gap − xs, its rate relative).  ms [kg],
                        cm [m/N] (0 = a rigid mount: the states stay at 0, the model exactly), zeta_m [-].  Two
                        states (xs, ẋs).  (load_path_mode hangs a mass on the impacting body, never on the stop.)
-  drive_mode           (drill, indenter-sandstone) a mode inside the drive: a hidden mass md on the driving body
-                       (the drill's exciter M2, the indenter's shaker body m2) through a spring ∥ damper tuned to
+  drive_mode           (drill, rimd) a mode inside the drive: a hidden mass md on the driving body (the drill's
+                       exciter M2, the RIMD's main beam m1, which carries the forcing and the hammer) through a spring ∥ damper tuned to
                        fd_hz, ratio zeta_d.  md [kg], fd_hz [Hz] (0 = uncoupled), zeta_d [-].  Two states.
 
 slow changes
@@ -39,8 +39,9 @@ slow changes
                        contact position.)
 
 losses
-  power_damping        (drill, rimd) a velocity-power loss in the suspension between the impacting mass and its
-                       carrier (drill bit–exciter link, RIMD hammer–beam spring): cp |v|^pd sign v on the relative
+  power_damping        (drill, indenter-sandstone, rimd) a velocity-power loss in the suspension between the
+                       impacting mass and its carrier (drill bit–exciter link, indenter armature flexure φ1, RIMD
+                       hammer–beam spring): cp |v|^pd sign v on the relative
                        velocity v (pd = 3 on the rigs: an elastomer / squeeze-film loss that grows faster than
                        viscous and than quadratic drag).  cp [N (s/m)^pd] (0 = the model), pd [-].
   support_friction     (indenter-sandstone, pendulum, rimd) dry friction at another site than the tool's guides:
@@ -65,9 +66,9 @@ KINDS_SYSTEMS = {"contact_exponent": ("indenter-metal", "pendulum"),
                  "unloading_hysteresis": ("indenter-metal", "pendulum"),
                  "rate_strength": ("drill",),
                  "mount_mode": ("indenter-metal", "rimd"),
-                 "drive_mode": ("drill", "indenter-sandstone"),
+                 "drive_mode": ("drill", "rimd"),
                  "contact_wear": ("indenter-metal", "pendulum"),
-                 "power_damping": ("drill", "rimd"),
+                 "power_damping": ("drill", "indenter-sandstone", "rimd"),
                  "support_friction": ("indenter-sandstone", "pendulum", "rimd")}
 """The systems each held-out kind applies to."""
 
@@ -293,6 +294,8 @@ def _rimd_class(kind: str):
                 setattr(self, n, v)
             super().__init__(params)
             self.ix = len(self.scales)
+            if kind == "drive_mode":
+                _drive_init(self, "m1")
             if kind == "mount_mode":
                 if not (self.ms > 0.0 and self.cm >= 0.0 and self.zeta_m >= 0.0):
                     raise ValueError("mount_mode: need ms > 0, cm >= 0, zeta_m >= 0")
@@ -359,6 +362,13 @@ def _rimd_class(kind: str):
 
             def accel(self, t, Y, br, disc):
                 return super().accel(t, Y, br, disc) - self._pd_force(Y[3] - Y[1]) / self.p["m2"]
+
+        elif kind == "drive_mode":     # a hidden mode of the main beam m1 (its acceleration is dy[1])
+            def _acc(self, t, y, Fi):
+                a1, a2, w = super()._acc(t, y, Fi)
+                return a1 + self._fd(y) / self.p["m1"], a2, w
+
+            initial_state, flow, _fd = _drive_methods(base, 1)
 
         else:   # support_friction: the beam's clamp
             def _acc(self, t, y, Fi):
@@ -472,7 +482,7 @@ def _drive_methods(base, ia: int):
 
 
 # =====================================================================================================
-# indenter-sandstone: drive_mode, support_friction
+# indenter-sandstone: power_damping, support_friction
 # =====================================================================================================
 def _sandstone_class(kind: str):
     base = ref._IndenterSandstone
@@ -484,16 +494,21 @@ def _sandstone_class(kind: str):
             for n, v in zip(names, vals):
                 setattr(self, n, v)
             super().__init__(params)
-            if kind == "drive_mode":
-                _drive_init(self, "m2")
 
-        if kind == "drive_mode":
-            def _body(self, t, y, Fr):       # the shaker body m2 (index 3) carries the hidden mass
+        if kind == "power_damping":      # on the armature suspension, v = φ̇1 = ẋ1 − ẋ2
+            def _pd_force(self, v):
+                return self.cp * np.abs(v) ** self.pd * np.sign(v)
+
+            def _body(self, t, y, Fr):
                 dy = super()._body(t, y, Fr)
-                dy[3] = dy[3] + self._fd(y) / self.p["m2"]
+                f = float(self._pd_force(y[1] - y[3]))
+                dy[1] = dy[1] - f / self.p["m1"]
+                dy[3] = dy[3] + f / self.p["m2"]
                 return dy
 
-            initial_state, flow, _fd = _drive_methods(base, 3)
+            def _a1_vec(self, t, Y, Fr):
+                return super()._a1_vec(t, Y, Fr) - self._pd_force(Y[1] - Y[3]) / self.p["m1"]
+
         else:   # support_friction: the shaker body's carriages on the ground
             def _body(self, t, y, Fr):
                 dy = super()._body(t, y, Fr)
