@@ -28,8 +28,9 @@ supports and drives
                        cm [m/N] (0 = a rigid mount: the states stay at 0, the model exactly), zeta_m [-].  Two
                        states (xs, ẋs).  (load_path_mode hangs a mass on the impacting body, never on the stop.)
   drive_mode           (drill, rimd) a mode inside the drive: a hidden mass md on the driving body (the drill's
-                       exciter M2, the RIMD's main beam m1, which carries the forcing and the hammer) through a spring ∥ damper tuned to
-                       fd_hz, ratio zeta_d.  md [kg], fd_hz [Hz] (0 = uncoupled), zeta_d [-].  Two states.
+                       exciter M2, the RIMD's main beam m1, which carries the forcing and the hammer) through a
+                       spring ∥ damper tuned to fd_hz, ratio zeta_d.  md [kg], fd_hz [Hz] (0 = uncoupled: the
+                       labels of the model to the solver's tolerance), zeta_d [-].  Two states.
 
 slow changes
   contact_wear         (indenter-metal, pendulum) the struck surface wears / dents away with the impact work:
@@ -95,7 +96,8 @@ def _check(system: str, kind: str):
 def _kv_class(system: str, kind: str):
     """A model of ``system`` (indenter-metal or pendulum) whose contact expression is
         E = k [(1 + α max(δ̇, 0)) s(δ; disc) + τ δ̇],  F = max(0, E) in contact,
-    with δ = δ0 − off, δ̇ = δ̇0 − off', δ0 the model's penetration, and the kind's shape s / offset / states."""
+    with δ = δ0 − off, δ̇ = δ̇0 − off', δ0 the model's penetration, and the kind's shape s / offset /
+    states."""
     base = _MODELS[system]
     metal = system == "indenter-metal"
 
@@ -447,6 +449,7 @@ def _drill_class(kind: str):
 
 
 def _drive_init(self, mass: str):
+    """Check the drive_mode parameters of ``self`` (on its body ``mass``) and add the two states' scales."""
     if not (self.md > 0.0 and self.fd_hz >= 0.0 and self.zeta_d >= 0.0):
         raise ValueError(f"drive_mode: need md > 0, fd_hz >= 0, zeta_d >= 0 (got {self.md}, {self.fd_hz}, "
                          f"{self.zeta_d})")
