@@ -89,13 +89,13 @@ RIGS: dict[str, Rig] = {
                  # peak decel -11 %, energy/cycle +7 % (period 1 kept)
                  "load_path_mode": {"mh": 0.7, "fh_hz": 300.0, "zeta_h": 0.05},
                  # held-out kinds (kinds.py); effects at 60 Hz / 1 bar over 0.3 s + 10 cycles (period 0 kept):
-                 # Hertz-like tip, same stiffness at δ_typ 0.14 mm: peak force +13 %, peak decel +19 %
+                 # Hertz-like tip, same stiffness at δ_typ 0.14 mm: peak force +13 % (+4..+21 % over f), decel +19 %
                  "contact_exponent": {"nc": 1.5, "delta_r": 1.4e-4},
-                 # unloading δm (δ/δm)^4: peak decel -9 %, peak force -4 %, energy/cycle -3 %
+                 # unloading δm (δ/δm)^4: peak decel -9 %, peak force -4 % (-5..+17 % over f), energy/cycle -3 %
                  "unloading_hysteresis": {"nu_h": 4.0},
-                 # 2 kg plate on a 2e7 N/m mount (503 Hz): peak force -14 %, peak decel -35 %
+                 # 2 kg plate on a 2e7 N/m mount (503 Hz): peak force -14 % (-7..-34 % over f), peak decel -35 %
                  "mount_mode": {"ms": 2.0, "cm": 5.0e-8, "zeta_m": 0.05},
-                 # ~1 J of loading work per 0.1 s recedes the plate 0.2 mm/J: peak force -9 %, peak decel -12 %
+                 # the plate recedes 0.2 mm per J of loading work: peak force -9 % (-5..-12 % over f), decel -12 %
                  "contact_wear": {"kw": 2.0e-4}}),
     "indenter-sandstone": Rig(
         system="indenter-sandstone", known={**INDENTER, **SANDSTONE}, calibratable=("kl", "ku", "pm"),
@@ -109,9 +109,9 @@ RIGS: dict[str, Rig] = {
                  # mh = 0.2 m1; at 60 Hz / 1 bar: peak force +5 %, peak decel -16 %, ROP +4 %, energy/cycle +10 %
                  "load_path_mode": {"mh": 0.7, "fh_hz": 300.0, "zeta_h": 0.05},
                  # held-out kinds (kinds.py); at 60 Hz / 1 bar over 0.3 s + 10 cycles:
-                 # cubic flexure loss, ~100 N at φ̇1 0.2 m/s: ROP -7 %, peak decel -11 %, peak force -4 %
+                 # cubic flexure loss, ~100 N at φ̇1 0.2 m/s: ROP -7 % (-1..-9 % over f), peak decel -11 %
                  "power_damping": {"cp": 1.0e4, "pd": 3.0},
-                 # shaker-body carriages, 40 N (2 x the piston seal): peak decel +13 %, energy/cycle +38 %, ROP +2 %
+                 # shaker-body carriages, 40 N (2 x the seal's): peak decel +13 %, energy +38 %, ROP +2 % (-19..+3 %)
                  "support_friction": {"mu_s": 40.0}},
         summary_labels=("rop_m_s", "peak_force_n", "peak_decel_g", "impacts_per_cycle")),
     "drill": Rig(
@@ -132,11 +132,12 @@ RIGS: dict[str, Rig] = {
                  # ROP +8 %, energy/cycle +7 % (period 1 kept)
                  "load_path_mode": {"mh": 15.0, "fh_hz": 1000.0, "zeta_h": 0.05},
                  # held-out kinds (kinds.py); at 270 Hz / Fs 1500 N over 0.3 s + 10 cycles:
-                 # failing rock 5 s/m stronger per m/s of failure rate: ROP -16 %, peak force +4 %, decel -10 %
+                 # failing rock 5 s/m stronger per m/s of failure rate: ROP -16 % (-11..-17 % over f at 1500 N), peak
+                 # force +4 %, decel -10 %
                  "rate_strength": {"eta_r": 5.0},
-                 # md = 0.2 M2 at 400 Hz inside the exciter: ROP +8 %, peak decel +4 %, energy/cycle +5 %
+                 # md = 0.2 M2 at 400 Hz inside the exciter: ROP +8 % (+8..+13 % over f), peak decel +4 %, energy +5 %
                  "drive_mode": {"md": 48.0, "fd_hz": 400.0, "zeta_d": 0.05},
-                 # cubic link loss, ~300 N at |ẋ1 - ẋ2| 0.02 m/s: ROP -8 %, peak decel -3 %
+                 # cubic link loss, ~300 N at |ẋ1 - ẋ2| 0.02 m/s: ROP -8 % (-9..+1 % over f), peak decel -3 %
                  "power_damping": {"cp": 4.0e7, "pd": 3.0}},
         summary_labels=("rop_m_s", "peak_force_n", "peak_decel_g", "impacts_per_cycle")),
     "pendulum": Rig(
