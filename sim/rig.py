@@ -35,6 +35,14 @@ def _nonnegative(v: Any, what: str) -> float:
     return float(v)
 
 
+def _known_keys(data: Mapping, known: tuple[str, ...], what: str) -> None:
+    """ParameterError naming the first key of ``data`` not in ``known`` (with a did-you-mean)."""
+    for key in data:
+        if key not in known:
+            raise ParameterError(f"rig: unknown {what} '{key}'{did_you_mean(key, known)}; "
+                                 f"known: {', '.join(known)}")
+
+
 @dataclass(frozen=True)
 class ModelError:
     """What the model still gets wrong about ROP once its parameters are fitted (dimensionless, relative to ROP).
@@ -70,10 +78,7 @@ class ModelError:
         """Validated model error from a rig file's ``model_error`` mapping (keys :data:`MODEL_ERROR_KEYS`)."""
         if not isinstance(data, Mapping):
             raise ParameterError(f"rig: 'model_error' must be a mapping ({', '.join(MODEL_ERROR_KEYS)}), got {data!r}")
-        for key in data:
-            if key not in MODEL_ERROR_KEYS:
-                raise ParameterError(f"rig: unknown model_error key '{key}'{did_you_mean(key, MODEL_ERROR_KEYS)}; "
-                                     f"known: {', '.join(MODEL_ERROR_KEYS)}")
+        _known_keys(data, MODEL_ERROR_KEYS, "model_error key")
         if "rop_rel" not in data:
             raise ParameterError("rig: model_error needs rop_rel (relative sd of the model's ROP)")
         basis = data.get("basis")
@@ -226,10 +231,7 @@ class Rig:
         """Validated rig from a rig-file mapping (keys :data:`RIG_KEYS`)."""
         if not isinstance(data, Mapping):
             raise ParameterError(f"rig: expected a mapping with keys {', '.join(RIG_KEYS)}, got {type(data).__name__}")
-        for key in data:
-            if key not in RIG_KEYS:
-                raise ParameterError(f"rig: unknown key '{key}'{did_you_mean(key, RIG_KEYS)}; "
-                                     f"known keys: {', '.join(RIG_KEYS)}")
+        _known_keys(data, RIG_KEYS, "key")
         if "model" not in data:
             raise ParameterError("rig: missing key 'model'")
         for key in ("parameters", "effects", "discrepancy", "uncertainty"):
