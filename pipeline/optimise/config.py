@@ -36,7 +36,10 @@ class OptimiseConfig:
     surrogate is called wrong.  fallback_trials: when a surrogate fails its verification (the recommended point,
     or more than half of the verified points, wrong) a study of this many trials straight on the simulator, over
     the same space with the same model, rig and constraints, starting from the points already verified, makes the
-    recommendation instead (0: off).  storage: optuna storage URL (None: the SQLite file optuna.db at the project
+    recommendation instead (0: off).  infill_rounds: before that fallback, up to this many rounds of infill
+    (pipeline/optimise/infill.py): simulate ``infill_points`` points where the study looked, retrain the surrogate on
+    ``train_data`` (its sweep; None: the one its report.json names) plus every point simulated so far, search and
+    verify again (0: straight to the fallback).  storage: optuna storage URL (None: the SQLite file optuna.db at the project
     root); heartbeat_s: seconds between heartbeats of a running trial on a server or journal storage (None:
     storages.DEFAULT_HEARTBEAT_S; a trial silent for 3 heartbeats is failed and re-run).
     """
@@ -71,6 +74,9 @@ class OptimiseConfig:
     feedback: str | None = None
     n_threads: int | None = None
     settings: dict | None = None
+    infill_rounds: int = 3
+    infill_points: int = 16
+    train_data: str | None = None
 
     def __post_init__(self) -> None:
         self.validate()
@@ -100,6 +106,9 @@ class OptimiseConfig:
             raise UserError(f"heartbeat_s must be >= 1 second, got {self.heartbeat_s}")
         if int(self.fallback_trials) < 0:
             raise UserError(f"fallback_trials must be >= 0, got {self.fallback_trials}")
+        if int(self.infill_rounds) < 0 or int(self.infill_points) < 1:
+            raise UserError(f"infill_rounds must be >= 0 and infill_points >= 1, got {self.infill_rounds} and "
+                            f"{self.infill_points}")
         if self.n_trials is not None and int(self.n_trials) < 1:
             raise UserError(f"n_trials must be >= 1, got {self.n_trials}")
         if not (self.rel_tol > 0):
