@@ -16,7 +16,7 @@ from pipeline.optimise.workflow import OptimiseResult, plan_optimise, run_optimi
 from .test_optimise import SMALL, ToyBundle
 
 REPORT_KEYS = ["study_name", "inputs", "created", "tried", "recommendation", "feedback_rows", "feedback_file",
-               "surrogate_note", "fallback", "outcome", "pareto_verified", "objectives", "figures", "metrics"]
+               "surrogate_note", "infill", "fallback", "outcome", "pareto_verified", "objectives", "figures", "metrics"]
 TRIED_KEYS = ["mode", "objective", "objectives", "sampler", "seed", "model", "preset", "fixed", "space", "constraints",
               "n_trials", "n_trials_run_now", "n_feasible", "status_counts", "storage", "simulator_calls_study",
               "n_verified", "simulator_calls"]
@@ -83,7 +83,7 @@ def test_command_writes_the_report_keys_it_always_wrote(dirs):
                          fallback_trials=0)
     rep = command.optimise_into(cfg, dirs / "out", bundle=ToyBundle(), progress=False, mlflow_enabled=False)
     on_disk = json.loads((dirs / "out" / "report.json").read_text())
-    keys = [k for k in REPORT_KEYS if k != "fallback"]
+    keys = [k for k in REPORT_KEYS if k not in ("infill", "fallback")]
     assert list(on_disk) == keys and list(rep) == keys
     assert list(on_disk["tried"]) == TRIED_KEYS and list(on_disk["metrics"]) == METRIC_KEYS
     assert list(on_disk["recommendation"]) == REC_KEYS
@@ -96,7 +96,7 @@ def test_command_writes_the_report_keys_it_always_wrote(dirs):
     cfg = OptimiseConfig(mode="simulator", preset="lab", ranges=SMALL, n_trials=4, n_verify=1, batch_size=4,
                          storage=f"sqlite:///{dirs / 'db' / 'optuna.db'}")
     rep = command.optimise_into(cfg, dirs / "sim", progress=False, mlflow_enabled=False)
-    want = [k for k in REPORT_KEYS if k not in ("feedback_rows", "feedback_file", "surrogate_note", "fallback",
+    want = [k for k in REPORT_KEYS if k not in ("feedback_rows", "feedback_file", "surrogate_note", "infill", "fallback",
                                                 "pareto_verified", "objectives")]
     assert list(json.loads((dirs / "sim" / "report.json").read_text())) == want == list(rep)
     assert list(rep["metrics"]) == [k for k in METRIC_KEYS if k != "n_pareto_verified"]
