@@ -80,7 +80,7 @@ def test_command_writes_the_report_keys_it_always_wrote(dirs):
     fb = dirs / "fb.parquet"
     cfg = OptimiseConfig(mode="surrogate", surrogate=str(dirs / "home"), objective="pareto", ranges=SMALL,
                          n_trials=40, n_verify=4, storage=f"sqlite:///{dirs / 'db' / 'optuna.db'}", feedback=str(fb),
-                         fallback_trials=0)
+                         fallback_trials=0, infill_rounds=0)
     rep = command.optimise_into(cfg, dirs / "out", bundle=ToyBundle(), progress=False, mlflow_enabled=False)
     on_disk = json.loads((dirs / "out" / "report.json").read_text())
     keys = [k for k in REPORT_KEYS if k not in ("infill", "fallback")]
