@@ -122,3 +122,21 @@ def test_the_design_looks_on_the_limits_and_the_faces_around_the_incumbent(poor_
     for h in faces:
         assert (local[h["name"]] == h["bound"]).sum() >= 3
     assert (np.abs(space.unit(local) - space.unit(pd.DataFrame([inc]))) <= 0.1 + 1e-12).all()
+
+
+def test_the_flags_and_params_yaml_set_the_loop(tmp_path):
+    from pipeline.cli import build_parser
+    from pipeline.cli.optimise import config_from_args
+    from pipeline.core.errors import UserError
+
+    def cfg(*argv):
+        return config_from_args(build_parser().parse_args(["optimise", "--simulator", *argv]))
+
+    assert (cfg().infill_rounds, cfg().infill_points, cfg().train_data) == (3, 16, None)
+    c = cfg("--infill-rounds", "0", "--infill-points", "4", "--train-data", "data/sweep-rig")
+    assert (c.infill_rounds, c.infill_points, c.train_data) == (0, 4, "data/sweep-rig")
+    (tmp_path / "p.yaml").write_text("optimise:\n  infill_rounds: 5\n")
+    assert cfg("--params", str(tmp_path / "p.yaml")).infill_rounds == 5
+    (tmp_path / "p.yaml").write_text("optimise:\n  infill_rounds: -1\n")
+    with pytest.raises(UserError, match="infill_rounds"):
+        cfg("--params", str(tmp_path / "p.yaml"))
