@@ -106,6 +106,8 @@ class OptimiseConfig:
             raise UserError(f"heartbeat_s must be >= 1 second, got {self.heartbeat_s}")
         if int(self.fallback_trials) < 0:
             raise UserError(f"fallback_trials must be >= 0, got {self.fallback_trials}")
+        if self.train_data is not None and not isinstance(self.train_data, str):
+            raise UserError(f"train_data must be a dataset path, got {self.train_data!r}")
         if int(self.infill_rounds) < 0 or int(self.infill_points) < 1:
             raise UserError(f"infill_rounds must be >= 0 and infill_points >= 1, got {self.infill_rounds} and "
                             f"{self.infill_points}")

@@ -234,6 +234,9 @@ def surrogate_retrainer(bundle, train_data: str | None, progress: bool = False) 
     if not Path(path).exists():
         return None, f"the surrogate's sweep {path} is not there; give --train-data"
     data = load_training_data(str(path), bundle.model, list(bundle.inputs))
+    if getattr(bundle, "fingerprint", None) and data.fingerprint != bundle.fingerprint:
+        return None, (f"{path} is not the sweep the surrogate was trained on (its fingerprint differs); give the "
+                      "surrogate's own sweep with --train-data")
     # the bundle's conditions are what it stands for: its preset, fixed values (a rig's), settings and box
     data = replace(data, preset=bundle.preset, meta={**data.meta, "fixed": dict(bundle.fixed or {}),
                                                      "settings": dict(bundle.settings or {})},

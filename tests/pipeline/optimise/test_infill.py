@@ -140,3 +140,14 @@ def test_the_flags_and_params_yaml_set_the_loop(tmp_path):
     (tmp_path / "p.yaml").write_text("optimise:\n  infill_rounds: -1\n")
     with pytest.raises(UserError, match="infill_rounds"):
         cfg("--params", str(tmp_path / "p.yaml"))
+
+
+def test_another_sweep_is_never_mixed_into_the_surrogate(poor_surrogate):
+    """A --train-data that is not the surrogate's own sweep (another rig's, another design) is refused by its
+    fingerprint: the report says so and the fallback runs."""
+    d = poor_surrogate
+    pd.read_parquet(d / "sweep.parquet").iloc[:-1].to_parquet(d / "other.parquet")
+    rep = optimise_into(_config(d, train_data=str(d / "other.parquet")), d / "out", progress=False,
+                        mlflow_enabled=False, raise_if_none=False)
+    assert rep["infill"]["n_rounds"] == 0 and "not the sweep the surrogate was trained on" in rep["infill"]["note"]
+    assert rep["metrics"]["surrogate_fallback"] is True
