@@ -37,7 +37,7 @@ def poor_surrogate(tmp_path, monkeypatch):
 
 
 def _config(d, **kw) -> OptimiseConfig:
-    base = dict(mode="surrogate", surrogate=str(d / "sur"), n_trials=200, n_verify=6, batch_size=8,
+    base = dict(mode="surrogate", surrogate=str(d / "sur"), n_trials=120, n_verify=6, batch_size=8,
                 storage=f"sqlite:///{d / 'o.db'}", feedback=str(d / "fb.parquet"), train_data=str(d / "sweep.parquet"),
                 infill_rounds=3, infill_points=16, fallback_trials=8, **LIMITS)
     return OptimiseConfig(**{**base, **kw})
