@@ -20,8 +20,8 @@ what it writes under --out:
   shaker envelope: a rig file's 'exciter' (max_force_n against frequency_hz, max_stroke_m, max_velocity_m_s) is
   honoured like the power and deceleration limits; a recommendation on it says "ON THE SHAKER'S ENVELOPE".
   feedback: verified points are appended to feedback/optimise.parquet at the project root, beside optuna.db
-  (or --feedback FILE; never inside the surrogate's dvc-managed folder), from whichever folder it runs, so that
-  training can include them (closing the loop).
+  (or --feedback FILE; never inside the surrogate's dvc-managed folder), from whichever folder it runs; the
+  infill rounds below retrain the surrogate on them (closing the loop).
   infill: a surrogate wrong at its recommended point, or at more than half of the verified points, is first
   corrected where it is used: up to --infill-rounds rounds simulate --infill-points points where the study looked
   (along the limits it ran into, around the best verified point and on the faces of the box it touches), append
