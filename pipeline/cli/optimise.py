@@ -139,7 +139,8 @@ def add_parser(sub) -> None:
                    help="when the surrogate fails its verification, first up to N rounds of infill: simulate the "
                         "points where the study looked (around the best verified point, along the limits it ran "
                         "into, on the faces of the box it touches), retrain the surrogate on its sweep plus every "
-                        "point simulated so far (the feedback file), search and verify again; the --fallback-trials "
+                        "point simulated so far (the feedback file), search and verify again, until a round agrees and "
+                        "its recommendation gains at most 1 %% of ROP over the round before; the --fallback-trials "
                         "study runs only if the last round still fails (default 3; 0: straight to the fallback)")
     p.add_argument("--infill-points", type=A.count(1, 10_000), metavar="N",
                    help="points simulated per infill round, besides the verified ones (default 16)")

@@ -215,6 +215,19 @@ def _values(space: Space, U: np.ndarray) -> pd.DataFrame:
 
 
 # ------------------------------------------------------------------ the loop
+SETTLED_GAIN = 0.01
+"""A round whose surrogate agrees but whose recommendation gained more than this fraction of simulated ROP over the
+round before is followed by another: where the surrogate is used has moved, the optimum may still move with it."""
+
+
+def _moved(before: InfillRound, res: OptimiseResult) -> bool:
+    """The recommendation of ``res`` gained more than :data:`SETTLED_GAIN` of simulated ROP over ``before``'s."""
+    now = (res.recommendation or {}).get("rop_m_s_sim")
+    if now is None or before.rop_m_s_sim is None:
+        return False
+    return now > (1.0 + SETTLED_GAIN) * before.rop_m_s_sim
+
+
 Retrain = Callable[[pd.DataFrame], object]
 """Simulated rows -> the surrogate retrained on its sweep plus those rows."""
 Build = Callable[[object, object], object]
@@ -284,7 +297,7 @@ def infill_until_right(first: OptimiseResult, bundle, build: Build, feedback: st
             n_rows = append_feedback(res.simulated, feedback, source=f"optimise-{cfg.mode}", study=res.study_name,
                                      wrong=res.verified["surrogate_wrong"].tolist(), inputs=p.space.names)
         studies.append(res.study_name)
-        if surrogate_failed(res) is None:
+        if surrogate_failed(res) is None and not _moved(records[-1], res):
             break
     records.append(round_record(res, len(records), n0))
     return InfillOutcome(InfillReport(tuple(records), extra_sims, where, feedback), res, n_rows)

@@ -51,6 +51,9 @@ def test_infill_makes_a_wrong_surrogate_agree_at_its_recommendation_without_the_
     assert first.failed is not None and first.n_wrong > first.n_verified / 2      # round 0: the surrogate is wrong
     assert first.points_added == 16 and 1 <= inf.n_rounds <= 3
     assert last.failed is None and not last.recommendation_wrong and inf.agreed   # the last round agrees
+    # a round that agrees but still moved the recommendation up (> 1 %) is followed by another, within the bound
+    for before, r in zip(inf.rounds[:-2], inf.rounds[1:-1]):
+        assert r.failed is not None or r.rop_m_s_sim > 1.01 * before.rop_m_s_sim
     assert "fallback" not in rep and rep["metrics"]["surrogate_fallback"] is False
     # the recommendation is the last round's, verified: its simulated ROP is the simulator's at its controls
     rec = rep["recommendation"]
@@ -181,7 +184,7 @@ def test_infill_on_a_corrected_rig_through_the_commands(tmp_path, monkeypatch, c
     assert inf.train_data == "data/sweep"              # the sweep vibro train recorded, no --train-data needed
     assert inf.rounds[0].failed is not None and inf.agreed and inf.n_rounds >= 1
     assert "fallback" not in rep and not rep["recommendation"]["surrogate_wrong"]
-    assert inf.rounds[-1].n_wrong <= inf.rounds[-1].n_verified / 2
+    assert inf.rounds[-1].n_wrong <= 1                  # agrees at >= 11 of the 12 verified points
     assert all(line in printed for line in rep["infill"]["lines"]) and rep["infill"]["text"] in printed
     assert main(["optimise", "--simulator", "--rig", "rig.yaml", *limits, "--n-trials", "200",
                  "--out", "results/sim", *quiet]) == 0
@@ -189,4 +192,4 @@ def test_infill_on_a_corrected_rig_through_the_commands(tmp_path, monkeypatch, c
     ratio = rep["recommendation"]["rop_m_s_sim"] / sim_best
     print(f"\ninfill: {inf.n_rounds} round(s), {inf.simulations} extra simulations; recommended "
           f"{rep['recommendation']['rop_m_s_sim'] * 1e3:.4g} mm/s = {ratio:.3f} of the simulator study's")
-    assert ratio >= 0.9
+    assert ratio >= 0.98
