@@ -73,14 +73,14 @@ def best_feasible(df: pd.DataFrame) -> pd.Series:
 
 def run_direct(sampler: str, budget: int, seed: int, workdir: Path) -> dict:
     """(b) / (c): a study on the simulator with ``budget - 3`` trials, then 3 re-simulations."""
-    from pipeline.cli.optimise import optimise_into
+    from pipeline.optimise.outcome import optimise
     from pipeline.optimise.config import OptimiseConfig
 
     n_verify = 3
     cfg = OptimiseConfig(mode="simulator", model=MODEL, preset=PRESET, sampler=sampler, seed=seed,
                          n_trials=budget - n_verify, n_verify=n_verify, batch_size=8,
                          storage=f"sqlite:///{workdir / f'{sampler}-{seed}.db'}", study_name=f"bench-{sampler}-{seed}")
-    rep = optimise_into(cfg, workdir / f"{sampler}-{seed}", progress=False, mlflow_enabled=False)
+    rep = optimise(cfg, workdir / f"{sampler}-{seed}", progress=False).report
     return {"best_rop_m_s": rep["recommendation"]["rop_m_s_sim"], "params": rep["recommendation"]["params"],
             "simulator_calls": rep["metrics"]["simulator_calls"]}
 
@@ -92,7 +92,7 @@ def run_surrogate(budget: int, seed: int, workdir: Path, n_initial: int, rounds:
     from scipy.stats import qmc
 
     import surrogate
-    from pipeline.cli.optimise import optimise_into
+    from pipeline.optimise.outcome import optimise
     from pipeline.optimise.config import OptimiseConfig
 
     space = lab_space()
@@ -122,7 +122,7 @@ def run_surrogate(budget: int, seed: int, workdir: Path, n_initial: int, rounds:
         cfg = OptimiseConfig(mode="surrogate", surrogate=str(workdir), seed=seed + r, n_trials=400,
                              n_verify=per_round, batch_size=16, feedback=str(feedback),
                              storage=f"sqlite:///{workdir / f'sur-{seed}.db'}", study_name=f"bench-sur-{seed}-r{r}")
-        rep = optimise_into(cfg, workdir / f"sur-{seed}-r{r}", bundle=bundle, progress=False, mlflow_enabled=False)
+        rep = optimise(cfg, workdir / f"sur-{seed}-r{r}", bundle=bundle, progress=False).report
         calls += rep["metrics"]["n_verified"]
         rec = rep["recommendation"]
         history.append({"round": r, "n_train": len(train_df), "verified": rep["metrics"]["n_verified"],

@@ -4,12 +4,12 @@ The simulator API (``sim.api``: numba, pandas) is imported on first use of one o
 ``sim`` for a model's specification (``get_model``, ``ParameterError``) stays light."""
 from sim.errors import ParameterError
 from sim.registry import get_model, model_names
-from sim.rig import Rig
+from sim.rig import ModelError, Rig
 
 _API = ("LABELS", "Settings", "SimulationResult", "simulate", "simulate_batch")
 
 __all__ = ["simulate", "simulate_batch", "Settings", "SimulationResult", "LABELS", "ParameterError",
-           "get_model", "model_names", "Rig"]
+           "get_model", "model_names", "ModelError", "Rig"]
 
 
 def __getattr__(name: str):

@@ -18,8 +18,67 @@ from sim.errors import ParameterError, did_you_mean
 from sim.models.discrepancy import PARAM_OF as DISCREPANCY_PARAMS
 from sim.registry import get_model, model_names
 
-RIG_KEYS = ("model", "preset", "parameters", "effects", "discrepancy", "uncertainty", "source")
+RIG_KEYS = ("model", "preset", "parameters", "effects", "discrepancy", "uncertainty", "model_error", "source")
 """Keys of a rig mapping; ``model`` is required, the others optional."""
+MODEL_ERROR_KEYS = ("rop_rel", "noise_floor_rel", "basis")
+"""Keys of a rig's ``model_error`` mapping; ``rop_rel`` is required."""
+
+
+def _nonnegative(v: Any, what: str) -> float:
+    """``v`` as a finite float >= 0, else ParameterError naming ``what``."""
+    try:
+        ok = not isinstance(v, bool) and math.isfinite(float(v)) and float(v) >= 0.0
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ParameterError(f"rig: {what} must be a finite number >= 0, got {v!r}")
+    return float(v)
+
+
+@dataclass(frozen=True)
+class ModelError:
+    """What the model still gets wrong about ROP once its parameters are fitted (dimensionless, relative to ROP).
+
+    ``rop_rel``: relative sd of the model's ROP against the rig [1] (the diagnosis's held-out rms ROP error);
+    ``noise_floor_rel``: the same for a residual of pure measurement noise [1], None if not known;
+    ``basis``: where the number comes from, in words.
+    """
+
+    rop_rel: float
+    noise_floor_rel: float | None = None
+    basis: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "rop_rel", _nonnegative(self.rop_rel, "model_error rop_rel"))
+        if self.noise_floor_rel is not None:
+            object.__setattr__(self, "noise_floor_rel",
+                               _nonnegative(self.noise_floor_rel, "model_error noise_floor_rel"))
+        if not isinstance(self.basis, str):
+            raise ParameterError(f"rig: model_error basis must be text, got {self.basis!r}")
+
+    def to_mapping(self) -> dict[str, Any]:
+        """Plain mapping in the rig-file layout."""
+        out: dict[str, Any] = {"rop_rel": self.rop_rel}
+        if self.noise_floor_rel is not None:
+            out["noise_floor_rel"] = self.noise_floor_rel
+        if self.basis:
+            out["basis"] = self.basis
+        return out
+
+    @classmethod
+    def from_mapping(cls, data: Any) -> "ModelError":
+        """Validated model error from a rig file's ``model_error`` mapping (keys :data:`MODEL_ERROR_KEYS`)."""
+        if not isinstance(data, Mapping):
+            raise ParameterError(f"rig: 'model_error' must be a mapping ({', '.join(MODEL_ERROR_KEYS)}), got {data!r}")
+        for key in data:
+            if key not in MODEL_ERROR_KEYS:
+                raise ParameterError(f"rig: unknown model_error key '{key}'{did_you_mean(key, MODEL_ERROR_KEYS)}; "
+                                     f"known: {', '.join(MODEL_ERROR_KEYS)}")
+        if "rop_rel" not in data:
+            raise ParameterError("rig: model_error needs rop_rel (relative sd of the model's ROP)")
+        basis = data.get("basis")
+        return cls(rop_rel=data["rop_rel"], noise_floor_rel=data.get("noise_floor_rel"),
+                   basis="" if basis is None else basis)
 
 
 @dataclass(frozen=True)
@@ -29,8 +88,10 @@ class Rig:
     ``parameters``: parameter name -> value, overriding the preset.  ``effects``: §6 effect name ->
     {effect parameter -> value}.  ``discrepancy``: parameter of the fixed vocabulary (sim.models.discrepancy: a
     term, or one of the hidden mode's three) -> value, an adopted proposal of the diagnosis (names and numbers only, never an expression).
-    ``uncertainty``: parameter (or effect parameter) name -> standard deviation of its fitted value [same unit].  The constructor validates every name and value
-    against the model's ``ModelSpec`` and raises ``ParameterError`` naming the culprit.
+    ``uncertainty``: parameter (or effect parameter) name -> standard deviation of its fitted value [same unit].
+    ``model_error``: what the fitted model still gets wrong about ROP (:class:`ModelError`), None when not given.
+    The constructor validates every name and value against the model's ``ModelSpec`` and raises ``ParameterError``
+    naming the culprit.
     """
 
     model: str
@@ -40,8 +101,11 @@ class Rig:
     uncertainty: Mapping[str, float] = field(default_factory=dict)
     source: str = ""
     discrepancy: Mapping[str, float] = field(default_factory=dict)
+    model_error: ModelError | None = None
 
     def __post_init__(self) -> None:
+        if self.model_error is not None and not isinstance(self.model_error, ModelError):
+            raise ParameterError(f"rig: model_error must be a ModelError, got {type(self.model_error).__name__}")
         if self.model not in model_names():
             raise ParameterError(f"rig: unknown model '{self.model}'{did_you_mean(self.model, model_names())}; "
                                  f"known models: {', '.join(model_names())}")
@@ -136,7 +200,8 @@ class Rig:
                 params[name] = float(v)
             else:
                 effects.setdefault(eff, {})[name] = float(v)
-        return Rig(self.model, self.preset, params, effects, dict(self.uncertainty), self.source, terms)
+        return Rig(self.model, self.preset, params, effects, dict(self.uncertainty), self.source, terms,
+                   self.model_error)
 
     def to_mapping(self) -> dict[str, Any]:
         """Plain mapping in the rig-file layout (inverse of :meth:`from_mapping`)."""
@@ -150,6 +215,8 @@ class Rig:
             out["discrepancy"] = {k: float(v) for k, v in self.discrepancy.items()}
         if self.uncertainty:
             out["uncertainty"] = {k: float(v) for k, v in self.uncertainty.items()}
+        if self.model_error is not None:
+            out["model_error"] = self.model_error.to_mapping()
         if self.source:
             out["source"] = self.source
         return out
@@ -170,7 +237,8 @@ class Rig:
                 raise ParameterError(f"rig: '{key}' must be a mapping (name: value), got {data[key]!r}")
         preset = data.get("preset")
         source = data.get("source") or ""
+        error = None if data.get("model_error") is None else ModelError.from_mapping(data["model_error"])
         return cls(model=str(data["model"]), preset=None if preset is None else str(preset),
                    parameters=dict(data.get("parameters") or {}), effects=dict(data.get("effects") or {}),
                    uncertainty=dict(data.get("uncertainty") or {}), source=str(source),
-                   discrepancy=dict(data.get("discrepancy") or {}))
+                   discrepancy=dict(data.get("discrepancy") or {}), model_error=error)

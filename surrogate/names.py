@@ -2,6 +2,7 @@
 inputs are usually drawn from."""
 from __future__ import annotations
 
+from sim.controls import CONTROLS  # noqa: F401  (part of the surrogate contract: the inputs it is drawn from)
 from sim.statuses import STATUSES
 
 REGIMES = ("progressing", "no_progress", "runaway", "not_settled", "failed")
@@ -14,8 +15,5 @@ REGIME_TO_STATUS = {"progressing": "ok", "no_progress": "ok", "runaway": "runawa
 
 TARGETS = ("rop_m_s", "peak_force_n", "impacts_per_cycle", "specific_energy_j_m", "power_w", "peak_decel_g")
 """Regression targets of the surrogate contract (each with _lo/_hi 90 % intervals)."""
-
-CONTROLS = ("frequency_hz", "amplitude_n", "amplitude_m", "static_force_n", "gap_m")
-"""Operating-point controls a surrogate's inputs are usually drawn from."""
 
 assert set(REGIME_TO_STATUS) == set(REGIMES) and set(REGIME_TO_STATUS.values()) <= set(STATUSES)

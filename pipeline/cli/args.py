@@ -27,13 +27,11 @@ import sys
 from typing import Callable, Mapping
 
 from pipeline.core.errors import UserError
-from pipeline.core.numbers import number  # noqa: F401 - the one number parser, re-exported
+from pipeline.core.numbers import MAX_THREADS, MAX_TRIALS, number  # noqa: F401 - the one number parser, re-exported
 from sim.errors import did_you_mean
 
 # upper bounds on the work one command may ask for (a typo like 1e12 is an error, not a MemoryError or a hang)
 MAX_POINTS = 10_000_000        # sweep / verify points, map grid cells
-MAX_TRIALS = 1_000_000         # optimisation trials
-MAX_THREADS = 1024
 MAX_CYCLES = 1_000_000         # recorded/transient forcing cycles
 
 # simulator settings (sim.Settings): (integer?, low, high, low inclusive) — bounds on work included
@@ -190,7 +188,7 @@ def load_rig(path: str | None, model: str | None = None, preset: str | None = No
         p = None if str(preset).lower() == "none" else preset
         try:
             rig = Rig(rig.model, p, dict(rig.parameters), {e: dict(v) for e, v in rig.effects.items()},
-                      dict(rig.uncertainty), rig.source, dict(rig.discrepancy))
+                      dict(rig.uncertainty), rig.source, dict(rig.discrepancy), rig.model_error)
         except ParameterError as e:
             raise UserError(f"rig file {path} with --preset {preset}: {str(e).removeprefix('rig: ')}") from None
     warn_out_of_range(rig.model, rig.preset, rig.overrides(), f"rig file {path}: ")

@@ -12,8 +12,9 @@ inputs: two `vibro optimise` output folders (their report.json): one on the unco
 preset), one on the corrected rig; the corrected rig file (rig.yaml of `vibro diagnose`; its report.json
 beside it, when present, says whether the diagnosis explained the data).
 output under --out: report.json (both recommendations simulated on both models, the correction's worth in
-mm/s, the ROP spread of the corrected recommendation over the rig's fitted-parameter uncertainty, the
-warning for an unexplained diagnosis) and report.md.
+mm/s, the ROP spread of the corrected recommendation over the rig's fitted-parameter uncertainty, combined with
+the rig's model error (its held-out ROP error, rig file 'model_error'), the warning for an unexplained diagnosis)
+and report.md.
 
 examples:
   vibro compare --uncorrected results/optimise/rop --corrected results/optimise-rig/rop \\
@@ -125,6 +126,9 @@ def run(args) -> int:
                    "corrected_rop_p95_mm_s": cmp["spread"]["p95_rop_m_s"] * 1e3,
                    "fraction_progressing": cmp["spread"]["fraction_progressing"],
                    "explained": 1.0 if cmp["explained"] else 0.0}
+        for key in ("parameter_half_width_m_s", "model_error_half_width_m_s", "combined_half_width_m_s"):
+            if cmp["spread"][key] is not None:       # a model error not given stays out, not 0
+                metrics["corrected_rop_" + key.replace("_m_s", "_mm_s")] = cmp["spread"][key] * 1e3
         if args.metrics:
             atomic_write_text(args.metrics, dump_json(metrics))
             record_out_file(args.metrics, command="compare", kind="json")

@@ -324,6 +324,11 @@ def summary_lines(report: dict) -> list[str]:
         if r["final_error"] is not None and r["noise_floor"] is not None:
             lines.append(f"  held-out error {r['final_error']:.3g} against a noise floor of {r['noise_floor']:.3g} "
                          f"(error / floor = nrms)")
+        err = (r.get("rig") or {}).get("rop_model_error")
+        if err:         # the rig file's model_error, which compare's ROP spread adds to the parameters'
+            floor = err.get("noise_floor_rel")
+            lines.append(f"  model error in the rig file: held-out ROP error {100 * err['rop_rel']:.3g} % (rms, "
+                         f"relative" + ("" if floor is None else f"; noise floor {100 * floor:.3g} %") + ")")
     return lines
 
 

@@ -69,7 +69,6 @@ from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_w
                                parse_assignments, parse_ranges)
 from pipeline.core.errors import UserError  # noqa: E402
 from pipeline.core.rigfile import rig_name  # noqa: E402
-from pipeline.optimise import samplers  # noqa: E402
 
 
 def add_parser(sub) -> None:
@@ -190,31 +189,14 @@ def _feedback_path(base: dict) -> None:
                         f"the next 'make run' replaces): write it elsewhere, e.g. {DEFAULT_FEEDBACK}")
 
 
-# params.yaml 'optimise' numbers: (integer?, low, high); floats must be > low
-OPTIMISE_BOUNDS = {"n_trials": (True, 1, A.MAX_TRIALS), "batch_size": (True, 1, 10_000), "seed": (True, 0, 2**32 - 1),
-                   "n_verify": (True, 1, 10_000), "fallback_trials": (True, 0, 100_000),
-                   "infill_rounds": (True, 0, 100), "infill_points": (True, 1, 10_000),
-                   "n_threads": (True, 1, A.MAX_THREADS), "heartbeat_s": (True, 1, 3600), "rel_tol": (False, 0.0, 1e6),
-                   "max_peak_force_n": (False, 0.0, None), "peak_force_static_ratio": (False, 0.0, None),
-                   "max_specific_energy_j_m": (False, 0.0, None), "max_power_w": (False, 0.0, None),
-                   "max_decel_g": (False, 0.0, None)}
-
-
 def config_from_args(args):
     """OptimiseConfig from params.yaml's ``optimise`` section overridden by the flags."""
-    from pipeline.optimise.config import OptimiseConfig
+    from pipeline.optimise.config import OptimiseConfig, check_numbers
 
     from pipeline.core.params import read_section
 
     base: dict = read_section(args.params, "optimise")
-    where = f"{args.params}: optimise" if args.params else "optimise"
-    for key, (integer, lo, hi) in OPTIMISE_BOUNDS.items():
-        if base.get(key) is not None:
-            base[key] = A.number(base[key], f"{where}.{key}", integer=integer, lo=lo, hi=hi, lo_open=not integer)
-    if base.get("fixed") is not None:       # a YAML true is no value (float(True) would read it as 1)
-        if not isinstance(base["fixed"], dict):
-            raise UserError(f"{where}.fixed must be a mapping name -> value, got {base['fixed']!r}")
-        base["fixed"] = {k: A.number(v, f"{where}.fixed.{k}") for k, v in base["fixed"].items()}
+    base = check_numbers(base, f"{args.params}: optimise" if args.params else "optimise")
     if args.simulator:
         base["mode"] = "simulator"
     elif args.surrogate:
@@ -311,132 +293,35 @@ def real_sqlite_url(url: str | None) -> str | None:
     return "sqlite:///" + str(db.resolve())
 
 
-def _surrogate_report(surrogate) -> dict:
-    """A surrogate bundle folder's report.json ({} when there is none, e.g. an MLflow run id)."""
-    import json
-
-    try:
-        rep = json.loads((Path(str(surrogate)) / "report.json").read_text())
-    except (OSError, ValueError):
-        return {}
-    return rep if isinstance(rep, dict) else {}
-
-
-def surrogate_chain(surrogate) -> str | None:
-    """The chain a surrogate bundle folder was trained in (its report.json 'chain'), None when unknown."""
-    chain = _surrogate_report(surrogate).get("chain")
-    return chain if chain in ("lab", "corrected") else None
-
-
-def surrogate_rig(surrogate) -> str | None:
-    """The name of the rig a surrogate bundle folder was trained for (report.json 'rig_name'), None if none."""
-    name = _surrogate_report(surrogate).get("rig_name")
-    return name if isinstance(name, str) and name else None
-
-
-# ------------------------------------------------------------------ strategies: the one place names become objects
-def _surrogate_study(cfg, sampler, bundle=None):
-    """A study on the surrogate bundle ``bundle``, else the one at ``cfg.surrogate`` (folder or MLflow run id)."""
-    from pipeline.optimise.strategies import surrogate_strategies
-    from pipeline.tracking import load_bundle
-
-    return surrogate_strategies(cfg, load_bundle(str(cfg.surrogate)) if bundle is None else bundle, sampler)
-
-
-def _simulator_study(cfg, sampler, bundle=None):
-    """A study straight on the simulator (no bundle)."""
-    from pipeline.optimise.strategies import simulator_strategies
-
-    return simulator_strategies(cfg, sampler)
-
-
-MODES = {"surrogate": _surrogate_study, "simulator": _simulator_study}
-"""--surrogate / --simulator (config 'mode') -> builder of the study's problem, evaluator, executor and simulator."""
-
-SAMPLERS = {"tpe": samplers.tpe_sampler, "sobol-local": samplers.sobol_local_sampler, "gp": samplers.gp_sampler, "nsga2": samplers.nsga2_sampler,
-            "random": samplers.random_sampler}
-"""--sampler (config 'sampler') -> sampler factory (pipeline/optimise/samplers.py)."""
-
-
-def build_strategies(cfg, bundle=None):
-    """The strategies of ``cfg`` (pipeline.optimise.strategies.Strategies); ``bundle`` replaces loading cfg.surrogate."""
-    return MODES[cfg.mode](cfg, SAMPLERS[cfg.sampler], bundle)
-
-
-def feedback_file(cfg, out: Path) -> str | None:
-    """Where verified points go: ``cfg.feedback``; a surrogate study without one: beside the bundle, else in ``out``."""
-    if cfg.feedback is not None or cfg.mode != "surrogate":
-        return cfg.feedback
-    sur = Path(str(cfg.surrogate))
-    return str(sur / "feedback.parquet") if sur.is_dir() else str(out / "feedback.parquet")
-
-
-def optimise_into(cfg, out_dir, bundle=None, metrics_path: str | None = None, progress: bool = True,
-                  mlflow_enabled: bool = True, raise_if_none: bool = True) -> dict:
-    """Run the study of ``cfg`` in an MLflow run, append the verified points to the feedback file and write the
-    report, tables and figures under ``out_dir``; returns the report.json dict.
-
-    UserError after writing the report when nothing is recommended (the report says what was tried)."""
+def run_tracked(cfg, out_dir, bundle=None, metrics_path: str | None = None, progress: bool = True,
+                mlflow_enabled: bool = True):
+    """``optimise`` of ``cfg`` into ``out_dir`` in an MLflow run that logs its parameters, metrics and files."""
     from pipeline import tracking
-    from pipeline.core.files import atomic_write_text
-    from pipeline.core.jsonable import dump_json
-    from pipeline.optimise import outputs
-    from pipeline.optimise.verify import append_feedback
-    from pipeline.optimise.workflow import (fallback_config, plan_optimise, run_optimise, seed_with_verified,
-                                           surrogate_failed)
+    from pipeline.optimise.outcome import optimise, plan_study
+    from pipeline.optimise.outputs import run_params
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    plan = plan_optimise(cfg, build_strategies(cfg, bundle))
-    with tracking.run("optimise", outputs.run_params(plan), enabled=mlflow_enabled) as mlflow:
-        res = run_optimise(plan, progress=progress)
-        fb, rows = feedback_file(cfg, out), None
-        if fb and res.simulated is not None:
-            rows = append_feedback(res.simulated, fb, source=f"optimise-{cfg.mode}", study=res.study_name,
-                                   wrong=res.verified["surrogate_wrong"].tolist(), inputs=res.problem.space.names)
-        infill = None
-        if surrogate_failed(res) and cfg.infill_rounds > 0 and fb:     # first simulate where it looked, retrain
-            from pipeline.optimise.infill import infill_until_right
-
-            infill = infill_until_right(res, plan.strategies.evaluator.bundle, build_strategies, fb, progress=progress)
-            res, rows = infill.result, infill.feedback_rows or rows
-        failed = None
-        why = surrogate_failed(res)
-        if why and cfg.fallback_trials > 0:     # never recommend from a surrogate the simulator contradicted
-            if progress:
-                import sys
-
-                print(f"vibro optimise: {why}; running {cfg.fallback_trials} trials straight on the simulator",
-                      file=sys.stderr)
-            sim_cfg = fallback_config(res)
-            sim_plan = plan_optimise(sim_cfg, build_strategies(sim_cfg))
-            seed_with_verified(sim_plan, res)       # the study starts from the points already verified
-            failed, res = res, run_optimise(sim_plan, progress=progress)
-        tables = outputs.write_tables(res, out)
-        figs = outputs.write_figures(res, out)
-        map_sims = 0
-        if cfg.limit_map and res.recommendation is not None:
-            from pipeline.optimise.limitmap import write_limit_maps
-
-            maps, map_sims = write_limit_maps(res, out)
-            figs = [*figs, *maps]
-        rep = outputs.report_dict(res, figs, rows, fb, failed=failed, infill=infill and infill.report)
-        if map_sims:
-            rep["metrics"]["limit_map_simulations"] = map_sims
-        reports = outputs.write_report(rep, res, out)
-        if metrics_path:
-            atomic_write_text(Path(metrics_path), dump_json(rep["metrics"]))
+    plan = plan_study(cfg, bundle)
+    with tracking.run("optimise", run_params(plan), enabled=mlflow_enabled) as mlflow:
+        outcome = optimise(cfg, out_dir, plan=plan, metrics_path=metrics_path, progress=progress,
+                           notify=_say if progress else None)
         if mlflow is not None:
-            _log_run(mlflow, rep, [*figs, *map(str, reports), *(str(f) for f in tables if f.name == "verified.csv")])
-    if rep["recommendation"] is None and raise_if_none:
-        raise UserError(f"{rep['outcome']}; report: {out / 'report.md'}")
-    return rep
+            _log_run(mlflow, outcome)
+    return outcome
 
 
-def _log_run(mlflow, rep: dict, files: list[str]) -> None:
-    """The finite metrics, the recommended controls as params, and the files as artifacts."""
+def _say(text: str) -> None:
+    import sys
+
+    print(f"vibro optimise: {text}", file=sys.stderr)
+
+
+def _log_run(mlflow, outcome) -> None:
+    """The finite metrics, the recommended controls as params, and the report, figures and verified.csv as artifacts."""
     import math
 
+    rep = outcome.report
+    files = [*outcome.figures, *map(str, outcome.reports),
+             *(str(f) for f in outcome.tables if f.name == "verified.csv")]
     mlflow.log_metrics({k: float(v) for k, v in rep["metrics"].items()
                         if isinstance(v, (int, float)) and v is not None and math.isfinite(float(v))})
     if rep["recommendation"]:
@@ -454,6 +339,7 @@ def run(args) -> int:
     from pipeline.optimise.coordination import sqlite_path
     from pipeline.optimise.storages import check_storage_target, journal_path
     from pipeline.optimise.study import default_storage
+    from pipeline.tracking.bundles import surrogate_chain, surrogate_rig
 
     cfg = config_from_args(args)
     chain = A.chain_of(args, surrogate_chain(cfg.surrogate) if cfg.mode == "surrogate" else None)
@@ -472,8 +358,8 @@ def run(args) -> int:
               args.metrics, args.feedback, db]
     with tracking.variant(cfg.objective), tracking.chain(chain, rig), \
             prepare_out(args.out, inputs=inputs, overwrite=args.overwrite, marker="optimise") as tmp:
-        rep = optimise_into(cfg, tmp, metrics_path=args.metrics, progress=not args.quiet,
-                            mlflow_enabled=not args.no_mlflow, raise_if_none=False)
+        rep = run_tracked(cfg, tmp, metrics_path=args.metrics, progress=not args.quiet,
+                          mlflow_enabled=not args.no_mlflow).report
     if args.metrics:
         record_out_file(args.metrics, command="optimise", kind="json")
     if rep["recommendation"] is None:        # the report is in place: the error names where it stays

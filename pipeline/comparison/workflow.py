@@ -8,14 +8,15 @@ shows each recommendation's ROP under each model; the correction is worth
     ROP(corrected recommendation on the corrected rig) − ROP(uncorrected recommendation on the corrected rig)
 
 (the corrected rig being the best description of the machine we have).  The corrected recommendation's ROP is
-also re-simulated over samples of the rig's fitted parameters (``robustness.rop_spread``); an unexplained
-diagnosis is stated with its held-out error against the noise floor.
+also re-simulated over samples of the rig's fitted parameters (``robustness.rop_spread``), and that spread is
+combined with the rig's model error (the diagnosis's held-out ROP error); an unexplained diagnosis is stated with its
+held-out error against the noise floor.
 """
 from __future__ import annotations
 
 from typing import Mapping
 
-from pipeline.core.units import broken_words, point_words
+from pipeline.core.units import broken_words, point_words, spread_words
 from pipeline.core.names import SETTLED_STATUSES
 from pipeline.optimise.robustness import rop_spread
 
@@ -121,7 +122,8 @@ def markdown(cmp: Mapping) -> str:
               f"Uncertainty: over {s['n_samples']} samples of the fitted parameters ({', '.join(s['sampled']) or 'none'}; "
               f"log-normal, sd from the diagnosis) the corrected recommendation's ROP is {s['median_rop_m_s'] * 1e3:.4g} mm/s "
               f"median, {s['p5_rop_m_s'] * 1e3:.4g}–{s['p95_rop_m_s'] * 1e3:.4g} mm/s (5–95 %); "
-              f"{s['fraction_progressing']:.0%} of the samples progress."]
+              f"{s['fraction_progressing']:.0%} of the samples progress.  With what the diagnosis left unexplained: "
+              f"{spread_words(s)}."]
     src = cmp["corrected_rig"].get("source")
     if src:
         lines += ["", f"Corrected rig: {src}."]

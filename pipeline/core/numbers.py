@@ -20,6 +20,12 @@ MAX_NUMBER_CHARS = 64
 """Longest number text accepted (``float()`` of a megabyte of digits is slow and meaningless)."""
 
 
+MAX_TRIALS = 1_000_000
+"""Most optimisation trials one study may ask for (a typo like 1e12 is an error, not a hang)."""
+MAX_THREADS = 1024
+"""Most simulator threads one command may ask for."""
+
+
 PLAUSIBLE_FACTOR = 1e6
 """A model parameter given by a user lies within this factor of its default (1e300 or 1e-300 is a typo)."""
 

@@ -8,6 +8,10 @@ Format (README.md "Rig files")::
     effects:                      # optional: MODELS.md §6 effect -> {parameter -> value}
       shaker_coil: {tau: 1.0e-4, beta: 3000.0}
     uncertainty: {K1: 2.0e7}      # optional: standard deviation of fitted values [same unit]
+    model_error:                  # optional: what the fitted model still gets wrong about ROP (docs/optimise.md)
+      rop_rel: 0.04               #   relative sd of its ROP [1]: the diagnosis's held-out rms ROP error
+      noise_floor_rel: 0.01       #   optional: the same for pure measurement noise [1]
+      basis: "held-out ROP of 3 runs"   # optional free text
     source: "vibro diagnose measured/drill-rig"   # optional free text
     exciter:                      # optional: the shaker's envelope, honoured by optimise (pipeline/optimise/envelope.py)
       max_force_n: {frequency_hz: [100, 450], amplitude_n: [2700, 2000]}
@@ -26,7 +30,8 @@ from pipeline.core.files import atomic_write_text
 
 HEADER = """\
 # vibro rig file (README.md "Rig files"): the model, its preset, parameter values overriding the preset [SI],
-# the MODELS.md §6 effects that are on with their parameters, standard deviations of fitted values, and the source.
+# the MODELS.md §6 effects that are on with their parameters, standard deviations of fitted values, the model's
+# remaining relative ROP error (model_error), and the source.
 # Use it with --rig FILE in every command that simulates (simulate, sweep, map, optimise, verify, train --adaptive).
 """
 
@@ -85,9 +90,9 @@ def check_mode_complete(values: dict, label: str) -> None:
 
 
 def _numbers_checked(data, label: str):
-    """``data`` with every value of parameters, effects, discrepancy and uncertainty through the one number parser
-    (quoted text, booleans and out-of-range integers refused naming the value); other shapes unchanged, for
-    ``Rig.from_mapping`` to name."""
+    """``data`` with every value of parameters, effects, discrepancy, uncertainty and the model error's numbers through
+    the one number parser (quoted text, booleans and out-of-range integers refused naming the value); other shapes
+    unchanged, for ``Rig.from_mapping`` to name."""
     from collections.abc import Mapping
 
     from pipeline.core.numbers import number
@@ -99,6 +104,9 @@ def _numbers_checked(data, label: str):
                       ("uncertainty", "uncertainty of")):
         if isinstance(out.get(key), Mapping):
             out[key] = {n: number(v, f"{label}: {what} '{n}'") for n, v in out[key].items()}
+    if isinstance(out.get("model_error"), Mapping):
+        out["model_error"] = {n: (number(v, f"{label}: model_error {n}") if n in ("rop_rel", "noise_floor_rel")
+                                  and v is not None else v) for n, v in out["model_error"].items()}
     if isinstance(out.get("effects"), Mapping):
         out["effects"] = {e: ({n: number(v, f"{label}: effect '{e}' parameter '{n}'") for n, v in vals.items()}
                               if isinstance(vals, Mapping) else vals) for e, vals in out["effects"].items()}

@@ -122,6 +122,20 @@ def point_words(p: Mapping[str, float]) -> str:
                      for k, v in p.items())
 
 
+def spread_words(spread: Mapping) -> str:
+    """``parameter spread ±a, model error ±b (held-out rms e %), combined ±c mm/s, 5-95 %`` of report.json's
+    'spread' (``RopSpread.to_dict``, pipeline.optimise.robustness); a model error not given is said to be so."""
+    _, unit, k = ENGINEERING["rop_m_s"]
+    a = float(spread.get("parameter_half_width_m_s", 0.5 * (spread["p95_rop_m_s"] - spread["p5_rop_m_s"])))
+    b, c = spread.get("model_error_half_width_m_s"), spread.get("combined_half_width_m_s")
+    if b is None or c is None:
+        return (f"parameter spread ±{a * k:.3g} {unit}, 5-95 %; model error not given (the rig file has no "
+                f"model_error), so no combined spread")
+    e = 100 * spread["model_error_rel"]
+    return (f"parameter spread ±{a * k:.3g}, model error ±{b * k:.3g} (held-out rms {e:.3g} %), "
+            f"combined ±{c * k:.3g} {unit}, 5-95 %")
+
+
 # ------------------------------------------------------------------------------------------ units to SI
 G = G_ACCEL
 """[m/s²] per g: the project's one value (``sim.layout.G_ACCEL``, the one ``peak_decel_g`` is computed with), so a

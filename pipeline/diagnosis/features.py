@@ -31,17 +31,15 @@ import pandas as pd
 from pipeline.core.errors import UserError
 from pipeline.datasets.daq import DeclaredChain
 from pipeline.diagnosis.instrument import Nuisance, apply_gain, instrument_gain
+from sim.controls import CONTROLS as CONTROL_NAMES
+from sim.layout import G_ACCEL as G   # [m/s²] per g: the project's one value
 
 HARMONIC_SIGNALS = ("accel_m_s2", "force_n", "disp_m")
-CONTROL_NAMES = ("frequency_hz", "amplitude_n", "amplitude_m", "static_force_n", "gap_m")
-"""Operating controls a run may set (MODELS.md §7 runs.csv; the pendulum's amplitude is amplitude_m, §3).
-A run's controls are those of these that are parameters of its model."""
 DEFAULT_SUMMARY_SD = {"peak_decel_g": ("rel", 0.05), "impacts_per_cycle": ("abs", 0.5), "rop_m_s": ("rel", 0.10),
                       "peak_force_n": ("rel", 0.05), "spectral_ratio": ("rel", 0.10)}
 """Assumed measurement sd of summary features when the dataset gives no `<name>_sd` column."""
 MIN_CYCLES = 2.0
 """A record must hold at least this many forcing cycles (harmonics and drift are separable only then)."""
-G = 9.81
 
 
 class UnusableRecord(UserError):

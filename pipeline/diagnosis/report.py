@@ -15,9 +15,7 @@ from pipeline.core.files import atomic_write_figure  # noqa: E402
 from pipeline.core.units import ENGINEERING, factor, label, set_label  # noqa: E402
 from pipeline.diagnosis.features import harmonic_fit, model_record, record_time  # noqa: E402
 from pipeline.diagnosis.result import SimulatedRuns, SystemDiagnosis  # noqa: E402
-
-
-CONTROL_KEYS = ("frequency_hz", "amplitude_n", "amplitude_m", "static_force_n", "gap_m")
+from sim.controls import CONTROLS as CONTROL_KEYS  # noqa: E402
 
 
 def _tag(system: str) -> str:

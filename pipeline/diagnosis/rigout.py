@@ -12,6 +12,9 @@ Content (README.md "Closing the loop"):
   log10 p; its covariance is ``pinv(JᵀJ) · max(1, χ²/dof)`` (J = Jacobian of the noise-normalised residuals
   at the optimum, inflated when the fit is worse than the noise), and sd(p) = p · ln 10 · sd(log10 p)
   (delta method; ``pipeline.diagnosis.fit``).  Correlations between parameters are not kept.
+- ``model_error``: what the final model still gets wrong about ROP: its held-out rms ROP error relative to the
+  measured ROP (``error_by_group['final']['rop_m_s']``, noise-weighted; it holds the measurement noise too, so it is
+  an upper estimate), with the same for pure noise beside it; absent when no held-out run measured ROP.
 - ``source``: the dataset, the verdict and, for an unexplained residual, the held-out error against the
   noise floor — the model is then known to be wrong by that much.
 """
@@ -36,6 +39,21 @@ def _common(values: list, what: str) -> tuple[object, str | None]:
     if all(v == first for v in values):
         return first, None
     return first, f"{what} differs between runs; the rig uses the first run's"
+
+
+def rop_model_error(diag: SystemDiagnosis):
+    """The final model's held-out ROP error as a ``sim.ModelError`` (None when no held-out run measured ROP)."""
+    import sim
+
+    groups = diag.report.get("error_by_group") or {}
+    err = (groups.get("final") or {}).get("rop_m_s")
+    if err is None or not math.isfinite(float(err)):
+        return None
+    noise = (groups.get("noise") or {}).get("rop_m_s")
+    runs = sorted({diag.targets[i].run_id for i in diag.held_out if "rop_m_s" in diag.targets[i].names})
+    return sim.ModelError(rop_rel=float(err), noise_floor_rel=None if noise is None else float(noise),
+                          basis=f"held-out rms ROP error of the diagnosis's final model ({diag.final}) over "
+                                f"{len(runs)} held-out run(s), relative to the measured ROP; it includes their noise")
 
 
 def corrected_rig(diag: SystemDiagnosis, presets: list[str | None], dataset: str):
@@ -91,10 +109,11 @@ def corrected_rig(diag: SystemDiagnosis, presets: list[str | None], dataset: str
                         "; the calibrated parameters may have absorbed part of the missing physics")
     source = f"vibro diagnose {dataset} ({system}): {verdict}"
     rig = sim.Rig(model=system, preset=preset, parameters=params, effects=effects, uncertainty=uncertainty,
-                  source=source, discrepancy=terms)
+                  source=source, discrepancy=terms, model_error=rop_model_error(diag))
     info = {"explained": bool(rep["explained"]), "selected": rep["selected"], "source": source,
             "discrepancy": terms or None,
             "verdict": rep.get("verdict"), "absorbed": absorbed,
             "model_error": float(rep["final_error"]), "noise_floor": float(rep["noise_floor"]),
-            "nrms": float(rep["final_nrms"]), "notes": notes}
+            "nrms": float(rep["final_nrms"]),
+            "rop_model_error": None if rig.model_error is None else rig.model_error.to_mapping(), "notes": notes}
     return rig, info

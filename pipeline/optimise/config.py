@@ -4,6 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields, replace
 
 from pipeline.core.errors import UserError
+from pipeline.core.numbers import MAX_THREADS, MAX_TRIALS, number
 from pipeline.optimise.constraints import Constraints, resolve_margins
 from pipeline.optimise.study import DEFAULT_PARETO, OBJECTIVES, SAMPLERS, parse_objectives
 from sim.registry import DEFAULT_MODEL
@@ -14,6 +15,27 @@ DEFAULT_SAMPLER = {"rop": "sobol-local", "pareto": "tpe"}
 one within 0.995 of a dense scan on every case), TPE for a Pareto front."""
 DEFAULT_TRIALS = {"surrogate": 600, "simulator": 200}
 """Complete trials of a study when ``n_trials`` is not given (on the simulator: simulator calls)."""
+BOUNDS = {"n_trials": (True, 1, MAX_TRIALS), "batch_size": (True, 1, 10_000), "seed": (True, 0, 2**32 - 1),
+          "n_verify": (True, 1, 10_000), "fallback_trials": (True, 0, 100_000), "n_threads": (True, 1, MAX_THREADS),
+          "heartbeat_s": (True, 1, 3600), "rel_tol": (False, 0.0, 1e6), "max_peak_force_n": (False, 0.0, None),
+          "peak_force_static_ratio": (False, 0.0, None), "max_specific_energy_j_m": (False, 0.0, None),
+          "max_power_w": (False, 0.0, None), "max_decel_g": (False, 0.0, None), "infill_rounds": (True, 0, 100),
+          "infill_points": (True, 1, 10_000)}
+"""The section's numbers: key -> (integer?, low, high); an integer may equal its low, a float must lie above it."""
+
+
+def check_numbers(d: dict, where: str = "optimise") -> dict:
+    """``d`` (an ``optimise`` mapping) with its :data:`BOUNDS` numbers and ``fixed`` values parsed; UserError naming
+    ``where.key`` for the first bad one."""
+    out = dict(d)
+    for key, (integer, lo, hi) in BOUNDS.items():
+        if out.get(key) is not None:
+            out[key] = number(out[key], f"{where}.{key}", integer=integer, lo=lo, hi=hi, lo_open=not integer)
+    if out.get("fixed") is not None:        # a YAML true is no value (float(True) would read it as 1)
+        if not isinstance(out["fixed"], dict):
+            raise UserError(f"{where}.fixed must be a mapping name -> value, got {out['fixed']!r}")
+        out["fixed"] = {k: number(v, f"{where}.fixed.{k}") for k, v in out["fixed"].items()}
+    return out
 
 
 @dataclass
@@ -99,22 +121,9 @@ class OptimiseConfig:
             self.sampler = DEFAULT_SAMPLER[self.objective] if self.objective in DEFAULT_SAMPLER else "tpe"
         if self.sampler not in SAMPLERS:
             raise UserError(f"sampler must be one of {SAMPLERS}, got '{self.sampler}'")
-        for name in ("batch_size", "n_verify"):
-            if int(getattr(self, name)) < 1:
-                raise UserError(f"{name} must be >= 1, got {getattr(self, name)}")
-        if self.heartbeat_s is not None and int(self.heartbeat_s) < 1:
-            raise UserError(f"heartbeat_s must be >= 1 second, got {self.heartbeat_s}")
-        if int(self.fallback_trials) < 0:
-            raise UserError(f"fallback_trials must be >= 0, got {self.fallback_trials}")
+        check_numbers({k: getattr(self, k) for k in BOUNDS})      # checked, not converted: the study's name hashes them
         if self.train_data is not None and not isinstance(self.train_data, str):
             raise UserError(f"train_data must be a dataset path, got {self.train_data!r}")
-        if int(self.infill_rounds) < 0 or int(self.infill_points) < 1:
-            raise UserError(f"infill_rounds must be >= 0 and infill_points >= 1, got {self.infill_rounds} and "
-                            f"{self.infill_points}")
-        if self.n_trials is not None and int(self.n_trials) < 1:
-            raise UserError(f"n_trials must be >= 1, got {self.n_trials}")
-        if not (self.rel_tol > 0):
-            raise UserError(f"rel_tol must be > 0, got {self.rel_tol}")
         self.objective_list()
         self.constraints()      # a margin names limited labels and fractions in [0, 1)
         if self.mode == "surrogate" and not self.surrogate:

@@ -4,8 +4,7 @@ When the simulator contradicts a surrogate study's verification, :func:`infill_u
 the study looked (a :class:`NearIncumbent` design: along the active limits and around the incumbent, on the box's
 faces it touches), appends them with the verified points to the feedback file, retrains the surrogate on its sweep
 plus every row of that file this loop wrote, searches and verifies again; at most ``config.infill_rounds`` rounds.
-The command (``pipeline/cli/optimise.py``) calls it and falls back to a study on the simulator when the last round
-still fails.  Each round is an :class:`InfillRound`; :class:`InfillReport` is what report.json keeps of the loop.
+``outcome.optimise`` calls it and falls back to a study on the simulator when the last round still fails.  Each round is an :class:`InfillRound`; :class:`InfillReport` is what report.json keeps of the loop.
 """
 from __future__ import annotations
 
@@ -231,7 +230,7 @@ def _moved(before: InfillRound, res: OptimiseResult) -> bool:
 Retrain = Callable[[pd.DataFrame], object]
 """Simulated rows -> the surrogate retrained on its sweep plus those rows."""
 Build = Callable[[object, object], object]
-"""(OptimiseConfig, bundle) -> Strategies of a study on that bundle (the command's ``build_strategies``)."""
+"""(OptimiseConfig, bundle) -> Strategies of a study on that bundle (``strategies.build_strategies``)."""
 
 
 def surrogate_retrainer(bundle, train_data: str | None, progress: bool = False) -> tuple[Retrain | None, str | None]:
@@ -259,11 +258,12 @@ def surrogate_retrainer(bundle, train_data: str | None, progress: bool = False) 
 
 
 def infill_until_right(first: OptimiseResult, bundle, build: Build, feedback: str, design: InfillDesign | None = None,
-                       progress: bool = True) -> InfillOutcome:
+                       progress: bool = True, notify: Callable[[str], None] | None = None) -> InfillOutcome:
     """Rounds of infill after the surrogate study ``first`` failed its verification (its verified points already in
     ``feedback``): simulate ``infill_points`` points of ``design`` (default :class:`NearIncumbent`), append them to
     ``feedback``, retrain ``bundle`` on its sweep plus every row this loop's studies wrote there, search and verify
-    again with ``build``; stop when the surrogate passes or after ``infill_rounds`` rounds."""
+    again with ``build``; stop when the surrogate passes or after ``infill_rounds`` rounds.  ``notify`` is told, in
+    one line, what each round retrains on."""
     cfg = first.config
     design = design or NearIncumbent()
     retrain, where = surrogate_retrainer(bundle, cfg.train_data, progress=progress)
@@ -282,11 +282,8 @@ def infill_until_right(first: OptimiseResult, bundle, build: Build, feedback: st
         records.append(round_record(res, k - 1, n0, points_added=len(X)))
         extra_sims += len(X)
         rows = read_feedback(feedback, studies)
-        if progress:
-            import sys
-
-            print(f"vibro optimise: infill round {k}: retraining the surrogate with {len(rows)} simulated points",
-                  file=sys.stderr)
+        if notify is not None:
+            notify(f"infill round {k}: retraining the surrogate with {len(rows)} simulated points")
         new = retrain(rows)
         n0 = new.report.get("n_train")
         name = f"{cfg.study_name}-infill{k}" if cfg.study_name else None

@@ -1,7 +1,7 @@
 """What ``vibro optimise`` writes of an :class:`~pipeline.optimise.workflow.OptimiseResult`: the report.json dict
 (fixed keys, read by ``vibro report`` and ``vibro compare``), report.md, verified.csv, trials.csv and figures.
 
-Called by the command (``pipeline/cli/optimise.py``), which picks the folder and logs the files to MLflow.
+Called by ``outcome.optimise``; the command (``pipeline/cli/optimise.py``) picks the folder and logs the files to MLflow.
 """
 from __future__ import annotations
 

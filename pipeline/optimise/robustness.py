@@ -8,6 +8,10 @@ inverse of the diagnosis's sd = p̂ · ln 10 · sd(log10 p)).  Samples are clipp
 not 50 decades).  Parameters are sampled independently (the rig file keeps no correlations, so the spread is
 an upper estimate where fitted parameters trade off against each other).  The point is re-simulated with
 every sample; a run that ends in any status but ``ok`` counts as zero ROP and as not progressing.
+
+What the fitted model still gets wrong (``Rig.model_error``: the diagnosis's held-out rms ROP error relative to the
+measured ROP) is added in quadrature, as 5-95 % half-widths around the nominal ROP (docs/optimise.md):
+a = (p95 − p5) / 2, b = z · e · ROP, c = √(a² + b²), z = 1.645 (the 95 % point of a normal).
 """
 from __future__ import annotations
 
@@ -19,10 +23,28 @@ import numpy as np
 
 from pipeline.core.names import SETTLED_STATUSES
 
+Z_90 = 1.6448536269514722
+"""Half-width of a normal's 5-95 % interval in sd (its 95 % point): a relative sd e spans ±Z_90 · e · ROP."""
+
+
+def combined_half_widths(p5: float, p95: float, nominal: float, rop_rel: float | None
+                         ) -> tuple[float, float | None, float | None]:
+    """(parameter, model-error, combined) 5-95 % half-widths of ROP [m/s]: a = (p95 − p5) / 2, b = Z_90 · e ·
+    nominal, c = √(a² + b²); b and c None when the model error e [1] is not given."""
+    a = 0.5 * (float(p95) - float(p5))
+    if rop_rel is None:
+        return a, None, None
+    b = Z_90 * float(rop_rel) * abs(float(nominal))
+    return a, b, math.hypot(a, b)
+
 
 @dataclass(frozen=True)
 class RopSpread:
-    """ROP of one operating point over samples of the rig's fitted parameters [m/s]."""
+    """ROP of one operating point over samples of the rig's fitted parameters [m/s], and with its model error.
+
+    The half-widths are of 5-95 % intervals around the nominal ROP [m/s]; the model-error ones are None when the rig
+    gives no model error (``Rig.model_error``), which is unknown, not zero.
+    """
 
     nominal_rop_m_s: float            # at the fitted values
     median_rop_m_s: float
@@ -32,13 +54,21 @@ class RopSpread:
     n_samples: int
     sampled: tuple[str, ...]          # parameters that were sampled (sd > 0)
     statuses: dict[str, int] = field(default_factory=dict)
+    parameter_half_width_m_s: float = 0.0             # a = (p95 - p5) / 2
+    model_error_rel: float | None = None              # e: the rig's relative ROP model error [1]
+    model_error_half_width_m_s: float | None = None   # b = Z_90 e ROP
+    combined_half_width_m_s: float | None = None      # c = sqrt(a² + b²)
+    model_error_basis: str = ""                       # where e comes from, in words
 
     def to_dict(self) -> dict:
         """Plain mapping (report.json / metrics)."""
         return {"nominal_rop_m_s": self.nominal_rop_m_s, "median_rop_m_s": self.median_rop_m_s,
                 "p5_rop_m_s": self.p5_rop_m_s, "p95_rop_m_s": self.p95_rop_m_s,
                 "fraction_progressing": self.fraction_progressing, "n_samples": self.n_samples,
-                "sampled": list(self.sampled), "statuses": dict(self.statuses)}
+                "sampled": list(self.sampled), "statuses": dict(self.statuses),
+                "parameter_half_width_m_s": self.parameter_half_width_m_s, "model_error_rel": self.model_error_rel,
+                "model_error_half_width_m_s": self.model_error_half_width_m_s,
+                "combined_half_width_m_s": self.combined_half_width_m_s, "model_error_basis": self.model_error_basis}
 
 
 def fit_bounds(model: str) -> dict[str, tuple[float, float]]:
@@ -88,7 +118,12 @@ def rop_spread(rig, point: Mapping[str, float], n_samples: int = 32, seed: int =
     rop = np.where(ok, df["rop_m_s"].astype(float).fillna(0.0).to_numpy(), 0.0)
     rs = rop[1:]
     counts = df["status"].iloc[1:].value_counts().to_dict()
-    return RopSpread(nominal_rop_m_s=float(rop[0]), median_rop_m_s=float(np.median(rs)),
-                     p5_rop_m_s=float(np.percentile(rs, 5)), p95_rop_m_s=float(np.percentile(rs, 95)),
-                     fraction_progressing=float(np.mean(ok[1:] & (rs > 0))), n_samples=int(n_samples),
-                     sampled=tuple(samples[0]) if samples else (), statuses={str(k): int(v) for k, v in counts.items()})
+    p5, p95 = float(np.percentile(rs, 5)), float(np.percentile(rs, 95))
+    err = rig.model_error
+    a, b, c = combined_half_widths(p5, p95, float(rop[0]), None if err is None else err.rop_rel)
+    return RopSpread(nominal_rop_m_s=float(rop[0]), median_rop_m_s=float(np.median(rs)), p5_rop_m_s=p5,
+                     p95_rop_m_s=p95, fraction_progressing=float(np.mean(ok[1:] & (rs > 0))), n_samples=int(n_samples),
+                     sampled=tuple(samples[0]) if samples else (), statuses={str(k): int(v) for k, v in counts.items()},
+                     parameter_half_width_m_s=a, model_error_rel=None if err is None else err.rop_rel,
+                     model_error_half_width_m_s=b, combined_half_width_m_s=c,
+                     model_error_basis="" if err is None else err.basis)

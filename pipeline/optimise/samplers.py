@@ -1,6 +1,6 @@
 """Optuna samplers a study can use, one factory each: ``(seed, n_objectives, n_startup) -> sampler``.
 
-The command picks one by name (``pipeline/cli/optimise.py`` ``SAMPLERS``); study.py's docstring says which is the
+A study picks one by name (``strategies.SAMPLER_FACTORIES``); study.py's docstring says which is the
 default and why CMA-ES is not offered (its factory serves bench/bench_search.py).
 """
 from __future__ import annotations

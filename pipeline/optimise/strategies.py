@@ -1,7 +1,8 @@
 """The objects a study runs with: the problem, the sampler, the evaluator it asks, the executor, the simulator.
 
-The command builds them from the config's names (``pipeline/cli/optimise.py``: ``MODES`` and ``SAMPLERS``) with
-:func:`surrogate_strategies` or :func:`simulator_strategies` and hands them to ``workflow.plan_optimise``.
+:func:`build_strategies` turns the config's names into them (``BUILDERS`` and ``SAMPLER_FACTORIES``, the one place
+names become objects) with :func:`surrogate_strategies` or :func:`simulator_strategies`; ``workflow.plan_optimise``
+takes them.
 """
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from pipeline.core.errors import UserError
 from pipeline.optimise.config import OptimiseConfig
 from pipeline.optimise.constraints import UPPER_LIMITS, Constraints
 from pipeline.optimise.evaluators import SimulatorEvaluator, SurrogateEvaluator
+from pipeline.optimise import samplers
 from pipeline.optimise.samplers import SamplerFactory
 from pipeline.optimise.space import Space, default_space, space_from_mapping
 from pipeline.optimise.study import run_study, run_study_buffered
@@ -148,3 +150,29 @@ def simulator_strategies(cfg: OptimiseConfig, sampler: SamplerFactory) -> Strate
     simulator = SimulatorEvaluator(problem.model, problem.preset, problem.fixed, settings=cfg.settings,
                                    n_threads=cfg.n_threads, history_labels=env is not None and env.needs_history)
     return Strategies(problem, sampler, simulator, run_direct, simulator)
+
+
+# ------------------------------------------------------------------ lookup tables: the one place names become objects
+def _surrogate_study(cfg: OptimiseConfig, sampler: SamplerFactory, bundle=None) -> Strategies:
+    """A study on the surrogate bundle ``bundle``, else the one at ``cfg.surrogate`` (folder or MLflow run id)."""
+    from pipeline.tracking import load_bundle
+
+    return surrogate_strategies(cfg, load_bundle(str(cfg.surrogate)) if bundle is None else bundle, sampler)
+
+
+def _simulator_study(cfg: OptimiseConfig, sampler: SamplerFactory, bundle=None) -> Strategies:
+    """A study straight on the simulator (no bundle)."""
+    return simulator_strategies(cfg, sampler)
+
+
+BUILDERS = {"surrogate": _surrogate_study, "simulator": _simulator_study}
+"""Config 'mode' (--surrogate / --simulator) -> builder of the study's problem, evaluator, executor and simulator."""
+
+SAMPLER_FACTORIES = {"tpe": samplers.tpe_sampler, "sobol-local": samplers.sobol_local_sampler,
+                     "gp": samplers.gp_sampler, "nsga2": samplers.nsga2_sampler, "random": samplers.random_sampler}
+"""Config 'sampler' (--sampler) -> sampler factory (pipeline/optimise/samplers.py)."""
+
+
+def build_strategies(cfg: OptimiseConfig, bundle=None) -> Strategies:
+    """The strategies of ``cfg``; ``bundle`` (a loaded surrogate) replaces loading ``cfg.surrogate``."""
+    return BUILDERS[cfg.mode](cfg, SAMPLER_FACTORIES[cfg.sampler], bundle)

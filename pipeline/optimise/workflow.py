@@ -3,8 +3,8 @@
 ``plan_optimise(OptimiseConfig(...), strategies)`` checks the problem and opens (or resumes) the study;
 ``run_optimise(plan)`` runs it, re-simulates the candidates, compares prediction and simulation and returns an
 :class:`OptimiseResult`.  The recommendation is always the best *verified* feasible point, never an unverified
-prediction.  Nothing here writes a file but the optuna storage: ``vibro optimise`` (``pipeline/cli/optimise.py``)
-builds the strategies, opens MLflow, appends the feedback and writes the report (``outputs.py``).
+prediction.  Nothing here writes a file but the optuna storage: ``outcome.optimise`` builds the strategies, appends
+the feedback, runs the fallback study and writes the report (``outputs.py``); ``vibro optimise`` opens MLflow.
 """
 from __future__ import annotations
 

@@ -1,9 +1,9 @@
 """The pipeline's answer: the recommended operating point, its verified ROP and power.
 
 When the pipeline diagnosed a rig log, the answer is the corrected rig's recommendation (its ROP on the corrected
-rig with the 5-95 % spread over the fitted parameters, and what it is worth against the lab model's point on the
-same rig); the lab model's answer follows on a second line, named as such.  Read from the report's
-``summary.json`` (``vibro report``), printed at the end of ``make run``.
+rig with its 5-95 % spread over the fitted parameters, the model error and both combined, and what it is worth
+against the lab model's point on the same rig); the lab model's answer follows on a second line, named as such.
+Read from the report's ``summary.json`` (``vibro report``), printed at the end of ``make run``.
 """
 from __future__ import annotations
 
@@ -63,9 +63,12 @@ def _corrected(cl: dict) -> str | None:
         return None
     rig = f"corrected rig '{cl['rig_name']}'" if cl.get("rig_name") else "corrected rig"
     text = f"Answer ({rig}): {_point(pt)} -> ROP {rop:.2f} mm/s on the corrected rig"
-    spread = cl.get("spread_mm_s")
-    if isinstance(spread, list) and len(spread) == 2:
-        text += f" (5-95 %: {spread[0]:.2f}-{spread[1]:.2f})"
+    if isinstance(cl.get("spread"), dict):
+        from pipeline.core.units import spread_words
+
+        text += f" ({spread_words(cl['spread'])})"
+    elif isinstance(cl.get("spread_mm_s"), list) and len(cl["spread_mm_s"]) == 2:     # a summary from before
+        text += f" (5-95 %: {cl['spread_mm_s'][0]:.2f}-{cl['spread_mm_s'][1]:.2f})"
     lim = cl.get("limits") or {}
     power, decel = _number(lim, ("power_w_sim",)), _number(lim, ("peak_decel_g_sim",))
     if power is not None:
@@ -175,8 +178,12 @@ def headline(summary: dict) -> dict:
     out["rop_m_s"] = (cl.get("corrected_rop_mm_s", math.nan) * 1e-3 if corrected else opt.get("verified_rop_m_s"))
     if corrected:
         spread = cl.get("spread_mm_s") or [None, None]
+        full = cl.get("spread") if isinstance(cl.get("spread"), dict) else {}
         out.update(rop_m_s_p5=None if spread[0] is None else spread[0] * 1e-3,
                    rop_m_s_p95=None if spread[1] is None else spread[1] * 1e-3,
+                   rop_m_s_parameter_half_width=full.get("parameter_half_width_m_s"),
+                   rop_m_s_model_error_half_width=full.get("model_error_half_width_m_s"),
+                   rop_m_s_combined_half_width=full.get("combined_half_width_m_s"),
                    worth_m_s=None if cl.get("worth_mm_s") is None else cl["worth_mm_s"] * 1e-3,
                    explained=int(bool(cl.get("explained"))), surrogate_fallback=int(bool(cl.get("fallback"))))
     out["lab_rop_m_s"] = opt.get("verified_rop_m_s")

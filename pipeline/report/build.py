@@ -27,6 +27,7 @@ from pipeline.report.doc import Document, Figure, Heading, Para, Table, fmt, to_
 from pipeline.core.units import ENGINEERING, convert, factor, label, set_label, split  # noqa: E402
 from pipeline.core.files import atomic_write_bytes, atomic_write_text  # noqa: E402
 from pipeline.core.jsonable import dump_json, flatten  # noqa: E402
+from sim.controls import CONTROLS  # noqa: E402
 from sim.models.discrepancy import PARAM_OF  # noqa: E402
 
 
@@ -198,7 +199,7 @@ def section_sweep(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
                  + ", ".join(f"{k}: {v}" for k, v in sorted(status.items())) + "." + partial))
     summary["sweep"] = {"n_points": n, "status_counts": {str(k): int(v) for k, v in status.items()},
                         "model": model, "preset": preset}
-    inputs = [c for c in ("frequency_hz", "amplitude_n", "amplitude_m", "static_force_n", "gap_m") if c in df]
+    inputs = [c for c in CONTROLS if c in df]
     inputs += [c for c in (meta.get("vary") or {}) if c in df and c not in inputs] if isinstance(meta.get("vary"), dict) else []
     labels = [c for c in ("rop_m_s", "peak_force_n", "impacts_per_cycle", "period", "peak_decel_g",
                           "energy_per_cycle_j", "specific_energy_j_m") if c in df]

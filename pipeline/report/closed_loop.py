@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pipeline.core.units import broken_words, point_words
+from pipeline.core.units import broken_words, point_words, spread_words
 from pipeline.report.doc import Heading, Para, Table
 
 
@@ -31,7 +31,8 @@ def section_closed_loop(doc, figs, inp, summary: dict) -> None:
                  f"{s['n_samples']} samples of the fitted parameters ({', '.join(s['sampled']) or 'none'}) the "
                  f"corrected recommendation drills {s['median_rop_m_s'] * 1e3:.4g} mm/s median, "
                  f"{s['p5_rop_m_s'] * 1e3:.4g}–{s['p95_rop_m_s'] * 1e3:.4g} mm/s (5–95 %); "
-                 f"{s['fraction_progressing']:.0%} of the samples progress."))
+                 f"{s['fraction_progressing']:.0%} of the samples progress.  With what the diagnosis left "
+                 f"unexplained: {spread_words(s)}."))
     for name, label, other, where in (("corrected", "corrected rig", "uncorrected", "uncorrected model"),
                                       ("uncorrected", "uncorrected model", "corrected", "corrected rig")):
         broken = t[name].get(f"breaks_on_{other}")
@@ -46,6 +47,7 @@ def section_closed_loop(doc, figs, inp, summary: dict) -> None:
                               "corrected_rop_mm_s": t["corrected"]["rop_m_s_on_corrected"] * 1e3,
                               "uncorrected_rop_on_corrected_mm_s": t["uncorrected"]["rop_m_s_on_corrected"] * 1e3,
                               "spread_mm_s": [s["p5_rop_m_s"] * 1e3, s["p95_rop_m_s"] * 1e3],
+                              "spread": s,
                               "model_error_ratio": cmp.get("model_error_ratio"),
                               "surrogate_wrong": cmp.get("corrected_surrogate_wrong"),
                               "fallback": cmp.get("corrected_fallback"),

@@ -22,6 +22,8 @@ import pandas as pd
 
 from pipeline.core.errors import UserError
 from pipeline.datasets.measured import Dataset
+from sim.controls import CONTROLS
+
 
 def effect_defaults(system: str) -> dict[str, dict[str, float]]:
     """Default (clearly visible) effect strengths of ``system``: its ModelSpec's ``synth.effect_strengths``."""
@@ -211,7 +213,7 @@ def _simulate_run(cfg: SynthConfig, truth: dict, row: dict, known: dict):
     st = {"window": window}
     if from_rest:
         st.update(min_transient=0, max_transient=0)
-    ctrl = {k: row[k] for k in ("frequency_hz", "amplitude_n", "amplitude_m", "static_force_n", "gap_m")
+    ctrl = {k: row[k] for k in CONTROLS
             if k in row and np.isfinite(row[k])}
     if cfg.outside == "contact_hertz":
         kh = cfg.outside_params.get("kh", 3.0e8)     # N/m^1.5: same order of contact force as k1 = 1e7 N/m

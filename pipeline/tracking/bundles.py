@@ -35,3 +35,28 @@ def _download_run(run_id: str, artifact_dir: str) -> Path:
         raise UserError(f"MLflow run '{run_id}' has no '{artifact_dir}' artifacts at {runs.tracking_uri()} "
                         f"({type(e).__name__})") from None
     return Path(local)
+
+
+def _training_report(folder) -> dict:
+    """A surrogate bundle folder's report.json ({} when there is none, e.g. for an MLflow run id)."""
+    import json
+
+    try:
+        rep = json.loads((Path(str(folder)) / "report.json").read_text())
+    except (OSError, ValueError):
+        return {}
+    return rep if isinstance(rep, dict) else {}
+
+
+def surrogate_chain(folder) -> str | None:
+    """The chain a surrogate bundle folder was trained in (its report.json 'chain'), None when unknown."""
+    from pipeline.tracking.runs import CHAINS
+
+    chain = _training_report(folder).get("chain")
+    return chain if chain in CHAINS else None
+
+
+def surrogate_rig(folder) -> str | None:
+    """The name of the rig a surrogate bundle folder was trained for (report.json 'rig_name'), None if none."""
+    name = _training_report(folder).get("rig_name")
+    return name if isinstance(name, str) and name else None

@@ -19,7 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
-G = 9.81
+from sim.layout import G_ACCEL as G   # [m/s²] per g: the project's one value
 
 
 def warmup_s(fc: float) -> float:

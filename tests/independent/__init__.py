@@ -11,6 +11,9 @@ a real rig makes (``noise.py``).  Out-of-library physics (``outside.py``) gives 
                   quantisation) and summary columns (rounded, or with a stated precision)
     outside.py    physics outside MODELS.md §6 (accelerometer mount resonance, quadratic damping, a contact
                   force with a power-law term, a hidden mode in the load path; dynamics in ``dynamics.py``)
+    kinds.py      held-out out-of-library physics written from physical descriptions alone (issue 48 item 1):
+                  contact_exponent, unloading_hysteresis, rate_strength, mount_mode, drive_mode, contact_wear,
+                  power_damping, support_friction (registered in ``outside.OUTSIDE``, strengths in ``rigs.py``)
     daq.py        the data-acquisition chain a log may pass through (``LogSpec(daq=DaqChain(...))``): anti-alias
                   filter on the continuous signal (compensated or not), sample-clock error, ADC saturation, hum
     generator.py  ``generate(LogSpec, out_dir)``: a §7 directory and the truth, kept apart; also a command,

@@ -16,6 +16,11 @@
                      damper tuned to fh_hz with damping ratio zeta_h (two more states; ``dynamics.with_load_path_mode``);
                      every system.  No §6 effect adds a degree of freedom with inertia: shaker_coil adds a first-order
                      force state, sensor_lowpass filters only what the sensor reports, the rest change force laws.
+
+Held-out kinds (issue 48 item 1; ``kinds.py`` has the physics, the parameters and their units, ``rigs.py`` each
+rig's default strength and the effect it has): contact_exponent, unloading_hysteresis, rate_strength (contact
+laws); mount_mode, drive_mode (supports and drives); contact_wear (a slow change); power_damping,
+support_friction (losses).  Each applies to the systems ``kinds.KINDS_SYSTEMS`` lists.
 """
 from __future__ import annotations
 
@@ -42,7 +47,16 @@ class Outside:
 OUTSIDE = {"mount_resonance": Outside("mount_resonance", True),
            "quadratic_damping": Outside("quadratic_damping", False),
            "contact_power": Outside("contact_power", False),
-           "load_path_mode": Outside("load_path_mode", False)}
+           "load_path_mode": Outside("load_path_mode", False),
+           # held-out kinds (issue 48 item 1, ``kinds.py``): written from physical descriptions alone
+           "contact_exponent": Outside("contact_exponent", False),
+           "unloading_hysteresis": Outside("unloading_hysteresis", False),
+           "rate_strength": Outside("rate_strength", False),
+           "mount_mode": Outside("mount_mode", False),
+           "drive_mode": Outside("drive_mode", False),
+           "contact_wear": Outside("contact_wear", False),
+           "power_damping": Outside("power_damping", False),
+           "support_friction": Outside("support_friction", False)}
 
 
 def measured_accel(name: str, truth: dict, t: np.ndarray, vel: np.ndarray, from_rest: bool) -> np.ndarray:
@@ -61,8 +75,10 @@ def model_for(system: str, outside: str | None):
     """What ``reference_run`` simulates: the system's own model, or its subclass with the outside dynamics."""
     if outside is None or OUTSIDE[outside].measurement:
         return system
-    from tests.independent import dynamics
+    from tests.independent import dynamics, kinds
 
+    if outside in kinds.KINDS_SYSTEMS:
+        return kinds.factory(outside, system)
     factory = {"quadratic_damping": dynamics.with_quadratic_damping, "contact_power": dynamics.with_contact_power,
                "load_path_mode": dynamics.with_load_path_mode}[outside]
     return factory(system)

@@ -87,7 +87,16 @@ RIGS: dict[str, Rig] = {
                  "contact_power": {"kn": 1.0e12, "pn": 2.5},
                  # mh = 0.2 m1; at 60 Hz / 1 bar: a second impact per cycle (1 -> 2), mean peak force -37 %,
                  # peak decel -11 %, energy/cycle +7 % (period 1 kept)
-                 "load_path_mode": {"mh": 0.7, "fh_hz": 300.0, "zeta_h": 0.05}}),
+                 "load_path_mode": {"mh": 0.7, "fh_hz": 300.0, "zeta_h": 0.05},
+                 # held-out kinds (kinds.py); effects at 60 Hz / 1 bar over 0.3 s + 10 cycles (period 0 kept):
+                 # Hertz-like tip, same stiffness at δ_typ 0.14 mm: peak force +13 % (+4..+21 % over f), decel +19 %
+                 "contact_exponent": {"nc": 1.5, "delta_r": 1.4e-4},
+                 # unloading δm (δ/δm)^4: peak decel -9 %, peak force -4 % (-5..+17 % over f), energy/cycle -3 %
+                 "unloading_hysteresis": {"nu_h": 4.0},
+                 # 2 kg plate on a 2e7 N/m mount (503 Hz): peak force -14 % (-7..-34 % over f), peak decel -35 %
+                 "mount_mode": {"ms": 2.0, "cm": 5.0e-8, "zeta_m": 0.05},
+                 # the plate recedes 0.2 mm per J of loading work: peak force -9 % (-5..-12 % over f), decel -12 %
+                 "contact_wear": {"kw": 2.0e-4}}),
     "indenter-sandstone": Rig(
         system="indenter-sandstone", known={**INDENTER, **SANDSTONE}, calibratable=("kl", "ku", "pm"),
         controls=_indenter_controls, derived=_indenter_derived,
@@ -98,7 +107,12 @@ RIGS: dict[str, Rig] = {
         outside={"mount_resonance": {"fr_hz": 450.0, "zeta_r": 0.08}, "quadratic_damping": {"cq": 3.0e3},
                  # (no contact_power: the sandstone's own branches are power laws with calibratable stiffnesses)
                  # mh = 0.2 m1; at 60 Hz / 1 bar: peak force +5 %, peak decel -16 %, ROP +4 %, energy/cycle +10 %
-                 "load_path_mode": {"mh": 0.7, "fh_hz": 300.0, "zeta_h": 0.05}},
+                 "load_path_mode": {"mh": 0.7, "fh_hz": 300.0, "zeta_h": 0.05},
+                 # held-out kinds (kinds.py); at 60 Hz / 1 bar over 0.3 s + 10 cycles:
+                 # cubic flexure loss, ~100 N at φ̇1 0.2 m/s: ROP -7 % (-1..-9 % over f), peak decel -11 %
+                 "power_damping": {"cp": 1.0e4, "pd": 3.0},
+                 # shaker-body carriages, 40 N (2 x the seal's): peak decel +13 %, energy +38 %, ROP +2 % (-19..+3 %)
+                 "support_friction": {"mu_s": 40.0}},
         summary_labels=("rop_m_s", "peak_force_n", "peak_decel_g", "impacts_per_cycle")),
     "drill": Rig(
         system="drill", known=dict(DRILL_LAB), calibratable=("K1", "C1", "Pr"), preset="lab",
@@ -116,7 +130,15 @@ RIGS: dict[str, Rig] = {
                  "contact_power": {"kn": 2.5e16, "pn": 2.5},
                  # mh = 0.25 M1, 1 kHz (2.3 x 430 Hz, 1/3 of 3 kHz); at 270 Hz / 1500 N: peak decel +6 %,
                  # ROP +8 %, energy/cycle +7 % (period 1 kept)
-                 "load_path_mode": {"mh": 15.0, "fh_hz": 1000.0, "zeta_h": 0.05}},
+                 "load_path_mode": {"mh": 15.0, "fh_hz": 1000.0, "zeta_h": 0.05},
+                 # held-out kinds (kinds.py); at 270 Hz / Fs 1500 N over 0.3 s + 10 cycles:
+                 # failing rock 5 s/m stronger per m/s of failure rate: ROP -16 % (-11..-17 % over f at 1500 N), peak
+                 # force +4 %, decel -10 %
+                 "rate_strength": {"eta_r": 5.0},
+                 # md = 0.2 M2 at 400 Hz inside the exciter: ROP +8 % (+8..+13 % over f), peak decel +4 %, energy +5 %
+                 "drive_mode": {"md": 48.0, "fd_hz": 400.0, "zeta_d": 0.05},
+                 # cubic link loss, ~300 N at |ẋ1 - ẋ2| 0.02 m/s: ROP -8 % (-9..+1 % over f), peak decel -3 %
+                 "power_damping": {"cp": 4.0e7, "pd": 3.0}},
         summary_labels=("rop_m_s", "peak_force_n", "peak_decel_g", "impacts_per_cycle")),
     "pendulum": Rig(
         system="pendulum", known=dict(PENDULUM), calibratable=("ki", "ci", "zeta"),
@@ -131,7 +153,16 @@ RIGS: dict[str, Rig] = {
                  "contact_power": {"kn": 9.0e13, "pn": 2.5},
                  # mh = 0.2 m; at 3.75 Hz / gap 0: peak force and decel -22 %, energy/cycle -34 % (the impact
                  # meets the hammer alone, the swing carries both masses; period 1 kept)
-                 "load_path_mode": {"mh": 0.06, "fh_hz": 25.0, "zeta_h": 0.05}}),
+                 "load_path_mode": {"mh": 0.06, "fh_hz": 25.0, "zeta_h": 0.05},
+                 # held-out kinds (kinds.py); at 3.75 Hz / gap 0 after 150 cycles (period 1 kept):
+                 # Hertz-like cap, the load cell's stiffness at 4 µm: peak force and decel +16 %
+                 "contact_exponent": {"nc": 1.5, "delta_r": 4.0e-6},
+                 # unloading δm (δ/δm)^2: peak force -6 %, energy/cycle -9 %
+                 "unloading_hysteresis": {"nu_h": 2.0},
+                 # the cap wears 2 mm/J of loading work (~0.1 mm over the settling run): peak force -10 %
+                 "contact_wear": {"kw": 2.0e-3},
+                 # pivot torque 0.01 N x l (0.3 % of the hammer's weight): peak force -8 %, energy/cycle -5 %
+                 "support_friction": {"mu_s": 0.01}}),
     "rimd": Rig(
         system="rimd", known=dict(RIMD), calibratable=("ki", "lambda_i", "c1"),
         controls=lambda f, f0: {"frequency_hz": f, "amplitude_n": f0, "gap_m": 0.0},
@@ -145,9 +176,22 @@ RIGS: dict[str, Rig] = {
                  "contact_power": {"kn": 7.0e10, "pn": 2.5},
                  # mh = 0.15 m2 (the low end): the added mass detunes the sharp 8 Hz impact resonance: peak force
                  # -61 % at 8 Hz, +17 % at 6 Hz, -44 % at 9 Hz (period 1 kept); no smaller mass keeps it subtle
-                 "load_path_mode": {"mh": 0.054, "fh_hz": 30.0, "zeta_h": 0.05}}),
+                 "load_path_mode": {"mh": 0.054, "fh_hz": 30.0, "zeta_h": 0.05},
+                 # held-out kinds (kinds.py); at 8 Hz / F0 1 N after 250 cycles (period 1 kept):
+                 # 50 g stop on a 2e5 N/m support (318 Hz): peak force +14 %, energy/cycle +72 %
+                 "mount_mode": {"ms": 0.05, "cm": 5.0e-6, "zeta_m": 0.05},
+                 # md = 0.2 m1 at 20 Hz in the beam: peak force +7 %, energy/cycle +19 %
+                 "drive_mode": {"md": 0.07, "fd_hz": 20.0, "zeta_d": 0.05},
+                 # cubic hammer-spring loss: peak force -16 %
+                 "power_damping": {"cp": 200.0, "pd": 3.0},
+                 # the beam's clamp, 0.2 N: peak force -5 %, energy/cycle +75 %
+                 "support_friction": {"mu_s": 0.2}}),
 }
 
 OUTSIDE_KIND = {"contact_power": "contact", "load_path_mode": "mode", "quadratic_damping": "velocity_loss",
-                "mount_resonance": "sensor"}
+                "mount_resonance": "sensor",
+                # held-out kinds (issue 48 item 1, kinds.py), labelled by the physics, not by any vocabulary
+                "contact_exponent": "contact", "unloading_hysteresis": "contact", "rate_strength": "contact",
+                "mount_mode": "mode", "drive_mode": "mode", "contact_wear": "drift",
+                "power_damping": "velocity_loss", "support_friction": "friction"}
 """The kind of term each out-of-library physics (``outside.py``) is, for scoring a diagnosis's proposals."""

@@ -58,8 +58,12 @@ def _rel(a: dict, b: dict, key: str) -> float:
 def test_outside_physics_are_registered_with_their_kind_and_parameters():
     assert set(OUTSIDE_KIND) == set(OUTSIDE)
     assert not OUTSIDE["contact_power"].measurement and not OUTSIDE["load_path_mode"].measurement
+    from tests.independent.kinds import KINDS_SYSTEMS
+
     for name, rig in RIGS.items():
-        want = set(OUTSIDE) - ({"contact_power"} if name == "indenter-sandstone" else set())
+        held_out = {k for k, systems in KINDS_SYSTEMS.items() if name in systems}      # test_held_out_kinds.py
+        want = (set(OUTSIDE) - set(KINDS_SYSTEMS) - ({"contact_power"} if name == "indenter-sandstone" else set())
+                | held_out)
         assert set(rig.outside) == want, name
         if "contact_power" in rig.outside:
             assert set(rig.outside["contact_power"]) == {"kn", "pn"} and rig.outside["contact_power"]["pn"] == 2.5

@@ -55,6 +55,13 @@ def test_with_values_routes_effect_parameters():
     ({"model": "drill", "discrepancy": {"tool_viscous": "x + 1"}}, "'tool_viscous' must be a number"),
     ({"model": "drill", "parameters": {"tool_viscous": 5.0}}, "give it under 'discrepancy'"),
     ({"model": "drill", "discrepancy": [1]}, "'discrepancy' must be a mapping"),
+    ({"model": "drill", "model_error": 0.05}, "'model_error' must be a mapping"),
+    ({"model": "drill", "model_error": {"rop": 0.05}}, "unknown model_error key 'rop'"),
+    ({"model": "drill", "model_error": {"basis": "x"}}, "model_error needs rop_rel"),
+    ({"model": "drill", "model_error": {"rop_rel": -0.1}}, "model_error rop_rel must be a finite number >= 0"),
+    ({"model": "drill", "model_error": {"rop_rel": True}}, "model_error rop_rel"),
+    ({"model": "drill", "model_error": {"rop_rel": 0.1, "basis": [1]}}, "model_error basis must be text"),
+    ({"model": "drill", "model_error": {"rop_rel": 0.1, "noise_floor_rel": float("nan")}}, "noise_floor_rel"),
     ([1, 2], "expected a mapping"),
 ])
 def test_bad_rig_names_the_culprit(data, culprit):
@@ -74,3 +81,20 @@ def test_rig_with_discrepancy_round_trips_and_simulates_it():
     b = sim.simulate("drill", preset="lab", K1=5e8, tool_quadratic_drag=6e5, settings=st).labels
     c = sim.simulate("drill", preset="lab", K1=5e8, settings=st).labels
     assert a["rop_m_s"] == b["rop_m_s"] and a["rop_m_s"] < 0.97 * c["rop_m_s"]     # drag slows the bit
+
+
+def test_model_error_round_trips_and_survives_with_values():
+    data = {"model": "drill", "preset": "lab", "parameters": {"K1": 5e8}, "uncertainty": {"K1": 2e7},
+            "model_error": {"rop_rel": 0.04, "noise_floor_rel": 0.01, "basis": "held-out ROP of 3 runs"}}
+    rig = Rig.from_mapping(data)
+    assert rig.model_error == sim.ModelError(0.04, 0.01, "held-out ROP of 3 runs")
+    assert rig.to_mapping() == data
+    assert rig.with_values({"K1": 4e8}).model_error == rig.model_error
+    assert Rig.from_mapping({**data, "model_error": {"rop_rel": 0.04}}).to_mapping()["model_error"] == {"rop_rel": 0.04}
+
+
+def test_a_rig_without_model_error_has_none_and_writes_no_key():
+    """Rig mappings from before the key: they load unchanged, the model error stays unknown (None), not 0."""
+    data = {"model": "drill", "preset": "lab", "parameters": {"K1": 5e8}, "uncertainty": {"K1": 2e7}, "source": "old"}
+    rig = Rig.from_mapping(data)
+    assert rig.model_error is None and rig.to_mapping() == data

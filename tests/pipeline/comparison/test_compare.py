@@ -54,3 +54,20 @@ def test_nothing_recommended_is_one_clear_error():
              "outcome": "no feasible point"}
     with pytest.raises(UserError, match="uncorrected optimisation recommended nothing"):
         compare(empty, _opt(OTHER), Rig("drill", "lab"))
+
+
+def test_the_spread_of_report_json_states_parameters_model_error_and_both():
+    """A corrected rig with a model error: report.json's spread holds the three half-widths and report.md prints
+    them; the combined one is the quadrature of the other two."""
+    import math
+
+    from sim import ModelError
+
+    rig = Rig("drill", "lab", uncertainty={"Pr": 300.0}, model_error=ModelError(0.05, 0.02, "held-out ROP"))
+    cmp = compare(_opt(LAB_BEST), _opt(OTHER), rig, n_samples=4, settings={"window": 8})
+    s = json.loads(json.dumps(cmp))["spread"]
+    assert s["model_error_rel"] == 0.05 and s["model_error_basis"] == "held-out ROP"
+    assert s["combined_half_width_m_s"] == pytest.approx(
+        math.hypot(s["parameter_half_width_m_s"], s["model_error_half_width_m_s"]), rel=1e-12)
+    assert s["combined_half_width_m_s"] >= s["parameter_half_width_m_s"]
+    assert f"combined ±{s['combined_half_width_m_s'] * 1e3:.3g} mm/s" in markdown(cmp)

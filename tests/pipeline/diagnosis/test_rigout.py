@@ -17,12 +17,12 @@ def _fit(values: dict, sd: dict) -> FitResult:
                      free=list(values), nfev=1)
 
 
-def _diag(selected, explained, fits, final, targets) -> SystemDiagnosis:
+def _diag(selected, explained, fits, final, targets, error_by_group=None, held_out=()) -> SystemDiagnosis:
     """A diagnosis of ``targets`` (an evaluator stand-in holding only them) with these ``fits``."""
     report = {"system": "drill", "selected": selected, "explained": explained, "final_error": 0.21,
-              "noise_floor": 0.042, "final_nrms": 35.0}
-    return SystemDiagnosis(report=report, evaluator=SimpleNamespace(targets=targets), fits=fits, held_out=[],
-                           final=final)
+              "noise_floor": 0.042, "final_nrms": 35.0, "error_by_group": error_by_group}
+    return SystemDiagnosis(report=report, evaluator=SimpleNamespace(targets=targets), fits=fits,
+                           held_out=list(held_out), final=final)
 
 
 def _targets(known_m1=(12.0, 12.0)):
@@ -61,6 +61,22 @@ def test_unexplained_writes_the_calibrated_base_and_says_how_wrong():
     assert info["explained"] is False and info["model_error"] == 0.21 and info["noise_floor"] == 0.042
 
 
+def test_the_held_out_rop_error_becomes_the_rigs_model_error():
+    """The final model's held-out ROP error (relative, noise-weighted) is the rig's ``model_error``; without ROP on
+    the held-out runs the rig gives none (unknown, not 0)."""
+    fits = {"base": _fit(BASE, {k: 0.1 * v for k, v in BASE.items()})}
+    targets = _targets((12.0, 12.0))
+    targets[1].names = ["rop_m_s", "accel_m_s2:re1"]
+    groups = {"final": {"rop_m_s": 0.034, "accel_m_s2": 0.2}, "noise": {"rop_m_s": 0.012, "accel_m_s2": 0.05}}
+    rig, info = corrected_rig(_diag(None, True, fits, "base", targets, groups, held_out=[1, 1]), ["lab", "lab"], "d")
+    assert rig.model_error.rop_rel == 0.034 and rig.model_error.noise_floor_rel == 0.012
+    assert "1 held-out run" in rig.model_error.basis and "(base)" in rig.model_error.basis
+    assert info["rop_model_error"] == rig.model_error.to_mapping()
+    no_rop = {"final": {"accel_m_s2": 0.2}, "noise": {"accel_m_s2": 0.05}}
+    rig, info = corrected_rig(_diag(None, True, fits, "base", targets, no_rop, held_out=[0]), ["lab", "lab"], "d")
+    assert rig.model_error is None and info["rop_model_error"] is None
+
+
 def test_runs_that_disagree_on_a_known_parameter_are_noted():
     fits = {"base": _fit(BASE, {k: 0.1 * v for k, v in BASE.items()})}
     rig, info = corrected_rig(_diag(None, True, fits, "base", _targets((12.0, 13.0))), ["lab", None], "d")
@@ -71,3 +87,14 @@ def test_runs_that_disagree_on_a_known_parameter_are_noted():
 def test_file_names():
     assert rig_file_name("drill", 1) == "rig.yaml"
     assert rig_file_name("indenter-metal", 2) == "rig-indenter-metal.yaml"
+
+
+def test_the_terminal_summary_says_the_rigs_rop_model_error():
+    from pipeline.cli.diagnose import summary_lines
+
+    entry = {"selected": None, "verdict": "explained", "base_nrms": 3.0, "final_nrms": 1.1, "final_error": 0.02,
+             "noise_floor": 0.018, "rig": {"rop_model_error": {"rop_rel": 0.034, "noise_floor_rel": 0.012}}}
+    lines = summary_lines({"systems": {"drill": entry}})
+    assert "held-out ROP error 3.4 % (rms, relative; noise floor 1.2 %)" in lines[-1]
+    entry["rig"]["rop_model_error"] = None
+    assert not any("model error in the rig file" in ln for ln in summary_lines({"systems": {"drill": entry}}))

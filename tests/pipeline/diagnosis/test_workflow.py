@@ -16,7 +16,8 @@ SYSTEM_KEYS = ["system", "n_runs", "unreproducible", "data", "split", "verdict",
                "selected", "selected_effects", "leader", "runner_up", "selected_params", "explained", "best_partial_candidate", "absorbed",
                "call", "indistinguishable", "second_effect", "pair_stage", "discrepancy", "proposal_adopted", "proposal_as_effect", "recording", "n_simulations", "residual_structure", "notes", "rig", "figures"]
 REPORT_KEYS = ["dataset", "config", *SYSTEM_KEYS, "systems", "wall_time_s"]
-RIG_KEYS = ["explained", "selected", "source", "discrepancy", "verdict", "absorbed", "model_error", "noise_floor", "nrms", "notes",
+RIG_KEYS = ["explained", "selected", "source", "discrepancy", "verdict", "absorbed", "model_error", "noise_floor", "nrms",
+            "rop_model_error", "notes",
             "file"]
 # a small, quick diagnosis: 6 short runs, one candidate, one start (seconds on one core)
 SETTINGS = dict(effects=["sensor_lowpass"], min_runs_holdout=6, holdout_every=3, n_starts=1, candidate_starts=1,
@@ -79,6 +80,7 @@ def test_the_command_writes_report_json_with_its_keys(dataset, tmp_path):
     rep = json.loads((out / "report.json").read_text())
     assert list(rep) == REPORT_KEYS and list(rep["systems"]["indenter-metal"]) == SYSTEM_KEYS
     assert list(rep["rig"]) == RIG_KEYS
+    assert (rep["rig"]["rop_model_error"] or {}).get("rop_rel") == rep["error_by_group"]["final"].get("rop_m_s")
     assert _private_keys(rep) == []
     assert rep["figures"][0] == "residual_metal.png" and all((out / f).is_file() for f in rep["figures"])
     written = {p.name for p in out.iterdir() if not p.name.startswith(".")}     # beside the command's marker

@@ -4,10 +4,10 @@ from __future__ import annotations
 import pytest
 
 from pipeline.cli import main as cli_main
-from pipeline.cli import optimise as command
 from pipeline.core.errors import UserError
 from pipeline.optimise.config import OptimiseConfig
 from pipeline.optimise.constraints import Constraints
+from pipeline.optimise.strategies import build_strategies
 from pipeline.optimise.workflow import plan_optimise, run_optimise
 
 from .test_optimise import ToyBundle
@@ -20,7 +20,7 @@ def _run(tmp_path, name: str, mode: str = "simulator", limits=None, **kw):
     cfg = OptimiseConfig(mode=mode, surrogate=str(tmp_path), preset="lab", ranges=SPACE, n_trials=64, n_verify=6,
                          storage=f"sqlite:///{tmp_path / 'optuna.db'}", study_name=name, **(limits or LIMITS), **kw)
     bundle = ToyBundle() if mode == "surrogate" else None
-    return run_optimise(plan_optimise(cfg, command.build_strategies(cfg, bundle)), progress=False)
+    return run_optimise(plan_optimise(cfg, build_strategies(cfg, bundle)), progress=False)
 
 
 def test_margin_keeps_every_verified_point_feasible_under_the_stated_uncertainty(tmp_path):

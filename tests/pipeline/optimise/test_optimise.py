@@ -18,8 +18,8 @@ from pipeline.core.errors import UserError
 from pipeline.optimise.constraints import Constraints, progress_force_floor
 from pipeline.optimise.space import Space, parse_range
 from pipeline.optimise.study import pareto_mask, pick_candidates
-from pipeline.cli.optimise import optimise_into
 from pipeline.optimise.config import OptimiseConfig
+from pipeline.optimise.outcome import optimise
 
 LAB = {"frequency_hz": (100.0, 450.0), "amplitude_n": (1800.0, 2700.0), "static_force_n": (600.0, 1800.0)}
 SMALL = {"frequency_hz": [250.0, 300.0], "amplitude_n": [2400.0, 2700.0], "static_force_n": [1400.0, 1800.0]}
@@ -116,7 +116,9 @@ def test_simulator_study_recommends_a_verified_point_and_resumes(env):
     db = f"sqlite:///{env / 'optuna.db'}"
     cfg = OptimiseConfig(mode="simulator", preset="lab", ranges=SMALL, n_trials=8, n_verify=2, storage=db,
                          study_name="t-sim", seed=3, batch_size=4)
-    rep = optimise_into(cfg, env / "out", progress=False, mlflow_enabled=True, metrics_path=str(env / "m.json"))
+    from pipeline.cli.optimise import run_tracked       # the command's MLflow run around optimise
+
+    rep = run_tracked(cfg, env / "out", progress=False, mlflow_enabled=True, metrics_path=str(env / "m.json")).report
     rec = rep["recommendation"]
     # the recommendation is a re-simulated point: simulating it again gives the same ROP (deterministic simulator)
     again = sim.simulate("drill", preset="lab", **rec["params"]).labels
@@ -135,13 +137,13 @@ def test_simulator_study_recommends_a_verified_point_and_resumes(env):
     assert runs["metrics.best_rop_m_s"].iloc[0] == pytest.approx(rec["rop_m_s_sim"])
     # resume: the stored 8 trials are kept, only 2 more run
     cfg.n_trials = 10
-    rep2 = optimise_into(cfg, env / "out", progress=False, mlflow_enabled=False)
+    rep2 = optimise(cfg, env / "out", progress=False).report
     assert rep2["tried"]["n_trials"] == 10 and rep2["tried"]["n_trials_run_now"] == 2
     assert rep2["recommendation"]["rop_m_s_sim"] >= rec["rop_m_s_sim"]
     # the same study name with other constraints is refused, not silently mixed
     cfg.max_peak_force_n = 5000.0
     with pytest.raises(UserError, match="different constraints"):
-        optimise_into(cfg, env / "out", progress=False, mlflow_enabled=False)
+        optimise(cfg, env / "out", progress=False)
 
 
 def test_surrogate_study_verifies_flags_wrong_predictions_and_closes_the_loop(env):
@@ -150,7 +152,7 @@ def test_surrogate_study_verifies_flags_wrong_predictions_and_closes_the_loop(en
     cfg = OptimiseConfig(mode="surrogate", surrogate=str(env), ranges=SMALL, n_trials=40, n_verify=3,
                          storage=f"sqlite:///{env / 'optuna.db'}", study_name="t-sur", feedback=str(fb),
                          fallback_trials=0)     # the surrogate study's own verification (the fallback: test_workflow)
-    rep = optimise_into(cfg, env / "out", bundle=bundle, progress=False, mlflow_enabled=False)
+    rep = optimise(cfg, env / "out", bundle=bundle, progress=False).report
     table = pd.read_csv(env / "out" / "verified.csv")
     assert len(table) == 3
     # independent check of the verification: simulate the verified points here and compare
@@ -168,7 +170,7 @@ def test_surrogate_study_verifies_flags_wrong_predictions_and_closes_the_loop(en
     assert len(fbd) == 3 and {"point_id", "rop_m_s", "status", "surrogate_wrong", *bundle.inputs} <= set(fbd.columns)
     np.testing.assert_allclose(np.sort(fbd["rop_m_s"]), np.sort(truth["rop_m_s"]), rtol=1e-12)
     # a rerun of the completed study does not append the same points twice
-    optimise_into(cfg, env / "out", bundle=bundle, progress=False, mlflow_enabled=False)
+    optimise(cfg, env / "out", bundle=bundle, progress=False)
     assert len(pd.read_parquet(fb)) == 3
 
 
@@ -176,7 +178,7 @@ def test_pareto_mode_trades_rop_against_power_with_ten_verified_points(env):
     # the toy's ROP grows with F0 and Fs while its power grows as F0² (ToyBundle): a real trade-off
     cfg = OptimiseConfig(mode="surrogate", surrogate=str(env), objective="pareto", ranges=SMALL, n_trials=200,
                          n_verify=12, storage=f"sqlite:///{env / 'optuna.db'}", feedback=str(env / "fb.parquet"))
-    rep = optimise_into(cfg, env / "out", bundle=ToyBundle(), progress=False, mlflow_enabled=False)
+    rep = optimise(cfg, env / "out", bundle=ToyBundle(), progress=False).report
     assert (env / "out" / "pareto.png").exists() and rep["objectives"] == ["rop_m_s", "power_w"]
     table = pd.read_csv(env / "out" / "verified.csv")
     assert len(table) == 12
@@ -248,13 +250,13 @@ def test_power_limit_moves_the_optimum_off_the_corner(env):
                 storage=f"sqlite:///{env / 'optuna.db'}", feedback=str(env / "fb.parquet"),
                 fallback_trials=0)      # the toy's own power model sets the limit: no simulator study instead
 
-    free = optimise_into(OptimiseConfig(**base, study_name="free"), env / "free", bundle=ToyBundle(), progress=False,
-                         mlflow_enabled=False)
+    free = optimise(OptimiseConfig(**base, study_name="free"), env / "free", bundle=ToyBundle(),
+                    progress=False).report
     assert ("amplitude_n", "high") in [(h["name"], h["side"]) for h in free["recommendation"]["on_bounds"]]
     assert "ON THE EDGE of the search space: amplitude_n at its upper bound 2700" in free["outcome"]
     assert "On the edge of the search space" in (env / "free" / "report.md").read_text()
-    lim = optimise_into(OptimiseConfig(**base, study_name="lim", max_power_w=320.0), env / "lim", bundle=ToyBundle(),
-                        progress=False, mlflow_enabled=False)
+    lim = optimise(OptimiseConfig(**base, study_name="lim", max_power_w=320.0), env / "lim", bundle=ToyBundle(),
+                   progress=False).report
     trials = pd.read_csv(env / "lim" / "trials.csv")
     assert (trials["feasible"] == (5e-5 * trials["amplitude_n"] ** 2 <= 320.0)).all()
     a = lim["recommendation"]["params"]["amplitude_n"]
@@ -269,14 +271,14 @@ def test_surrogate_without_the_constrained_label_is_refused(env):
     cfg = OptimiseConfig(mode="surrogate", surrogate=str(env), ranges=SMALL, n_trials=5, max_power_w=20.0,
                          storage=f"sqlite:///{env / 'optuna.db'}")
     with pytest.raises(UserError, match="predicts no power_w: retrain"):
-        optimise_into(cfg, env / "out", bundle=NoPower(), progress=False, mlflow_enabled=False)
+        optimise(cfg, env / "out", bundle=NoPower(), progress=False)
 
 
 def test_no_feasible_point_ends_with_a_clear_message_and_a_report(env):
     cfg = OptimiseConfig(mode="surrogate", surrogate=str(env), ranges=SMALL, n_trials=20,
                          max_specific_energy_j_m=1e-3, storage=f"sqlite:///{env / 'optuna.db'}")
-    with pytest.raises(UserError, match="no feasible point among 20 trials"):
-        optimise_into(cfg, env / "out", bundle=ToyBundle(), progress=False, mlflow_enabled=False)
+    out = optimise(cfg, env / "out", bundle=ToyBundle(), progress=False)
+    assert out.recommendation is None and out.outcome.startswith("no feasible point among 20 trials")
     md = (env / "out" / "report.md").read_text()
     assert "What was tried" in md and "max_specific_energy_j_m = 0.001" in md and "closest point" in md
 
@@ -331,7 +333,7 @@ def test_real_surrogate_bundle_end_to_end(env):
     bundle.save(env / "sur")
     cfg = OptimiseConfig(mode="surrogate", surrogate=str(env / "sur"), n_trials=200, n_verify=5,
                          storage=f"sqlite:///{env / 'optuna.db'}")
-    rep = optimise_into(cfg, env / "out", progress=False, mlflow_enabled=False)
+    rep = optimise(cfg, env / "out", progress=False).report
     rec = rep["recommendation"]
     truth = sim.simulate("drill", preset="lab", **rec["params"]).labels
     assert rec["rop_m_s_sim"] == pytest.approx(truth["rop_m_s"], rel=1e-12)

@@ -1,5 +1,5 @@
-"""The optimise driver is thin: config and strategies in, a frozen ``OptimiseResult`` out, no file written; the command
-(``pipeline/cli/optimise.py``) writes report.json with the keys it always had."""
+"""The optimise driver is thin: config and strategies in, a frozen ``OptimiseResult`` out, no file written;
+``optimise`` (``pipeline/optimise/outcome.py``) writes report.json with the keys it always had."""
 from __future__ import annotations
 
 import dataclasses
@@ -7,9 +7,10 @@ import json
 
 import pytest
 
-from pipeline.cli import optimise as command
 from pipeline.core.errors import UserError
-from pipeline.optimise.config import MODES, OptimiseConfig
+from pipeline.optimise.config import MODES, OptimiseConfig, check_numbers
+from pipeline.optimise.outcome import OptimiseOutcome, optimise
+from pipeline.optimise.strategies import BUILDERS, SAMPLER_FACTORIES, build_strategies
 from pipeline.optimise.study import SAMPLERS
 from pipeline.optimise.workflow import OptimiseResult, plan_optimise, run_optimise
 
@@ -42,7 +43,7 @@ def dirs(tmp_path, monkeypatch):
 
 
 def test_lookup_tables_cover_every_name_the_config_accepts():
-    assert set(command.SAMPLERS) == set(SAMPLERS) and set(command.MODES) == set(MODES)
+    assert set(SAMPLER_FACTORIES) == set(SAMPLERS) and set(BUILDERS) == set(MODES)
 
 
 def test_config_validates_itself():
@@ -52,6 +53,12 @@ def test_config_validates_itself():
         OptimiseConfig(sampler="cmaes")
     with pytest.raises(UserError, match="at least two"):
         OptimiseConfig(objective="pareto", objectives=["rop_m_s"])
+    # one table of bounds (config.BOUNDS) for the params.yaml section and the built config, with one message
+    with pytest.raises(UserError, match=r"^optimise\.rel_tol: must be > 0, got 0$"):
+        OptimiseConfig(rel_tol=0)
+    with pytest.raises(UserError, match=r"^p\.yaml: optimise\.n_trials: must be >= 1, got 0$"):
+        check_numbers({"n_trials": 0}, "p.yaml: optimise")
+    assert check_numbers({"seed": 3.0, "fixed": {"K1": "3e8"}}) == {"seed": 3, "fixed": {"K1": 3e8}}
 
 
 @pytest.mark.parametrize("mode", ["simulator", "surrogate"])
@@ -60,7 +67,7 @@ def test_run_optimise_returns_a_frozen_result_and_writes_nothing(dirs, mode):
     cfg = OptimiseConfig(mode=mode, surrogate=str(dirs / "home"), preset="lab", ranges=SMALL, n_trials=8, n_verify=2,
                          batch_size=4, storage=f"sqlite:///{dirs / 'db' / 'optuna.db'}", study_name=f"t-{mode}",
                          feedback=str(fb))
-    plan = plan_optimise(cfg, command.build_strategies(cfg, ToyBundle() if mode == "surrogate" else None))
+    plan = plan_optimise(cfg, build_strategies(cfg, ToyBundle() if mode == "surrogate" else None))
     res = run_optimise(plan, progress=False)
     assert isinstance(res, OptimiseResult)
     with pytest.raises(dataclasses.FrozenInstanceError):
@@ -76,12 +83,12 @@ def test_run_optimise_returns_a_frozen_result_and_writes_nothing(dirs, mode):
                                                         "optuna.db-wal", "optuna.db-shm"}
 
 
-def test_command_writes_the_report_keys_it_always_wrote(dirs):
+def test_optimise_writes_the_report_keys_it_always_wrote(dirs):
     fb = dirs / "fb.parquet"
     cfg = OptimiseConfig(mode="surrogate", surrogate=str(dirs / "home"), objective="pareto", ranges=SMALL,
                          n_trials=40, n_verify=4, storage=f"sqlite:///{dirs / 'db' / 'optuna.db'}", feedback=str(fb),
                          fallback_trials=0, infill_rounds=0)
-    rep = command.optimise_into(cfg, dirs / "out", bundle=ToyBundle(), progress=False, mlflow_enabled=False)
+    rep = optimise(cfg, dirs / "out", bundle=ToyBundle(), progress=False).report
     on_disk = json.loads((dirs / "out" / "report.json").read_text())
     keys = [k for k in REPORT_KEYS if k not in ("infill", "fallback")]
     assert list(on_disk) == keys and list(rep) == keys
@@ -95,7 +102,7 @@ def test_command_writes_the_report_keys_it_always_wrote(dirs):
     # a ROP study on the simulator: no feedback, no surrogate note, no front
     cfg = OptimiseConfig(mode="simulator", preset="lab", ranges=SMALL, n_trials=4, n_verify=1, batch_size=4,
                          storage=f"sqlite:///{dirs / 'db' / 'optuna.db'}")
-    rep = command.optimise_into(cfg, dirs / "sim", progress=False, mlflow_enabled=False)
+    rep = optimise(cfg, dirs / "sim", progress=False).report
     want = [k for k in REPORT_KEYS if k not in ("feedback_rows", "feedback_file", "surrogate_note", "infill", "fallback",
                                                 "pareto_verified", "objectives")]
     assert list(json.loads((dirs / "sim" / "report.json").read_text())) == want == list(rep)
@@ -103,13 +110,17 @@ def test_command_writes_the_report_keys_it_always_wrote(dirs):
 
 
 def test_a_surrogate_the_simulator_contradicts_never_makes_the_recommendation(dirs):
-    """A surrogate 3x too optimistic is wrong at every verified point: the command runs a study straight on the
+    """A surrogate 3x too optimistic is wrong at every verified point: optimise runs a study straight on the
     simulator over the same space and recommends from it, and the report and metrics say so."""
     store = f"sqlite:///{dirs / 'db' / 'optuna.db'}"
     cfg = OptimiseConfig(mode="surrogate", surrogate=str(dirs / "home"), ranges=SMALL, n_trials=16, n_verify=3,
                          batch_size=4, storage=store, fallback_trials=8)
-    rep = command.optimise_into(cfg, dirs / "out", bundle=ToyBundle(rop_scale=3.0), progress=False,
-                                mlflow_enabled=False)
+    said = []
+    out = optimise(cfg, dirs / "out", bundle=ToyBundle(rop_scale=3.0), progress=False, notify=said.append)
+    rep = out.report
+    assert said == [f"{rep['fallback']['reason']}; running 8 trials straight on the simulator"]
+    assert isinstance(out, OptimiseOutcome) and out.fell_back and out.failed.config.mode == "surrogate"
+    assert out.verification_failed == rep["fallback"]["reason"] and out.result.study_name == rep["study_name"]
     assert list(rep) == [k for k in REPORT_KEYS if k not in ("pareto_verified", "objectives")]
     fb = rep["fallback"]
     assert fb["reason"].startswith("the surrogate was wrong at 3 of 3 verified points") and fb["n_trials"] == 8

@@ -4,6 +4,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import re
+
+import pytest
+
+from pipeline.report.answer import answer_line, headline
 from pipeline.report.build import ReportInputs
 from pipeline.report.closed_loop import section_closed_loop
 from pipeline.report.doc import Document, Table, to_markdown
@@ -36,3 +41,44 @@ def test_section_says_when_the_stage_has_not_run(tmp_path: Path):
     doc = Document("t")
     section_closed_loop(doc, None, ReportInputs(root=tmp_path), {})
     assert "has not run" in to_markdown(doc, tmp_path)
+
+
+SPREAD_WORDS = re.compile(r"parameter spread ±([0-9.e+-]+), model error ±([0-9.e+-]+) \(held-out rms ([0-9.e+-]+) %\), "
+                          r"combined ±([0-9.e+-]+) mm/s")
+
+
+def test_the_answer_prints_the_spread_fields_of_report_json(tmp_path: Path):
+    """The parameter spread, model error and their combination printed in report.md, the report and the answer are
+    report.json's structured fields (mm/s to the printed 3 digits), and the headline carries the same numbers."""
+    from pipeline.comparison.workflow import markdown
+
+    cmp = _cmp(True)
+    a, e, nominal = 0.45e-3, 0.05, 6.5e-3
+    b = 1.6448536269514722 * e * nominal
+    cmp["spread"].update(parameter_half_width_m_s=a, model_error_rel=e, model_error_half_width_m_s=b,
+                         combined_half_width_m_s=(a * a + b * b) ** 0.5, model_error_basis="held-out ROP",
+                         nominal_rop_m_s=nominal)
+    (tmp_path / "results/closed-loop").mkdir(parents=True)
+    (tmp_path / "results/closed-loop/report.json").write_text(json.dumps(cmp))
+    doc, summary = Document("t"), {}
+    section_closed_loop(doc, None, ReportInputs(root=tmp_path), summary)
+    s = json.loads((tmp_path / "results/closed-loop/report.json").read_text())["spread"]
+    want = [s["parameter_half_width_m_s"] * 1e3, s["model_error_half_width_m_s"] * 1e3, 100 * s["model_error_rel"],
+            s["combined_half_width_m_s"] * 1e3]
+    for text in (answer_line(summary), to_markdown(doc, tmp_path), markdown(cmp)):
+        got = [float(x) for x in SPREAD_WORDS.search(text).groups()]
+        assert got == pytest.approx(want, rel=5e-3), text
+    assert headline(summary)["rop_m_s_combined_half_width"] == s["combined_half_width_m_s"]
+
+
+def test_without_a_model_error_the_answer_says_it_is_not_given(tmp_path: Path):
+    cmp = _cmp(True)
+    cmp["spread"].update(parameter_half_width_m_s=0.45e-3, model_error_rel=None, model_error_half_width_m_s=None,
+                         combined_half_width_m_s=None, model_error_basis="")
+    (tmp_path / "results/closed-loop").mkdir(parents=True)
+    (tmp_path / "results/closed-loop/report.json").write_text(json.dumps(cmp))
+    summary = {}
+    section_closed_loop(Document("t"), None, ReportInputs(root=tmp_path), summary)
+    answer = answer_line(summary)
+    assert "parameter spread ±0.45 mm/s, 5-95 %; model error not given" in answer and "combined ±" not in answer
+    assert "rop_m_s_combined_half_width" not in headline(summary)

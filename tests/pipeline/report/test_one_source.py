@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 import re
 
-from pipeline.cli.optimise import optimise_into
+from pipeline.cli.optimise import run_tracked
 from pipeline.comparison.workflow import compare
 from pipeline.optimise.config import OptimiseConfig
 from pipeline.report.answer import answer_line
@@ -27,12 +27,12 @@ def test_a_fallback_case_says_the_same_everywhere(tmp_path, monkeypatch):
     (root / "metrics").mkdir(parents=True)
     lab = OptimiseConfig(mode="simulator", preset="lab", ranges=SMALL, n_trials=4, n_verify=1, batch_size=4,
                          storage=store, max_power_w=1e6)
-    unc = optimise_into(lab, root / "results/optimise/rop", metrics_path=str(root / "metrics/optimise-rop.json"),
-                        progress=False)
+    unc = run_tracked(lab, root / "results/optimise/rop", metrics_path=str(root / "metrics/optimise-rop.json"),
+                      progress=False).report
     toy = OptimiseConfig(mode="surrogate", surrogate=str(tmp_path), ranges=SMALL, n_trials=16, n_verify=3,
                          batch_size=4, storage=store, fallback_trials=8, max_power_w=1e6)
-    cor = optimise_into(toy, root / "results/optimise-rig/rop", bundle=ToyBundle(rop_scale=3.0),
-                        metrics_path=str(root / "metrics/optimise-rig.json"), progress=False)
+    cor = run_tracked(toy, root / "results/optimise-rig/rop", bundle=ToyBundle(rop_scale=3.0),
+                      metrics_path=str(root / "metrics/optimise-rig.json"), progress=False).report
     fb = cor["fallback"]
     n_wrong, n_verified = fb["surrogate_n_wrong"], fb["surrogate_n_verified"]
     assert n_wrong == 3 == n_verified                              # the surrogate 3x off: wrong everywhere

@@ -7,9 +7,9 @@ import json
 import pytest
 
 from pipeline.cli import main
-from pipeline.cli.optimise import surrogate_chain
 from pipeline.cli.train import model_name
 from pipeline.tracking import runs
+from pipeline.tracking.bundles import surrogate_chain, surrogate_rig
 
 
 @pytest.fixture
@@ -90,8 +90,6 @@ def test_model_names_and_the_surrogates_chain(tmp_path):
     (tmp_path / "report.json").write_text(json.dumps({"chain": "corrected"}))
     assert surrogate_chain(tmp_path) == "corrected"             # optimise inherits the chain it was trained in
     assert surrogate_chain(tmp_path / "missing") is None
-    from pipeline.cli.optimise import surrogate_rig
-
     assert surrogate_rig(tmp_path) is None
     (tmp_path / "report.json").write_text(json.dumps({"chain": "corrected", "rig_name": "drill-rig"}))
     assert surrogate_rig(tmp_path) == "drill-rig"                # and the rig's name

@@ -1,0 +1,1 @@
+"""Maps over two controls (`vibro map`): ROP and impact-pattern grids, bifurcation diagrams, their figures."""
