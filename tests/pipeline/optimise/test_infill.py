@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 import sim
-from pipeline.cli.optimise import optimise_into
+from pipeline.optimise.outcome import optimise
 from pipeline.optimise.config import OptimiseConfig
 from pipeline.optimise.infill import InfillReport, NearIncumbent
 
@@ -45,7 +45,7 @@ def _config(d, **kw) -> OptimiseConfig:
 
 def test_infill_makes_a_wrong_surrogate_agree_at_its_recommendation_without_the_fallback(poor_surrogate):
     d = poor_surrogate
-    rep = optimise_into(_config(d), d / "out", progress=False, mlflow_enabled=False, raise_if_none=False)
+    rep = optimise(_config(d), d / "out", progress=False).report
     inf = InfillReport.from_json(rep["infill"])
     first, last = inf.rounds[0], inf.rounds[-1]
     assert first.failed is not None and first.n_wrong > first.n_verified / 2      # round 0: the surrogate is wrong
@@ -79,15 +79,13 @@ def test_infill_makes_a_wrong_surrogate_agree_at_its_recommendation_without_the_
 
 def test_no_infill_rounds_is_the_fallback_at_once(poor_surrogate):
     d = poor_surrogate
-    rep = optimise_into(_config(d, infill_rounds=0), d / "out", progress=False, mlflow_enabled=False,
-                        raise_if_none=False)
+    rep = optimise(_config(d, infill_rounds=0), d / "out", progress=False).report
     assert "infill" not in rep and rep["metrics"]["surrogate_fallback"] is True and rep["tried"]["mode"] == "simulator"
 
 
 def test_without_a_sweep_the_report_says_why_and_falls_back(poor_surrogate):
     d = poor_surrogate
-    rep = optimise_into(_config(d, train_data=None), d / "out", progress=False, mlflow_enabled=False,
-                        raise_if_none=False)
+    rep = optimise(_config(d, train_data=None), d / "out", progress=False).report
     assert rep["infill"]["n_rounds"] == 0 and "give --train-data" in rep["infill"]["note"]
     assert rep["metrics"]["surrogate_fallback"] is True
 
@@ -95,7 +93,7 @@ def test_without_a_sweep_the_report_says_why_and_falls_back(poor_surrogate):
 def test_the_design_looks_on_the_limits_and_the_faces_around_the_incumbent(poor_surrogate):
     """Half the points lie on a limit the study ran into (within 5 %), the rest near the incumbent, every other one
     on the face of the box the incumbent lies on; none repeats a verified point."""
-    from pipeline.cli.optimise import build_strategies
+    from pipeline.optimise.strategies import build_strategies
     from pipeline.optimise.workflow import plan_optimise, run_optimise
     import surrogate
 
@@ -150,8 +148,7 @@ def test_another_sweep_is_never_mixed_into_the_surrogate(poor_surrogate):
     fingerprint: the report says so and the fallback runs."""
     d = poor_surrogate
     pd.read_parquet(d / "sweep.parquet").iloc[:-1].to_parquet(d / "other.parquet")
-    rep = optimise_into(_config(d, train_data=str(d / "other.parquet")), d / "out", progress=False,
-                        mlflow_enabled=False, raise_if_none=False)
+    rep = optimise(_config(d, train_data=str(d / "other.parquet")), d / "out", progress=False).report
     assert rep["infill"]["n_rounds"] == 0 and "not the sweep the surrogate was trained on" in rep["infill"]["note"]
     assert rep["metrics"]["surrogate_fallback"] is True
 
