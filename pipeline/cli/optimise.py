@@ -132,8 +132,8 @@ def add_parser(sub) -> None:
     p.add_argument("--rel-tol", type=A.positive, help="ROP relative error above which the surrogate is wrong (default 0.1)")
     p.add_argument("--fallback-trials", type=A.count(0, 100_000),
                    help="when the surrogate fails its verification (its recommended point, or more than half of the "
-                        "verified points, wrong) after --infill-rounds, run this many trials straight on the simulator over the same space "
-                        "and recommend from those instead (default 200; 0: off)")
+                        "verified points, wrong) after --infill-rounds, run this many trials straight on the "
+                        "simulator over the same space and recommend from those instead (default 200; 0: off)")
     p.add_argument("--infill-rounds", type=A.count(0, 100), metavar="N",
                    help="when the surrogate fails its verification, first up to N rounds of infill: simulate the "
                         "points where the study looked (around the best verified point, along the limits it ran "

@@ -61,8 +61,8 @@ class OptimiseConfig:
     recommendation instead (0: off).  infill_rounds: before that fallback, up to this many rounds of infill
     (pipeline/optimise/infill.py): simulate ``infill_points`` points where the study looked, retrain the surrogate on
     ``train_data`` (its sweep; None: the one its report.json names) plus every point simulated so far, search and
-    verify again (0: straight to the fallback).  storage: optuna storage URL (None: the SQLite file optuna.db at the project
-    root); heartbeat_s: seconds between heartbeats of a running trial on a server or journal storage (None:
+    verify again (0: straight to the fallback).  storage: optuna storage URL (None: the SQLite file optuna.db at the
+    project root); heartbeat_s: seconds between heartbeats of a running trial on a server or journal storage (None:
     storages.DEFAULT_HEARTBEAT_S; a trial silent for 3 heartbeats is failed and re-run).
     """
 

@@ -4,7 +4,8 @@ When the simulator contradicts a surrogate study's verification, :func:`infill_u
 the study looked (a :class:`NearIncumbent` design: along the active limits and around the incumbent, on the box's
 faces it touches), appends them with the verified points to the feedback file, retrains the surrogate on its sweep
 plus every row of that file this loop wrote, searches and verifies again; at most ``config.infill_rounds`` rounds.
-``outcome.optimise`` calls it and falls back to a study on the simulator when the last round still fails.  Each round is an :class:`InfillRound`; :class:`InfillReport` is what report.json keeps of the loop.
+``outcome.optimise`` calls it and falls back to a study on the simulator when the last round still fails.  Each
+round is an :class:`InfillRound`; :class:`InfillReport` is what report.json keeps of the loop.
 """
 from __future__ import annotations
 

@@ -168,7 +168,8 @@ def test_infill_on_a_corrected_rig_through_the_commands(tmp_path, monkeypatch, c
     write_rig("rig.yaml", Rig("drill", "lab", effects={"shaker_coil": {"tau": 1e-4, "beta": 3000.0}}))
     quiet = ["--no-mlflow", "--quiet"]
     limits = ["--max-power-w", "18", "--max-decel-g", "4"]
-    assert main(["sweep", "--rig", "rig.yaml", *(a for n, (lo, hi) in LAB.items() for a in ("--vary", f"{n}={lo:g}:{hi:g}")),
+    vary = [a for n, (lo, hi) in LAB.items() for a in ("--vary", f"{n}={lo:g}:{hi:g}")]
+    assert main(["sweep", "--rig", "rig.yaml", *vary,
                  "--n-points", "48", "--seed", "0", "--out", "data/sweep", *quiet]) == 0
     assert main(["train", "data/sweep", "--rig", "rig.yaml", "--chain", "corrected", "--out", "models/sur",
                  "--regressors", "krr", "--classifiers", "trees", "--cv-folds", "2", *quiet]) == 0
