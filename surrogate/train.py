@@ -211,29 +211,35 @@ def needed(curve: list[dict], key: str, goal: float) -> int | None:
 
 def train_bundle(df: pd.DataFrame, inputs: list[str], ranges: dict, model: str, preset: str | None,
                  config: TrainConfig | dict | None = None, scale: dict | None = None, fingerprint: str | None = None,
-                 progress: bool = False, fixed: dict | None = None, settings: dict | None = None) -> Bundle:
+                 progress: bool = False, fixed: dict | None = None, settings: dict | None = None,
+                 extra: pd.DataFrame | None = None) -> Bundle:
     """Train the surrogate on a sweep frame: hold out ``test_fraction`` (never trained on), select
     every model by CV on the rest, calibrate 90 % intervals, and put the held-out report in ``bundle.report``.
     ``fixed`` / ``settings``: the sweep's fixed parameters and simulator settings, carried by the bundle so
-    optimisation and verification simulate under the conditions the surrogate learned."""
+    optimisation and verification simulate under the conditions the surrogate learned.
+    ``extra``: rows always trained on, never held out (points simulated where an optimiser looked); the
+    held-out report stays on the sweep's own design."""
     cfg = config if isinstance(config, TrainConfig) else TrainConfig.from_dict(config)
     with threadpool_limits(cfg.threads):
-        bundle = _train_bundle(df, inputs, ranges, model, preset, cfg, scale, fingerprint, progress)
+        bundle = _train_bundle(df, inputs, ranges, model, preset, cfg, scale, fingerprint, progress, extra)
     bundle.fixed, bundle.settings = dict(fixed or {}), dict(settings or {})
     bundle.report.update({"fixed": bundle.fixed, "settings": bundle.settings})
     return bundle
 
 
-def _train_bundle(df, inputs, ranges, model, preset, cfg: TrainConfig, scale, fingerprint, progress) -> Bundle:
+def _train_bundle(df, inputs, ranges, model, preset, cfg: TrainConfig, scale, fingerprint, progress,
+                  extra: pd.DataFrame | None = None) -> Bundle:
     df = with_power(df.reset_index(drop=True))
     if "point_id" in df.columns:
         df = df.sort_values("point_id", kind="stable").reset_index(drop=True)
     scale = scale or {n: "linear" for n in inputs}
-    fingerprint = fingerprint or fingerprint_frame(df)
+    fingerprint = fingerprint or fingerprint_frame(df if extra is None else pd.concat([df, extra], ignore_index=True))
     regimes = regime_of(df).to_numpy()
     if len(df) < 4 * MIN_POINTS:
         raise DataError(f"dataset has {len(df)} points; the surrogate needs at least {4 * MIN_POINTS}")
     train, test = split_frame(df, cfg)
+    if extra is not None and len(extra):
+        train = pd.concat([train, with_power(extra.reset_index(drop=True))], ignore_index=True)
     bundle, info = fit(train, inputs, ranges, scale, model, preset, cfg, fingerprint, progress)
     held = evaluate(bundle, test)
     curve = learning_curve(bundle, train, test, cfg, progress) if cfg.learning_curve else []
@@ -276,4 +282,6 @@ def _train_bundle(df, inputs, ranges, model, preset, cfg: TrainConfig, scale, fi
                      "simulations_needed": need, "goals": g, "goals_met": {k: (None if v is None else bool(v)) for k, v in met.items()},
                      "goals_notes": notes, "constant_targets": constant,
                      "interval_level": cfg.interval}
+    if extra is not None and len(extra):
+        bundle.report["n_extra"] = int(len(extra))
     return bundle

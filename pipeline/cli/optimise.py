@@ -20,11 +20,17 @@ what it writes under --out:
   shaker envelope: a rig file's 'exciter' (max_force_n against frequency_hz, max_stroke_m, max_velocity_m_s) is
   honoured like the power and deceleration limits; a recommendation on it says "ON THE SHAKER'S ENVELOPE".
   feedback: verified points are appended to feedback/optimise.parquet at the project root, beside optuna.db
-  (or --feedback FILE; never inside the surrogate's dvc-managed folder), from whichever folder it runs, so that
-  training can include them (closing the loop).
-  fallback: a surrogate wrong at its recommended point, or at more than half of the verified points, never
-  recommends: a study of --fallback-trials trials straight on the simulator (same model, rig, space and limits,
-  started from the verified points) does, and report.json 'fallback' and report.md say so.
+  (or --feedback FILE; never inside the surrogate's dvc-managed folder), from whichever folder it runs; the
+  infill rounds below retrain the surrogate on them (closing the loop).
+  infill: a surrogate wrong at its recommended point, or at more than half of the verified points, is first
+  corrected where it is used: up to --infill-rounds rounds simulate --infill-points points where the study looked
+  (along the limits it ran into, around the best verified point and on the faces of the box it touches), append
+  them to the feedback file, retrain the surrogate on its sweep (--train-data) plus the points of the feedback
+  file this run wrote, search and verify again; report.json 'infill' (one record per round: points added,
+  error at the verified points, wrong count, recommendation; the extra simulations) and report.md say how.
+  fallback: a surrogate still wrong after the infill rounds never recommends: a study of --fallback-trials trials
+  straight on the simulator (same model, rig, space and limits, started from the verified points) does, and
+  report.json 'fallback' and report.md say so.
 
 studies persist in optuna storage (default: sqlite file optuna.db at the project root); rerunning the same
 command resumes the study and only runs the missing trials (--n-trials is the total).  Several workers on
@@ -51,6 +57,9 @@ examples:
   vibro optimise --simulator --rig my-rig.yaml --sampler tpe --out results/my-rig-tpe   # optuna's TPE instead
   vibro optimise --params params.yaml --metrics metrics/optimise.json
   vibro optimise --surrogate models/surrogate --out results/optimise --fallback-trials 0   # report a failed surrogate, no fallback
+  vibro optimise --surrogate models/surrogate-rig --train-data data/sweep-rig --infill-rounds 3 --infill-points 16 \
+      --max-power-w 18 --max-decel-g 4 --out results/optimise-rig      # retrain where the surrogate was wrong
+  vibro optimise --surrogate models/surrogate --infill-rounds 0 --out results/optimise     # no infill: fallback at once
   vibro optimise --simulator --storage postgresql://user@host/optuna --study-name rig-a --n-trials 400
   vibro optimise --simulator --storage journal:///shared/optuna/rig-a.log --study-name rig-a --n-trials 400 --heartbeat-s 30
 """
@@ -123,8 +132,20 @@ def add_parser(sub) -> None:
     p.add_argument("--rel-tol", type=A.positive, help="ROP relative error above which the surrogate is wrong (default 0.1)")
     p.add_argument("--fallback-trials", type=A.count(0, 100_000),
                    help="when the surrogate fails its verification (its recommended point, or more than half of the "
-                        "verified points, wrong), run this many trials straight on the simulator over the same space "
-                        "and recommend from those instead (default 200; 0: off)")
+                        "verified points, wrong) after --infill-rounds, run this many trials straight on the "
+                        "simulator over the same space and recommend from those instead (default 200; 0: off)")
+    p.add_argument("--infill-rounds", type=A.count(0, 100), metavar="N",
+                   help="when the surrogate fails its verification, first up to N rounds of infill: simulate the "
+                        "points where the study looked (around the best verified point, along the limits it ran "
+                        "into, on the faces of the box it touches), retrain the surrogate on its sweep plus every "
+                        "point simulated so far (the feedback file), search and verify again, until a round agrees and "
+                        "its recommendation gains at most 1 %% of ROP over the round before; the --fallback-trials "
+                        "study runs only if the last round still fails (default 3; 0: straight to the fallback)")
+    p.add_argument("--infill-points", type=A.count(1, 10_000), metavar="N",
+                   help="points simulated per infill round, besides the verified ones (default 16)")
+    p.add_argument("--train-data", metavar="DATASET",
+                   help="the sweep the surrogate was trained on, for infill (default: the dataset its report.json "
+                        "names)")
     p.add_argument("--storage", metavar="URL",
                    help="optuna storage URL (default sqlite:///<project root>/optuna.db: workers of one machine); "
                         "postgresql://USER@HOST/DB for workers on several machines (or any SQLAlchemy RDB URL); "
@@ -200,7 +221,8 @@ def config_from_args(args):
         base["objectives"] = [s.strip() for s in args.objectives.split(",") if s.strip()]
     for key in ("model", "preset", "objective", "sampler", "n_trials", "batch_size", "seed", "max_peak_force_n",
                 "peak_force_static_ratio", "max_specific_energy_j_m", "max_power_w", "max_decel_g", "n_verify",
-                "rel_tol", "fallback_trials", "storage", "heartbeat_s", "study_name", "feedback", "n_threads"):
+                "rel_tol", "fallback_trials", "storage", "heartbeat_s", "study_name", "feedback", "n_threads",
+                "infill_rounds", "infill_points", "train_data"):
         v = getattr(args, key)
         if v is not None:
             base[key] = v
@@ -348,6 +370,9 @@ def run(args) -> int:
               f"distinct non-dominated points")
     if cfg.mode == "surrogate" and rep.get("surrogate_note"):
         print(rep["surrogate_note"])
+    if rep.get("infill"):
+        print("\n".join(rep["infill"]["lines"]))
+        print(rep["infill"]["text"])
     if rep.get("fallback"):
         print(rep["fallback"]["text"])
     print(f"report: {args.out}/report.md")

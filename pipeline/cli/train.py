@@ -124,7 +124,8 @@ def run(args) -> int:
                        overwrite=args.overwrite)
     check_some_rows_usable(data.df, args.dataset)
     chain = A.chain_of(args)
-    provenance = {"chain": chain, "rig": str(args.rig) if args.rig else None, "rig_name": rig_name(args.rig)}
+    provenance = {"chain": chain, "rig": str(args.rig) if args.rig else None, "rig_name": rig_name(args.rig),
+                  "dataset": str(args.dataset)}      # what `vibro optimise` infill retrains on
     params = {"dataset": str(args.dataset), "model": data.model, "preset": data.preset, "fingerprint": data.fingerprint,
               "inputs": ",".join(data.inputs), "n_points": len(data.df), "rig": args.rig or "",
               **{f"train.{k}": v for k, v in cfg.to_dict().items()}}

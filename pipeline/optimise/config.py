@@ -19,7 +19,8 @@ BOUNDS = {"n_trials": (True, 1, MAX_TRIALS), "batch_size": (True, 1, 10_000), "s
           "n_verify": (True, 1, 10_000), "fallback_trials": (True, 0, 100_000), "n_threads": (True, 1, MAX_THREADS),
           "heartbeat_s": (True, 1, 3600), "rel_tol": (False, 0.0, 1e6), "max_peak_force_n": (False, 0.0, None),
           "peak_force_static_ratio": (False, 0.0, None), "max_specific_energy_j_m": (False, 0.0, None),
-          "max_power_w": (False, 0.0, None), "max_decel_g": (False, 0.0, None)}
+          "max_power_w": (False, 0.0, None), "max_decel_g": (False, 0.0, None), "infill_rounds": (True, 0, 100),
+          "infill_points": (True, 1, 10_000)}
 """The section's numbers: key -> (integer?, low, high); an integer may equal its low, a float must lie above it."""
 
 
@@ -57,8 +58,11 @@ class OptimiseConfig:
     surrogate is called wrong.  fallback_trials: when a surrogate fails its verification (the recommended point,
     or more than half of the verified points, wrong) a study of this many trials straight on the simulator, over
     the same space with the same model, rig and constraints, starting from the points already verified, makes the
-    recommendation instead (0: off).  storage: optuna storage URL (None: the SQLite file optuna.db at the project
-    root); heartbeat_s: seconds between heartbeats of a running trial on a server or journal storage (None:
+    recommendation instead (0: off).  infill_rounds: before that fallback, up to this many rounds of infill
+    (pipeline/optimise/infill.py): simulate ``infill_points`` points where the study looked, retrain the surrogate on
+    ``train_data`` (its sweep; None: the one its report.json names) plus every point simulated so far, search and
+    verify again (0: straight to the fallback).  storage: optuna storage URL (None: the SQLite file optuna.db at the
+    project root); heartbeat_s: seconds between heartbeats of a running trial on a server or journal storage (None:
     storages.DEFAULT_HEARTBEAT_S; a trial silent for 3 heartbeats is failed and re-run).
     """
 
@@ -92,6 +96,9 @@ class OptimiseConfig:
     feedback: str | None = None
     n_threads: int | None = None
     settings: dict | None = None
+    infill_rounds: int = 3
+    infill_points: int = 16
+    train_data: str | None = None
 
     def __post_init__(self) -> None:
         self.validate()
@@ -115,6 +122,8 @@ class OptimiseConfig:
         if self.sampler not in SAMPLERS:
             raise UserError(f"sampler must be one of {SAMPLERS}, got '{self.sampler}'")
         check_numbers({k: getattr(self, k) for k in BOUNDS})      # checked, not converted: the study's name hashes them
+        if self.train_data is not None and not isinstance(self.train_data, str):
+            raise UserError(f"train_data must be a dataset path, got {self.train_data!r}")
         self.objective_list()
         self.constraints()      # a margin names limited labels and fractions in [0, 1)
         if self.mode == "surrogate" and not self.surrogate:

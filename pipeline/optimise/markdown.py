@@ -74,6 +74,19 @@ def markdown(rep: dict, table: pd.DataFrame | None) -> str:
                       + ". The optimum may lie beyond this bound; widen that range (sweep and train on it) to know.", ""]
         else:
             lines += ["The recommendation lies inside the search space (no control within 2 % of a bound).", ""]
+    inf = rep.get("infill")
+    if inf:
+        lines += ["## Infill: simulations where the study looked, surrogate retrained", "", inf["text"] + ".", ""]
+        if inf["rounds"]:
+            lines += ["| round | study | trained on | verified | wrong | median ROP error | recommended wrong "
+                      "| ROP simulated [mm/s] | ROP predicted [mm/s] | points added |", "|" + "---|" * 10]
+            for r in inf["rounds"]:
+                med = r["rop_rel_error_median"]
+                lines.append(f"| {r['round']} | {r['study_name']} | {_fmt(r['n_train'])} | {r['n_verified']} | "
+                             f"{r['n_wrong']} | {'—' if med is None else format(med, '.1%')} | "
+                             f"{'yes' if r['recommendation_wrong'] else 'no'} | {_eng('rop_m_s', r['rop_m_s_sim'])} | "
+                             f"{_eng('rop_m_s', r['rop_m_s_pred'])} | {r['points_added']} |")
+            lines.append("")
     lines += ["## What was tried", "",
               f"- mode: {t['mode']} (study on the {'surrogate, then re-simulated' if t['mode'] == 'surrogate' else 'simulator'}),"
               f" objective: {t['objective']} ({', '.join(t.get('objectives', []))}), sampler: {t['sampler']}, seed {t['seed']}",

@@ -1,8 +1,9 @@
 """``optimise(cfg, out)``: the whole workflow of ``vibro optimise`` with its fallback, as one call.
 
 The study runs on the surrogate or the simulator; the verified points go to the feedback file; a surrogate the
-simulator contradicted never recommends: a study straight on the simulator does (:func:`workflow.surrogate_failed`
-says when).  The report, tables and figures are written under ``out`` and returned as an :class:`OptimiseOutcome`.
+simulator contradicted (:func:`workflow.surrogate_failed` says when) is first retrained where the study looked
+(``infill.infill_until_right``) and, if still wrong, never recommends: a study straight on the simulator does.
+The report, tables and figures are written under ``out`` and returned as an :class:`OptimiseOutcome`.
 The command (``pipeline/cli/optimise.py``) picks the paths, opens MLflow and prints.
 """
 from __future__ import annotations
@@ -85,6 +86,13 @@ def optimise(cfg: OptimiseConfig, out_dir, *, bundle=None, plan: OptimisePlan | 
     if fb and res.simulated is not None:
         rows = append_feedback(res.simulated, fb, source=f"optimise-{cfg.mode}", study=res.study_name,
                                wrong=res.verified["surrogate_wrong"].tolist(), inputs=res.problem.space.names)
+    infill = None
+    if surrogate_failed(res) and cfg.infill_rounds > 0 and fb:     # first simulate where it looked, retrain
+        from pipeline.optimise.infill import infill_until_right
+
+        infill = infill_until_right(res, plan.strategies.evaluator.bundle, build_strategies, fb, progress=progress,
+                                    notify=notify)
+        res, rows = infill.result, infill.feedback_rows or rows
     failed = None
     why = surrogate_failed(res)
     if why and cfg.fallback_trials > 0:     # never recommend from a surrogate the simulator contradicted
@@ -102,7 +110,7 @@ def optimise(cfg: OptimiseConfig, out_dir, *, bundle=None, plan: OptimisePlan | 
 
         maps, map_sims = write_limit_maps(res, out)
         figs = [*figs, *maps]
-    rep = outputs.report_dict(res, figs, rows, fb, failed=failed)
+    rep = outputs.report_dict(res, figs, rows, fb, failed=failed, infill=infill and infill.report)
     if map_sims:
         rep["metrics"]["limit_map_simulations"] = map_sims
     reports = outputs.write_report(rep, res, out)

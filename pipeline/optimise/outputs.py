@@ -20,8 +20,8 @@ from pipeline.optimise.study import pareto_mask, value_columns
 from pipeline.optimise.workflow import OptimisePlan, OptimiseResult, surrogate_failed
 
 REPORT_KEYS = ("study_name", "inputs", "created", "tried", "recommendation", "feedback_rows", "feedback_file",
-               "surrogate_note", "fallback", "outcome", "pareto_verified", "objectives", "figures", "metrics")
-"""Keys of report.json in their order; feedback_rows/feedback_file, surrogate_note, fallback,
+               "surrogate_note", "infill", "fallback", "outcome", "pareto_verified", "objectives", "figures", "metrics")
+"""Keys of report.json in their order; feedback_rows/feedback_file, surrogate_note, infill, fallback,
 pareto_verified/objectives only when they apply."""
 
 
@@ -63,9 +63,10 @@ def surrogate_note(res: OptimiseResult, feedback_file: str | None) -> str:
 
 
 def report_dict(res: OptimiseResult, figures: list[str], feedback_rows: int | None = None,
-                feedback_file: str | None = None, failed: OptimiseResult | None = None) -> dict:
+                feedback_file: str | None = None, failed: OptimiseResult | None = None, infill=None) -> dict:
     """report.json of ``res``: keys :data:`REPORT_KEYS`; ``feedback_rows`` rows now in ``feedback_file``.
-    ``failed``: the surrogate study that failed its verification, when ``res`` is the simulator study replacing it."""
+    ``failed``: the surrogate study that failed its verification, when ``res`` is the simulator study replacing it.
+    ``infill``: the infill loop's :class:`~pipeline.optimise.infill.InfillReport`, when one ran."""
     rep = {"study_name": res.study_name, "inputs": res.problem.space.names, "created": res.created,
            "tried": tried(res), "recommendation": res.recommendation}
     first = failed or res
@@ -75,6 +76,8 @@ def report_dict(res: OptimiseResult, figures: list[str], feedback_rows: int | No
             rep["feedback_file"] = feedback_file
         if first.config.mode == "surrogate":
             rep["surrogate_note"] = surrogate_note(first, feedback_file)
+    if infill is not None:
+        rep["infill"] = infill.to_json()
     if failed is not None:
         why = surrogate_failed(failed)
         best = failed.recommendation or {}
@@ -95,6 +98,9 @@ def report_dict(res: OptimiseResult, figures: list[str], feedback_rows: int | No
     # the surrogate's wrong count is the surrogate study's, also when the simulator study replaced it: one number
     rep["metrics"] = {**res.metrics(), "n_surrogate_wrong": first.n_surrogate_wrong,
                       "surrogate_fallback": failed is not None}
+    if infill is not None:      # what the loop cost: infill points and the later rounds' verifications
+        rep["metrics"].update({"infill_rounds": infill.n_rounds, "infill_simulations": infill.simulations,
+                               "infill_agreed": infill.agreed})
     return rep
 
 

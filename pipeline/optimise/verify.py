@@ -147,7 +147,22 @@ def append_feedback(simres: pd.DataFrame, path: str | os.PathLike, source: str, 
     return len(allrows)
 
 
-__all__ = ["compare", "best_verified", "append_feedback", "write_parquet_atomic", "TARGETS"]
+def read_feedback(path: str | os.PathLike, studies: list[str] | tuple[str, ...]) -> pd.DataFrame:
+    """The rows of the feedback file ``path`` that the studies ``studies`` appended (empty when none): the
+    simulated points a surrogate is retrained on."""
+    path = Path(path)
+    if not path.exists():
+        return pd.DataFrame()
+    try:
+        fb = pd.read_parquet(path)
+    except Exception as e:  # noqa: BLE001
+        raise UserError(f"feedback file {path}: cannot be read as Parquet ({e})") from None
+    if "study" not in fb:
+        raise UserError(f"feedback file {path}: no 'study' column (not written by vibro optimise or verify)")
+    return fb[fb["study"].isin(list(studies))].reset_index(drop=True)
+
+
+__all__ = ["compare", "best_verified", "append_feedback", "read_feedback", "write_parquet_atomic", "TARGETS"]
 
 
 def read_points(path: str | os.PathLike) -> pd.DataFrame:

@@ -68,6 +68,30 @@ def simulator(model: str, preset, meta: dict, rig=None):
     return run
 
 
+def retrain(data: TrainingData, cfg, extra: pd.DataFrame, progress: bool = False):
+    """The surrogate of ``data`` (its sweep, inputs, ranges and conditions) retrained with ``cfg`` (a
+    ``surrogate.config.TrainConfig``) on the sweep plus ``extra``: simulated rows (e.g. a feedback file's), always
+    trained on, never held out.  Rows of ``extra`` outside the sweep's ranges are left out (the surrogate's box
+    stays the sweep's); UserError naming a label no simulator writes."""
+    import numpy as np
+
+    from pipeline.training import rows
+    from surrogate import data as sdata
+    from surrogate.train import train_bundle
+
+    keep = np.ones(len(extra), dtype=bool)
+    for n, (lo, hi) in data.ranges.items():
+        x = pd.to_numeric(extra[n], errors="coerce").to_numpy(dtype=float)
+        tol = rows.RANGE_RTOL * (hi - lo)
+        keep &= (x >= lo - tol) & (x <= hi + tol)
+    extra = extra.loc[keep, [c for c in data.df.columns if c in extra.columns and c != "point_id"]]
+    rows.check_labels(extra, "extra training rows")
+    fp = f"{data.fingerprint}+{sdata.fingerprint_frame(extra.reset_index(drop=True))[:16]}"
+    return train_bundle(data.df, data.inputs, data.ranges, data.model, data.preset, cfg,
+                        scale=sdata.scales(data.meta, data.inputs), fingerprint=fp, progress=progress,
+                        fixed=data.meta.get("fixed"), settings=data.meta.get("settings"), extra=extra)
+
+
 @dataclass(frozen=True)
 class TrainResult:
     """The trained bundle (saved), the adaptive study (None without --adaptive), the figures written,

@@ -17,7 +17,7 @@ from pipeline.optimise.workflow import OptimiseResult, plan_optimise, run_optimi
 from .test_optimise import SMALL, ToyBundle
 
 REPORT_KEYS = ["study_name", "inputs", "created", "tried", "recommendation", "feedback_rows", "feedback_file",
-               "surrogate_note", "fallback", "outcome", "pareto_verified", "objectives", "figures", "metrics"]
+               "surrogate_note", "infill", "fallback", "outcome", "pareto_verified", "objectives", "figures", "metrics"]
 TRIED_KEYS = ["mode", "objective", "objectives", "sampler", "seed", "model", "preset", "fixed", "space", "constraints",
               "n_trials", "n_trials_run_now", "n_feasible", "status_counts", "storage", "simulator_calls_study",
               "n_verified", "simulator_calls"]
@@ -87,10 +87,10 @@ def test_optimise_writes_the_report_keys_it_always_wrote(dirs):
     fb = dirs / "fb.parquet"
     cfg = OptimiseConfig(mode="surrogate", surrogate=str(dirs / "home"), objective="pareto", ranges=SMALL,
                          n_trials=40, n_verify=4, storage=f"sqlite:///{dirs / 'db' / 'optuna.db'}", feedback=str(fb),
-                         fallback_trials=0)
+                         fallback_trials=0, infill_rounds=0)
     rep = optimise(cfg, dirs / "out", bundle=ToyBundle(), progress=False).report
     on_disk = json.loads((dirs / "out" / "report.json").read_text())
-    keys = [k for k in REPORT_KEYS if k != "fallback"]
+    keys = [k for k in REPORT_KEYS if k not in ("infill", "fallback")]
     assert list(on_disk) == keys and list(rep) == keys
     assert list(on_disk["tried"]) == TRIED_KEYS and list(on_disk["metrics"]) == METRIC_KEYS
     assert list(on_disk["recommendation"]) == REC_KEYS
@@ -103,7 +103,7 @@ def test_optimise_writes_the_report_keys_it_always_wrote(dirs):
     cfg = OptimiseConfig(mode="simulator", preset="lab", ranges=SMALL, n_trials=4, n_verify=1, batch_size=4,
                          storage=f"sqlite:///{dirs / 'db' / 'optuna.db'}")
     rep = optimise(cfg, dirs / "sim", progress=False).report
-    want = [k for k in REPORT_KEYS if k not in ("feedback_rows", "feedback_file", "surrogate_note", "fallback",
+    want = [k for k in REPORT_KEYS if k not in ("feedback_rows", "feedback_file", "surrogate_note", "infill", "fallback",
                                                 "pareto_verified", "objectives")]
     assert list(json.loads((dirs / "sim" / "report.json").read_text())) == want == list(rep)
     assert list(rep["metrics"]) == [k for k in METRIC_KEYS if k != "n_pareto_verified"]
