@@ -2,7 +2,7 @@
 inputs are usually drawn from."""
 from __future__ import annotations
 
-from sim.statuses import STATUSES
+from vibrobase.statuses import STATUSES
 
 REGIMES = ("progressing", "no_progress", "runaway", "not_settled", "failed")
 """Surrogate regime classes: progressing (status ok or aperiodic, and rop_m_s > 0), no_progress (ok / aperiodic /

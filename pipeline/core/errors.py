@@ -5,7 +5,7 @@ import errno
 import re
 
 from pipeline.core.optional import MissingPackage
-from sim.errors import ParameterError
+from sim import ParameterError
 
 
 class UserError(ValueError):

@@ -20,7 +20,7 @@ import pandas as pd
 
 from pipeline.core.errors import UserError
 from pipeline.core.integrity import CHECKSUM_SUFFIX, DirLock, checksum_path, verify_checksum, write_with_checksum
-from pipeline.core.names import STATUSES
+from vibrobase.statuses import STATUSES
 from pipeline.datasets.spec import SweepSpec
 
 
@@ -180,7 +180,7 @@ def _existing_chunks(out: Path, spec: SweepSpec) -> set[int]:
 
 
 TEMP_RE = re.compile(r"^\.(?:part-\d{5}\.parquet(?:\.sha256)?|metadata\.json)\.[A-Za-z0-9_-]+\.tmp$")
-"""Temporaries of a chunk, its sidecar or the metadata (pipeline.core.files): the only hidden files a sweep removes."""
+"""Temporaries of a chunk, its sidecar or the metadata (vibrobase.files): the only hidden files a sweep removes."""
 
 
 def _clean_temp(out: Path) -> None:

@@ -17,7 +17,7 @@ from typing import Mapping
 
 import numpy as np
 
-from pipeline.core.names import SETTLED_STATUSES
+from vibrobase.statuses import SETTLED_STATUSES
 
 
 @dataclass(frozen=True)

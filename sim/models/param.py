@@ -5,7 +5,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from sim.errors import ParameterError
+
+class ParameterError(ValueError):
+    """Bad parameter name or value (message names the parameter)."""
 
 
 @dataclass(frozen=True)

@@ -6,10 +6,6 @@ import difflib
 from typing import Iterable
 
 
-class ParameterError(ValueError):
-    """Bad parameter name or value (message names the parameter)."""
-
-
 def did_you_mean(word: str, choices: Iterable[str]) -> str:
     """`` (did you mean NAME?)`` naming the choice closest to a mistyped ``word`` (difflib, case folded: ``k1``
     finds ``K1``, ``frequency`` finds ``frequency_hz``, ``--npoints`` finds ``--n-points``), or ``""`` when none
