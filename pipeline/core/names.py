@@ -1,4 +1,4 @@
-"""Names shared by datasets, optimisation and reports: sweep statuses, the objective's sense, display units.
+"""Names shared by datasets, optimisation and reports: the objective's sense, display units.
 
 The sweep statuses are the simulator's (``vibrobase.statuses``); the surrogate's regimes, targets and controls are
 its contract (``surrogate.names``)."""

@@ -95,14 +95,18 @@ def _git_commit() -> dict:
 
 
 def sim_source_hash() -> str:
-    """sha256 over the simulator's sources (sim/**/*.py): resumed chunks must come from the same code."""
+    """sha256 over the simulator's sources and the bottom package it imports (sim/**/*.py, vibrobase/**/*.py: its
+    statuses live there): resumed chunks must come from the same code."""
     import sim
+    import vibrobase
 
-    root = Path(sim.__file__).resolve().parent
     h = hashlib.sha256()
-    for f in sorted(root.rglob("*.py")):
-        h.update(str(f.relative_to(root)).encode())
-        h.update(f.read_bytes())
+    for pkg in (sim, vibrobase):
+        root = Path(pkg.__file__).resolve().parent
+        prefix = "" if pkg is sim else f"{pkg.__name__}/"
+        for f in sorted(root.rglob("*.py")):
+            h.update((prefix + str(f.relative_to(root))).encode())
+            h.update(f.read_bytes())
     return h.hexdigest()
 
 
