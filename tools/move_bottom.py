@@ -128,7 +128,9 @@ def rewrite_from(m: re.Match, importer: str, path: Path) -> str:
         groups.setdefault(home, []).append(n)
     if list(groups) == [mod]:
         return m[0]
-    lines = [format_from(ind, home, ns, tail if i == 0 else "") for i, (home, ns) in enumerate(groups.items())]
+    keep_all = "noqa" in tail          # a lint waiver (E402) holds for every split line, a remark for the first
+    lines = [format_from(ind, home, ns, tail if i == 0 or keep_all else "")
+             for i, (home, ns) in enumerate(groups.items())]
     return "\n".join(lines) if lines else f"{ind}pass" if ind else DROP
 
 
@@ -166,7 +168,7 @@ def merge_top_level(text: str) -> str:
         f = pat.fullmatch(lines[first[m[1]]])
         names = [n.strip() for n in f[2].split(",")]
         names += [n.strip() for n in m[2].split(",") if n.strip() not in names]
-        lines[first[m[1]]] = format_from("", m[1], names, f[3] or "")
+        lines[first[m[1]]] = format_from("", m[1], names, f[3] or m[3] or "")
         lines[i] = DROP
     return "\n".join(lines).replace(DROP + "\n", "")
 
@@ -197,7 +199,8 @@ def move_modules(dry: bool) -> None:
         print(f"create {init.relative_to(ROOT)}")
         if not dry:
             bottom.mkdir(exist_ok=True)
-            init.write_text('"""The bottom floor: infrastructure every package may import (it imports nothing of the project)."""\n')
+            init.write_text('"""The bottom floor: infrastructure every package may import '
+                            '(it imports nothing of the project)."""\n')
             subprocess.run(["git", "-C", str(ROOT), "add", str(init)], check=True)
     for m in MOVED:
         src, dst = ROOT / "sim" / f"{m}.py", bottom / f"{m}.py"
@@ -221,7 +224,8 @@ def relocate_parameter_error(dry: bool) -> None:
         return
     ptext = param.read_text()
     if "class ParameterError" not in ptext:
-        ptext = re.sub(r"^from (?:sim|vibrobase)\.errors import ParameterError[ \t]*(?:#[^\n]*)?\n", "", ptext, flags=re.M)
+        ptext = re.sub(r"^from (?:sim|vibrobase)\.errors import ParameterError[ \t]*(?:#[^\n]*)?\n", "", ptext,
+                       flags=re.M)
         imports = list(re.finditer(r"^(?:from|import)[ \t][^\n]*\n", ptext, re.M))
         at = imports[-1].end() if imports else 0
         ptext = ptext[:at] + "\n\n" + m[0].strip("\n") + "\n\n\n" + ptext[at:].lstrip("\n")
