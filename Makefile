@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml requirements.lock
 	@echo "    first time about 5 minutes (numpy, numba, scikit-learn, mlflow, dvc, optuna, ...); one line per package"
 	@$(BIN)/python -m pip install --progress-bar off -c requirements.lock -e ".[dev]" \
 	  | grep --line-buffered -E "^(Collecting|Successfully installed)" | sed -u 's/^/    /' || true
-	@$(BIN)/python -c "import pipeline, sim, surrogate" || { echo "install failed: rerun 'make install' to see pip's errors"; exit 1; }
+	@$(BIN)/python -c "import pipeline, sim, surrogate, vibrobase" || { echo "install failed: rerun 'make install' to see pip's errors"; exit 1; }
 	@touch $(STAMP)
 	@echo "==> installed; .venv/bin/vibro --version: $$($(BIN)/vibro --version)"
 	@echo "    each model's kernel compiles on first use (numba's cache, once); 'vibro compile' builds them all ahead of time"

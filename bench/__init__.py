@@ -23,9 +23,9 @@ ETA_X = 1e-15          # hysteresis on the position switching function [m] (as t
 
 def write_between_markers(root: Path, paths, start: str, end: str, text: str) -> list[str]:
     """Replace what stands between the lines ``start`` and ``end`` of each file in ``paths`` (relative to ``root``)
-    that has both with ``text`` (a line break either side), atomically (``pipeline.core.files``); returns the
+    that has both with ``text`` (a line break either side), atomically (``vibrobase.files``); returns the
     paths written.  How the benchmarks keep the tables the docs quote generated."""
-    from pipeline.core.files import atomic_write_text
+    from vibrobase.files import atomic_write_text
 
     done = []
     for rel in paths:
@@ -49,7 +49,7 @@ def write_block(path: Path, start: str, end: str, text: str) -> None:
 def publish(result: dict, out: Path, text: str, doc: Path | None, markers: tuple[str, str]) -> None:
     """Write ``result`` to the JSON file ``out``, print ``text`` and, unless ``doc`` is None, write it between the
     ``markers`` of ``doc``: the end of a benchmark whose table a page quotes."""
-    from pipeline.core.files import atomic_write_json
+    from vibrobase.files import atomic_write_json
 
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     atomic_write_json(Path(out), result)

@@ -182,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
     if "surrogate" in out["methods"]:
         out["target_met"] = out["methods"]["surrogate"]["ratio_min"] >= 0.98
     out["seconds"] = round(time.time() - t0, 1)
-    from pipeline.core.jsonable import dump_json
+    from vibrobase.jsonable import dump_json
 
     tmpf = RESULTS / ".optimise.json.tmp"
     tmpf.write_text(dump_json(out))

@@ -231,7 +231,7 @@ def main(argv: list[str] | None = None) -> int:
             v["ratio_mean"] = float(np.mean([r["ratio"] for r in v["runs"]]))
         out["cases"][cname] = row
     out["seconds"] = round(time.time() - t0, 1)
-    from pipeline.core.jsonable import dump_json
+    from vibrobase.jsonable import dump_json
 
     tmp = res / ".search.json.tmp"
     tmp.write_text(dump_json(out))

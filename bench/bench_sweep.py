@@ -103,7 +103,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--peer-points", type=int, default=16, help="points run by the scipy peer (default 16)")
     ap.add_argument("--out", default=str(RESULTS / "sweep.json"), help="result JSON")
     a = ap.parse_args(argv)
-    from pipeline.core.files import atomic_write_json
+    from vibrobase.files import atomic_write_json
     from pipeline.datasets.spec import make_spec
     from pipeline.datasets.store import package_versions
 

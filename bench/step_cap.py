@@ -108,7 +108,7 @@ def render(model: str, rows: list[dict], command: str, setting: str = "max_step_
 def _values(spec, setting: str, text: str) -> list:
     """The comma-separated values of ``setting``, each checked by the simulator's own settings validation."""
     from sim.api import Settings, make_settings
-    from sim.errors import ParameterError
+    from sim import ParameterError
 
     numeric = not isinstance(getattr(Settings(), setting), str)
     out = []

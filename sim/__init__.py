@@ -2,7 +2,7 @@
 
 The simulator API (``sim.api``: numba, pandas) is imported on first use of one of its names, so importing
 ``sim`` for a model's specification (``get_model``, ``ParameterError``) stays light."""
-from sim.errors import ParameterError
+from sim.models.param import ParameterError
 from sim.registry import get_model, model_names
 from sim.rig import ModelError, Rig
 

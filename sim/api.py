@@ -12,11 +12,11 @@ import numpy as np
 from sim import layout as I
 from sim.compiled import kernels
 from sim.compile_notice import announce_compile
-from sim.errors import did_you_mean
+from vibrobase.errors import did_you_mean
 from sim.invariants import violation
 from sim.models.base import ModelSpec, ParameterError
 from sim.registry import get_model
-from sim.statuses import BOUNDED_STATUSES
+from vibrobase.statuses import BOUNDED_STATUSES
 
 if TYPE_CHECKING:                  # pandas is imported only where a table is built (history, batch)
     import pandas as pd

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from typing import Mapping
 
-from sim.statuses import BOUNDED_STATUSES
+from vibrobase.statuses import BOUNDED_STATUSES
 
 ENERGY_TOL = 0.02
 """Relative tolerance of the energy balance: the window's end repeats its start only to the periodicity tolerance,

@@ -4,7 +4,8 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING
 
-from sim.errors import ParameterError, did_you_mean
+from sim.models.param import ParameterError
+from vibrobase.errors import did_you_mean
 
 if TYPE_CHECKING:                  # the models (numpy, numba) are imported on the first get_model
     from sim.models.base import ModelSpec

@@ -14,7 +14,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Iterator, Mapping
 
-from sim.errors import ParameterError, did_you_mean
+from sim.models.param import ParameterError
+from vibrobase.errors import did_you_mean
 from sim.models.discrepancy import PARAM_OF as DISCREPANCY_PARAMS
 from sim.registry import get_model, model_names
 

@@ -16,7 +16,7 @@ import pandas as pd
 from scipy.stats import qmc
 from tqdm.auto import tqdm
 
-from sim.unitcube import from_unit
+from vibrobase.unitcube import from_unit
 from surrogate import selection
 from surrogate.config import AdaptiveConfig, TrainConfig
 from surrogate.data import domain_mask, regime_of

@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
-from sim.files import atomic_write_bytes, atomic_write_text
+from vibrobase.files import atomic_write_bytes, atomic_write_text
 from surrogate.bundle_check import BundleContentError, check_contents, check_payload_size
 from surrogate.candidates import SubsampledGP
 from surrogate.errors import BundleError, DataError
@@ -175,7 +175,7 @@ class Bundle:
         never verifies."""
         import skops.io as sio
 
-        from sim.jsonable import dump_json
+        from vibrobase.jsonable import dump_json
 
         d = Path(path)
         d.mkdir(parents=True, exist_ok=True)

@@ -93,7 +93,7 @@ def _check_schema(b) -> None:
 def _check_values(b) -> None:
     """``fixed`` parameters finite numbers; ``settings`` valid simulator settings (sim.Settings)."""
     from sim.api import Settings
-    from sim.errors import ParameterError
+    from sim import ParameterError
 
     for what, d in (("fixed", b.fixed), ("settings", b.settings)):
         if not isinstance(d, dict):

@@ -11,7 +11,7 @@ import hashlib
 import numpy as np
 import pandas as pd
 
-from sim.statuses import BOUNDED_STATUSES, IMPACTING_STATUSES, SETTLED_STATUSES, STATUSES
+from vibrobase.statuses import BOUNDED_STATUSES, IMPACTING_STATUSES, SETTLED_STATUSES, STATUSES
 from surrogate.errors import ConfigError, DataError
 from surrogate.names import CONTROLS, REGIMES
 

@@ -1,9 +1,10 @@
 """The surrogate library's exceptions: bad input the caller can fix, each message saying what and where.
 
 A command reports any :class:`SurrogateError` as one line; the subclasses let a caller tell what was wrong."""
+from vibrobase.errors import InputError
 
 
-class SurrogateError(ValueError):
+class SurrogateError(InputError):
     """Base of every error the surrogate raises for bad input (configuration, data or bundle)."""
 
 

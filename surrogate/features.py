@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from sim.unitcube import to_unit
+from vibrobase.unitcube import to_unit
 
 
 @dataclass

@@ -3,7 +3,7 @@ inputs are usually drawn from."""
 from __future__ import annotations
 
 from sim.controls import CONTROLS  # noqa: F401  (part of the surrogate contract: the inputs it is drawn from)
-from sim.statuses import STATUSES
+from vibrobase.statuses import STATUSES
 
 REGIMES = ("progressing", "no_progress", "runaway", "not_settled", "failed")
 """Surrogate regime classes: progressing (status ok or aperiodic, and rop_m_s > 0), no_progress (ok / aperiodic /

@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from sim.files import atomic_write_figure  # noqa: E402
+from vibrobase.files import atomic_write_figure  # noqa: E402
 from surrogate.data import domain_mask  # noqa: E402
 
 UNITS = {"rop_m_s": "m/s", "peak_force_n": "N", "impacts_per_cycle": "-", "specific_energy_j_m": "J/m", "power_w": "W",

@@ -1,14 +1,15 @@
 """Import direction of the project (docs/architecture.md, "Package map"): parsed from the source (ast), so a
 lazy import inside a function counts as well.
 
-sim            imports nothing of the project
-pipeline.core  imports sim at most
-surrogate      imports sim at most (the library never imports the application, and raises its own errors)
+vibrobase      imports nothing of the project (the bottom floor: errors, atomic files, JSON, statuses, unit cube)
+sim            imports vibrobase at most
+pipeline.core  imports sim and vibrobase at most
+surrogate      imports sim and vibrobase at most (the library never imports the application, and raises its own errors)
 workflows      pipeline.datasets / synthesis / optimise / comparison / diagnosis / maps / report / tracking / training
                never import pipeline.cli
 pipeline.cli   imported by nobody but itself (the console entry ``vibro = pipeline.cli:main``)
-and the graph between packages has no cycle.  Within sim and surrogate no two modules import each other (directly
-or round a longer loop), and no module imports a private name (``_name``) of another package.
+and the graph between packages has no cycle.  Within vibrobase, sim and surrogate no two modules import each other
+(directly or round a longer loop), and no module imports a private name (``_name``) of another package.
 """
 from __future__ import annotations
 
@@ -19,11 +20,11 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-PROJECT = ("sim", "surrogate", "pipeline")
+PROJECT = ("vibrobase", "sim", "surrogate", "pipeline")
 
 
 def unit(module: str) -> str:
-    """The architectural unit of a dotted module: sim, surrogate, or pipeline.<package>."""
+    """The architectural unit of a dotted module: vibrobase, sim, surrogate, or pipeline.<package>."""
     parts = module.split(".")
     if parts[0] != "pipeline":
         return parts[0]
@@ -72,9 +73,10 @@ G = graph()
 WORKFLOWS = ("pipeline.datasets", "pipeline.synthesis", "pipeline.optimise", "pipeline.comparison", "pipeline.diagnosis",
              "pipeline.maps", "pipeline.report", "pipeline.tracking", "pipeline.training")
 ALLOWED = {
-    "sim": set(),
-    "pipeline.core": {"sim"},
-    "surrogate": {"sim"},
+    "vibrobase": set(),
+    "sim": {"vibrobase"},
+    "pipeline.core": {"sim", "vibrobase"},
+    "surrogate": {"sim", "vibrobase"},
 }
 
 
@@ -126,7 +128,7 @@ def test_the_check_sees_a_violation(tmp_path):
 
 
 
-# --- modules: no import cycle within sim and surrogate; no private name of another package -----------------------
+# --- modules: no import cycle within vibrobase, sim and surrogate; no private name of another package ----------
 MODULES = {module_name(f): f for top in PROJECT for f in sorted((ROOT / top).rglob("*.py"))}
 """Every project module by dotted name (packages by their own name)."""
 
@@ -188,7 +190,7 @@ def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
     return None
 
 
-@pytest.mark.parametrize("top", ("sim", "surrogate"))
+@pytest.mark.parametrize("top", ("vibrobase", "sim", "surrogate"))
 def test_no_import_cycle_between_modules(top):
     """A lazy import inside a function counts: it hides a loop from Python, not from a reader."""
     loop = find_cycle(module_graph(top))

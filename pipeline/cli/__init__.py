@@ -22,7 +22,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 from pipeline.core.errors import USER_ERRORS, machine_error, show_warnings  # noqa: E402
-from sim.errors import did_you_mean  # noqa: E402
+from vibrobase.errors import did_you_mean  # noqa: E402
 
 QUIET_ENV = "VIBRO_QUIET"      # read by sim/compile_notice.py (not imported here: --help stays fast)
 SUBCOMMANDS = ("simulate", "sweep", "train", "optimise", "verify", "import", "diagnose", "synth", "map", "report",
@@ -64,7 +64,7 @@ _INVALID_CHOICE = re.compile(r"^(argument .*?): invalid choice: '(.*)' \(choose 
 
 
 class VibroParser(argparse.ArgumentParser):
-    """argparse with a did-you-mean (``sim.errors.did_you_mean``) on a mistyped flag or choice, in one line naming
+    """argparse with a did-you-mean (``vibrobase.errors.did_you_mean``) on a mistyped flag or choice, in one line naming
     the subcommand: ``vibro sweep: error: unknown option --npoints (did you mean --n-points?)``.  Its subcommands'
     parsers are of this class too (argparse makes them of their parent's class)."""
 

@@ -28,7 +28,7 @@ from typing import Callable, Mapping
 
 from pipeline.core.errors import UserError
 from pipeline.core.numbers import MAX_THREADS, MAX_TRIALS, number  # noqa: F401 - the one number parser, re-exported
-from sim.errors import did_you_mean
+from vibrobase.errors import did_you_mean
 
 # upper bounds on the work one command may ask for (a typo like 1e12 is an error, not a MemoryError or a hang)
 MAX_POINTS = 10_000_000        # sweep / verify points, map grid cells

@@ -75,8 +75,8 @@ def run(args) -> int:
     from pathlib import Path
 
     from pipeline import tracking
-    from pipeline.core.files import atomic_write_text
-    from pipeline.core.jsonable import dump_json
+    from vibrobase.files import atomic_write_text
+    from vibrobase.jsonable import dump_json
     from pipeline.core.outdir import check_out, check_out_file, prepare_out, record_out_file
     from pipeline.core.rigfile import read_rig, rig_name
     from pipeline.comparison.workflow import compare, markdown

@@ -194,8 +194,8 @@ def run(args) -> int:
     from pipeline import tracking
     from pipeline.cli.args import parse_assignments
     from pipeline.core.executors import open_executor
-    from pipeline.core.files import atomic_write_text
-    from pipeline.core.jsonable import dump_json
+    from vibrobase.files import atomic_write_text
+    from vibrobase.jsonable import dump_json
     from pipeline.core.outdir import check_out_file, prepare_out, record_out_file
     from pipeline.datasets.measured import load_dataset
     from pipeline.diagnosis.workflow import diagnose

@@ -74,7 +74,7 @@ def run(args) -> int:
     from sim import model_names
 
     from pipeline.core.errors import UserError
-    from sim.errors import did_you_mean
+    from vibrobase.errors import did_you_mean
 
     if args.model and args.model not in model_names():
         raise UserError(f"unknown model '{args.model}'{did_you_mean(args.model, model_names())}; "

@@ -83,8 +83,8 @@ def run(args) -> int:
                 mlflow.log_artifact(str(fig), artifact_path="report/figures")
             mlflow.log_metric("report.n_figures", len(res.figures))
     if args.metrics:
-        from pipeline.core.files import atomic_write_text
-        from pipeline.core.jsonable import dump_json
+        from vibrobase.files import atomic_write_text
+        from vibrobase.jsonable import dump_json
         from pipeline.report.answer import headline
 
         atomic_write_text(args.metrics, dump_json(headline(res.summary)))

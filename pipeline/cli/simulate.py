@@ -5,7 +5,7 @@ import argparse
 
 from pipeline.cli.args import (add_rig, add_set, model_and_overrides, parse_assignments, parse_settings,
                                warn_out_of_range)
-from pipeline.core.jsonable import dump_json
+from vibrobase.jsonable import dump_json
 
 
 def add_parser(sub) -> None:

@@ -157,7 +157,7 @@ def spec_from_args(args):
 
 def run(args) -> int:
     from pipeline import tracking
-    from pipeline.core.files import atomic_write_json
+    from vibrobase.files import atomic_write_json
     from pipeline.datasets.workflow import SweepJob, plan_lines, run_sweep_job
 
     from pipeline.core.outdir import check_out_file, figure_path, record_out_file

@@ -84,7 +84,7 @@ def run(args) -> int:
     from pipeline.synthesis.workflow import SynthConfig, resolve_effects, synthesize
     from pathlib import Path
 
-    from pipeline.core.files import atomic_write_json
+    from vibrobase.files import atomic_write_json
 
     effects: dict = {}
     for item in args.effect or []:

@@ -104,8 +104,8 @@ def run(args) -> int:
     import json
 
     from pipeline import tracking
-    from pipeline.core.files import atomic_write_text
-    from pipeline.core.jsonable import dump_json
+    from vibrobase.files import atomic_write_text
+    from vibrobase.jsonable import dump_json
     from pipeline.core.outdir import check_out, check_out_file, prepare_out, record_out_file
     from pipeline.training.workflow import load_training_data, run_training
     from surrogate import mlflow_model

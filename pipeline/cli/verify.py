@@ -62,8 +62,8 @@ def run(args) -> int:
     import sim
     from pipeline import tracking
     from pipeline.cli.args import parse_assignments
-    from pipeline.core.jsonable import dump_json
-    from pipeline.core.files import atomic_write_text
+    from vibrobase.jsonable import dump_json
+    from vibrobase.files import atomic_write_text
     from pipeline.optimise.constraints import Constraints
     from pipeline.optimise.verify import VerifyConfig, read_points, run_verify
     from pipeline.core.outdir import check_out, check_out_file, prepare_out, record_out_file

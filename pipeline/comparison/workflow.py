@@ -17,7 +17,7 @@ from __future__ import annotations
 from typing import Mapping
 
 from pipeline.core.units import broken_words, point_words, spread_words
-from pipeline.core.names import SETTLED_STATUSES
+from vibrobase.statuses import SETTLED_STATUSES
 from pipeline.optimise.robustness import rop_spread
 
 UNEXPLAINED_WARNING = ("The diagnosis left the rig's residual unexplained: the recommendation rests on a model known to "

@@ -5,10 +5,11 @@ import errno
 import re
 
 from pipeline.core.optional import MissingPackage
-from sim.errors import ParameterError
+from sim import ParameterError
+from vibrobase.errors import InputError
 
 
-class UserError(ValueError):
+class UserError(InputError):
     """Bad input (file, column, option) — the message says what and where."""
 
 
@@ -85,7 +86,7 @@ def _project_file(filename: str) -> bool:
         rel = Path(filename).resolve().relative_to(root)
     except (ValueError, OSError):
         return False
-    return rel.parts[0] in ("sim", "surrogate", "pipeline", "bench", "tests") if rel.parts else False
+    return rel.parts[0] in ("sim", "surrogate", "pipeline", "vibrobase", "bench", "tests") if rel.parts else False
 
 
 def show_warnings(caught: list) -> None:

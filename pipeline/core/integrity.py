@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Callable
 
 from pipeline.core.errors import UserError
-from pipeline.core.files import atomic_write_text, atomic_write_with
+from vibrobase.files import atomic_write_text, atomic_write_with
 
 CHECKSUM_SUFFIX = ".sha256"
 
@@ -94,7 +94,7 @@ def checksum_path(path: str | os.PathLike) -> Path:
 
 
 def write_with_checksum(path: str | os.PathLike, write: Callable[[str], None]) -> str:
-    """Write ``path`` atomically through ``write(tmp_path)`` (pipeline.core.files) with its sidecar
+    """Write ``path`` atomically through ``write(tmp_path)`` (vibrobase.files) with its sidecar
     checksum; returns the hex digest.  The sidecar is written (atomically) from the finished
     temporary file *before* that file is renamed into place."""
     path = Path(path)

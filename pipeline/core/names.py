@@ -1,14 +1,12 @@
-"""Names shared by datasets, optimisation and reports: sweep statuses, the objective's sense, display units.
+"""Names shared by datasets, optimisation and reports: the objective's sense, display units.
 
-The sweep statuses are the simulator's (``sim.statuses``); the surrogate's regimes, targets and controls are
+The sweep statuses are the simulator's (``vibrobase.statuses``); the surrogate's regimes, targets and controls are
 its contract (``surrogate.names``)."""
 from __future__ import annotations
 
 from pipeline.core.units import ENGINEERING
-from sim.statuses import BOUNDED_STATUSES, IMPACTING_STATUSES, SETTLED_STATUSES, STATUSES
 
-__all__ = ["STATUSES", "SETTLED_STATUSES", "BOUNDED_STATUSES", "IMPACTING_STATUSES", "MAXIMISED", "DISPLAY_UNITS",
-           "display"]
+__all__ = ["MAXIMISED", "DISPLAY_UNITS", "display"]
 
 MAXIMISED = ("rop_m_s",)
 """Labels an optimisation objective maximises by default; every other label is minimised (a cost)."""

@@ -3,7 +3,7 @@ user's file.
 
 ``with prepare_out(out, inputs=[dataset], overwrite=args.overwrite, marker="diagnose") as tmp:``
 the command writes everything into ``tmp`` (a hidden sibling on the same filesystem,
-``pipeline.core.files.atomic_directory``); on success the folder gets a marker file and is swapped in for ``out``; on any
+``vibrobase.files.atomic_directory``); on success the folder gets a marker file and is swapped in for ``out``; on any
 exception (Ctrl-C included) ``tmp`` is removed, ``out`` is untouched and no folder created for the
 run is left behind.
 
@@ -18,7 +18,7 @@ The swap is ``atomic_directory``'s: ``out`` is moved aside, ``tmp`` moved in, th
 Temporary folders a killed run left beside ``out`` are removed on the next run (``clean_stale_temps``).
 
 Single files (``--metrics``, ``--truth``, ``--plot``, ``--feedback``, ``map --out PREFIX``): the command calls
-``check_out_file`` before any work and ``record_out_file`` after writing (atomically, ``pipeline.core.files``).
+``check_out_file`` before any work and ``record_out_file`` after writing (atomically, ``vibrobase.files``).
 Refused: a path that is, or lies inside, one of the command's inputs (real paths: symlinks resolved) or a folder
 another command manages (its marker: the folder is replaced whole by that command's next run); a blank name or one
 ending in a folder separator; a directory, device, pipe or socket; an existing file vibro did not write (no
@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
 from pipeline.core.errors import UserError
-from pipeline.core.files import atomic_directory, atomic_write_text, clean_stale_temps
+from vibrobase.files import atomic_directory, atomic_write_text, clean_stale_temps
 
 MARKER_NAME = ".vibro-output.json"
 

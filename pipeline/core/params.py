@@ -6,7 +6,7 @@ from pathlib import Path
 from typing import Iterable
 
 from pipeline.core.errors import UserError
-from sim.errors import did_you_mean
+from vibrobase.errors import did_you_mean
 
 
 def read_params(path: str | os.PathLike, missing_ok: bool = False) -> dict:

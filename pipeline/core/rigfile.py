@@ -26,7 +26,7 @@ import os
 from pathlib import Path
 
 from pipeline.core.errors import UserError
-from pipeline.core.files import atomic_write_text
+from vibrobase.files import atomic_write_text
 
 HEADER = """\
 # vibro rig file (README.md "Rig files"): the model, its preset, parameter values overriding the preset [SI],

@@ -25,7 +25,7 @@ import pandas as pd
 from pipeline.core.errors import UserError
 from pipeline.core.numbers import PLAUSIBLE_FACTOR, number, plausible
 from pipeline.core.bounded import MAX_CSV_BYTES, check_size
-from pipeline.core.files import atomic_directory, duplicate_csv_column
+from vibrobase.files import atomic_directory, duplicate_csv_column
 from pipeline.datasets.daq import DAQ_COLUMNS, DeclaredChain, declared_chains
 
 RUN_COLUMNS = ("run_id", "system", "frequency_hz", "gap_m", "duration_s")

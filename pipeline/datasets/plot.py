@@ -33,7 +33,7 @@ def plot_sweep(df: pd.DataFrame, xname: str, yname: str, path: str | os.PathLike
     ax.set_title(title or f"sweep: {len(df)} points")
     ax.legend(loc="best", fontsize=8)
     fig.tight_layout()
-    from pipeline.core.files import atomic_write_figure
+    from vibrobase.files import atomic_write_figure
 
     return str(atomic_write_figure(path, fig, dpi=110))
 

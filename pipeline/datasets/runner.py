@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
-from pipeline.core.files import atomic_write_json
+from vibrobase.files import atomic_write_json
 from pipeline.datasets.compute import compute_chunk
 from pipeline.datasets.spec import SweepSpec, design_points, validate_points
 from pipeline.datasets.spec import FORMAT_VERSION

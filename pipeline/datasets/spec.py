@@ -16,8 +16,8 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
-from sim.errors import did_you_mean
-from sim.unitcube import from_unit
+from vibrobase.errors import did_you_mean
+from vibrobase.unitcube import from_unit
 
 FORMAT_VERSION = 1
 """Version of the dataset format (part of every spec fingerprint)."""

@@ -20,7 +20,7 @@ import pandas as pd
 
 from pipeline.core.errors import UserError
 from pipeline.core.integrity import CHECKSUM_SUFFIX, DirLock, checksum_path, verify_checksum, write_with_checksum
-from pipeline.core.names import STATUSES
+from vibrobase.statuses import STATUSES
 from pipeline.datasets.spec import SweepSpec
 
 
@@ -95,14 +95,18 @@ def _git_commit() -> dict:
 
 
 def sim_source_hash() -> str:
-    """sha256 over the simulator's sources (sim/**/*.py): resumed chunks must come from the same code."""
+    """sha256 over the simulator's sources and the bottom package it imports (sim/**/*.py, vibrobase/**/*.py: its
+    statuses live there): resumed chunks must come from the same code."""
     import sim
+    import vibrobase
 
-    root = Path(sim.__file__).resolve().parent
     h = hashlib.sha256()
-    for f in sorted(root.rglob("*.py")):
-        h.update(str(f.relative_to(root)).encode())
-        h.update(f.read_bytes())
+    for pkg in (sim, vibrobase):
+        root = Path(pkg.__file__).resolve().parent
+        prefix = "" if pkg is sim else f"{pkg.__name__}/"
+        for f in sorted(root.rglob("*.py")):
+            h.update((prefix + str(f.relative_to(root))).encode())
+            h.update(f.read_bytes())
     return h.hexdigest()
 
 
@@ -180,7 +184,7 @@ def _existing_chunks(out: Path, spec: SweepSpec) -> set[int]:
 
 
 TEMP_RE = re.compile(r"^\.(?:part-\d{5}\.parquet(?:\.sha256)?|metadata\.json)\.[A-Za-z0-9_-]+\.tmp$")
-"""Temporaries of a chunk, its sidecar or the metadata (pipeline.core.files): the only hidden files a sweep removes."""
+"""Temporaries of a chunk, its sidecar or the metadata (vibrobase.files): the only hidden files a sweep removes."""
 
 
 def _clean_temp(out: Path) -> None:

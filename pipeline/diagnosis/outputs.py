@@ -9,8 +9,8 @@ import json
 import os
 from pathlib import Path
 
-from pipeline.core.files import atomic_directory
-from pipeline.core.jsonable import to_jsonable
+from vibrobase.files import atomic_directory
+from vibrobase.jsonable import to_jsonable
 from pipeline.diagnosis.workflow import diagnose
 from pipeline.diagnosis.report import figures, markdown
 from pipeline.diagnosis.result import DiagnoseResult

@@ -11,7 +11,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.stats import spearmanr  # noqa: E402
 
-from pipeline.core.files import atomic_write_figure  # noqa: E402
+from vibrobase.files import atomic_write_figure  # noqa: E402
 from pipeline.core.units import ENGINEERING, factor, label, set_label  # noqa: E402
 from pipeline.diagnosis.features import harmonic_fit, model_record, record_time  # noqa: E402
 from pipeline.diagnosis.result import SimulatedRuns, SystemDiagnosis  # noqa: E402

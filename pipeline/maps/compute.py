@@ -23,8 +23,8 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
-from sim.errors import did_you_mean
-from pipeline.core.files import atomic_write_parquet
+from vibrobase.errors import did_you_mean
+from vibrobase.files import atomic_write_parquet
 
 # ----------------------------------------------------------------------------- impact-pattern classes
 NO_IMPACT, Z11, Z12, OTHER_PERIODIC, NON_PERIODIC, RUNAWAY, FAILED = range(7)
@@ -258,5 +258,5 @@ def band_resonance(df: pd.DataFrame, pattern: int, x: str = "frequency_hz", valu
 
 # ----------------------------------------------------------------------------- files
 def write_parquet(df: pd.DataFrame, path: str | os.PathLike) -> str:
-    """Write ``df`` to ``path`` atomically (pipeline.core.files); returns the path."""
+    """Write ``df`` to ``path`` atomically (vibrobase.files); returns the path."""
     return str(atomic_write_parquet(path, df))

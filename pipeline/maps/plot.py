@@ -17,7 +17,7 @@ from matplotlib.colors import ListedColormap  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
 from pipeline.core import units  # noqa: E402
-from pipeline.core.files import atomic_write_figure  # noqa: E402
+from vibrobase.files import atomic_write_figure  # noqa: E402
 from pipeline.maps import compute as M  # noqa: E402
 
 PATTERN_COLORS = {M.NO_IMPACT: "#f0f0f0", M.Z11: "#1f77b4", M.Z12: "#2ca02c", M.OTHER_PERIODIC: "#ff7f0e",

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pipeline.core.names import BOUNDED_STATUSES
+from vibrobase.statuses import BOUNDED_STATUSES
 from pipeline.maps import compute as M
 from pipeline.maps import plot as P
 

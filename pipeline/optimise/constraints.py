@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Mapping
 
 from pipeline.core.errors import UserError
-from pipeline.core.names import BOUNDED_STATUSES, SETTLED_STATUSES
+from vibrobase.statuses import BOUNDED_STATUSES, SETTLED_STATUSES
 
 SETTLED = SETTLED_STATUSES
 BOUNDED = BOUNDED_STATUSES

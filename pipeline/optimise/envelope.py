@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
-from pipeline.core.names import SETTLED_STATUSES
+from vibrobase.statuses import SETTLED_STATUSES
 
 ENVELOPE_LABELS = ("stroke_m", "coil_velocity_m_s")
 """Labels the envelope's stroke and velocity limits read (from the simulator's history)."""

@@ -21,7 +21,7 @@ from pipeline.optimise.evaluators import SimulatorEvaluator
 from pipeline.optimise.space import Space
 from pipeline.optimise.verify import append_feedback, read_feedback, summarise
 from pipeline.optimise.workflow import OptimiseResult, plan_optimise, run_optimise, surrogate_failed
-from sim.unitcube import from_unit
+from vibrobase.unitcube import from_unit
 
 SCHEMA = 1
 """Version of :meth:`InfillReport.to_json`."""

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pipeline.core.names import SETTLED_STATUSES
+from vibrobase.statuses import SETTLED_STATUSES
 from pipeline.optimise.constraints import UPPER_LIMITS, Constraints
 
 PAIRS = (("frequency_hz", "static_force_n", "amplitude_n"), ("frequency_hz", "amplitude_n", "static_force_n"))

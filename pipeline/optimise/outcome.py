@@ -12,8 +12,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from pipeline.core.files import atomic_write_text
-from pipeline.core.jsonable import dump_json
+from vibrobase.files import atomic_write_text
+from vibrobase.jsonable import dump_json
 from pipeline.optimise import outputs
 from pipeline.optimise.config import OptimiseConfig
 from pipeline.optimise.strategies import build_strategies

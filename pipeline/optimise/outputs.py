@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.core.files import atomic_write_text, atomic_write_with
-from pipeline.core.jsonable import dump_json
+from vibrobase.files import atomic_write_text, atomic_write_with
+from vibrobase.jsonable import dump_json
 from pipeline.optimise import plots
 from pipeline.optimise.markdown import markdown
 from pipeline.optimise.study import pareto_mask, value_columns

@@ -21,7 +21,7 @@ from typing import Mapping
 
 import numpy as np
 
-from pipeline.core.names import SETTLED_STATUSES
+from vibrobase.statuses import SETTLED_STATUSES
 
 Z_90 = 1.6448536269514722
 """Half-width of a normal's 5-95 % interval in sd (its 95 % point): a relative sd e spans ±Z_90 · e · ROP."""

@@ -9,8 +9,8 @@ import pandas as pd
 
 from pipeline.core.errors import UserError
 from pipeline.core.numbers import number
-from sim.errors import did_you_mean
-from sim.unitcube import to_unit
+from vibrobase.errors import did_you_mean
+from vibrobase.unitcube import to_unit
 
 
 ON_BOUND_RTOL = 0.02

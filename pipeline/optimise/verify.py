@@ -13,7 +13,7 @@ import pandas as pd
 from pipeline.core.errors import UserError
 from pipeline.core.bounded import MAX_CSV_BYTES, check_size
 from pipeline.optimise.constraints import Constraints
-from pipeline.core.files import atomic_write_parquet
+from vibrobase.files import atomic_write_parquet
 from surrogate.names import REGIME_TO_STATUS, TARGETS  # noqa: F401 (TARGETS re-exported)
 
 COMPARED = TARGETS
@@ -102,7 +102,7 @@ def best_verified(table: pd.DataFrame) -> pd.Series | None:
 
 
 def write_parquet_atomic(df: pd.DataFrame, path: Path) -> None:
-    """Write ``df`` to Parquet atomically (pipeline.core.files); NaN → null."""
+    """Write ``df`` to Parquet atomically (vibrobase.files); NaN → null."""
     atomic_write_parquet(path, df)
 
 
@@ -178,7 +178,7 @@ def read_points(path: str | os.PathLike) -> pd.DataFrame:
     if df.empty:
         raise UserError(f"points file {p}: no rows")
     if p.suffix.lower() not in (".parquet", ".pq"):
-        from pipeline.core.files import duplicate_csv_column
+        from vibrobase.files import duplicate_csv_column
 
         dup = duplicate_csv_column(p)
         if dup:
@@ -304,8 +304,8 @@ class VerifyResult:
 def run_verify(cfg: VerifyConfig, out_dir: str | os.PathLike, progress: bool = True) -> VerifyResult:
     """Re-simulate ``cfg.points``, write verified.csv, verification.png and summary.json under ``out_dir``,
     append the simulated points to ``cfg.feedback`` (its row count goes into the summary)."""
-    from pipeline.core.files import atomic_write_text, atomic_write_with
-    from pipeline.core.jsonable import dump_json
+    from vibrobase.files import atomic_write_text, atomic_write_with
+    from vibrobase.jsonable import dump_json
     from pipeline.optimise import plots
 
     out = Path(out_dir)

@@ -22,11 +22,11 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from pipeline.core.errors import UserError  # noqa: E402
-from pipeline.core.names import IMPACTING_STATUSES  # noqa: E402
+from vibrobase.statuses import IMPACTING_STATUSES  # noqa: E402
 from pipeline.report.doc import Document, Figure, Heading, Para, Table, fmt, to_html, to_markdown  # noqa: E402
 from pipeline.core.units import ENGINEERING, convert, factor, label, set_label, split  # noqa: E402
-from pipeline.core.files import atomic_write_bytes, atomic_write_text  # noqa: E402
-from pipeline.core.jsonable import dump_json, flatten  # noqa: E402
+from vibrobase.files import atomic_write_bytes, atomic_write_text  # noqa: E402
+from vibrobase.jsonable import dump_json, flatten  # noqa: E402
 from sim.controls import CONTROLS  # noqa: E402
 from sim.models.discrepancy import PARAM_OF  # noqa: E402
 

@@ -45,6 +45,6 @@ def plot_time_history(res, path: str | os.PathLike) -> str:
     for a in ax:
         a.grid(alpha=0.3)
     fig.tight_layout()
-    from pipeline.core.files import atomic_write_figure
+    from vibrobase.files import atomic_write_figure
 
     return str(atomic_write_figure(path, fig, dpi=110))

@@ -39,7 +39,7 @@ from pathlib import Path
 from pipeline import tracking
 from pipeline.core import params as core_params
 from pipeline.core.errors import UserError
-from pipeline.core.jsonable import flatten
+from vibrobase.jsonable import flatten
 
 REPORT_REL = Path("results/report/report.html")
 METRICS_DIR = Path("metrics")
@@ -107,7 +107,7 @@ def read_stage_times(root: Path) -> dict[str, float]:
 
 def write_stage_times(root: Path, times: dict[str, float]) -> None:
     """Remember this run's stage wall times (merged with earlier ones) for the next ETA."""
-    from pipeline.core.files import atomic_write_text
+    from vibrobase.files import atomic_write_text
 
     if times:
         try:
@@ -289,7 +289,7 @@ def snapshot_workspace(root: Path) -> dict[str, bytes | None]:
 def restore_workspace(root: Path, dvc: str, snap: dict[str, bytes | None], env: dict[str, str]) -> bool:
     """Put back params.yaml and dvc.lock as ``snap`` holds them and check the outputs out of the dvc cache
     (``dvc checkout --force``): the workspace as before a failed or interrupted experiment.  Whether it worked."""
-    from pipeline.core.files import atomic_write_bytes
+    from vibrobase.files import atomic_write_bytes
 
     for rel, data in snap.items():
         if data is None:

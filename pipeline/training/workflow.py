@@ -108,7 +108,7 @@ def run_training(data: TrainingData, cfg, out_dir: str | Path, rig=None, progres
     """Train the surrogate of ``data`` with ``cfg`` (a ``surrogate.config.TrainConfig``), run the adaptive study
     when enabled (simulating on ``rig`` if given), save the bundle, report and figures under ``out_dir``.
     ``provenance`` (e.g. the rig file and the chain) is recorded in the bundle's report."""
-    from pipeline.core.files import atomic_write_parquet
+    from vibrobase.files import atomic_write_parquet
     from surrogate import adaptive as adaptive_mod
     from surrogate import data as sdata
     from surrogate import report

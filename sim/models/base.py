@@ -7,8 +7,8 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from sim.errors import ParameterError  # noqa: F401  (re-exported: the models and sim.api raise it from here)
-from sim.errors import did_you_mean
+from sim.models.param import ParameterError  # noqa: F401  (re-exported: the models and sim.api raise it from here)
+from vibrobase.errors import did_you_mean
 from sim.models.discrepancy import MODE, MODE_PARAMS, PARAM_OF as DISCREPANCY_PARAMS
 from sim.models.effects import EFFECT_FIT_BOUNDS, EFFECTS, effect
 from sim.models.fitbound import FitBound  # noqa: F401  (re-exported: the models build their bounds from here)

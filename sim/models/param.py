@@ -1,11 +1,16 @@
-"""A named model parameter with its unit, default and the check of a value: its own module so that the model
-specification (sim.models.base) and the shared effect table (sim.models.effects) both build on it."""
+"""A named model parameter with its unit, default and the check of a value (``ParameterError`` when it fails): its
+own module so that the model specification (sim.models.base) and the shared effect table (sim.models.effects)
+both build on it.  Without numpy: ``import sim`` (hence every ``vibro --help``) imports it for ParameterError."""
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-from sim.errors import ParameterError
+from vibrobase.errors import InputError
+
+
+class ParameterError(InputError):
+    """Bad parameter name or value (message names the parameter); public as ``sim.ParameterError``."""
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ import itertools
 import numpy as np
 import pytest
 
-from sim.statuses import IMPACTING_STATUSES
+from vibrobase.statuses import IMPACTING_STATUSES
 
 GRID = {"frequency_hz": np.linspace(100.0, 450.0, 22), "amplitude_n": np.linspace(1800.0, 2700.0, 4),
         "static_force_n": np.linspace(600.0, 1800.0, 4)}

@@ -26,7 +26,7 @@ DISK_ERRORS = [errno.ENOSPC, errno.EROFS, errno.EFBIG, errno.EDQUOT, errno.EIO, 
 @pytest.mark.parametrize("code", DISK_ERRORS, ids=[errno.errorcode[c] for c in DISK_ERRORS])
 def test_disk_error_while_writing_is_exit_2_and_loses_nothing(code, tmp_path, capsys, monkeypatch):
     from pipeline.cli import main
-    import sim.files as files          # where the atomic writes live (pipeline.core.files re-exports them)
+    import vibrobase.files as files          # where the atomic writes live
 
     plot = tmp_path / "p.png"
     assert main(["simulate", "pendulum", "--plot", str(plot)]) == 0       # a previous run's figure

@@ -210,7 +210,7 @@ def test_interrupted_swap_puts_the_previous_folder_back(tmp_path):
     import subprocess
     import sys
 
-    from pipeline.core.files import clean_stale_temps
+    from vibrobase.files import clean_stale_temps
 
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
                           text=True).stdout.strip()

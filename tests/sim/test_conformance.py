@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import sim
-from sim.statuses import STATUSES
+from vibrobase.statuses import STATUSES
 from sim.models.base import MAP_KINDS
 from tests.reference_solutions import MODELS as REFERENCE_MODELS
 from tests.reference_solutions import reference_run

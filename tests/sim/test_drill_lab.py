@@ -8,7 +8,7 @@ import pytest
 
 import sim
 from sim.models.drill import LAB_SPACE, PRESETS
-from sim.statuses import IMPACTING_STATUSES
+from vibrobase.statuses import IMPACTING_STATUSES
 
 WINDOW = {"window": 16}
 

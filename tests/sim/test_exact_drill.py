@@ -10,7 +10,7 @@ import pytest
 
 import sim
 from sim.exact.drill import exact_applies
-from sim.statuses import IMPACTING_STATUSES
+from vibrobase.statuses import IMPACTING_STATUSES
 from tests.reference_solutions import reference_run
 
 COMPARED = ("rop_m_s", "peak_force_n", "mean_peak_force_n", "peak_decel_g", "energy_per_cycle_j")

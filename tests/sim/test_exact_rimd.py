@@ -16,7 +16,7 @@ from scipy.linalg import expm
 
 import sim
 from sim.exact import rimd as hy
-from sim.statuses import IMPACTING_STATUSES
+from vibrobase.statuses import IMPACTING_STATUSES
 from tests.reference_solutions import reference_run
 
 COMPARED = ("peak_force_n", "mean_peak_force_n", "peak_decel_g", "energy_per_cycle_j")

@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 import sim
 from sim.invariants import violation
 from sim.models.discrepancy import PARAM_OF as DISCREPANCY_PARAMS
-from sim.statuses import BOUNDED_STATUSES, STATUSES
+from vibrobase.statuses import BOUNDED_STATUSES, STATUSES
 
 MODELS = sim.model_names()
 # short runs (the properties hold for any window), and a work limit so a point far outside the box ends `failed`

@@ -12,7 +12,7 @@ import pytest
 from scipy.signal import lsim
 
 import sim
-from sim.errors import ParameterError
+from sim import ParameterError
 from sim.models.sensor import lowpass_rate, warmup_s
 
 

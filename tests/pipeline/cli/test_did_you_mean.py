@@ -1,11 +1,11 @@
 """Did-you-mean: a mistyped flag, subcommand, choice, model, preset, parameter, setting or file key is named with its
-likely spelling in one line (one helper, ``sim.errors.did_you_mean``), exit 2."""
+likely spelling in one line (one helper, ``vibrobase.errors.did_you_mean``), exit 2."""
 from __future__ import annotations
 
 import pytest
 
 from pipeline.cli import main
-from sim.errors import did_you_mean
+from vibrobase.errors import did_you_mean
 
 
 @pytest.mark.parametrize("word, choices, hint", [

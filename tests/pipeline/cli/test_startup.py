@@ -1,7 +1,8 @@
 """Start-up of the command line, guarded by what a run imports, never by a timing.
 
 `vibro --help` and every subcommand's --help import no heavy package (not even numpy): commands import their
-workflow lazily, and ``pipeline.core.errors`` takes ``ParameterError`` from the numpy-free ``sim.errors``.
+workflow lazily, and ``pipeline.core.errors`` takes ``ParameterError`` from the numpy-free ``sim.models.param``
+(through ``import sim``) and its base from ``vibrobase.errors``.
 ``vibro simulate`` imports numpy and numba (and numba itself pulls in scipy.linalg when it loads a cached
 kernel), but no table, plotting, tracking or learning package.
 """

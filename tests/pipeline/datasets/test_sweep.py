@@ -24,7 +24,7 @@ from pipeline.datasets.runner import LocalBackend, run_sweep
 from pipeline.datasets.spec import Range, design_points, make_spec, unit_design
 from pipeline.datasets.store import load_dataset
 from sim import ParameterError
-from sim.statuses import STATUSES
+from vibrobase.statuses import STATUSES
 
 REPO = Path(__file__).resolve().parents[3]
 SHORT = {"window": 8, "max_transient": 100}

@@ -92,7 +92,7 @@ def test_sweep_overview_and_report_time_history(monkeypatch):
     n = 40
     df = pd.DataFrame({"frequency_hz": RNG.uniform(100, 450, n), "amplitude_n": RNG.uniform(1800, 2700, n),
                        "rop_m_s": RNG.uniform(0.001, 0.008, n), "status": ["ok"] * n})
-    import pipeline.core.files as files
+    import vibrobase.files as files
 
     figs = _capture(monkeypatch, files)
     dplot.plot_sweep(df, "frequency_hz", "amplitude_n", "x.png")

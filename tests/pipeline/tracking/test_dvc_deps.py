@@ -7,7 +7,7 @@ from pathlib import Path
 import yaml
 
 REPO = Path(__file__).resolve().parents[3]
-CODE = ("sim", "surrogate", "pipeline")
+CODE = ("vibrobase", "sim", "surrogate", "pipeline")
 WORKFLOW = {"sweep": "pipeline/datasets", "train": "surrogate", "optimise": "pipeline/optimise",
             "verify": "pipeline/optimise", "diagnose": "pipeline/diagnosis", "report": "pipeline/report",
             # the corrected chain
@@ -30,4 +30,4 @@ def test_code_deps_are_existing_folders():
 def test_each_stage_depends_on_its_workflow_and_the_cli():
     for name, st in _stages().items():
         deps = set((st.get("do") or st)["deps"])
-        assert {WORKFLOW[name], "pipeline/cli", "pipeline/core", "sim"} <= deps, (name, sorted(deps))
+        assert {WORKFLOW[name], "pipeline/cli", "pipeline/core", "sim", "vibrobase"} <= deps, (name, sorted(deps))

@@ -299,7 +299,7 @@ TINY = {
 }
 # Files/folders the pipeline needs in a fresh project directory (the code runs from the editable install,
 # but dvc hashes these as stage deps).
-COPY = ("dvc.yaml", "params.yaml", ".dvcignore", "sim", "surrogate", "pipeline", "measured")
+COPY = ("dvc.yaml", "params.yaml", ".dvcignore", "vibrobase", "sim", "surrogate", "pipeline", "measured")
 
 
 def _merge(base: dict, over: dict) -> dict:

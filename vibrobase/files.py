@@ -86,7 +86,7 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
 
 def atomic_write_json(path: str | os.PathLike, obj) -> Path:
     """Write ``obj`` as indented JSON (numpy scalars, inf handled; trailing newline) atomically."""
-    from sim.jsonable import dump_json
+    from vibrobase.jsonable import dump_json
 
     return atomic_write_text(path, dump_json(obj) + "\n")
 

@@ -1,4 +1,4 @@
-"""The simulator's exception and the one spelling-suggestion helper, in a module without numpy:
+"""The base of the project's bad-input errors and the one spelling-suggestion helper, in a module without numpy:
 ``pipeline.core.errors`` (hence every ``vibro --help``) imports it, and it must not pay for numpy or numba."""
 from __future__ import annotations
 
@@ -6,8 +6,10 @@ import difflib
 from typing import Iterable
 
 
-class ParameterError(ValueError):
-    """Bad parameter name or value (message names the parameter)."""
+class InputError(ValueError):
+    """Bad input the caller can fix (a name, a value, a file), the message saying what and where: the base of
+    ``sim.ParameterError``, ``surrogate.SurrogateError`` and ``pipeline.core.errors.UserError``.  A ValueError,
+    as each of them was before it had this base."""
 
 
 def did_you_mean(word: str, choices: Iterable[str]) -> str:
