@@ -105,7 +105,28 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
     ev, sysname, final = diag.evaluator, diag.system, diag.final
     base_runs, final_runs, default_runs = runs.base, runs.final, runs.default
     tag = _tag(sysname)
-    files = []
+    files = [_residual_figure(diag, out / f"residual_{tag}.png")]
+    # measured vs simulated for up to two held-out runs
+    for i in _timehist_runs(diag):
+        name = _timehist_figure(diag, runs, series, i, out)
+        if name is not None:
+            files.append(name)
+    if _has_summary(diag):
+        models = [("model defaults", default_runs, "x"), ("calibrated base", base_runs, "o")]
+        if final != "base":
+            models.append((f"with {final}", final_runs, "s"))
+        fig = summary_figure(ev.targets, models, f"{sysname}: summary features, measured vs model")
+        files.append(_save(fig, out / f"summary_{tag}.png"))
+    disc = diag.report.get("discrepancy") or {}
+    if disc.get("proposals"):
+        files.append(_proposals_figure(diag, disc, out / f"proposals_{tag}.png"))
+    return files
+
+
+def _residual_figure(diag: SystemDiagnosis, path: Path) -> str:
+    """The calibrated base's (and the final model's) per-run nrms against each varied control, the residual by
+    harmonic and by time segment."""
+    sysname, final = diag.system, diag.final
     st = diag.report["residual_structure"]
     rows = st["by_run"]
     keys = [k for k in (*CONTROL_KEYS, "peak_velocity_m_s")
@@ -145,54 +166,56 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
     if keys:
         ax[0, 0].legend(fontsize=7)
     fig.suptitle(f"{sysname}: residual structure before/after")
-    files.append(_save(fig, out / f"residual_{tag}.png"))
-    # measured vs simulated for up to two held-out runs
-    for i in _timehist_runs(diag):
-        tg = ev.targets[i]
-        k = [d["run"] for d in base_runs].index(i)
-        results = {"model defaults": default_runs[k]["result"], "calibrated base": base_runs[k]["result"]}
-        if final != "base":
-            results[f"with {final}"] = final_runs[k]["result"]
-        f = tg.controls["frequency_hz"]
-        if tg.kind == "series":
-            df = series[tg.run_id]
-            sigs = [s for s in ("accel_m_s2", "force_n") if s in df.columns]
-            fig, ax = plt.subplots(len(sigs), 2, figsize=(12, 3.4 * len(sigs)), squeeze=False)
-            for r_, sig in enumerate(sigs):
-                ph = np.linspace(0.0, 1.0, 200, endpoint=False)
-                basis = np.exp(2j * np.pi * np.outer(ph, np.arange(1, tg.k_max + 1)))
-                ks = factor(sig)      # SI -> the signal's unit in pipeline.core.units
-                hm = harmonic_fit(record_time(tg, df["t_s"].to_numpy()), df[sig].to_numpy(), f, tg.k_max).c * ks
-                ax[r_, 0].plot(ph, (basis @ hm).real, "k", lw=2, label=f"measured (harmonics 1-{tg.k_max})")
-                spec_m = np.abs(hm)
-                kk = np.arange(1, tg.k_max + 1) * f
-                ax[r_, 1].plot(kk, spec_m, "ko-", lw=2, label="measured")
-                for name, res in results.items():
-                    if res is None or res.history is None:
-                        continue
-                    t, hr = model_record(tg, res.history)
-                    c = harmonic_fit(t, hr[sig].to_numpy(), f, tg.k_max).c * ks
-                    ax[r_, 0].plot(ph, (basis @ c).real, lw=1, label=name)
-                    ax[r_, 1].plot(kk, np.abs(c), ".-", lw=1, label=name)
-                ax[r_, 0].set_xlabel("forcing phase [cycles]")
-                words = ENGINEERING[sig][0]
-                set_label(ax[r_, 0], "y", sig, f"{words}, mean removed")
-                set_label(ax[r_, 1], "x", "frequency_hz", "harmonic frequency")
-                set_label(ax[r_, 1], "y", sig, f"harmonic amplitude of {words}")
-                ax[r_, 1].set_yscale("log")
-            ax[0, 0].legend(fontsize=7)
-            fig.suptitle(f"{tg.run_id} (held out): measured vs simulated")
-            files.append(_save(fig, out / f"timehist_{tg.run_id}.png"))
-    if _has_summary(diag):
-        models = [("model defaults", default_runs, "x"), ("calibrated base", base_runs, "o")]
-        if final != "base":
-            models.append((f"with {final}", final_runs, "s"))
-        fig = summary_figure(ev.targets, models, f"{sysname}: summary features, measured vs model")
-        files.append(_save(fig, out / f"summary_{tag}.png"))
-    disc = diag.report.get("discrepancy") or {}
-    if disc.get("proposals"):
-        files.append(_proposals_figure(diag, disc, out / f"proposals_{tag}.png"))
-    return files
+    return _save(fig, path)
+
+
+def _timehist_figure(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, i: int, out: Path) -> str | None:
+    """Held-out run ``i``: measured vs simulated (model defaults, calibrated base, final model) waveform over one
+    forcing cycle and harmonic spectrum per signal; None for a summary run (no figure)."""
+    ev, final = diag.evaluator, diag.final
+    base_runs, final_runs, default_runs = runs.base, runs.final, runs.default
+    tg = ev.targets[i]
+    k = [d["run"] for d in base_runs].index(i)
+    results = {"model defaults": default_runs[k]["result"], "calibrated base": base_runs[k]["result"]}
+    if final != "base":
+        results[f"with {final}"] = final_runs[k]["result"]
+    f = tg.controls["frequency_hz"]
+    if tg.kind != "series":
+        return None
+    df = series[tg.run_id]
+    sigs = [s for s in ("accel_m_s2", "force_n") if s in df.columns]
+    fig, ax = plt.subplots(len(sigs), 2, figsize=(12, 3.4 * len(sigs)), squeeze=False)
+    for r_, sig in enumerate(sigs):
+        _signal_panels(ax[r_], tg, df, sig, f, results)
+    ax[0, 0].legend(fontsize=7)
+    fig.suptitle(f"{tg.run_id} (held out): measured vs simulated")
+    return _save(fig, out / f"timehist_{tg.run_id}.png")
+
+
+def _signal_panels(ax_row, tg, df, sig: str, f: float, results: dict) -> None:
+    """One signal's row: the measured and each model's waveform over a forcing cycle (harmonics 1..k_max) and their
+    harmonic amplitudes, in the signal's engineering unit."""
+    ph = np.linspace(0.0, 1.0, 200, endpoint=False)
+    basis = np.exp(2j * np.pi * np.outer(ph, np.arange(1, tg.k_max + 1)))
+    ks = factor(sig)      # SI -> the signal's unit in pipeline.core.units
+    hm = harmonic_fit(record_time(tg, df["t_s"].to_numpy()), df[sig].to_numpy(), f, tg.k_max).c * ks
+    ax_row[0].plot(ph, (basis @ hm).real, "k", lw=2, label=f"measured (harmonics 1-{tg.k_max})")
+    spec_m = np.abs(hm)
+    kk = np.arange(1, tg.k_max + 1) * f
+    ax_row[1].plot(kk, spec_m, "ko-", lw=2, label="measured")
+    for name, res in results.items():
+        if res is None or res.history is None:
+            continue
+        t, hr = model_record(tg, res.history)
+        c = harmonic_fit(t, hr[sig].to_numpy(), f, tg.k_max).c * ks
+        ax_row[0].plot(ph, (basis @ c).real, lw=1, label=name)
+        ax_row[1].plot(kk, np.abs(c), ".-", lw=1, label=name)
+    ax_row[0].set_xlabel("forcing phase [cycles]")
+    words = ENGINEERING[sig][0]
+    set_label(ax_row[0], "y", sig, f"{words}, mean removed")
+    set_label(ax_row[1], "x", "frequency_hz", "harmonic frequency")
+    set_label(ax_row[1], "y", sig, f"harmonic amplitude of {words}")
+    ax_row[1].set_yscale("log")
 
 
 def summary_figure(targets: list, models: list[tuple[str, list[dict], str]], title: str):
