@@ -71,6 +71,26 @@ from pipeline.core.errors import UserError  # noqa: E402
 from pipeline.core.rigfile import rig_name  # noqa: E402
 
 
+def _add_limits(p) -> None:
+    """The constraints (upper limits on the labels), the margin kept below them and the limit maps."""
+    p.add_argument("--max-peak-force-n", type=A.positive, metavar="N", help="constraint: peak_force_n <= N newtons")
+    p.add_argument("--peak-force-static-ratio", type=A.positive, metavar="K",
+                   help="constraint: peak_force_n <= K × static_force_n (K = 1: impact below the static preload)")
+    p.add_argument("--max-specific-energy-j-m", type=A.positive, metavar="E", help="constraint: specific_energy_j_m <= E J/m")
+    p.add_argument("--max-power-w", type=A.positive, metavar="W",
+                   help="constraint: the excitation's mean power power_w <= W watts (the exciter's power rating)")
+    p.add_argument("--max-decel-g", type=A.positive, metavar="G",
+                   help="constraint: the bit's peak deceleration peak_decel_g <= G (in g; tool life)")
+    p.add_argument("--margin", action="append", metavar="FRACTION|LABEL=FRACTION",
+                   help="keep the recommendation this fraction below every limit (0.05 = 5 %%), or below one limit "
+                        "(power_w=0.05; repeatable); on the surrogate a point is judged by the upper end of its "
+                        "predicted interval, so it stays feasible within that uncertainty")
+    p.add_argument("--limit-map", action="store_true",
+                   help="also simulate two maps of ROP around the recommendation over the search box (frequency x "
+                        "static force at its amplitude, frequency x amplitude at its static force, 25 x 13 cells each) "
+                        "with the limits' contours, the margin's and the exciter's envelope: limit_map_*.png/.parquet")
+
+
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "optimise", help="optimise the operating point for ROP (optuna), verified by the simulator",
@@ -110,22 +130,7 @@ def add_parser(sub) -> None:
                                                  "200 on the simulator = simulator calls)")
     p.add_argument("--batch-size", type=A.count(1, 10_000), help="trials proposed and evaluated together (default 8)")
     p.add_argument("--seed", type=A.seed, help="sampler seed (default 0): same seed, same study")
-    p.add_argument("--max-peak-force-n", type=A.positive, metavar="N", help="constraint: peak_force_n <= N newtons")
-    p.add_argument("--peak-force-static-ratio", type=A.positive, metavar="K",
-                   help="constraint: peak_force_n <= K × static_force_n (K = 1: impact below the static preload)")
-    p.add_argument("--max-specific-energy-j-m", type=A.positive, metavar="E", help="constraint: specific_energy_j_m <= E J/m")
-    p.add_argument("--max-power-w", type=A.positive, metavar="W",
-                   help="constraint: the excitation's mean power power_w <= W watts (the exciter's power rating)")
-    p.add_argument("--max-decel-g", type=A.positive, metavar="G",
-                   help="constraint: the bit's peak deceleration peak_decel_g <= G (in g; tool life)")
-    p.add_argument("--margin", action="append", metavar="FRACTION|LABEL=FRACTION",
-                   help="keep the recommendation this fraction below every limit (0.05 = 5 %%), or below one limit "
-                        "(power_w=0.05; repeatable); on the surrogate a point is judged by the upper end of its "
-                        "predicted interval, so it stays feasible within that uncertainty")
-    p.add_argument("--limit-map", action="store_true",
-                   help="also simulate two maps of ROP around the recommendation over the search box (frequency x "
-                        "static force at its amplitude, frequency x amplitude at its static force, 25 x 13 cells each) "
-                        "with the limits' contours, the margin's and the exciter's envelope: limit_map_*.png/.parquet")
+    _add_limits(p)
     p.add_argument("--allow-not-settled", action="store_true",
                    help="accept not_settled (bounded but aperiodic) points; runaway and failed never are")
     p.add_argument("--n-verify", type=A.count(1, 10_000), help="distinct best points (or front points) re-simulated (default 10)")

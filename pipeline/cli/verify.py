@@ -56,28 +56,12 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
-    from pathlib import Path
-
+def _what_to_simulate(args, points, fixed: dict, bundle) -> tuple:
+    """Model, preset, fixed parameters, simulator settings and input columns: the surrogate bundle's (its sweep
+    conditions under --set), or the rig's / --model and --preset with the file's columns of that model (columns of
+    another model refused)."""
     import sim
-    from pipeline import tracking
-    from pipeline.cli.args import parse_assignments
-    from vibrobase.jsonable import dump_json
-    from vibrobase.files import atomic_write_text
-    from pipeline.optimise.constraints import Constraints
-    from pipeline.optimise.verify import VerifyConfig, read_points, run_verify
-    from pipeline.core.outdir import check_out, check_out_file, prepare_out, record_out_file
-    from pipeline.tracking import load_bundle
 
-    if args.rel_tol <= 0:
-        raise UserError(f"--rel-tol must be > 0, got {args.rel_tol}")
-    check_workers(args.n_threads)
-    if args.rig and args.surrogate:
-        raise UserError(f"--rig {args.rig} and --surrogate: the surrogate carries the rig it was trained on; "
-                        "give one of them")
-    points = read_points(args.points)
-    fixed = parse_assignments(args.sets, "--set")
-    bundle = load_bundle(args.surrogate) if args.surrogate else None
     if bundle is not None:
         model, preset = bundle.model, bundle.preset
         fixed = {**bundle.fixed, **fixed}     # the sweep's conditions, overridden by --set
@@ -103,6 +87,31 @@ def run(args) -> int:
         if not inputs:
             raise UserError(f"{args.points}: no column is a parameter of model '{model}' "
                             f"({', '.join(names)}); give --inputs")
+    return model, preset, fixed, settings, inputs
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from pipeline import tracking
+    from pipeline.cli.args import parse_assignments
+    from vibrobase.jsonable import dump_json
+    from vibrobase.files import atomic_write_text
+    from pipeline.optimise.constraints import Constraints
+    from pipeline.optimise.verify import VerifyConfig, read_points, run_verify
+    from pipeline.core.outdir import check_out, check_out_file, prepare_out, record_out_file
+    from pipeline.tracking import load_bundle
+
+    if args.rel_tol <= 0:
+        raise UserError(f"--rel-tol must be > 0, got {args.rel_tol}")
+    check_workers(args.n_threads)
+    if args.rig and args.surrogate:
+        raise UserError(f"--rig {args.rig} and --surrogate: the surrogate carries the rig it was trained on; "
+                        "give one of them")
+    points = read_points(args.points)
+    fixed = parse_assignments(args.sets, "--set")
+    bundle = load_bundle(args.surrogate) if args.surrogate else None
+    model, preset, fixed, settings, inputs = _what_to_simulate(args, points, fixed, bundle)
     cons = Constraints(max_peak_force_n=args.max_peak_force_n, peak_force_static_ratio=args.peak_force_static_ratio,
                        max_specific_energy_j_m=args.max_specific_energy_j_m, require_settled=not args.allow_not_settled)
     cons.check(None, None)

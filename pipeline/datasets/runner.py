@@ -97,8 +97,6 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, *, backend: Backend | Non
     raise to simulate an interruption).  Interrupted work (Ctrl-C, a killed process) is resumed
     by calling again with the same spec.
     """
-    from tqdm import tqdm
-
     out = Path(out)
     t0 = time.perf_counter()
     points = design_points(spec)
@@ -107,74 +105,26 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, *, backend: Backend | Non
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     lock = _acquire_lock(out)
-    wrote = False
+    written = _Written()
     undo = False
     try:
         if overwrite and meta_old is None:
             _wipe(out)
         _clean_temp(out)
-        src = sim_source_hash()
-        if meta_old is not None and meta_old.get("sim_source_sha256") not in (None, src):
-            raise UserError(f"{out}: the simulator's source (sim/) changed since this sweep started, so the chunks "
-                            f"on disk were computed by different code; use --overwrite or a new --out")
+        src = _source_hash(out, meta_old)
         done = _existing_chunks(out, spec)
         backend = backend if backend is not None else LocalBackend()
         description = backend.description
-        session = {"started": datetime.now(timezone.utc).isoformat(timespec="seconds"), "backend": description,
-                   "host": socket.gethostname(), "resumed_chunks": len(done)}
-        meta = dict(meta_old or {})
-        meta.update({
-            **spec.describe(), "fingerprint": spec.fingerprint, "spec_canonical": spec.canonical(),
-            "n_chunks": spec.n_chunks, "format": FORMAT_VERSION,
-            "created": (meta_old or {}).get("created") or session["started"],
-            **_git_commit(), "sim_source_sha256": src,
-            "versions": package_versions(backend.extra_packages),
-            "columns": columns(spec.model), "complete": False,
-        })
-        meta["sessions"] = list((meta_old or {}).get("sessions", [])) + [session]
-        atomic_write_json(out / META_NAME, meta)
-
-        todo = [k for k in range(spec.n_chunks) if k not in done]
+        meta, session = _start_session(out, spec, meta_old, backend, description, src, len(done))
         n_done_pts = sum(spec.chunk_bounds(k)[1] - spec.chunk_bounds(k)[0] for k in done)
-        bar = tqdm(total=spec.n_points, initial=n_done_pts, unit="sim", desc="sweep", disable=not progress,
-                   dynamic_ncols=True, smoothing=0.1)
-        computed = 0
-        t_compute = time.perf_counter()
-        base_meta = {"vibro.fingerprint": spec.fingerprint, "vibro.model": spec.model}
-
-        def write(k: int, df: pd.DataFrame) -> None:
-            nonlocal computed, wrote
-            wrote = True
-            start, stop = spec.chunk_bounds(k)
-            if len(df) != stop - start or not np.array_equal(df["point_id"].to_numpy(), np.arange(start, stop)):
-                raise RuntimeError(f"chunk {k}: got rows for the wrong points")
-            _write_chunk(out, k, _to_table(df, spec.model,
-                                           {**base_meta, "vibro.chunk": k, "vibro.start": start, "vibro.stop": stop}))
-            computed += stop - start
-            bar.update(stop - start)
-            if _after_chunk is not None:
-                _after_chunk(k)
-
-        chunks = ((k, points.iloc[slice(*spec.chunk_bounds(k))].reset_index(drop=True)) for k in todo)
-        try:
-            backend.run(spec, chunks, write)
-        finally:
-            bar.close()
-        t_end = time.perf_counter()
-        missing = [k for k in range(spec.n_chunks) if not (out / f"part-{k:05d}.parquet").exists()]
-        if missing:
-            raise RuntimeError(f"sweep ended with {len(missing)} chunk(s) missing (first: {missing[0]})")
-        counts = status_counts(out)
+        t_compute, t_end = _compute_chunks(spec, out, points, done, n_done_pts, backend, written, progress,
+                                           _after_chunk)
+        computed = written.points
         wall = t_end - t0
         rate = computed / (t_end - t_compute) if computed and t_end > t_compute else None
-        session.update({"wall_time_s": round(wall, 3), "computed": computed, "sims_per_s": rate})
-        meta["sessions"][-1] = session
-        meta.update({"complete": True, "status_counts": counts,
-                     "wall_time_s": round(sum(s.get("wall_time_s", 0.0) for s in meta["sessions"]), 3),
-                     "finished": datetime.now(timezone.utc).isoformat(timespec="seconds")})
-        atomic_write_json(out / META_NAME, meta)
+        counts = _finish_session(out, spec, meta, session, computed, wall, rate)
     except UserError:
-        undo = created and not wrote      # e.g. the scheduler failed: a folder this call made holds nothing of value
+        undo = created and not written.any     # e.g. the scheduler failed: a folder this call made holds nothing
         raise
     finally:
         lock.release()
@@ -185,3 +135,90 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, *, backend: Backend | Non
     return SweepSummary(out=str(out), n_points=spec.n_points, n_chunks=spec.n_chunks, computed=computed,
                         reused=n_done_pts, status_counts=counts, wall_time_s=wall, sims_per_s=rate,
                         fingerprint=spec.fingerprint, backend=description, metadata=meta)
+
+
+@dataclass
+class _Written:
+    """What this session wrote: whether any chunk, and how many points."""
+
+    any: bool = False
+    points: int = 0
+
+
+def _source_hash(out: Path, meta_old: dict | None) -> str:
+    """The simulator's source hash, refused when it differs from the one the chunks on disk were computed with."""
+    src = sim_source_hash()
+    if meta_old is not None and meta_old.get("sim_source_sha256") not in (None, src):
+        raise UserError(f"{out}: the simulator's source (sim/) changed since this sweep started, so the chunks "
+                        f"on disk were computed by different code; use --overwrite or a new --out")
+    return src
+
+
+def _start_session(out: Path, spec: SweepSpec, meta_old: dict | None, backend: Backend, description: str,
+                   src: str, n_resumed: int) -> tuple[dict, dict]:
+    """The metadata (the old one updated, this session appended, not complete) written to ``out``; it and the
+    session's entry."""
+    session = {"started": datetime.now(timezone.utc).isoformat(timespec="seconds"), "backend": description,
+               "host": socket.gethostname(), "resumed_chunks": n_resumed}
+    meta = dict(meta_old or {})
+    meta.update({
+        **spec.describe(), "fingerprint": spec.fingerprint, "spec_canonical": spec.canonical(),
+        "n_chunks": spec.n_chunks, "format": FORMAT_VERSION,
+        "created": (meta_old or {}).get("created") or session["started"],
+        **_git_commit(), "sim_source_sha256": src,
+        "versions": package_versions(backend.extra_packages),
+        "columns": columns(spec.model), "complete": False,
+    })
+    meta["sessions"] = list((meta_old or {}).get("sessions", [])) + [session]
+    atomic_write_json(out / META_NAME, meta)
+    return meta, session
+
+
+def _compute_chunks(spec: SweepSpec, out: Path, points: pd.DataFrame, done, n_done_pts: int, backend: Backend,
+                    written: _Written, progress: bool,
+                    _after_chunk: Callable[[int], None] | None) -> tuple[float, float]:
+    """The chunks not ``done`` computed on ``backend`` and written to ``out`` as they arrive (counted in
+    ``written``), with a progress bar; the clock at the start and end of the computation."""
+    from tqdm import tqdm
+
+    todo = [k for k in range(spec.n_chunks) if k not in done]
+    bar = tqdm(total=spec.n_points, initial=n_done_pts, unit="sim", desc="sweep", disable=not progress,
+               dynamic_ncols=True, smoothing=0.1)
+    t_compute = time.perf_counter()
+    base_meta = {"vibro.fingerprint": spec.fingerprint, "vibro.model": spec.model}
+
+    def write(k: int, df: pd.DataFrame) -> None:
+        written.any = True
+        start, stop = spec.chunk_bounds(k)
+        if len(df) != stop - start or not np.array_equal(df["point_id"].to_numpy(), np.arange(start, stop)):
+            raise RuntimeError(f"chunk {k}: got rows for the wrong points")
+        _write_chunk(out, k, _to_table(df, spec.model,
+                                       {**base_meta, "vibro.chunk": k, "vibro.start": start, "vibro.stop": stop}))
+        written.points += stop - start
+        bar.update(stop - start)
+        if _after_chunk is not None:
+            _after_chunk(k)
+
+    chunks = ((k, points.iloc[slice(*spec.chunk_bounds(k))].reset_index(drop=True)) for k in todo)
+    try:
+        backend.run(spec, chunks, write)
+    finally:
+        bar.close()
+    return t_compute, time.perf_counter()
+
+
+def _finish_session(out: Path, spec: SweepSpec, meta: dict, session: dict, computed: int, wall: float,
+                    rate: float | None) -> dict[str, int]:
+    """Every chunk checked present, the session's numbers and the dataset's status counts written to the metadata
+    (now complete); the status counts."""
+    missing = [k for k in range(spec.n_chunks) if not (out / f"part-{k:05d}.parquet").exists()]
+    if missing:
+        raise RuntimeError(f"sweep ended with {len(missing)} chunk(s) missing (first: {missing[0]})")
+    counts = status_counts(out)
+    session.update({"wall_time_s": round(wall, 3), "computed": computed, "sims_per_s": rate})
+    meta["sessions"][-1] = session
+    meta.update({"complete": True, "status_counts": counts,
+                 "wall_time_s": round(sum(s.get("wall_time_s", 0.0) for s in meta["sessions"]), 3),
+                 "finished": datetime.now(timezone.utc).isoformat(timespec="seconds")})
+    atomic_write_json(out / META_NAME, meta)
+    return counts

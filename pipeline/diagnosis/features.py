@@ -424,38 +424,23 @@ def _masked(op: np.ndarray, keep: np.ndarray) -> np.ndarray:
     return out
 
 
-def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segments: int = 4,
-                  model_floor: float = 0.0, max_cycles: float = 0.0) -> Target:
-    """Fill ``tg`` (run_id, system, controls, known, record_start_s set) from a measured series.
+def _whole_cycles(df: pd.DataFrame, f: float, max_cycles: float) -> pd.DataFrame:
+    """A steady-state record cut to whole cycles (``steady_cycles``: a multiple of 4, at most ``max_cycles``)."""
+    t_all = df["t_s"].to_numpy()
+    if t_all.size > 1:
+        dt0 = float(t_all[1] - t_all[0])
+        n_cyc = steady_cycles((t_all[-1] - t_all[0] + dt0) * f, max_cycles)
+        df = df.iloc[:int(np.searchsorted(t_all, n_cyc / f - 1e-9 * dt0))]
+    return df
 
-    Feature sd: the noise of each harmonic coefficient part, sqrt(2 S_k / N) with S_k the record's noise density
-    around k f (``record_noise``: coloured and signal-proportional noise included), and in quadrature the model
-    floor ``model_floor`` × the RMS harmonic amplitude of the signal (what two correct simulations of the same
-    equations and a rig's sampling may differ by, not noise).  Progression: its rate's sd from the slow band
-    (sqrt(12 S_0 / N) / T, at least the regression's) and the same relative floor.
-    A steady-state record is cut to whole cycles (``steady_cycles``: a multiple of 4, at most ``max_cycles``), so
-    that each half holds whole pairs of cycles: a period-2 response (an impact every second cycle) then leaves the
-    harmonics of f alone whichever of its two phases the record started in, and the model's orbit may be in the
-    other one (a steady state does not say).  A record from rest keeps every sample (its phase is the run's)."""
-    f = tg.frequency_hz
-    if tg.record_start_s is None:
-        t_all = df["t_s"].to_numpy()
-        if t_all.size > 1:
-            dt0 = float(t_all[1] - t_all[0])
-            n_cyc = steady_cycles((t_all[-1] - t_all[0] + dt0) * f, max_cycles)
-            df = df.iloc[:int(np.searchsorted(t_all, n_cyc / f - 1e-9 * dt0))]
-    t_rec = df["t_s"].to_numpy()
-    k = harmonic_count(f, max_harmonic_hz)
-    check_resolution(tg.run_id, t_rec, f, k)
-    dt = float(t_rec[1] - t_rec[0])
-    tg.kind, tg.k_max, tg.fs_hz, tg.duration_s = "series", k, 1.0 / dt, float(t_rec[-1] - t_rec[0] + dt)
-    tg.max_harmonic_hz = max_harmonic_hz
-    t = record_time(tg, t_rec)
-    tg.t_rec = t_rec
-    a = _design(t, f, k)
+
+def _unsaturated(tg: Target, df: pd.DataFrame) -> tuple[tuple[str, ...], dict[str, np.ndarray]]:
+    """The record's signals without the channels saturated in more than ``MAX_CLIPPED_FRACTION`` of their samples,
+    and the samples to keep of those saturated less (saturated samples: out of the fits, and so of the model's
+    sampling); notes and clipped fractions on ``tg``."""
     sigs = tuple(sig for sig in (*HARMONIC_SIGNALS, "progression_m") if sig in df.columns)
     keep = {}
-    for sig in HARMONIC_SIGNALS:        # saturated samples: out of the fits (and so of the model's sampling)
+    for sig in HARMONIC_SIGNALS:
         if sig not in sigs:
             continue
         m = clipped_samples(df[sig].to_numpy())
@@ -469,32 +454,30 @@ def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segmen
             tg.clipped[sig] = frac
             tg.notes.append(f"run {tg.run_id}, channel {sig}: {frac:.2%} of the samples saturated (flat tops at the "
                             f"channel's extreme), left out of the features")
-    if not sigs:
-        raise UnusableRecord(f"run {tg.run_id}: every channel is saturated in more than {MAX_CLIPPED_FRACTION:.0%} "
-                             f"of its samples; the run is skipped")
-    tg.pinv = _operators(t, f, k, keep)
-    x_all = {sig: df[sig].to_numpy() for sig in sigs}
-    coef = _coefs(tg.pinv, x_all)
-    from_rest = tg.record_start_s is not None
-    tg.halves = _halves(t, f, k, not from_rest, keep) if tg.cycles >= 2 * MIN_CYCLES else []
-    spans = [(float(np.mean(t_rec)), tg.duration_s)]
-    spans += [(float(np.mean(t_rec[sl])), float(t_rec[sl][-1] - t_rec[sl][0] + dt)) for sl, _ in tg.halves]
-    tg.spans = tuple(spans)
-    if tg.halves:
-        tg.y_halves = np.array([_features(sigs, _coefs(ops, x_all, sl), from_rest) for sl, ops in tg.halves])
-    present = [sig for sig in HARMONIC_SIGNALS if sig in sigs]
-    if present and tg.cycles >= 2 * n_segments * MIN_CYCLES / 2:
-        a_h = _design(t, f, k, DRIFT_DEGREE)
-        x_stack = np.column_stack([x_all[sig] for sig in present])
-        edges = np.linspace(0, t.size, n_segments + 1).astype(int)
-        seg_c: dict[str, list] = {sig: [] for sig in present}
-        for lo, hi in zip(edges[:-1], edges[1:]):    # the segment's own fit (harmonics as the features')
-            cs = np.linalg.lstsq(a_h[lo:hi], x_stack[lo:hi], rcond=None)[0]
-            for j, sig in enumerate(present):
-                seg_c[sig].append(_harmonics(cs[:, j], DRIFT_DEGREE))
-        tg.segments = {sig: np.array(v) for sig, v in seg_c.items()}
+    return sigs, keep
+
+
+def _segment_harmonics(t: np.ndarray, f: float, k: int, present: list[str], x_all: dict[str, np.ndarray],
+                       n_segments: int) -> dict[str, np.ndarray]:
+    """The harmonics of each signal fitted on each of ``n_segments`` equal segments of the record (the segment's
+    own fit, harmonics as the features')."""
+    a_h = _design(t, f, k, DRIFT_DEGREE)
+    x_stack = np.column_stack([x_all[sig] for sig in present])
+    edges = np.linspace(0, t.size, n_segments + 1).astype(int)
+    seg_c: dict[str, list] = {sig: [] for sig in present}
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        cs = np.linalg.lstsq(a_h[lo:hi], x_stack[lo:hi], rcond=None)[0]
+        for j, sig in enumerate(present):
+            seg_c[sig].append(_harmonics(cs[:, j], DRIFT_DEGREE))
+    return {sig: np.array(v) for sig, v in seg_c.items()}
+
+
+def _feature_sd(tg: Target, t: np.ndarray, a: np.ndarray, k: int, sigs: tuple[str, ...],
+                x_all: dict[str, np.ndarray], coef: dict, keep: dict, from_rest: bool, model_floor: float) -> tuple:
+    """Per feature: name, sd (noise and model floor), noise sd and group, with the (signal, harmonic) pairs and
+    where each pair's first feature sits; the broadband noise of each signal on ``tg.noise``."""
+    f = tg.frequency_hz
     names, sd, noise, group = [], [], [], []
-    n = t.size
     pairs, pair_at = [], []
     for sig in sigs:
         dens, broad = record_noise(t, x_all[sig], f, k, SLOW_DEGREE if from_rest else 0, keep.get(sig))
@@ -525,6 +508,53 @@ def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segmen
         sd += list(np.repeat(csd, 2))
         noise += list(np.repeat(np.sqrt(2.0 * dens[1:] / n), 2))
         group += [sig] * (2 * k)
+    return names, sd, noise, group, pairs, pair_at
+
+
+def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segments: int = 4,
+                  model_floor: float = 0.0, max_cycles: float = 0.0) -> Target:
+    """Fill ``tg`` (run_id, system, controls, known, record_start_s set) from a measured series.
+
+    Feature sd: the noise of each harmonic coefficient part, sqrt(2 S_k / N) with S_k the record's noise density
+    around k f (``record_noise``: coloured and signal-proportional noise included), and in quadrature the model
+    floor ``model_floor`` × the RMS harmonic amplitude of the signal (what two correct simulations of the same
+    equations and a rig's sampling may differ by, not noise).  Progression: its rate's sd from the slow band
+    (sqrt(12 S_0 / N) / T, at least the regression's) and the same relative floor.
+    A steady-state record is cut to whole cycles (``steady_cycles``: a multiple of 4, at most ``max_cycles``), so
+    that each half holds whole pairs of cycles: a period-2 response (an impact every second cycle) then leaves the
+    harmonics of f alone whichever of its two phases the record started in, and the model's orbit may be in the
+    other one (a steady state does not say).  A record from rest keeps every sample (its phase is the run's)."""
+    f = tg.frequency_hz
+    if tg.record_start_s is None:
+        df = _whole_cycles(df, f, max_cycles)
+    t_rec = df["t_s"].to_numpy()
+    k = harmonic_count(f, max_harmonic_hz)
+    check_resolution(tg.run_id, t_rec, f, k)
+    dt = float(t_rec[1] - t_rec[0])
+    tg.kind, tg.k_max, tg.fs_hz, tg.duration_s = "series", k, 1.0 / dt, float(t_rec[-1] - t_rec[0] + dt)
+    tg.max_harmonic_hz = max_harmonic_hz
+    t = record_time(tg, t_rec)
+    tg.t_rec = t_rec
+    a = _design(t, f, k)
+    sigs, keep = _unsaturated(tg, df)
+    if not sigs:
+        raise UnusableRecord(f"run {tg.run_id}: every channel is saturated in more than {MAX_CLIPPED_FRACTION:.0%} "
+                             f"of its samples; the run is skipped")
+    tg.pinv = _operators(t, f, k, keep)
+    x_all = {sig: df[sig].to_numpy() for sig in sigs}
+    coef = _coefs(tg.pinv, x_all)
+    from_rest = tg.record_start_s is not None
+    tg.halves = _halves(t, f, k, not from_rest, keep) if tg.cycles >= 2 * MIN_CYCLES else []
+    spans = [(float(np.mean(t_rec)), tg.duration_s)]
+    spans += [(float(np.mean(t_rec[sl])), float(t_rec[sl][-1] - t_rec[sl][0] + dt)) for sl, _ in tg.halves]
+    tg.spans = tuple(spans)
+    if tg.halves:
+        tg.y_halves = np.array([_features(sigs, _coefs(ops, x_all, sl), from_rest) for sl, ops in tg.halves])
+    present = [sig for sig in HARMONIC_SIGNALS if sig in sigs]
+    if present and tg.cycles >= 2 * n_segments * MIN_CYCLES / 2:
+        tg.segments = _segment_harmonics(t, f, k, present, x_all, n_segments)
+    names, sd, noise, group, pairs, pair_at = _feature_sd(tg, t, a, k, sigs, x_all, coef, keep, from_rest,
+                                                          model_floor)
     tg.names, tg.sd, tg.group, tg.signals = names, np.array(sd), group, sigs
     tg.noise_sd = np.array(noise)
     tg.y = _features(sigs, coef, from_rest)

@@ -103,7 +103,28 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
     ev, sysname, final = diag.evaluator, diag.system, diag.final
     base_runs, final_runs, default_runs = runs.base, runs.final, runs.default
     tag = _tag(sysname)
-    files = []
+    files = [_residual_figure(diag, out / f"residual_{tag}.png")]
+    # measured vs simulated for up to two held-out runs
+    for i in _timehist_runs(diag):
+        name = _timehist_figure(diag, runs, series, i, out)
+        if name is not None:
+            files.append(name)
+    if _has_summary(diag):
+        models = [("model defaults", default_runs, "x"), ("calibrated base", base_runs, "o")]
+        if final != "base":
+            models.append((f"with {final}", final_runs, "s"))
+        fig = summary_figure(ev.targets, models, f"{sysname}: summary features, measured vs model")
+        files.append(_save(fig, out / f"summary_{tag}.png"))
+    disc = diag.report.get("discrepancy") or {}
+    if disc.get("proposals"):
+        files.append(_proposals_figure(diag, disc, out / f"proposals_{tag}.png"))
+    return files
+
+
+def _residual_figure(diag: SystemDiagnosis, path: Path) -> str:
+    """The calibrated base's (and the final model's) per-run nrms against each varied control, the residual by
+    harmonic and by time segment."""
+    sysname, final = diag.system, diag.final
     st = diag.report["residual_structure"]
     rows = st["by_run"]
     keys = [k for k in (*CONTROL_KEYS, "peak_velocity_m_s")
@@ -143,54 +164,56 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
     if keys:
         ax[0, 0].legend(fontsize=7)
     fig.suptitle(f"{sysname}: residual structure before/after")
-    files.append(_save(fig, out / f"residual_{tag}.png"))
-    # measured vs simulated for up to two held-out runs
-    for i in _timehist_runs(diag):
-        tg = ev.targets[i]
-        k = [d["run"] for d in base_runs].index(i)
-        results = {"model defaults": default_runs[k]["result"], "calibrated base": base_runs[k]["result"]}
-        if final != "base":
-            results[f"with {final}"] = final_runs[k]["result"]
-        f = tg.controls["frequency_hz"]
-        if tg.kind == "series":
-            df = series[tg.run_id]
-            sigs = [s for s in ("accel_m_s2", "force_n") if s in df.columns]
-            fig, ax = plt.subplots(len(sigs), 2, figsize=(12, 3.4 * len(sigs)), squeeze=False)
-            for r_, sig in enumerate(sigs):
-                ph = np.linspace(0.0, 1.0, 200, endpoint=False)
-                basis = np.exp(2j * np.pi * np.outer(ph, np.arange(1, tg.k_max + 1)))
-                ks = factor(sig)      # SI -> the signal's unit in pipeline.core.units
-                hm = harmonic_fit(record_time(tg, df["t_s"].to_numpy()), df[sig].to_numpy(), f, tg.k_max).c * ks
-                ax[r_, 0].plot(ph, (basis @ hm).real, "k", lw=2, label=f"measured (harmonics 1-{tg.k_max})")
-                spec_m = np.abs(hm)
-                kk = np.arange(1, tg.k_max + 1) * f
-                ax[r_, 1].plot(kk, spec_m, "ko-", lw=2, label="measured")
-                for name, res in results.items():
-                    if res is None or res.history is None:
-                        continue
-                    t, hr = model_record(tg, res.history)
-                    c = harmonic_fit(t, hr[sig].to_numpy(), f, tg.k_max).c * ks
-                    ax[r_, 0].plot(ph, (basis @ c).real, lw=1, label=name)
-                    ax[r_, 1].plot(kk, np.abs(c), ".-", lw=1, label=name)
-                ax[r_, 0].set_xlabel("forcing phase [cycles]")
-                words = ENGINEERING[sig][0]
-                set_label(ax[r_, 0], "y", sig, f"{words}, mean removed")
-                set_label(ax[r_, 1], "x", "frequency_hz", "harmonic frequency")
-                set_label(ax[r_, 1], "y", sig, f"harmonic amplitude of {words}")
-                ax[r_, 1].set_yscale("log")
-            ax[0, 0].legend(fontsize=7)
-            fig.suptitle(f"{tg.run_id} (held out): measured vs simulated")
-            files.append(_save(fig, out / f"timehist_{tg.run_id}.png"))
-    if _has_summary(diag):
-        models = [("model defaults", default_runs, "x"), ("calibrated base", base_runs, "o")]
-        if final != "base":
-            models.append((f"with {final}", final_runs, "s"))
-        fig = summary_figure(ev.targets, models, f"{sysname}: summary features, measured vs model")
-        files.append(_save(fig, out / f"summary_{tag}.png"))
-    disc = diag.report.get("discrepancy") or {}
-    if disc.get("proposals"):
-        files.append(_proposals_figure(diag, disc, out / f"proposals_{tag}.png"))
-    return files
+    return _save(fig, path)
+
+
+def _timehist_figure(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, i: int, out: Path) -> str | None:
+    """Held-out run ``i``: measured vs simulated (model defaults, calibrated base, final model) waveform over one
+    forcing cycle and harmonic spectrum per signal; None for a summary run (no figure)."""
+    ev, final = diag.evaluator, diag.final
+    base_runs, final_runs, default_runs = runs.base, runs.final, runs.default
+    tg = ev.targets[i]
+    k = [d["run"] for d in base_runs].index(i)
+    results = {"model defaults": default_runs[k]["result"], "calibrated base": base_runs[k]["result"]}
+    if final != "base":
+        results[f"with {final}"] = final_runs[k]["result"]
+    f = tg.controls["frequency_hz"]
+    if tg.kind != "series":
+        return None
+    df = series[tg.run_id]
+    sigs = [s for s in ("accel_m_s2", "force_n") if s in df.columns]
+    fig, ax = plt.subplots(len(sigs), 2, figsize=(12, 3.4 * len(sigs)), squeeze=False)
+    for r_, sig in enumerate(sigs):
+        _signal_panels(ax[r_], tg, df, sig, f, results)
+    ax[0, 0].legend(fontsize=7)
+    fig.suptitle(f"{tg.run_id} (held out): measured vs simulated")
+    return _save(fig, out / f"timehist_{tg.run_id}.png")
+
+
+def _signal_panels(ax_row, tg, df, sig: str, f: float, results: dict) -> None:
+    """One signal's row: the measured and each model's waveform over a forcing cycle (harmonics 1..k_max) and their
+    harmonic amplitudes, in the signal's engineering unit."""
+    ph = np.linspace(0.0, 1.0, 200, endpoint=False)
+    basis = np.exp(2j * np.pi * np.outer(ph, np.arange(1, tg.k_max + 1)))
+    ks = factor(sig)      # SI -> the signal's unit in pipeline.core.units
+    hm = harmonic_fit(record_time(tg, df["t_s"].to_numpy()), df[sig].to_numpy(), f, tg.k_max).c * ks
+    ax_row[0].plot(ph, (basis @ hm).real, "k", lw=2, label=f"measured (harmonics 1-{tg.k_max})")
+    spec_m = np.abs(hm)
+    kk = np.arange(1, tg.k_max + 1) * f
+    ax_row[1].plot(kk, spec_m, "ko-", lw=2, label="measured")
+    for name, res in results.items():
+        if res is None or res.history is None:
+            continue
+        t, hr = model_record(tg, res.history)
+        c = harmonic_fit(t, hr[sig].to_numpy(), f, tg.k_max).c * ks
+        ax_row[0].plot(ph, (basis @ c).real, lw=1, label=name)
+        ax_row[1].plot(kk, np.abs(c), ".-", lw=1, label=name)
+    ax_row[0].set_xlabel("forcing phase [cycles]")
+    words = ENGINEERING[sig][0]
+    set_label(ax_row[0], "y", sig, f"{words}, mean removed")
+    set_label(ax_row[1], "x", "frequency_hz", "harmonic frequency")
+    set_label(ax_row[1], "y", sig, f"harmonic amplitude of {words}")
+    ax_row[1].set_yscale("log")
 
 
 def summary_figure(targets: list, models: list[tuple[str, list[dict], str]], title: str):
@@ -258,96 +281,139 @@ def markdown(report: dict, per_system: list[dict], seconds: float) -> str:
              "residual relative to the measured features; `noise_floor` = the same for a residual of pure noise; "
              "`nrms` = residual / noise = error / noise floor (1 = at the noise level; docs/diagnose.md).", ""]
     for rep in per_system:
-        lines += [f"## {rep['system']} ({rep['n_runs']} runs, {', '.join(rep['data'])} data, {rep['split']['scheme']})", ""]
-        verdict = {"nothing missing": "**nothing missing** (the calibrated base model is adequate)",
-                   "selected": f"**{rep['selected']}** selected",
-                   "unexplained": "**unexplained** (no §6 effect brings the model to the data)"}[rep["verdict"]]
-        lines += [f"Verdict: {verdict}.", "", f"How close the call was: {rep['call']['text']}.", ""]
-        stage = rep.get("pair_stage")
-        if stage:
-            lines += [f"Two effects: {'tried' if stage['tried'] else 'not tried'} ({stage['reason']}).", ""]
-        second = rep.get("second_effect")
-        lead1 = second["first"] if second else rep["leader"]      # the single-effect step's leader
-        shown = [m for m in (lead1, rep["runner_up"]) if m]
-        by = {c["effect"]: c for c in rep["candidates"]}
-        lines += ["| model | held-out error (noise floor) | held-out nrms | systematic error | ΔBIC vs base | "
-                  "held-out Δχ² vs base | adequate | improves |", "|---|---|---|---|---|---|---|---|",
-                  f"| calibrated base | {_fmt(rep['base_error'])} ({_fmt(rep['noise_floor'])}) | {_fmt(rep['base_nrms'])} | "
-                  f"{_fmt(rep['base_systematic'])} | 0 | 0 | {'yes' if rep['call']['base']['adequate'] else 'no'} | — |"]
-        for m in shown:
-            c = by[m]
-            role = "selected" if m == rep["selected"] else ("leader" if m == lead1 else "runner-up")
-            lines.append(f"| {m} ({role}) | {_fmt(c['error'])} ({_fmt(rep['noise_floor'])}) | {_fmt(c['nrms'])} | "
-                         f"{_fmt(c['systematic'])} | {_fmt(-c['delta_score'])} | {_fmt(c['delta_chi2_heldout'])} | "
-                         f"{'yes' if c['adequate'] else 'no'} | {'yes' if c['improves'] else 'no'} |")
-        lines.append("")
-        if second:
-            lines += [f"Second effect, each added to {second['first']} and judged against {second['first']} alone: "
-                      f"{second['text']}.", "",
-                      "| model | held-out nrms | systematic error | ΔBIC | held-out Δχ² | adequate | improves |",
-                      "|---|---|---|---|---|---|---|"]
-            lines += [f"| {c['name']} | {_fmt(c['nrms'])} | {_fmt(c['systematic'])} | {_fmt(c['delta_bic'])} | "
-                      f"{_fmt(c['delta_chi2'])} | {'yes' if c['adequate'] else 'no'} | {'yes' if c['improves'] else 'no'} |"
-                      for c in second["candidates"][:3]]
-            lines.append("")
-        disc = rep.get("discrepancy")
-        if disc:
-            lines += [f"Proposing the missing term (no §6 effect explains the residual): {disc['text']}.", "",
-                      "Screening (non-negative sparse regression of the calibrated base's residual on each term's "
-                      "sensitivity, calibratable directions projected out): "
-                      + ", ".join(f"{s['term']} (#{s['entered']}, score {s['score']:.2f}"
-                                  + (", in the support)" if s["in_support"] else ")") for s in disc["screening"]) + ".",
-                      "", "| rank | proposal | terms | coefficients (sd) | held-out error (noise floor) | held-out nrms | "
-                      "ΔBIC | held-out Δχ² | adequate | improves |", "|---|---|---|---|---|---|---|---|---|---|"]
-            for k, p_ in enumerate(disc["proposals"], 1):
-                co = ", ".join(f"{t} = {p_['coefficients'][t]:.3g} ± {p_['coefficient_sd'][t]:.2g}" for t in p_["coefficients"])
-                lines.append(f"| {k} | {'; '.join(p_['words'])} | {' + '.join(p_['forms'])} | {co} | "
-                             f"{_fmt(p_['error'])} ({_fmt(p_['noise_floor'])}) | {_fmt(p_['nrms'])} | "
-                             f"{_fmt(p_['delta_bic'])} | {_fmt(p_['delta_chi2'])} | {'yes' if p_['adequate'] else 'no'} | "
-                             f"{'yes' if p_['improves'] else 'no'} |")
-            lines.append("")
-        if rep.get("indistinguishable"):
-            lines += [f"Indistinguishable on these data from {rep['leader'] if not second else second['first']} "
-                      f"(BIC within the margin): {', '.join(rep['indistinguishable'])}.", ""]
-        if rep.get("absorbed"):
-            lines += ["Parameters the base fit moved to absorb the missing physics (base fit against the fit with "
-                      f"{rep['leader']}): " + ", ".join(f"{n} {a['base']:.4g} vs {a['with']:.4g} ({100 * a['change']:+.0f} %)"
-                                                      for n, a in rep["absorbed"].items()) + ".", ""]
-        if rep.get("rig"):
-            lines += [f"Corrected rig: [`{rep['rig']['file']}`]({rep['rig']['file']}) (use it with `--rig`): "
-                      f"{rep['rig']['source']}.", ""]
-        lines += [
-                  "| model | held-out error | held-out nrms | systematic error |", "|---|---|---|---|",
-                  f"| default parameters | {_fmt(rep['default_error'])} | {_fmt(rep['default_nrms'])} | — |",
-                  f"| calibrated base (before) | {_fmt(rep['base_error'])} | {_fmt(rep['base_nrms'])} | "
-                  f"{_fmt(rep['base_systematic'])} |",
-                  f"| final (after) | {_fmt(rep['final_error'])} | {_fmt(rep['final_nrms'])} | "
-                  f"{_fmt(rep['final_systematic'])} |",
-                  f"| noise floor | {_fmt(rep['noise_floor'])} | 1 | 0 |", "",
-                  "Calibrated base parameters (value, sd, 95 % interval):", ""]
-        lines += [_param_line(n, v) for n, v in rep["calibrated_uncertainty"].items()]
-        if rep["selected_params"]:
-            final = rep["selected"] or "the proposal " + " + ".join(rep["proposal_adopted"])
-            lines += ["", f"Parameters with `{final}` (value, sd, 95 % interval):", ""]
-            lines += [_param_line(n, v) for n, v in rep["selected_params"].items()]
-        lines += ["", "Candidates (score = BIC on calibration runs; lower is better):", "",
-                  "| effect | fitted effect parameters | held-out error | held-out nrms | systematic error | "
-                  "score − base score | held-out Δχ² |", "|---|---|---|---|---|---|---|"]
-        for c in rep["candidates"]:
-            ps = ", ".join(f"{k}={v:.3g}" for k, v in c["params"].items())
-            lines.append(f"| {c['effect']} | {ps} | {_fmt(c['error'])} | {_fmt(c['nrms'])} | {_fmt(c['systematic'])} | "
-                         f"{_fmt(c['delta_score'])} | {_fmt(c['delta_chi2_heldout'])} |")
-        st = rep["residual_structure"]
-        lines += ["", "Residual structure of the calibrated base model (Spearman correlation of per-run nrms with): "
-                  + ", ".join(f"{k} {v:+.2f}" for k, v in st["spearman_base_nrms"].items() if v is not None) + "."]
-        if st["by_time_segment"]:
-            lines.append("Residual / noise by quarter of the record: "
-                         + ", ".join(f"{x:.3g}" for x in st["by_time_segment"]) + ".")
-        lines += [""] + [f"![{f}]({f})" for f in rep["figures"]] + [""]
-        lines += _recording_lines(rep.get("recording"))
-        if rep.get("notes"):
-            lines += [f"Note: {n}" for n in rep["notes"]] + [""]
+        lines += _system_lines(rep)
     return "\n".join(lines)
+
+
+def _system_lines(rep: dict) -> list[str]:
+    """report.md section of one system's report entry."""
+    lines = [f"## {rep['system']} ({rep['n_runs']} runs, {', '.join(rep['data'])} data, {rep['split']['scheme']})", ""]
+    lines += _verdict_lines(rep)
+    second = rep.get("second_effect")
+    if second:
+        lines += _second_effect_lines(second)
+    disc = rep.get("discrepancy")
+    if disc:
+        lines += _discrepancy_lines(disc)
+    if rep.get("indistinguishable"):
+        lines += [f"Indistinguishable on these data from {rep['leader'] if not second else second['first']} "
+                  f"(BIC within the margin): {', '.join(rep['indistinguishable'])}.", ""]
+    if rep.get("absorbed"):
+        lines += ["Parameters the base fit moved to absorb the missing physics (base fit against the fit with "
+                  f"{rep['leader']}): " + ", ".join(f"{n} {a['base']:.4g} vs {a['with']:.4g} ({100 * a['change']:+.0f} %)"
+                                                  for n, a in rep["absorbed"].items()) + ".", ""]
+    if rep.get("rig"):
+        lines += [f"Corrected rig: [`{rep['rig']['file']}`]({rep['rig']['file']}) (use it with `--rig`): "
+                  f"{rep['rig']['source']}.", ""]
+    lines += _error_lines(rep)
+    lines += _candidate_lines(rep)
+    lines += [""] + [f"![{f}]({f})" for f in rep["figures"]] + [""]
+    lines += _recording_lines(rep.get("recording"))
+    if rep.get("notes"):
+        lines += [f"Note: {n}" for n in rep["notes"]] + [""]
+    return lines
+
+
+def _verdict_lines(rep: dict) -> list[str]:
+    """The verdict, how close the call was, the pair stage and the single-effect step's leader and runner-up
+    against the calibrated base."""
+    lines = []
+    verdict = {"nothing missing": "**nothing missing** (the calibrated base model is adequate)",
+               "selected": f"**{rep['selected']}** selected",
+               "unexplained": "**unexplained** (no §6 effect brings the model to the data)"}[rep["verdict"]]
+    lines += [f"Verdict: {verdict}.", "", f"How close the call was: {rep['call']['text']}.", ""]
+    stage = rep.get("pair_stage")
+    if stage:
+        lines += [f"Two effects: {'tried' if stage['tried'] else 'not tried'} ({stage['reason']}).", ""]
+    second = rep.get("second_effect")
+    lead1 = second["first"] if second else rep["leader"]      # the single-effect step's leader
+    shown = [m for m in (lead1, rep["runner_up"]) if m]
+    by = {c["effect"]: c for c in rep["candidates"]}
+    lines += ["| model | held-out error (noise floor) | held-out nrms | systematic error | ΔBIC vs base | "
+              "held-out Δχ² vs base | adequate | improves |", "|---|---|---|---|---|---|---|---|",
+              f"| calibrated base | {_fmt(rep['base_error'])} ({_fmt(rep['noise_floor'])}) | {_fmt(rep['base_nrms'])} | "
+              f"{_fmt(rep['base_systematic'])} | 0 | 0 | {'yes' if rep['call']['base']['adequate'] else 'no'} | — |"]
+    for m in shown:
+        c = by[m]
+        role = "selected" if m == rep["selected"] else ("leader" if m == lead1 else "runner-up")
+        lines.append(f"| {m} ({role}) | {_fmt(c['error'])} ({_fmt(rep['noise_floor'])}) | {_fmt(c['nrms'])} | "
+                     f"{_fmt(c['systematic'])} | {_fmt(-c['delta_score'])} | {_fmt(c['delta_chi2_heldout'])} | "
+                     f"{'yes' if c['adequate'] else 'no'} | {'yes' if c['improves'] else 'no'} |")
+    lines.append("")
+    return lines
+
+
+def _second_effect_lines(second: dict) -> list[str]:
+    """The second effect's step: its call and its three best pairs."""
+    lines = []
+    lines += [f"Second effect, each added to {second['first']} and judged against {second['first']} alone: "
+              f"{second['text']}.", "",
+              "| model | held-out nrms | systematic error | ΔBIC | held-out Δχ² | adequate | improves |",
+              "|---|---|---|---|---|---|---|"]
+    lines += [f"| {c['name']} | {_fmt(c['nrms'])} | {_fmt(c['systematic'])} | {_fmt(c['delta_bic'])} | "
+              f"{_fmt(c['delta_chi2'])} | {'yes' if c['adequate'] else 'no'} | {'yes' if c['improves'] else 'no'} |"
+              for c in second["candidates"][:3]]
+    lines.append("")
+    return lines
+
+
+def _discrepancy_lines(disc: dict) -> list[str]:
+    """The proposals for the missing term: the call, the screening and every proposal."""
+    lines = []
+    lines += [f"Proposing the missing term (no §6 effect explains the residual): {disc['text']}.", "",
+              "Screening (non-negative sparse regression of the calibrated base's residual on each term's "
+              "sensitivity, calibratable directions projected out): "
+              + ", ".join(f"{s['term']} (#{s['entered']}, score {s['score']:.2f}"
+                          + (", in the support)" if s["in_support"] else ")") for s in disc["screening"]) + ".",
+              "", "| rank | proposal | terms | coefficients (sd) | held-out error (noise floor) | held-out nrms | "
+              "ΔBIC | held-out Δχ² | adequate | improves |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for k, p_ in enumerate(disc["proposals"], 1):
+        co = ", ".join(f"{t} = {p_['coefficients'][t]:.3g} ± {p_['coefficient_sd'][t]:.2g}" for t in p_["coefficients"])
+        lines.append(f"| {k} | {'; '.join(p_['words'])} | {' + '.join(p_['forms'])} | {co} | "
+                     f"{_fmt(p_['error'])} ({_fmt(p_['noise_floor'])}) | {_fmt(p_['nrms'])} | "
+                     f"{_fmt(p_['delta_bic'])} | {_fmt(p_['delta_chi2'])} | {'yes' if p_['adequate'] else 'no'} | "
+                     f"{'yes' if p_['improves'] else 'no'} |")
+    lines.append("")
+    return lines
+
+
+def _error_lines(rep: dict) -> list[str]:
+    """Held-out errors of the default, calibrated and final models, and the calibrated and final parameters."""
+    lines = []
+    lines += [
+              "| model | held-out error | held-out nrms | systematic error |", "|---|---|---|---|",
+              f"| default parameters | {_fmt(rep['default_error'])} | {_fmt(rep['default_nrms'])} | — |",
+              f"| calibrated base (before) | {_fmt(rep['base_error'])} | {_fmt(rep['base_nrms'])} | "
+              f"{_fmt(rep['base_systematic'])} |",
+              f"| final (after) | {_fmt(rep['final_error'])} | {_fmt(rep['final_nrms'])} | "
+              f"{_fmt(rep['final_systematic'])} |",
+              f"| noise floor | {_fmt(rep['noise_floor'])} | 1 | 0 |", "",
+              "Calibrated base parameters (value, sd, 95 % interval):", ""]
+    lines += [_param_line(n, v) for n, v in rep["calibrated_uncertainty"].items()]
+    if rep["selected_params"]:
+        final = rep["selected"] or "the proposal " + " + ".join(rep["proposal_adopted"])
+        lines += ["", f"Parameters with `{final}` (value, sd, 95 % interval):", ""]
+        lines += [_param_line(n, v) for n, v in rep["selected_params"].items()]
+    return lines
+
+
+def _candidate_lines(rep: dict) -> list[str]:
+    """Every candidate effect with its fitted parameters and scores, and the calibrated base's residual structure."""
+    lines = []
+    lines += ["", "Candidates (score = BIC on calibration runs; lower is better):", "",
+              "| effect | fitted effect parameters | held-out error | held-out nrms | systematic error | "
+              "score − base score | held-out Δχ² |", "|---|---|---|---|---|---|---|"]
+    for c in rep["candidates"]:
+        ps = ", ".join(f"{k}={v:.3g}" for k, v in c["params"].items())
+        lines.append(f"| {c['effect']} | {ps} | {_fmt(c['error'])} | {_fmt(c['nrms'])} | {_fmt(c['systematic'])} | "
+                     f"{_fmt(c['delta_score'])} | {_fmt(c['delta_chi2_heldout'])} |")
+    st = rep["residual_structure"]
+    lines += ["", "Residual structure of the calibrated base model (Spearman correlation of per-run nrms with): "
+              + ", ".join(f"{k} {v:+.2f}" for k, v in st["spearman_base_nrms"].items() if v is not None) + "."]
+    if st["by_time_segment"]:
+        lines.append("Residual / noise by quarter of the record: "
+                     + ", ".join(f"{x:.3g}" for x in st["by_time_segment"]) + ".")
+    return lines
 
 
 def _recording_lines(rec: dict | None) -> list[str]:

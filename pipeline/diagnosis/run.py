@@ -14,7 +14,8 @@ and whose held-out nrms is <= ``explained_nrms``; if the calibrated base model i
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, replace
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -259,16 +260,62 @@ def _param_report(fr: FitResult) -> dict:
     return {n: {"value": fr.values[n], "sd": fr.sd[n], "ci95": list(fr.ci95[n])} for n in fr.free}
 
 
+@dataclass
+class _Diagnosis:
+    """The working state ``diagnose_system``'s stages hand on to each other (one field per quantity)."""
+
+    system: str
+    targets: list[Target]
+    cfg: DiagnoseConfig
+    ev: Evaluator
+    executor: Executor
+    log: Callable
+    progress: Progress
+    chain: ChainEstimate | None
+    unreproducible: dict[str, float]
+    cands: dict
+    scheme: str = ""
+    folds: list = field(default_factory=list)
+    warm: dict | None = None
+    fits_per_fold: list[dict] = field(default_factory=list)
+    test_idx: list[int] = field(default_factory=list)
+    test_res: dict = field(default_factory=dict)
+    test_halves: dict = field(default_factory=dict)
+    bic: dict[str, float] = field(default_factory=dict)
+    cal_chi2: dict[str, float] = field(default_factory=dict)
+    err: dict = field(default_factory=dict)
+    final_fits: dict = field(default_factory=dict)
+    stats: dict[str, ModelStats] = field(default_factory=dict)
+    first: Verdict | None = None
+    v: Verdict | None = None
+    cal_names: list[str] = field(default_factory=list)
+    pair: PairStage | None = None
+    second: dict | None = None
+    final: str = "base"
+    found: object = None
+    named: dict | None = None
+    call: dict | None = None
+
+
 def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log=print,
                     progress: Progress | None = None, executor: Executor | None = None) -> SystemDiagnosis:
     """Diagnose one system's runs: its report entry, with the evaluator, the reported fits, the held-out runs
     and the final model the figures and the corrected rig need.  The fits run on ``executor`` (default: in this
     process, on ``cfg.n_threads`` simulation threads); ``progress`` hears of each stage."""
-    from dataclasses import replace
-
     progress = progress or NoProgress()
     progress.stage(f"{system}: checking the model's response is reproducible")
+    d = _prepare(system, targets, cfg, log, progress, executor)
+    _calibrate(d)
+    _judge_effects(d)
+    _pairs(d)
+    _discover(d)
+    return _assemble(d)
 
+
+def _prepare(system: str, targets: list[Target], cfg: DiagnoseConfig, log, progress: Progress,
+             executor: Executor | None) -> _Diagnosis:
+    """The fit settings (system defaults where unset), the evaluator, the DAQ chain estimate, the reproducibility
+    check and the candidate effects (``cfg.effects`` checked against the system's)."""
     cfg = replace(cfg, **{k: v for k, v in default_fit_settings(system).items() if getattr(cfg, k) is None})
     ev = Evaluator(system, targets, dict(cfg.sim_settings), cfg.fs_sim_hz, cfg.n_threads)
     executor = executor or InlineExecutor()
@@ -283,104 +330,148 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
             raise UserError(f"diagnose.effects: {', '.join(unknown)} not an effect of {system} "
                             f"(known: {', '.join(cands)})")
         cands = {e: cands[e] for e in cfg.effects}
-    scheme, folds = make_folds(targets, cfg)
+    return _Diagnosis(system, targets, cfg, ev, executor, log, progress, chain, unreproducible, cands)
+
+
+def _calibrate(d: _Diagnosis) -> None:
+    """Base + every candidate fitted on all runs (leave-one-out only: the reported parameters and the folds'
+    starting point) and on every fold's calibration runs; the held-out residuals, BIC and calibration χ² summed
+    over the folds."""
+    system, targets, cfg, cands, log, progress = d.system, d.targets, d.cfg, d.cands, d.log, d.progress
+    d.scheme, d.folds = make_folds(targets, cfg)
     rng = np.random.default_rng(cfg.seed)
     names = ["base", *cands]
-    test_res = {m: [] for m in ["default", *names]}
-    test_halves = {m: [] for m in ["default", *names]}
-    test_idx: list[int] = []
-    bic = {m: 0.0 for m in names}
-    cal_chi2 = {m: 0.0 for m in names}
-    fits_per_fold = []
-    warm = None
+    d.test_res = {m: [] for m in ["default", *names]}
+    d.test_halves = {m: [] for m in ["default", *names]}
+    d.bic = {m: 0.0 for m in names}
+    d.cal_chi2 = {m: 0.0 for m in names}
 
     def n_fit_tasks(n_folds: int, warm_start: bool) -> int:
         return fit_tasks(n_folds, len(cands), cfg.n_starts, cfg.candidate_starts, warm_start)
-    if scheme != "holdout":   # reported parameters: a fit on all runs (also the folds' starting point)
+    if d.scheme != "holdout":   # reported parameters: a fit on all runs (also the folds' starting point)
         log(f"{system}: fit on all {len(targets)} runs (reported parameters)")
         progress.stage(f"{system}: base + {len(cands)} candidates on all {len(targets)} runs", n_fit_tasks(1, False))
-        [(warm, lines)] = fit_models(ev, [list(range(len(targets)))], cfg, cands, rng, executor)
+        [(d.warm, lines)] = fit_models(d.ev, [list(range(len(targets)))], cfg, cands, rng, d.executor)
         for line in lines:
             log(line)
-    progress.stage(f"{system}: base + {len(cands)} candidates on {len(folds)} fold(s)",
-                   n_fit_tasks(len(folds), bool(warm)))
-    fold_fits = fit_models(ev, [cal for cal, _ in folds], cfg, cands, rng, executor, warm)
+    progress.stage(f"{system}: base + {len(cands)} candidates on {len(d.folds)} fold(s)",
+                   n_fit_tasks(len(d.folds), bool(d.warm)))
+    fold_fits = fit_models(d.ev, [cal for cal, _ in d.folds], cfg, cands, rng, d.executor, d.warm)
     progress.stage(f"{system}: held-out errors of {len(cands) + 1} models")
-    for fi, ((cal, test), (fits, lines)) in enumerate(zip(folds, fold_fits)):
-        log(f"{system}: fold {fi + 1}/{len(folds)} ({len(cal)} calibration, {len(test)} held-out runs)")
+    for fi, ((cal, test), (fits, lines)) in enumerate(zip(d.folds, fold_fits)):
+        log(f"{system}: fold {fi + 1}/{len(d.folds)} ({len(cal)} calibration, {len(test)} held-out runs)")
         for line in lines:
             log(line)
-        fits_per_fold.append(fits)
-        sets = [{}] + [fits[m].values for m in names]
-        for m, (res, halves) in zip(["default", *names], ev.held_out(sets, test)):
-            test_res[m] += res
-            test_halves[m] += halves
-        test_idx += test
-        for m in names:
-            bic[m] += fits[m].bic()
-            cal_chi2[m] += fits[m].chi2
-    err = {m: {**_errors(ev, test_idx, test_res[m]), "systematic": systematic_error(ev, test_idx, test_halves[m])}
-           for m in test_res}
+        d.fits_per_fold.append(fits)
+        _add_fold(d, names, fits, test)
+
+
+def _add_fold(d: _Diagnosis, names: list[str], fits: dict, test: list[int]) -> None:
+    """One fold's held-out residuals (default, base and every candidate), BIC and calibration χ² added to the sums."""
+    sets = [{}] + [fits[m].values for m in names]
+    for m, (res, halves) in zip(["default", *names], d.ev.held_out(sets, test)):
+        d.test_res[m] += res
+        d.test_halves[m] += halves
+    d.test_idx += test
+    for m in names:
+        d.bic[m] += fits[m].bic()
+        d.cal_chi2[m] += fits[m].chi2
+
+
+def _judge_effects(d: _Diagnosis) -> None:
+    """Held-out errors and statistics of every model, the reported fits and the single-effect verdict."""
+    ev, test_idx = d.ev, d.test_idx
+    d.err = {m: {**_errors(ev, test_idx, d.test_res[m]),
+                 "systematic": systematic_error(ev, test_idx, d.test_halves[m])} for m in d.test_res}
     # reported parameters: the single split's calibration fit, or a fit on all runs (leave-one-out)
-    final_fits = fits_per_fold[0] if scheme == "holdout" else warm
-    stats = {m: ModelStats(m, bic[m], err[m]["chi2"], err[m]["n"], err[m]["systematic"]) for m in names}
-    v = first = decide(stats["base"], [stats[m] for m in cands], cfg.rule())
-    cal_names = [q.name for q in calibratable(system)]
-    second = None
-    pair = pair_stage(cfg, v, len(cands))
-    if pair.tried:
-        log(f"{system}: {pair.reason}: adding a second effect")
-        progress.stage(f"{system}: {v.leader} + each of {len(cands) - 1} other effects")
-        pair_fits, pair_err, pair_stats, v2 = _second_effect(ev, cfg, scheme, folds, v.leader, cands, fits_per_fold,
-                                                             warm, stats[v.leader], executor, log)
-        second = _second_report(v.leader, pair_fits, pair_stats, v2, cfg.rule(), cal_names)
-        final_fits = {**final_fits, **pair_fits}
-        err.update(pair_err)
-        pair_adequate = v2.leader is not None and v2.checks[v2.leader]["adequate"]
-        if pair_adequate or (v2.leader is not None and v.kind != SELECTED):   # an adequate single stays
-            kind = SELECTED if pair_adequate else UNEXPLAINED
-            v = replace(v, kind=kind, selected=v2.leader if kind == SELECTED else None, leader=v2.leader)
-    final = v.selected or "base"
-    found = None
-    if v.kind == UNEXPLAINED and cfg.max_proposals >= 1:
-        log(f"{system}: no §6 effect explains the residual: proposing the missing term")
-        progress.stage(f"{system}: proposing the missing term")
-        found = discover(ev, cfg, scheme, folds, fits_per_fold, warm, stats["base"], executor, log)
-    named = None
-    if found is not None and found.accepted:
-        final = found.accepted
-        final_fits = {**final_fits, final: found.fits[final]}
-        err[final] = found.err[final]
-        named = _as_effect(ev, cfg, scheme, folds, found, cands, stats, executor, log)
-    call = closeness(first, stats, cfg.rule())
-    if second is not None:
-        call["text"] = f"one effect: {call['text']}; two effects: {second['text']}"
-    if named is not None:
-        eff = named["effect"]
-        bic[eff], cal_chi2[eff] = named["stats"].bic, named["fit_chi2"]
-        stats[eff], err[eff], final_fits[eff] = named["stats"], named["err"], named["fit"]
-        v_named = decide(stats["base"], [stats[m] for m in cands], cfg.rule())
-        named["selected"] = v_named.selected == eff
-        v = replace(v, checks={**v.checks, eff: v_named.checks[eff]})
-        if named["selected"]:
-            v, final = v_named, eff
-            call = closeness(v_named, stats, cfg.rule())
-        call["text"] += f"; {named['text']}" + ("" if named["selected"] else " (not adequate: the proposal stays)")
-    cand_list = [{"effect": m, "params": {p: final_fits[m].values[p] for p in final_fits[m].free if p not in cal_names},
-                  "param_sd": {p: final_fits[m].sd[p] for p in final_fits[m].free},
-                  "calibrated": final_fits[m].values,
-                  "error": err[m]["error"], "nrms": err[m]["nrms"], "systematic": err[m]["systematic"],
-                  "score": bic[m], "delta_score": bic[m] - bic["base"], "delta_chi2_heldout": v.checks[m]["delta_chi2"],
-                  "improves": v.checks[m]["improves"], "adequate": v.checks[m]["adequate"],
-                  "calibration_chi2": cal_chi2[m]} for m in sorted(cands, key=lambda m: bic[m])]
+    d.final_fits = d.fits_per_fold[0] if d.scheme == "holdout" else d.warm
+    d.stats = {m: ModelStats(m, d.bic[m], d.err[m]["chi2"], d.err[m]["n"], d.err[m]["systematic"])
+               for m in ["base", *d.cands]}
+    d.v = d.first = decide(d.stats["base"], [d.stats[m] for m in d.cands], d.cfg.rule())
+    d.cal_names = [q.name for q in calibratable(d.system)]
+
+
+def _pairs(d: _Diagnosis) -> None:
+    """The greedy pair stage: the leader with each other effect, when the data ask for more than one effect."""
+    system, cfg, cands, v = d.system, d.cfg, d.cands, d.v
+    d.pair = pair_stage(cfg, v, len(cands))
+    if not d.pair.tried:
+        return
+    d.log(f"{system}: {d.pair.reason}: adding a second effect")
+    d.progress.stage(f"{system}: {v.leader} + each of {len(cands) - 1} other effects")
+    pair_fits, pair_err, pair_stats, v2 = _second_effect(d.ev, cfg, d.scheme, d.folds, v.leader, cands,
+                                                         d.fits_per_fold, d.warm, d.stats[v.leader], d.executor, d.log)
+    d.second = _second_report(v.leader, pair_fits, pair_stats, v2, cfg.rule(), d.cal_names)
+    d.final_fits = {**d.final_fits, **pair_fits}
+    d.err.update(pair_err)
+    pair_adequate = v2.leader is not None and v2.checks[v2.leader]["adequate"]
+    if pair_adequate or (v2.leader is not None and v.kind != SELECTED):   # an adequate single stays
+        kind = SELECTED if pair_adequate else UNEXPLAINED
+        d.v = replace(v, kind=kind, selected=v2.leader if kind == SELECTED else None, leader=v2.leader)
+
+
+def _discover(d: _Diagnosis) -> None:
+    """Nothing explains the residual: propose the missing term; an accepted proposal becomes the final model, and
+    is refitted as the §6 effect it spans, if any."""
+    d.final = d.v.selected or "base"
+    if d.v.kind == UNEXPLAINED and d.cfg.max_proposals >= 1:
+        d.log(f"{d.system}: no §6 effect explains the residual: proposing the missing term")
+        d.progress.stage(f"{d.system}: proposing the missing term")
+        d.found = discover(d.ev, d.cfg, d.scheme, d.folds, d.fits_per_fold, d.warm, d.stats["base"], d.executor, d.log)
+    if d.found is not None and d.found.accepted:
+        d.final = d.found.accepted
+        d.final_fits = {**d.final_fits, d.final: d.found.fits[d.final]}
+        d.err[d.final] = d.found.err[d.final]
+        d.named = _as_effect(d.ev, d.cfg, d.scheme, d.folds, d.found, d.cands, d.stats, d.executor, d.log)
+
+
+def _make_call(d: _Diagnosis) -> None:
+    """report.json ``call``: how close the call is, for one effect, two, and the proposal read as an effect (which
+    replaces the verdict when it is adequate)."""
+    d.call = closeness(d.first, d.stats, d.cfg.rule())
+    if d.second is not None:
+        d.call["text"] = f"one effect: {d.call['text']}; two effects: {d.second['text']}"
+    named = d.named
+    if named is None:
+        return
+    eff = named["effect"]
+    d.bic[eff], d.cal_chi2[eff] = named["stats"].bic, named["fit_chi2"]
+    d.stats[eff], d.err[eff], d.final_fits[eff] = named["stats"], named["err"], named["fit"]
+    v_named = decide(d.stats["base"], [d.stats[m] for m in d.cands], d.cfg.rule())
+    named["selected"] = v_named.selected == eff
+    d.v = replace(d.v, checks={**d.v.checks, eff: v_named.checks[eff]})
+    if named["selected"]:
+        d.v, d.final = v_named, eff
+        d.call = closeness(v_named, d.stats, d.cfg.rule())
+    d.call["text"] += f"; {named['text']}" + ("" if named["selected"] else " (not adequate: the proposal stays)")
+
+
+def _candidate_rows(d: _Diagnosis) -> list[dict]:
+    """report.json ``candidates``: every single effect, best BIC first."""
+    final_fits, err, bic, v = d.final_fits, d.err, d.bic, d.v
+    return [{"effect": m, "params": {p: final_fits[m].values[p] for p in final_fits[m].free if p not in d.cal_names},
+             "param_sd": {p: final_fits[m].sd[p] for p in final_fits[m].free},
+             "calibrated": final_fits[m].values,
+             "error": err[m]["error"], "nrms": err[m]["nrms"], "systematic": err[m]["systematic"],
+             "score": bic[m], "delta_score": bic[m] - bic["base"], "delta_chi2_heldout": v.checks[m]["delta_chi2"],
+             "improves": v.checks[m]["improves"], "adequate": v.checks[m]["adequate"],
+             "calibration_chi2": d.cal_chi2[m]} for m in sorted(d.cands, key=lambda m: bic[m])]
+
+
+def _assemble(d: _Diagnosis) -> SystemDiagnosis:
+    """The system's report entry (report.json), with the evaluator, the reported fits, the held-out runs and the
+    final model."""
+    _make_call(d)
+    cand_list = _candidate_rows(d)
+    targets, err, v, final, final_fits, found, named = d.targets, d.err, d.v, d.final, d.final_fits, d.found, d.named
     report = {
-        "system": system,
+        "system": d.system,
         "n_runs": len(targets),
-        "unreproducible": unreproducible,
+        "unreproducible": d.unreproducible,
         "data": sorted({t.kind for t in targets}),
-        "split": {"scheme": scheme, "held_out": [targets[i].run_id for i in sorted(set(test_idx))],
+        "split": {"scheme": d.scheme, "held_out": [targets[i].run_id for i in sorted(set(d.test_idx))],
                   "folds": [{"calibration": [targets[i].run_id for i in c], "held_out": [targets[i].run_id for i in t]}
-                            for c, t in folds]},
+                            for c, t in d.folds]},
         "verdict": v.kind,
         "calibrated": final_fits["base"].values,
         "calibrated_uncertainty": _param_report(final_fits["base"]),
@@ -393,7 +484,7 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
         "heldout_n": err["base"]["n"],
         "error_by_group": {"default": err["default"]["error_by_group"], "base": err["base"]["error_by_group"],
                            "final": err[final]["error_by_group"], "noise": err["base"]["noise_by_group"]},
-        "base_score": bic["base"],
+        "base_score": d.bic["base"],
         "candidates": cand_list,
         "selected": v.selected,
         "selected_effects": v.selected.split("+") if v.selected else [],
@@ -402,17 +493,17 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
         "selected_params": _param_report(final_fits[final]) if final != "base" else None,
         "explained": v.explained,
         "best_partial_candidate": v.leader if v.kind == UNEXPLAINED else None,
-        "absorbed": absorbed_parameters(final_fits, v, cal_names),
-        "call": call,
-        "indistinguishable": indistinguishable(first, stats, cfg.rule()),
-        "second_effect": second,
-        "pair_stage": asdict(pair),
-        "discrepancy": discovery_report(found, err["base"], cal_names) if found is not None else None,
+        "absorbed": absorbed_parameters(final_fits, v, d.cal_names),
+        "call": d.call,
+        "indistinguishable": indistinguishable(d.first, d.stats, d.cfg.rule()),
+        "second_effect": d.second,
+        "pair_stage": asdict(d.pair),
+        "discrepancy": discovery_report(found, err["base"], d.cal_names) if found is not None else None,
         "proposal_adopted": (proposal_terms(found.accepted) if found is not None and found.accepted
                              and not (named and named["selected"]) else None),
         "proposal_as_effect": ({k: named[k] for k in ("effect", "start", "params", "selected", "text")}
                                if named is not None else None),
-        "recording": recording_report(targets, chain),
-        "n_simulations": ev.n_sims,
+        "recording": recording_report(targets, d.chain),
+        "n_simulations": d.ev.n_sims,
     }
-    return SystemDiagnosis(report=report, evaluator=ev, fits=final_fits, held_out=test_idx, final=final)
+    return SystemDiagnosis(report=report, evaluator=d.ev, fits=final_fits, held_out=d.test_idx, final=final)

@@ -33,6 +33,83 @@ def _head(name: str, suffix: str = "") -> str:
     return f"{name}{suffix}" + (f" [{unit}]" if unit else "")
 
 
+def _infill_lines(rep: dict) -> list[str]:
+    """The infill section: one row per round of simulations where a contradicted surrogate's study looked."""
+    inf = rep.get("infill")
+    if not inf:
+        return []
+    lines: list[str] = []
+    lines += ["## Infill: simulations where the study looked, surrogate retrained", "", inf["text"] + ".", ""]
+    if inf["rounds"]:
+        lines += ["| round | study | trained on | verified | wrong | median ROP error | recommended wrong "
+                  "| ROP simulated [mm/s] | ROP predicted [mm/s] | points added |", "|" + "---|" * 10]
+        for r in inf["rounds"]:
+            med = r["rop_rel_error_median"]
+            lines.append(f"| {r['round']} | {r['study_name']} | {_fmt(r['n_train'])} | {r['n_verified']} | "
+                         f"{r['n_wrong']} | {'—' if med is None else format(med, '.1%')} | "
+                         f"{'yes' if r['recommendation_wrong'] else 'no'} | {_eng('rop_m_s', r['rop_m_s_sim'])} | "
+                         f"{_eng('rop_m_s', r['rop_m_s_pred'])} | {r['points_added']} |")
+        lines.append("")
+    return lines
+
+
+def _recommendation_lines(rep: dict, rec: dict) -> list[str]:
+    """The recommendation section: the point and its simulated labels, the limits it sits at, the margins kept,
+    the envelope, the limit maps and whether it lies on the edge of the search space."""
+    lines = []
+    labels = [k for k in ("rop_m_s", "power_w", "peak_decel_g", "peak_force_n", "specific_energy_j_m")
+              if rec.get(f"{k}_sim") is not None]
+    lines += ["## Recommendation (verified by the simulator)", "",
+              "| " + " | ".join(_head(n) for n in rec["params"]) + " | "
+              + " | ".join(_head(k, " simulated") for k in labels) + " | ROP predicted [mm/s] | status |",
+              "|" + "---|" * (len(rec["params"]) + len(labels) + 2),
+              "| " + " | ".join(_eng(n, v) for n, v in rec["params"].items()) + " | "
+              + " | ".join(_eng(k, rec[f"{k}_sim"]) for k in labels)
+              + f" | {_eng('rop_m_s', rec.get('rop_m_s_pred'))} | {rec['status_sim']} |", ""]
+    if rec.get("binding"):
+        lines += ["At the limit(s): " + ", ".join(rec["binding"]) + ".", ""]
+    if rec.get("margins"):
+        lines += ["Margin kept: " + ", ".join(
+            f"{m['label']} {m['value_sim']:.4g} ≤ {m['kept_below']:.4g} ({m['margin']:.0%} below the limit "
+            f"{m['limit']:g}; headroom {m['headroom']:.1%})" for m in rec["margins"] if m["value_sim"] is not None)
+                  + ".", ""]
+    if rec.get("on_envelope"):
+        lines += ["**On the shaker's envelope:** " + ", ".join(rec["on_envelope"]) + ".", ""]
+    maps = [Path(f).name for f in rep.get("figures") or [] if Path(f).name.startswith("limit_map_")]
+    if maps:
+        lines += ["ROP around the recommendation, with the limits (solid), the limits less their margin (dashed) "
+                  "and the exciter's envelope:", "", *(f"![{m}]({m})" for m in maps), ""]
+    if rec.get("on_bounds"):
+        lines += ["**On the edge of the search space:** " + describe_bounds(rec["on_bounds"])
+                  + ". The optimum may lie beyond this bound; widen that range (sweep and train on it) to know.", ""]
+    else:
+        lines += ["The recommendation lies inside the search space (no control within 2 % of a bound).", ""]
+    return lines
+
+
+def _table_lines(rep: dict, table: pd.DataFrame) -> list[str]:
+    """The verified table: each optimised objective's prediction next to the simulator's value, per point."""
+    t = rep["tried"]
+    lines = []
+    shown = ["rop_m_s", *[o for o in t.get("objectives", []) if o != "rop_m_s"]]
+    shown += [k for k in ("power_w", "peak_decel_g") if k not in shown and f"{k}_sim" in table]
+    cols = [c for c in table.columns if c in rep["inputs"]]
+    for k in shown:
+        cols += [c for c in (f"{k}_pred", f"{k}_sim") if c in table.columns]
+    cols += [c for c in ("status_pred", "status_sim", "feasible_sim", "surrogate_wrong", "why") if c in table.columns]
+    heads = [_head(c[:-5], " pred") if c.endswith("_pred") and c[:-5] in shown else
+             _head(c[:-4], " sim") if c.endswith("_sim") and c[:-4] in shown else _head(c) if c in rep["inputs"]
+             else c for c in cols]
+    name_of = {c: (c[:-5] if c.endswith("_pred") else c[:-4] if c.endswith("_sim") else c) for c in cols}
+    lines += ["## Prediction next to the simulator (every optimised objective)", "",
+              "| " + " | ".join(heads) + " |", "|" + "---|" * len(cols)]
+    for _, r in table.iterrows():
+        lines.append("| " + " | ".join(_eng(name_of[c], r[c]) if name_of[c] in shown or c in rep["inputs"]
+                                       else _fmt(r[c]) for c in cols) + " |")
+    lines.append("")
+    return lines
+
+
 def markdown(rep: dict, table: pd.DataFrame | None) -> str:
     """report.md of the report dict ``rep`` (outputs.report_dict) and the verified table (None when nothing was)."""
     t = rep["tried"]
@@ -47,46 +124,8 @@ def markdown(rep: dict, table: pd.DataFrame | None) -> str:
         lines += [f"**Surrogate failed its verification:** {fb['text']}.{said}", ""]
     rec = rep.get("recommendation")
     if rec:
-        labels = [k for k in ("rop_m_s", "power_w", "peak_decel_g", "peak_force_n", "specific_energy_j_m")
-                  if rec.get(f"{k}_sim") is not None]
-        lines += ["## Recommendation (verified by the simulator)", "",
-                  "| " + " | ".join(_head(n) for n in rec["params"]) + " | "
-                  + " | ".join(_head(k, " simulated") for k in labels) + " | ROP predicted [mm/s] | status |",
-                  "|" + "---|" * (len(rec["params"]) + len(labels) + 2),
-                  "| " + " | ".join(_eng(n, v) for n, v in rec["params"].items()) + " | "
-                  + " | ".join(_eng(k, rec[f"{k}_sim"]) for k in labels)
-                  + f" | {_eng('rop_m_s', rec.get('rop_m_s_pred'))} | {rec['status_sim']} |", ""]
-        if rec.get("binding"):
-            lines += ["At the limit(s): " + ", ".join(rec["binding"]) + ".", ""]
-        if rec.get("margins"):
-            lines += ["Margin kept: " + ", ".join(
-                f"{m['label']} {m['value_sim']:.4g} ≤ {m['kept_below']:.4g} ({m['margin']:.0%} below the limit "
-                f"{m['limit']:g}; headroom {m['headroom']:.1%})" for m in rec["margins"] if m["value_sim"] is not None)
-                      + ".", ""]
-        if rec.get("on_envelope"):
-            lines += ["**On the shaker's envelope:** " + ", ".join(rec["on_envelope"]) + ".", ""]
-        maps = [Path(f).name for f in rep.get("figures") or [] if Path(f).name.startswith("limit_map_")]
-        if maps:
-            lines += ["ROP around the recommendation, with the limits (solid), the limits less their margin (dashed) "
-                      "and the exciter's envelope:", "", *(f"![{m}]({m})" for m in maps), ""]
-        if rec.get("on_bounds"):
-            lines += ["**On the edge of the search space:** " + describe_bounds(rec["on_bounds"])
-                      + ". The optimum may lie beyond this bound; widen that range (sweep and train on it) to know.", ""]
-        else:
-            lines += ["The recommendation lies inside the search space (no control within 2 % of a bound).", ""]
-    inf = rep.get("infill")
-    if inf:
-        lines += ["## Infill: simulations where the study looked, surrogate retrained", "", inf["text"] + ".", ""]
-        if inf["rounds"]:
-            lines += ["| round | study | trained on | verified | wrong | median ROP error | recommended wrong "
-                      "| ROP simulated [mm/s] | ROP predicted [mm/s] | points added |", "|" + "---|" * 10]
-            for r in inf["rounds"]:
-                med = r["rop_rel_error_median"]
-                lines.append(f"| {r['round']} | {r['study_name']} | {_fmt(r['n_train'])} | {r['n_verified']} | "
-                             f"{r['n_wrong']} | {'—' if med is None else format(med, '.1%')} | "
-                             f"{'yes' if r['recommendation_wrong'] else 'no'} | {_eng('rop_m_s', r['rop_m_s_sim'])} | "
-                             f"{_eng('rop_m_s', r['rop_m_s_pred'])} | {r['points_added']} |")
-            lines.append("")
+        lines += _recommendation_lines(rep, rec)
+    lines += _infill_lines(rep)
     lines += ["## What was tried", "",
               f"- mode: {t['mode']} (study on the {'surrogate, then re-simulated' if t['mode'] == 'surrogate' else 'simulator'}),"
               f" objective: {t['objective']} ({', '.join(t.get('objectives', []))}), sampler: {t['sampler']}, seed {t['seed']}",
@@ -101,22 +140,7 @@ def markdown(rep: dict, table: pd.DataFrame | None) -> str:
     if t.get("closest"):
         lines += [f"- closest point to feasibility: {t['closest']}", ""]
     if table is not None and len(table):
-        shown = ["rop_m_s", *[o for o in t.get("objectives", []) if o != "rop_m_s"]]
-        shown += [k for k in ("power_w", "peak_decel_g") if k not in shown and f"{k}_sim" in table]
-        cols = [c for c in table.columns if c in rep["inputs"]]
-        for k in shown:
-            cols += [c for c in (f"{k}_pred", f"{k}_sim") if c in table.columns]
-        cols += [c for c in ("status_pred", "status_sim", "feasible_sim", "surrogate_wrong", "why") if c in table.columns]
-        heads = [_head(c[:-5], " pred") if c.endswith("_pred") and c[:-5] in shown else
-                 _head(c[:-4], " sim") if c.endswith("_sim") and c[:-4] in shown else _head(c) if c in rep["inputs"]
-                 else c for c in cols]
-        name_of = {c: (c[:-5] if c.endswith("_pred") else c[:-4] if c.endswith("_sim") else c) for c in cols}
-        lines += ["## Prediction next to the simulator (every optimised objective)", "",
-                  "| " + " | ".join(heads) + " |", "|" + "---|" * len(cols)]
-        for _, r in table.iterrows():
-            lines.append("| " + " | ".join(_eng(name_of[c], r[c]) if name_of[c] in shown or c in rep["inputs"]
-                                           else _fmt(r[c]) for c in cols) + " |")
-        lines.append("")
+        lines += _table_lines(rep, table)
     if rep.get("surrogate_note"):
         lines += ["## Surrogate check", "", rep["surrogate_note"], ""]
     front = rep.get("pareto_verified")

@@ -196,16 +196,7 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
                 X = pd.DataFrame([t.params for t in trials], columns=space.names)
                 with guard.beating(study, trials):      # beating until told: a slow tell is not a dead worker
                     out = evaluate(X)
-                    for t, row in zip(trials, out.to_dict("records")):
-                        try:
-                            t.set_user_attr("labels", {k: _clean(row[k]) for k in ATTR_KEYS if k in row})
-                            for key, val in constraints.values(row).items():
-                                t.set_constraint(key, val)
-                            study.tell(t, _objective_values(row, objectives))
-                        except optuna.exceptions.UpdateFinishedTrialError:
-                            continue        # failed as stale meanwhile (a stalled worker): its retry runs instead
-                        ran += 1
-                        bar.update(1)
+                    ran += _tell_batch(study, trials, out, constraints, objectives, bar)
             except BaseException:
                 for t in trials:
                     try:
@@ -219,6 +210,26 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
         bar.close()
         guard.close()
     return ran
+
+
+def _tell_batch(study, trials: list, out: pd.DataFrame, constraints: Constraints,
+                objectives: list[tuple[str, str]], bar) -> int:
+    """Each trial told its row of ``out`` (labels, constraints, objective values), the bar advanced per trial; the
+    number told (a trial failed as stale meanwhile by another worker is skipped: its retry runs instead)."""
+    import optuna
+
+    told = 0
+    for t, row in zip(trials, out.to_dict("records")):
+        try:
+            t.set_user_attr("labels", {k: _clean(row[k]) for k in ATTR_KEYS if k in row})
+            for key, val in constraints.values(row).items():
+                t.set_constraint(key, val)
+            study.tell(t, _objective_values(row, objectives))
+        except optuna.exceptions.UpdateFinishedTrialError:
+            continue        # failed as stale meanwhile (a stalled worker): its retry runs instead
+        told += 1
+        bar.update(1)
+    return told
 
 
 def _key(t) -> tuple:
