@@ -71,6 +71,26 @@ from pipeline.core.errors import UserError  # noqa: E402
 from pipeline.core.rigfile import rig_name  # noqa: E402
 
 
+def _add_fallback(p) -> None:
+    """What follows a surrogate that fails its verification: infill rounds, then a study on the simulator."""
+    p.add_argument("--fallback-trials", type=A.count(0, 100_000),
+                   help="when the surrogate fails its verification (its recommended point, or more than half of the "
+                        "verified points, wrong) after --infill-rounds, run this many trials straight on the "
+                        "simulator over the same space and recommend from those instead (default 200; 0: off)")
+    p.add_argument("--infill-rounds", type=A.count(0, 100), metavar="N",
+                   help="when the surrogate fails its verification, first up to N rounds of infill: simulate the "
+                        "points where the study looked (around the best verified point, along the limits it ran "
+                        "into, on the faces of the box it touches), retrain the surrogate on its sweep plus every "
+                        "point simulated so far (the feedback file), search and verify again, until a round agrees and "
+                        "its recommendation gains at most 1 %% of ROP over the round before; the --fallback-trials "
+                        "study runs only if the last round still fails (default 3; 0: straight to the fallback)")
+    p.add_argument("--infill-points", type=A.count(1, 10_000), metavar="N",
+                   help="points simulated per infill round, besides the verified ones (default 16)")
+    p.add_argument("--train-data", metavar="DATASET",
+                   help="the sweep the surrogate was trained on, for infill (default: the dataset its report.json "
+                        "names)")
+
+
 def _add_limits(p) -> None:
     """The constraints (upper limits on the labels), the margin kept below them and the limit maps."""
     p.add_argument("--max-peak-force-n", type=A.positive, metavar="N", help="constraint: peak_force_n <= N newtons")
@@ -135,22 +155,7 @@ def add_parser(sub) -> None:
                    help="accept not_settled (bounded but aperiodic) points; runaway and failed never are")
     p.add_argument("--n-verify", type=A.count(1, 10_000), help="distinct best points (or front points) re-simulated (default 10)")
     p.add_argument("--rel-tol", type=A.positive, help="ROP relative error above which the surrogate is wrong (default 0.1)")
-    p.add_argument("--fallback-trials", type=A.count(0, 100_000),
-                   help="when the surrogate fails its verification (its recommended point, or more than half of the "
-                        "verified points, wrong) after --infill-rounds, run this many trials straight on the "
-                        "simulator over the same space and recommend from those instead (default 200; 0: off)")
-    p.add_argument("--infill-rounds", type=A.count(0, 100), metavar="N",
-                   help="when the surrogate fails its verification, first up to N rounds of infill: simulate the "
-                        "points where the study looked (around the best verified point, along the limits it ran "
-                        "into, on the faces of the box it touches), retrain the surrogate on its sweep plus every "
-                        "point simulated so far (the feedback file), search and verify again, until a round agrees and "
-                        "its recommendation gains at most 1 %% of ROP over the round before; the --fallback-trials "
-                        "study runs only if the last round still fails (default 3; 0: straight to the fallback)")
-    p.add_argument("--infill-points", type=A.count(1, 10_000), metavar="N",
-                   help="points simulated per infill round, besides the verified ones (default 16)")
-    p.add_argument("--train-data", metavar="DATASET",
-                   help="the sweep the surrogate was trained on, for infill (default: the dataset its report.json "
-                        "names)")
+    _add_fallback(p)
     p.add_argument("--storage", metavar="URL",
                    help="optuna storage URL (default sqlite:///<project root>/optuna.db: workers of one machine); "
                         "postgresql://USER@HOST/DB for workers on several machines (or any SQLAlchemy RDB URL); "
