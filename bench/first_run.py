@@ -7,7 +7,9 @@
    ``measured/*/runs.csv``: :func:`pipeline.cli.compile.pipeline_models`), compiled into the clone's cache as the
    pipeline's stages would on first use (``vibro compile --jit-only MODEL ...``), so this phase is measured apart
    from the stages;
-3. **pipeline**: ``make run`` (the install is up to date, so: the dvc pipeline).
+3. **pipeline**: ``make run`` (the install is up to date, so: the dvc pipeline);
+4. **variant** (only when asked, after the pipeline): the README's variant, a dvc experiment with
+   ``optimise.seed=1`` under an MLflow parent run (``python -m pipeline.tracking.repro --exp -- -S optimise.seed=1``).
 
 CPU = user + sys of every process a phase ran (``resource.getrusage(RUSAGE_CHILDREN)`` before and after: make,
 pip, dvc and the stages are all waited-for descendants); load = the 1-minute load average before and after the phase
@@ -30,6 +32,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 PHASES = ("install", "compile", "pipeline")
+VARIANT = ("-S", "optimise.seed=1")
+"""The README's example of a variant (a new optimisation on the trained surrogates)."""
 
 
 def phase_command(phase: str, clone: Path) -> list[str]:
@@ -42,7 +46,9 @@ def phase_command(phase: str, clone: Path) -> list[str]:
         return [str(clone / "bin" / "vibro"), "compile", "--jit-only", *pipeline_models(clone)]
     if phase == "pipeline":
         return ["make", "run"]
-    raise ValueError(f"unknown phase {phase!r}; phases: {', '.join(PHASES)}")
+    if phase == "variant":
+        return [str(clone / ".venv" / "bin" / "python"), "-m", "pipeline.tracking.repro", "--exp", "--", *VARIANT]
+    raise ValueError(f"unknown phase {phase!r}; phases: {', '.join(PHASES)}, variant")
 
 
 def _env(clone: Path) -> dict[str, str]:
@@ -90,7 +96,7 @@ def table(rows: list[dict], commit: str) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.first_run", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--phases", default=",".join(PHASES), help="comma-separated, in order (default: all three)")
+    ap.add_argument("--phases", default=",".join(PHASES), help="comma-separated, in order (default: all three; 'variant' adds the README's dvc variant)")
     ap.add_argument("--keep", action="store_true", help="keep the clone (its path is printed)")
     ap.add_argument("--json", type=Path, help="also write the rows here")
     ap.add_argument("--clone", type=Path, help="run in this existing clone (e.g. one kept by --keep)")
