@@ -229,6 +229,8 @@ def config_from_args(args):
         base["fixed"] = {**(base.get("fixed") or {}), **parse_assignments(args.sets, "--set")}
     if args.objectives:
         base["objectives"] = [s.strip() for s in args.objectives.split(",") if s.strip()]
+    elif (args.objective or base.get("objective", "rop")) == "rop":
+        base.pop("objectives", None)    # params.yaml's section serves both stages: its objectives are the Pareto study's
     for key in ("model", "preset", "objective", "sampler", "n_trials", "batch_size", "seed", "max_peak_force_n",
                 "peak_force_static_ratio", "max_specific_energy_j_m", "max_power_w", "max_decel_g", "n_verify",
                 "rel_tol", "fallback_trials", "storage", "heartbeat_s", "study_name", "feedback", "n_threads",

@@ -187,3 +187,18 @@ def test_map_axis_with_range():
     assert _axis("gap_m", None, "--y") == ("gap_m", (None, None))
     with pytest.raises(UserError, match="--y expects PARAM or PARAM=LO:HI"):
         _axis("gap_m=1", None, "--y")
+
+
+def test_the_repos_params_yaml_serves_both_optimise_stages():
+    """dvc.yaml runs `vibro optimise --params params.yaml --objective rop` and `... pareto` on one section: its
+    `objectives` are the Pareto study's, and the ROP stage must not refuse them (make run once stopped there)."""
+    from pipeline.cli.optimise import config_from_args
+    from pipeline.core.params import read_section
+
+    params = Path(__file__).resolve().parents[3] / "params.yaml"
+    assert read_section(str(params), "optimise").get("objectives")       # the case this test is about
+    base = ["optimise", "--params", str(params), "--simulator"]
+    rop = config_from_args(build_parser().parse_args([*base, "--objective", "rop"]))
+    assert rop.objective_list() == [("rop_m_s", "maximize")]
+    pareto = config_from_args(build_parser().parse_args([*base, "--objective", "pareto"]))
+    assert [name for name, _ in pareto.objective_list()] == read_section(str(params), "optimise")["objectives"]
