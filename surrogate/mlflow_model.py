@@ -24,6 +24,7 @@ def log(mlflow, bundle: Bundle, bundle_dir: Path, example: pd.DataFrame, name: s
     model ``name`` whose signature is inferred from ``example`` (input columns) and its prediction."""
     from mlflow.models import infer_signature
 
+    import logging
     import shutil
     import tempfile
 
@@ -33,8 +34,16 @@ def log(mlflow, bundle: Bundle, bundle_dir: Path, example: pd.DataFrame, name: s
     with tempfile.TemporaryDirectory() as tmp:    # the model's files sit under the folder's name: make it stable
         named = Path(tmp) / ARTIFACT_DIR
         shutil.copytree(bundle_dir, named)
-        mlflow.pyfunc.log_model(name=name, python_model=BundleModel(), artifacts={"bundle": str(named)},
-                                signature=sig, input_example=X.head(3), pip_requirements=_requirements())
+        # what is pickled is only the loader class (the bundle travels as artifacts), so MLflow's CloudPickle
+        # caution, logged on every call, says nothing here: held back for this call only
+        pyfunc_log = logging.getLogger("mlflow.pyfunc")
+        level = pyfunc_log.level
+        pyfunc_log.setLevel(logging.ERROR)
+        try:
+            mlflow.pyfunc.log_model(name=name, python_model=BundleModel(), artifacts={"bundle": str(named)},
+                                    signature=sig, input_example=X.head(3), pip_requirements=_requirements())
+        finally:
+            pyfunc_log.setLevel(level)
 
 
 def _requirements() -> list[str]:

@@ -197,7 +197,7 @@ def _dataset_dir(tmp_path, n, seed=0):
     return d
 
 
-def test_cli_train_writes_bundle_report_figures_and_mlflow_run(tmp_path, monkeypatch, capsys):
+def test_cli_train_writes_bundle_report_figures_and_mlflow_run(tmp_path, monkeypatch, capfd):
     from pipeline.cli import main
 
     monkeypatch.setenv("MLFLOW_TRACKING_URI", f"sqlite:///{tmp_path / 'mlflow.db'}")
@@ -209,8 +209,10 @@ def test_cli_train_writes_bundle_report_figures_and_mlflow_run(tmp_path, monkeyp
     out = tmp_path / "model"
     rc = main(["train", str(d), "--out", str(out), "--params", str(params), "--metrics", str(tmp_path / "m.json"),
                "--quiet"])
-    text = capsys.readouterr().out
+    captured = capfd.readouterr()
+    text = captured.out
     assert rc == 0, text
+    assert "CloudPickle" not in captured.err        # MLflow's pickling caution: nothing pickled but a loader class
     for f in ("bundle.skops", "manifest.json", "bundle.json", "report.json", "parity.png", "confusion.png", "learning_curve.png"):
         assert (out / f).is_file(), f
     m = json.loads((tmp_path / "m.json").read_text())
