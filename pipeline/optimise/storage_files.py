@@ -95,8 +95,6 @@ def _tables(path: Path, label: str, attempts: int = 5) -> set[str]:
 
 def check_sqlite_file(path: Path, label: str) -> None:
     """UserError unless ``path`` is absent, empty, or an SQLite database that is empty or has optuna's schema."""
-    import sqlite3
-
     size = _existing_regular(path, label, "an SQLite database file")
     if not size:
         return
