@@ -1,4 +1,4 @@
-"""No function of the project is over 80 lines (issue 42), numba kernels excepted.
+"""No function of the project is over 80 lines, numba kernels excepted.
 
 A function's length is ``end_lineno - lineno + 1`` of its ``def`` (docstring included, decorators not), measured on
 every function and method under sim/, surrogate/ and pipeline/, nested ones included.  Functions decorated with

@@ -11,7 +11,7 @@ a real rig makes (``noise.py``).  Out-of-library physics (``outside.py``) gives 
                   quantisation) and summary columns (rounded, or with a stated precision)
     outside.py    physics outside MODELS.md §6 (accelerometer mount resonance, quadratic damping, a contact
                   force with a power-law term, a hidden mode in the load path; dynamics in ``dynamics.py``)
-    kinds.py      held-out out-of-library physics written from physical descriptions alone (issue 48 item 1):
+    kinds.py      held-out out-of-library physics written from physical descriptions alone:
                   contact_exponent, unloading_hysteresis, rate_strength, mount_mode, drive_mode, contact_wear,
                   power_damping, support_friction (registered in ``outside.OUTSIDE``, strengths in ``rigs.py``)
     daq.py        the data-acquisition chain a log may pass through (``LogSpec(daq=DaqChain(...))``): anti-alias

@@ -1,4 +1,4 @@
-"""Held-out out-of-library physics (issue 48 item 1): eight more kinds of term, each written from a physical
+"""Held-out out-of-library physics: eight more kinds of term, each written from a physical
 description alone, on the reference models of ``tests/reference_solutions.py`` and simulated by its event-locating
 integrator (scipy DOP853 with every switching surface located).  Each is a factory ``system -> (params -> model)``
 like those of ``dynamics.py``; ``outside.py`` registers them, ``rigs.py`` gives each rig's default strength.

@@ -17,7 +17,7 @@
                      every system.  No §6 effect adds a degree of freedom with inertia: shaker_coil adds a first-order
                      force state, sensor_lowpass filters only what the sensor reports, the rest change force laws.
 
-Held-out kinds (issue 48 item 1; ``kinds.py`` has the physics, the parameters and their units, ``rigs.py`` each
+Held-out kinds (``kinds.py`` has the physics, the parameters and their units, ``rigs.py`` each
 rig's default strength and the effect it has): contact_exponent, unloading_hysteresis, rate_strength (contact
 laws); mount_mode, drive_mode (supports and drives); contact_wear (a slow change); power_damping,
 support_friction (losses).  Each applies to the systems ``kinds.KINDS_SYSTEMS`` lists.
@@ -48,7 +48,7 @@ OUTSIDE = {"mount_resonance": Outside("mount_resonance", True),
            "quadratic_damping": Outside("quadratic_damping", False),
            "contact_power": Outside("contact_power", False),
            "load_path_mode": Outside("load_path_mode", False),
-           # held-out kinds (issue 48 item 1, ``kinds.py``): written from physical descriptions alone
+           # held-out kinds (``kinds.py``): written from physical descriptions alone
            "contact_exponent": Outside("contact_exponent", False),
            "unloading_hysteresis": Outside("unloading_hysteresis", False),
            "rate_strength": Outside("rate_strength", False),

@@ -190,7 +190,7 @@ RIGS: dict[str, Rig] = {
 
 OUTSIDE_KIND = {"contact_power": "contact", "load_path_mode": "mode", "quadratic_damping": "velocity_loss",
                 "mount_resonance": "sensor",
-                # held-out kinds (issue 48 item 1, kinds.py), labelled by the physics, not by any vocabulary
+                # held-out kinds (kinds.py), labelled by the physics, not by any vocabulary
                 "contact_exponent": "contact", "unloading_hysteresis": "contact", "rate_strength": "contact",
                 "mount_mode": "mode", "drive_mode": "mode", "contact_wear": "drift",
                 "power_damping": "velocity_loss", "support_friction": "friction"}

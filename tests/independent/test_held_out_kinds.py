@@ -1,4 +1,4 @@
-"""The held-out out-of-library kinds (``kinds.py``, issue 48 item 1), frozen: each is registered where the benches
+"""The held-out out-of-library kinds (``kinds.py``), frozen: each is registered where the benches
 pick outside physics by name; at zero strength it is the reference model (to the integrator's tolerance); at the
 rig's default strength it moves a stated label by a stated range and stays physical (contact forces >= 0,
 progression and wear never decreasing); its signals agree with its right-hand side and its switching surfaces

@@ -83,7 +83,7 @@ def _slow_cases() -> list[LogSpec]:
     out = []
     for system, rig in RIGS.items():
         eff = sorted(rig.effects)
-        outside = sorted(set(rig.outside) - set(KINDS_SYSTEMS))   # the held-out kinds (issue 48) are the benches'
+        outside = sorted(set(rig.outside) - set(KINDS_SYSTEMS))   # the held-out kinds are the benches'
         for k, noise in enumerate(("white2", "rig")):
             out += [LogSpec(system, noise=noise, seed=k),
                     LogSpec(system, effect=eff[k % len(eff)], noise=noise, seed=k),
