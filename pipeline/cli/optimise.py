@@ -28,6 +28,9 @@ what it writes under --out:
   them to the feedback file, retrain the surrogate on its sweep (--train-data) plus the points of the feedback
   file this run wrote, search and verify again; report.json 'infill' (one record per round: points added,
   error at the verified points, wrong count, recommendation; the extra simulations) and report.md say how.
+  how sure: with --rig (a corrected rig from vibro diagnose), the recommendation is re-simulated over 32 samples
+  of the rig's fitted parameters; its ROP spread, with the rig's model_error added, goes to report.json 'spread',
+  report.md and the last lines printed (as vibro compare states it).
   fallback: a surrogate still wrong after the infill rounds never recommends: a study of --fallback-trials trials
   straight on the simulator (same model, rig, space and limits, started from the verified points) does, and
   report.json 'fallback' and report.md say so.
@@ -69,6 +72,7 @@ from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_w
                                parse_assignments, parse_ranges)
 from pipeline.core.errors import UserError  # noqa: E402
 from pipeline.core.rigfile import rig_name  # noqa: E402
+from pipeline.core.units import spread_sentence  # noqa: E402
 
 
 def _add_fallback(p) -> None:
@@ -201,6 +205,11 @@ def _feedback_path(base: dict) -> None:
 
 def config_from_args(args):
     """OptimiseConfig from params.yaml's ``optimise`` section overridden by the flags."""
+    return config_and_rig(args)[0]
+
+
+def config_and_rig(args):
+    """(OptimiseConfig, the ``sim.Rig`` of ``--rig`` or params.yaml's ``rig`` — None without one)."""
     from pipeline.optimise.config import OptimiseConfig, check_numbers
 
     from pipeline.core.params import read_section
@@ -213,6 +222,7 @@ def config_from_args(args):
         base["mode"], base["surrogate"] = "surrogate", args.surrogate
     rig_path = args.rig or base.pop("rig", None)
     base.pop("rig", None)
+    rig = None
     if rig_path:
         if base.get("mode", "surrogate") != "simulator":
             raise UserError(f"--rig {rig_path} needs --simulator (a surrogate carries the rig it was trained on)")
@@ -251,7 +261,7 @@ def config_from_args(args):
         check_range_values(base["ranges"], base.get("model"))
     _feedback_path(base)
     base["storage"] = real_sqlite_url(base.get("storage"))
-    return OptimiseConfig.from_mapping(base)
+    return OptimiseConfig.from_mapping(base), rig
 
 
 def parse_margin(items: list[str]) -> float | dict:
@@ -306,8 +316,9 @@ def real_sqlite_url(url: str | None) -> str | None:
 
 
 def run_tracked(cfg, out_dir, bundle=None, metrics_path: str | None = None, progress: bool = True,
-                mlflow_enabled: bool = True):
-    """``optimise`` of ``cfg`` into ``out_dir`` in an MLflow run that logs its parameters, metrics and files."""
+                mlflow_enabled: bool = True, rig=None):
+    """``optimise`` of ``cfg`` (on ``rig``, when given) into ``out_dir`` in an MLflow run that logs its parameters,
+    metrics and files."""
     from pipeline import tracking
     from pipeline.optimise.outcome import optimise, plan_study
     from pipeline.optimise.outputs import run_params
@@ -315,7 +326,7 @@ def run_tracked(cfg, out_dir, bundle=None, metrics_path: str | None = None, prog
     plan = plan_study(cfg, bundle)
     with tracking.run("optimise", run_params(plan), enabled=mlflow_enabled) as mlflow:
         outcome = optimise(cfg, out_dir, plan=plan, metrics_path=metrics_path, progress=progress,
-                           notify=_say if progress else None)
+                           notify=_say if progress else None, rig=rig)
         if mlflow is not None:
             _log_run(mlflow, outcome)
     return outcome
@@ -353,7 +364,7 @@ def run(args) -> int:
     from pipeline.optimise.study import default_storage
     from pipeline.tracking.bundles import surrogate_chain, surrogate_rig
 
-    cfg = config_from_args(args)
+    cfg, rig_obj = config_and_rig(args)
     chain = A.chain_of(args, surrogate_chain(cfg.surrogate) if cfg.mode == "surrogate" else None)
     rig = rig_name(args.rig) or (surrogate_rig(cfg.surrogate) if cfg.mode == "surrogate" else None)
     url = cfg.storage or default_storage()
@@ -371,7 +382,7 @@ def run(args) -> int:
     with tracking.variant(cfg.objective), tracking.chain(chain, rig), \
             prepare_out(args.out, inputs=inputs, overwrite=args.overwrite, marker="optimise") as tmp:
         rep = run_tracked(cfg, tmp, metrics_path=args.metrics, progress=not args.quiet,
-                          mlflow_enabled=not args.no_mlflow).report
+                          mlflow_enabled=not args.no_mlflow, rig=rig_obj).report
     if args.metrics:
         record_out_file(args.metrics, command="optimise", kind="json")
     if rep["recommendation"] is None:        # the report is in place: the error names where it stays
@@ -387,5 +398,7 @@ def run(args) -> int:
         print(rep["infill"]["text"])
     if rep.get("fallback"):
         print(rep["fallback"]["text"])
+    if rep.get("spread"):
+        print(f"how sure: {spread_sentence(rep['spread'])}")
     print(f"report: {args.out}/report.md")
     return 0

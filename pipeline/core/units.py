@@ -136,6 +136,13 @@ def spread_words(spread: Mapping) -> str:
             f"combined ±{c * k:.3g} {unit}, 5-95 %")
 
 
+def spread_sentence(spread: Mapping) -> str:
+    """``ROP 3.61 mm/s at the recommendation on the corrected rig: parameter spread ...`` (report.json 'spread')."""
+    _, unit, k = ENGINEERING["rop_m_s"]
+    return (f"ROP {spread['nominal_rop_m_s'] * k:.4g} {unit} at the recommendation on the corrected rig, "
+            f"{spread_words(spread)} over {spread['n_samples']} samples of its fitted parameters")
+
+
 # ------------------------------------------------------------------------------------------ units to SI
 G = G_ACCEL
 """[m/s²] per g: the project's one value (``sim.layout.G_ACCEL``, the one ``peak_decel_g`` is computed with), so a

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.names import display
+from pipeline.core.units import spread_sentence
 from pipeline.optimise.space import describe_bounds
 
 
@@ -125,6 +126,8 @@ def markdown(rep: dict, table: pd.DataFrame | None) -> str:
     rec = rep.get("recommendation")
     if rec:
         lines += _recommendation_lines(rep, rec)
+    if rep.get("spread"):
+        lines += [f"**How sure:** {spread_sentence(rep['spread'])}.", ""]
     lines += _infill_lines(rep)
     lines += ["## What was tried", "",
               f"- mode: {t['mode']} (study on the {'surrogate, then re-simulated' if t['mode'] == 'surrogate' else 'simulator'}),"

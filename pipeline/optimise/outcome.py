@@ -21,7 +21,10 @@ from pipeline.optimise.verify import append_feedback
 from pipeline.optimise.workflow import (OptimisePlan, OptimiseResult, fallback_config, plan_optimise, run_optimise,
                                         seed_with_verified, surrogate_failed)
 
-__all__ = ["OptimiseOutcome", "feedback_file", "optimise", "plan_study"]
+__all__ = ["OptimiseOutcome", "feedback_file", "optimise", "plan_study", "recommendation_spread"]
+
+SPREAD_SAMPLES = 32
+"""Samples of a rig's fitted parameters behind the recommendation's ROP spread (as ``vibro compare``)."""
 
 
 @dataclass(frozen=True)
@@ -63,6 +66,15 @@ def feedback_file(cfg: OptimiseConfig, out: Path) -> str | None:
     return str(sur / "feedback.parquet") if sur.is_dir() else str(out / "feedback.parquet")
 
 
+def recommendation_spread(cfg: OptimiseConfig, rig, recommendation: dict, n_samples: int = SPREAD_SAMPLES):
+    """The recommended point's ROP spread on ``rig`` (:class:`~pipeline.optimise.robustness.RopSpread`): its
+    fitted parameters sampled, its model error added; the config's fixed values (the rig's and ``--set``) kept."""
+    from pipeline.optimise.robustness import rop_spread
+
+    point = {**(cfg.fixed or {}), **recommendation["params"]}
+    return rop_spread(rig, point, n_samples=n_samples, seed=cfg.seed, settings=cfg.settings, n_threads=cfg.n_threads)
+
+
 def plan_study(cfg: OptimiseConfig, bundle=None) -> OptimisePlan:
     """``cfg``'s study planned on its strategies; ``bundle`` (a loaded surrogate) replaces loading ``cfg.surrogate``."""
     return plan_optimise(cfg, build_strategies(cfg, bundle))
@@ -70,13 +82,15 @@ def plan_study(cfg: OptimiseConfig, bundle=None) -> OptimisePlan:
 
 def optimise(cfg: OptimiseConfig, out_dir, *, bundle=None, plan: OptimisePlan | None = None,
              metrics_path: str | Path | None = None, progress: bool = True,
-             notify: Callable[[str], None] | None = None) -> OptimiseOutcome:
+             notify: Callable[[str], None] | None = None, rig=None) -> OptimiseOutcome:
     """Run the study of ``cfg``, append the verified points to the feedback file, fall back to a study on the
     simulator when the surrogate failed its verification, and write the report, tables and figures under ``out_dir``.
 
     ``plan``: ``plan_study(cfg, bundle)`` made beforehand (the command logs its parameters first).  ``notify`` is
     told, in one line, why a fallback study runs before it does.  Nothing recommended is no error: the outcome's
-    ``recommendation`` is None and its report says what was tried.  UserError from planning (bad constraints, a
+    ``recommendation`` is None and its report says what was tried.  ``rig``: the corrected rig (``sim.Rig``) the
+    study ran on; the recommendation's ROP spread over its fitted parameters and model error goes to report.json
+    'spread' (:func:`~pipeline.optimise.robustness.rop_spread`).  UserError from planning (bad constraints, a
     stored study run with other settings)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -113,6 +127,8 @@ def optimise(cfg: OptimiseConfig, out_dir, *, bundle=None, plan: OptimisePlan | 
     rep = outputs.report_dict(res, figs, rows, fb, failed=failed, infill=infill and infill.report)
     if map_sims:
         rep["metrics"]["limit_map_simulations"] = map_sims
+    if rig is not None and res.recommendation is not None:
+        outputs.add_spread(rep, recommendation_spread(cfg, rig, res.recommendation))
     reports = outputs.write_report(rep, res, out)
     metrics_file = Path(metrics_path) if metrics_path else None
     if metrics_file is not None:

@@ -20,8 +20,8 @@ from pipeline.optimise.study import pareto_mask, value_columns
 from pipeline.optimise.workflow import OptimisePlan, OptimiseResult, surrogate_failed
 
 REPORT_KEYS = ("study_name", "inputs", "created", "tried", "recommendation", "feedback_rows", "feedback_file",
-               "surrogate_note", "infill", "fallback", "outcome", "pareto_verified", "objectives", "figures", "metrics")
-"""Keys of report.json in their order; feedback_rows/feedback_file, surrogate_note, infill, fallback,
+               "surrogate_note", "infill", "fallback", "outcome", "spread", "pareto_verified", "objectives", "figures", "metrics")
+"""Keys of report.json in their order; feedback_rows/feedback_file, surrogate_note, infill, fallback, spread,
 pareto_verified/objectives only when they apply."""
 
 
@@ -102,6 +102,18 @@ def report_dict(res: OptimiseResult, figures: list[str], feedback_rows: int | No
         rep["metrics"].update({"infill_rounds": infill.n_rounds, "infill_simulations": infill.simulations,
                                "infill_agreed": infill.agreed})
     return rep
+
+
+def add_spread(rep: dict, spread) -> None:
+    """Put the recommendation's ROP spread (``RopSpread``) into ``rep`` after 'outcome', in the key order of
+    :data:`REPORT_KEYS`, and its half-widths and simulations into the metrics."""
+    items = list(rep.items())
+    at = [k for k, _ in items].index("outcome") + 1
+    rep.clear()
+    rep.update(items[:at] + [("spread", spread.to_dict())] + items[at:])
+    rep["metrics"].update({"spread_simulations": spread.n_samples + 1,
+                           "rop_m_s_parameter_half_width": spread.parameter_half_width_m_s,
+                           "rop_m_s_combined_half_width": spread.combined_half_width_m_s})
 
 
 def write_tables(res: OptimiseResult, out: Path) -> list[Path]:

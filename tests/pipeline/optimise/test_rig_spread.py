@@ -1,0 +1,52 @@
+"""``vibro optimise --rig``: the recommendation's ROP spread on the corrected rig (parameters + model error)."""
+from __future__ import annotations
+
+import json
+import math
+
+from pipeline.cli import main as cli_main
+
+# a corrected rig as vibro diagnose writes one: a fitted K1 with its sd, and the held-out ROP error left over
+RIG = """model: drill
+preset: lab
+parameters: {K1: 5.2e8}
+uncertainty: {K1: 2.0e7}
+model_error: {rop_rel: 0.04, noise_floor_rel: 0.01, basis: "held-out ROP of 3 runs"}
+"""
+SPACE = ["--vary", "frequency_hz=200:350", "--vary", "amplitude_n=2000:2700", "--vary", "static_force_n=1500:1800"]
+
+
+def test_optimise_on_a_rig_states_the_spread_from_one_field(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("VIBRO_HOME", str(tmp_path))
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(RIG)
+    out = tmp_path / "o"
+    rc = cli_main(["optimise", "--simulator", "--rig", str(rig), *SPACE, "--n-trials", "24", "--n-verify", "2",
+                   "--storage", f"sqlite:///{tmp_path / 'optuna.db'}", "--out", str(out), "--no-mlflow", "--quiet"])
+    assert rc == 0
+    rep = json.loads((out / "report.json").read_text())
+    s, rec = rep["spread"], rep["recommendation"]
+    assert list(rep).index("spread") == list(rep).index("outcome") + 1
+    # the nominal is the recommended point re-simulated on the same rig: the verified ROP, to the simulator's rounding
+    assert math.isclose(s["nominal_rop_m_s"], rec["rop_m_s_sim"], rel_tol=1e-9)
+    assert s["n_samples"] == 32 and s["sampled"] == ["K1"]
+    assert s["p5_rop_m_s"] <= s["median_rop_m_s"] <= s["p95_rop_m_s"]
+    # b = 1.645 · e · ROP (robustness.combined_half_widths) with e the rig file's rop_rel
+    assert math.isclose(s["model_error_half_width_m_s"], 1.6448536269514722 * 0.04 * s["nominal_rop_m_s"])
+    assert math.isclose(s["combined_half_width_m_s"], math.hypot(s["parameter_half_width_m_s"],
+                                                                 s["model_error_half_width_m_s"]))
+    assert rep["metrics"]["spread_simulations"] == 33
+    printed = capsys.readouterr().out
+    md = (out / "report.md").read_text()
+    words = f"combined ±{s['combined_half_width_m_s'] * 1e3:.3g} mm/s"
+    assert "how sure:" in printed and words in printed and words in md
+
+
+def test_optimise_without_a_rig_has_no_spread(tmp_path, monkeypatch):
+    monkeypatch.setenv("VIBRO_HOME", str(tmp_path))
+    out = tmp_path / "o"
+    rc = cli_main(["optimise", "--simulator", "--model", "drill", "--preset", "lab", *SPACE, "--n-trials", "8",
+                   "--n-verify", "1", "--storage", f"sqlite:///{tmp_path / 'optuna.db'}", "--out", str(out),
+                   "--no-mlflow", "--quiet"])
+    assert rc == 0
+    assert "spread" not in json.loads((out / "report.json").read_text())
