@@ -32,10 +32,10 @@ kernels-jit: install
 	@$(BIN)/vibro compile --jit-only --quiet || echo "    (kernels not precompiled: the tests compile them on first use)"
 
 test: kernels-jit
-	$(BIN)/python -m pytest -q -n 2 --dist loadgroup
+	$(BIN)/python -m pytest -q -n 2 --dist loadgroup --durations=15
 
 test-all: kernels-jit
-	$(BIN)/python -m pytest -q -n 2 --dist loadgroup -m "slow or not slow"
+	$(BIN)/python -m pytest -q -n 2 --dist loadgroup --durations=25 -m "slow or not slow"
 
 bench: install
 	$(BIN)/python -m pip install --quiet heyoka==7.13.2 CyRK==0.20.0 || true   # the bench extra by name: keeps the editable install

@@ -24,6 +24,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).resolve().parent / "results"
 WORK = RESULTS / "identification"
@@ -44,15 +46,34 @@ def cases(system: str) -> list[str]:
     return ["control", *(f"outside:{o}" for o in rig.outside), *rig.effects]
 
 
-def spec_of(system: str, case: str, noise: str, seed: int, n_runs: int | None = None):
-    """The log of one case; ``n_runs``: the first n runs spread over the rig's grid (None: the whole grid)."""
-    from tests.independent.generator import LogSpec
+def pair_of(case: str) -> tuple[str, str] | None:
+    """``pair:a+b`` -> (a, b): two §6 effects at once, a as the log's effect and b's parameters on top."""
+    return tuple(case.split(":", 1)[1].split("+", 1)) if case.startswith("pair:") else None
 
+
+def spec_of(system: str, case: str, noise: str, seed: int, n_runs: int | None = None, chain: str | None = None):
+    """The log of one case; ``n_runs``: the first n runs spread over the rig's grid (None: the whole grid);
+    ``chain``: a named DAQ chain of the generator (``tests.independent.daq.DAQ_CHAINS``), None: none."""
+    from tests.independent.daq import DAQ_CHAINS
+    from tests.independent.generator import LogSpec
+    from tests.independent.rigs import RIGS
+
+    daq = None if chain is None else DAQ_CHAINS[chain]
     if case == "control":
-        return LogSpec(system, noise=noise, seed=seed, n_runs=n_runs)
+        return LogSpec(system, noise=noise, seed=seed, n_runs=n_runs, daq=daq)
     if case.startswith("outside:"):
-        return LogSpec(system, outside=case.split(":", 1)[1], noise=noise, seed=seed, n_runs=n_runs)
-    return LogSpec(system, effect=case, noise=noise, seed=seed, n_runs=n_runs)
+        return LogSpec(system, outside=case.split(":", 1)[1], noise=noise, seed=seed, n_runs=n_runs, daq=daq)
+    pair = pair_of(case)
+    if pair:
+        return LogSpec(system, effect=pair[0], overrides=dict(RIGS[system].effects[pair[1]]), noise=noise, seed=seed,
+                       n_runs=n_runs, daq=daq)
+    return LogSpec(system, effect=case, noise=noise, seed=seed, n_runs=n_runs, daq=daq)
+
+
+def log_name(spec, case: str) -> str:
+    """The log's name: the spec's, with both effects of a pair (``drill-shaker_coil+guide_friction-rig-...``)."""
+    pair = pair_of(case)
+    return spec.name.replace(f"-{pair[0]}-", f"-{pair[0]}+{pair[1]}-", 1) if pair else spec.name
 
 
 def expected(case: str) -> str:
@@ -60,30 +81,17 @@ def expected(case: str) -> str:
 
 
 def run_case(system: str, case: str, noise: str, seed: int, threads: int, settings: dict | None = None,
-             n_runs: int | None = None) -> dict:
+             n_runs: int | None = None, chain: str | None = None) -> dict:
     """Generate (or reuse) the log and diagnose it; the row of the matrix with every statistic of the verdict."""
-    from tests.independent.generator import generate
-
-    spec = spec_of(system, case, noise, seed, n_runs)
-    data = WORK / "logs" / spec.name
-    truth_file = WORK / "logs" / f"{spec.name}.truth.json"
-    if not truth_file.exists():
-        if data.exists():
-            import shutil
-
-            shutil.rmtree(data)
-        t0 = time.time()
-        generate(spec, data, truth_file, threads=threads)
-        gen_s = time.time() - t0
-    else:
-        gen_s = None
-    info = json.loads(truth_file.read_text())
+    spec = spec_of(system, case, noise, seed, n_runs, chain)
+    name = log_name(spec, case)
+    data, info, gen_s = _log(spec, name, threads)
     from pipeline.datasets.measured import load_dataset
     from pipeline.diagnosis.outputs import diagnose_into
     from pipeline.diagnosis.run import DiagnoseConfig
 
     ds = load_dataset(data)
-    out = WORK / "diagnoses" / spec.name
+    out = WORK / "diagnoses" / name
     if out.exists():
         import shutil
 
@@ -93,16 +101,12 @@ def run_case(system: str, case: str, noise: str, seed: int, threads: int, settin
     wall, cpu = time.time() - t0, time.process_time() - c0
     r = rep["systems"][system]
     truth = info["truth"]
-    fitted, errors = {}, {}
-    effect = case if expected(case) == "selected" else None
-    if effect and r["selected"] == effect:
-        sel = next(c for c in r["candidates"] if c["effect"] == effect)
-        fitted = sel["params"]
-        errors = {k: fitted[k] / truth[k] - 1.0 for k in fitted if k in truth}
-    base_err = {k: r["calibrated"][k] / truth[k] - 1.0 for k in info["calibratable"] if k in truth}
     verdict = r["verdict"]
-    correct = (verdict == expected(case)) and (effect is None or r["selected"] == effect)
-    return {"system": system, "case": case, "noise": noise, "seed": seed, "name": spec.name,
+    fitted, right_effects = _selected_fit(r, case)
+    errors = {k: fitted[k] / truth[k] - 1.0 for k in fitted if k in truth}
+    base_err = {k: r["calibrated"][k] / truth[k] - 1.0 for k in info["calibratable"] if k in truth}
+    correct = (verdict == expected(case)) and right_effects
+    return {"system": system, "case": case, "noise": noise, "seed": seed, "name": name, "chain": chain,
             "expected": expected(case), "verdict": verdict, "selected": r["selected"], "leader": r["leader"],
             "correct": bool(correct), "truth": {k: truth[k] for k in truth if k not in info["calibratable"]},
             "fitted": fitted, "param_errors": errors, "base_param_errors": base_err,
@@ -110,9 +114,59 @@ def run_case(system: str, case: str, noise: str, seed: int, threads: int, settin
             "base_nrms": r["base_nrms"], "final_nrms": r["final_nrms"], "base_systematic": r["base_systematic"],
             "final_systematic": r["final_systematic"], "base_error": r["base_error"], "final_error": r["final_error"],
             "noise_floor": r["noise_floor"], "n_simulations": r["n_simulations"], "n_runs": r["n_runs"],
-            "heldout_n": r["heldout_n"],
+            "heldout_n": r["heldout_n"], **chain_errors(r.get("recording") or {}, info, data),
             "wall_time_s": round(wall, 1), "cpu_time_s": round(cpu, 1),
             "generate_s": None if gen_s is None else round(gen_s, 1)}
+
+
+def _log(spec, name: str, threads: int) -> tuple[Path, dict, float | None]:
+    """The log's folder, its truth and the seconds generating it took (None: generated before, reused)."""
+    from tests.independent.generator import generate
+
+    data = WORK / "logs" / name
+    truth_file = WORK / "logs" / f"{name}.truth.json"
+    gen_s = None
+    if not truth_file.exists():
+        if data.exists():
+            import shutil
+
+            shutil.rmtree(data)
+        t0 = time.time()
+        generate(spec, data, truth_file, threads=threads)
+        gen_s = time.time() - t0
+    return data, json.loads(truth_file.read_text()), gen_s
+
+
+def _selected_fit(r: dict, case: str) -> tuple[dict, bool]:
+    """(the fitted parameters of the case's true effect(s) when selected, whether the right effect(s) were)."""
+    pair = pair_of(case)
+    if pair:
+        if sorted(r.get("selected_effects") or []) != sorted(pair):
+            return {}, False
+        return dict(r["second_effect"]["candidates"][0]["params"]), True
+    effect = case if expected(case) == "selected" else None
+    if effect and r["selected"] == effect:
+        return dict(next(c for c in r["candidates"] if c["effect"] == effect)["params"]), True
+    return {}, effect is None
+
+
+def chain_errors(recording: dict, info: dict, data: Path) -> dict:
+    """An estimated (undeclared) chain against the truth: the largest delay error [µs] over channels and rates (the
+    truth: the filter's DC delay at that rate, 0 where compensated) and the clock's error [ppm]; {} when none."""
+    est = recording.get("estimated")
+    runs = (info.get("daq") or {}).get("runs") or {}
+    if not est or not runs:
+        return {}
+    true_delay: dict[float, float] = {}
+    for run_id, d in runs.items():
+        t = np.loadtxt(data / "series" / f"{run_id}.csv", delimiter=",", skiprows=1, usecols=0, max_rows=2)
+        fs = round(1.0 / float(t[1] - t[0]), 3)
+        true_delay[fs] = 0.0 if d.get("compensated") else float(d.get("dc_delay_s", 0.0))
+    errs = [abs(x["value_s"] - true_delay[round(float(x["fs_hz"]), 3)]) * 1e6 for x in est["delays"]
+            if round(float(x["fs_hz"]), 3) in true_delay]
+    clock = next(iter(runs.values())).get("clock_ppm", 0.0)
+    return {"delay_error_us": max(errs) if errs else None,
+            "clock_error_ppm": abs(float(est["clock_ppm"]["value"]) - float(clock))}
 
 
 def replay(rows: list[dict], rule) -> list[dict]:
@@ -244,7 +298,7 @@ def main(argv: list[str] | None = None) -> int:
     todo = [(s, c, n, seed) for seed in a.seeds for c, s in _interleaved(a.systems, a.cases) for n in a.noise]
     rows = []
     for k, (s, c, n, seed) in enumerate(todo, 1):
-        name = spec_of(s, c, n, seed, a.n_runs).name
+        name = log_name(spec_of(s, c, n, seed, a.n_runs), c)
         if name in done and not a.replay:
             rows.append(done[name])
             continue

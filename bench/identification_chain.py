@@ -1,0 +1,124 @@
+"""The identification matrix with the data-acquisition chain: the same verdicts on logs recorded through a DAQ.
+
+Each case of ``bench.identification`` (a control, §6 effects, pairs of effects, physics outside the library) is
+written by the independent generator through a named chain of ``tests.independent.daq.DAQ_CHAINS`` and diagnosed:
+
+    off             no chain (the lab-grade log)
+    compensated     8th-order Butterworth at 0.45 fs, declared in runs.csv, delay removed by the DAQ  (butter8-comp)
+    uncompensated   the same, declared, its delay left in the data                                    (butter8)
+    undeclared      the same with a 50 ppm clock, nothing declared: diagnosed with estimate_chain     (butter8-undeclared)
+    saturated       the accelerometer clipped at 80 % of its record's peak                            (clip80)
+
+    python -m bench.identification_chain                                   # the drill subset below, seed 0
+    python -m bench.identification_chain --systems drill indenter-metal --seeds 0 1
+    python -m bench.identification_chain --cases control shaker_coil --chains off undeclared
+
+Rows are kept in bench/results/identification/rows_chain.json (an interrupted run resumes; ``--fresh`` starts
+over) and the tables go to docs/identification.md between its chain-table markers, with the machine's load.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+from bench.identification import DOC, WORK, _fmt, expected, log_name, run_case, spec_of
+
+CHAINS = {"off": None, "compensated": "butter8-comp", "uncompensated": "butter8", "undeclared": "butter8-undeclared",
+          "saturated": "clip80"}
+"""Column of the matrix -> the generator's named chain."""
+CASES = {"drill": ["control", "shaker_coil", "guide_friction", "rate_stiffening", "pair:shaker_coil+guide_friction",
+                   "pair:rate_stiffening+suspension_hardening", "outside:quadratic_damping"]}
+"""The default cases per system: the control, §6 effects, two pairs and an outside kind."""
+START, END = "<!-- identification-chain:start -->", "<!-- identification-chain:end -->"
+DELAY_TOL_US, CLOCK_TOL_PPM = 5.0, 5.0
+
+
+def settings_of(column: str) -> dict:
+    """Diagnose settings of a column: an undeclared chain is estimated (opt-in, docs/diagnose.md)."""
+    return {"estimate_chain": True} if column == "undeclared" else {}
+
+
+def table(rows: list[dict]) -> str:
+    """Per system and chain column: right / total, by kind of case, the chain estimate's errors; then every log."""
+    lines = ["| system | chain | right | controls 'nothing missing' | effects selected | pairs: both named | "
+             f"outside 'unexplained' | delay error ≤ {DELAY_TOL_US:g} µs | clock error ≤ {CLOCK_TOL_PPM:g} ppm |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for system, col in sorted({(r["system"], r["column"]) for r in rows}, key=lambda k: (k[0], list(CHAINS).index(k[1]))):
+        rs = [r for r in rows if r["system"] == system and r["column"] == col]
+
+        def frac(sel):
+            xs = [r for r in rs if sel(r)]
+            return f"{sum(r['correct'] for r in xs)}/{len(xs)}" if xs else "—"
+
+        def within(key, tol):
+            xs = [r[key] for r in rs if r.get(key) is not None]
+            return f"{sum(x <= tol for x in xs)}/{len(xs)} (max {max(xs):.3g})" if xs else "—"
+        lines.append(f"| {system} | {col} | {frac(lambda r: True)} | {frac(lambda r: r['expected'] == 'nothing missing')}"
+                     f" | {frac(lambda r: r['expected'] == 'selected' and not r['case'].startswith('pair:'))}"
+                     f" | {frac(lambda r: r['case'].startswith('pair:'))}"
+                     f" | {frac(lambda r: r['expected'] == 'unexplained')}"
+                     f" | {within('delay_error_us', DELAY_TOL_US)} | {within('clock_error_ppm', CLOCK_TOL_PPM)} |")
+    right = sum(r["correct"] for r in rows)
+    lines += [f"| **all** | | **{right}/{len(rows)}** | | | | | | |", "",
+              "| log | chain | verdict | selected | nrms base → final | noise floor | diagnosis wall (CPU) |",
+              "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        sel = r["selected"] or (f"({r['leader']})" if r["leader"] else "—")
+        lines.append(f"| {r['name']} | {r['column']} | {r['verdict']} {'✓' if r['correct'] else '✗'} | {sel} | "
+                     f"{_fmt(r['base_nrms'])} → {_fmt(r['final_nrms'])} | {_fmt(r['noise_floor'])} | "
+                     f"{r['wall_time_s']:.0f} s ({r['cpu_time_s']:.0f} s) |")
+    return "\n".join(lines)
+
+
+def _todo(a) -> list[tuple[str, str, str, int]]:
+    """(system, case, column, seed), one case of each column in turn, so a partial run covers every column."""
+    return [(s, c, col, seed) for seed in a.seeds for s in a.systems for c in (a.cases or CASES.get(s, ["control"]))
+            for col in a.chains]
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--systems", nargs="+", default=["drill"])
+    p.add_argument("--cases", nargs="+", help="control, §6 effect names, pair:a+b, outside:<name>")
+    p.add_argument("--chains", nargs="+", default=list(CHAINS), choices=list(CHAINS))
+    p.add_argument("--noise", default="rig")
+    p.add_argument("--seeds", nargs="+", type=int, default=[0])
+    p.add_argument("--n-runs", type=int, default=8)
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--fresh", action="store_true", help="diagnose every case again (the logs are kept)")
+    p.add_argument("--no-doc", action="store_true", help="do not rewrite docs/identification.md")
+    p.add_argument("--stored", action="store_true", help="tables of the logs already diagnosed only (diagnose none)")
+    a = p.parse_args(argv)
+    WORK.mkdir(parents=True, exist_ok=True)
+    done_file = WORK / "rows_chain.json"
+    done = {r["name"]: r for r in json.loads(done_file.read_text())} if done_file.exists() and not a.fresh else {}
+    todo = _todo(a)
+    rows = []
+    for k, (s, c, col, seed) in enumerate(todo, 1):
+        name = log_name(spec_of(s, c, a.noise, seed, a.n_runs, CHAINS[col]), c)
+        if name not in done and a.stored:
+            continue
+        if name not in done:
+            r = run_case(s, c, a.noise, seed, a.threads, settings_of(col), a.n_runs, CHAINS[col])
+            done[name] = {**r, "column": col}
+            done_file.write_text(json.dumps(list(done.values()), indent=1, default=float))
+            print(f"[{k}/{len(todo)}] {name}: {r['verdict']} {'✓' if r['correct'] else '✗'} (selected {r['selected']},"
+                  f" nrms {_fmt(r['base_nrms'])} -> {_fmt(r['final_nrms'])}, {r['wall_time_s']:.0f} s)", flush=True)
+        rows.append(done[name])
+    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    text = table(rows) + f"\n\nLoad average at the end (1, 5, 15 min): {load}; {len(rows)} logs, noise '{a.noise}'."
+    print(text)
+    if not a.no_doc:
+        from bench import write_block
+
+        write_block(DOC, START, END, text)
+    print(json.dumps({"rows": len(rows), "right": sum(r["correct"] for r in rows),
+                      "expected": {e: sum(r["expected"] == e for r in rows) for e in set(map(expected, CASES["drill"]))}}),
+          file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
