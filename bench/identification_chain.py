@@ -89,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--fresh", action="store_true", help="diagnose every case again (the logs are kept)")
     p.add_argument("--no-doc", action="store_true", help="do not rewrite docs/identification.md")
-    p.add_argument("--stored", action="store_true", help="tables of the logs already diagnosed only (diagnose none)")
+    p.add_argument("--tables-only", action="store_true", help="write the tables from the stored rows, diagnose nothing")
     a = p.parse_args(argv)
     WORK.mkdir(parents=True, exist_ok=True)
     done_file = WORK / "rows_chain.json"
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for k, (s, c, col, seed) in enumerate(todo, 1):
         name = log_name(spec_of(s, c, a.noise, seed, a.n_runs, CHAINS[col]), c)
-        if name not in done and a.stored:
+        if name not in done and a.tables_only:
             continue
         if name not in done:
             r = run_case(s, c, a.noise, seed, a.threads, settings_of(col), a.n_runs, CHAINS[col])
