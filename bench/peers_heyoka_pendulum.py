@@ -37,7 +37,7 @@ COOLDOWN_S = 1e-9      # [s] terminal-event cooldown (see bench.peers_heyoka.COO
 NPARS = 16
 
 
-def pendulum_values(params: dict) -> dict:
+def values(params: dict) -> dict:
     """The pendulum parameters the peer needs, as floats (``params`` = a complete resolved dict)."""
     on = [k for k, v in params.items() if k not in PENDULUM_PARAMS + INFORMATIONAL and float(v) != 0.0]
     if on:
@@ -167,7 +167,7 @@ def build(tol: float | None = None, compact_mode: bool = False, cooldown: float 
 
 
 def run_point(ta, p: dict, transient: int, window: int) -> dict:
-    """Labels of one point (``p`` from :func:`pendulum_values`) with the compiled integrator ``ta``: from rest
+    """Labels of one point (``p`` from :func:`values`) with the compiled integrator ``ta``: from rest
     (θ = θ̇ = 0), ``transient`` cycles, then ``window`` recorded cycles."""
     T = 1.0 / p["frequency_hz"]
     pars = np.zeros(NPARS)

@@ -26,7 +26,7 @@ def test_pendulum_peer_matches_the_reference():
     params = _params()                      # gap 0, 3.75 Hz: one impact per cycle (z = 1/1)
     ref = reference_run("pendulum", params, 20, 5, method="DOP853", rtol=1e-10)
     ta, _ = peer.build(1e-10)
-    got = peer.run_point(ta, peer.pendulum_values(params), 20, 5)
+    got = peer.run_point(ta, peer.values(params), 20, 5)
     assert got["impacts_per_cycle"] == ref["impacts_per_cycle"] == 1.0
     assert label_error(got, ref, "pendulum") <= TOL
     assert got["energy_per_cycle_j"] == pytest.approx(ref["energy_per_cycle_j"], rel=TOL)
@@ -34,4 +34,4 @@ def test_pendulum_peer_matches_the_reference():
 
 def test_pendulum_peer_refuses_an_effect():
     with pytest.raises(ValueError, match="alpha"):
-        peer.pendulum_values(_params(alpha=1.0))
+        peer.values(_params(alpha=1.0))
