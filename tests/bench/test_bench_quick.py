@@ -182,5 +182,8 @@ def test_merge_puts_the_rerun_points_in_place_and_names_them():
     assert "0.6-0.6 during the points" in md                       # the full run's own points only
     assert "pendulum `default` were re-measured" in md and "--models pendulum --merge --reps 5" in md
     assert "3.0 at its start, 3.2-3.2 during its points" in md
+    again = bp.table(bp.merged(res, {**sub, "points": [point("rimd", 2.5, 4.0)]}, ("rimd",)))   # a second re-run
+    assert "pendulum `default` were re-measured" in again and "rimd `default` were re-measured" in again
+    assert "every point re-run (below)" in again                   # no full-run point left
     with pytest.raises(ValueError, match="merge"):
         bp.main(quick=True, models=("pendulum",), merge=True)
