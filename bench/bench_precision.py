@@ -21,14 +21,15 @@ default rtol 1e-7, for the lean-kernel ratio); on the drill the
 peers: scipy RK45 / DOP853 in a plain ``solve_ivp`` loop as a user writes it (``bench/peers_scipy.py``), CyRK
 ``pysolve_ivp`` (``bench/peers_cyrk.py``) and heyoka.py (``bench/peers_heyoka.py``, tol 1e-6 ... 1e-11);
 on the other models scipy RK45 (rtol 1e-6, 1e-8) and DOP853 (rtol 1e-8) through the reference harness (no
-plain-loop peer written for them).  A full run also measures 1- vs 2-worker scaling of ``simulate_batch``
+plain-loop peer written for them), and on the pendulum heyoka.py too (``bench/peers_heyoka_pendulum.py``, tol 1e-6
+... 1e-11; ``HEYOKA_PEERS``).  A full run also measures 1- vs 2-worker scaling of ``simulate_batch``
 and of ``vibro sweep`` (:mod:`bench.scaling`), and the CPU of one warm ``vibro simulate drill --preset lab`` and of
 ``vibro --help`` (:mod:`bench.startup`).  Writes ``results/precision.json`` (``--quick``:
 ``precision_quick.json``) and the table ``results/precision.md`` (summary per error level, the x10 line,
 every method, the scaling, the start-up); a full run (or ``--write-readme``) copies that table into the marked blocks of
 docs/speed.md and bench/README.md, so the figures quoted there are always this run's.
 
-Run: ``python -m bench.bench_precision [--quick] [--models drill,...] [--scaling] [--write-readme] [--reps N]``.  Not a test: nothing asserts a timing.
+Run: ``python -m bench.bench_precision [--quick] [--models drill,...] [--merge] [--scaling] [--write-readme] [--reps N]``.  Not a test: nothing asserts a timing.
 """
 from __future__ import annotations
 
@@ -60,11 +61,14 @@ RTOLS = (1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11)
 SCIPY = (("RK45", 1e-6), ("RK45", 1e-8), ("DOP853", 1e-8))   # (method, rtol) through the reference harness
 SCIPY_PLAIN = (("RK45", 1e-6), ("RK45", 1e-8), ("DOP853", 1e-8), ("DOP853", 1e-10))   # drill: plain solve_ivp loop
 CYRK = (("RK45", 1e-6), ("RK45", 1e-8), ("DOP853", 1e-8), ("DOP853", 1e-10))          # drill: CyRK pysolve_ivp
+HEYOKA_PEERS = {"drill": "bench.peers_heyoka", "pendulum": "bench.peers_heyoka_pendulum"}
+"""model -> module of its heyoka.py peer (``values(params)``, ``build(tol)``, ``run_point(ta, values, N, W)``)."""
 BASELINE = "baseline"      # method-name prefix of the old kernel (bench/baseline.py); neither simulator nor peer
 DEFAULT_RTOL = 1e-7        # sim.Settings().rtol, the tolerance of the lean-kernel ratio;
                            # tests/bench/test_bench_quick.py checks the two agree
 BASELINE_RTOLS = (DEFAULT_RTOL, 1e-8, 1e-10, 1e-11, 1e-12)   # drill; the other models: DEFAULT_RTOL only
-TARGETS = (1e-6, 1e-8, 1e-10)   # label-error levels of the summary (fastest simulator method vs fastest peer)
+TARGETS = (1e-6, 1e-8, 1e-9, 1e-10)   # label-error levels of the summary (fastest simulator method vs fastest peer);
+                                      # 1e-9 = REF_FLOOR: the finest level the reference resolves on every model
 HOT_BELOW_S = 0.1         # methods faster than this are timed right after an untimed call of themselves: in the
                           # interleaved loop the old kernel's worker process otherwise starts every call with caches
                           # the methods before it (seconds of scipy) evicted, while the simulator's rtol rows follow
@@ -121,6 +125,7 @@ def _methods(model: str, preset, n: int, w: int, quick: bool) -> dict:
             for meth, r in SCIPY:
                 out[f"scipy {meth} rtol {r:.0e} (harness)"] = (lambda meth=meth, r=r: reference_run(
                     model, params, n, w, method=meth, rtol=r, event_subdivisions=1))
+        out.update(_heyoka_methods(model, params, n, w, quick))
         return out
     p = drill_values(params)
     from bench import peers_scipy
@@ -133,8 +138,21 @@ def _methods(model: str, preset, n: int, w: int, quick: bool) -> dict:
             out[f"CyRK {meth} rtol {r:.0e}"] = lambda meth=meth, r=r: C.run_point(p, n, w, meth, r)
     except Exception as e:  # noqa: BLE001 -- an optional peer that is missing is reported, not fatal
         out["CyRK"] = f"unavailable ({type(e).__name__}: {e})"
+    out.update(_heyoka_methods(model, params, n, w, quick))
+    return out
+
+
+def _heyoka_methods(model: str, params: dict, n: int, w: int, quick: bool) -> dict:
+    """The model's heyoka peer (``HEYOKA_PEERS``) at each tol: name -> callable, or "heyoka" -> why it is
+    unavailable; {} for a model without one."""
+    import importlib
+
+    if model not in HEYOKA_PEERS:
+        return {}
+    out = {}
     try:
-        from bench import peers_heyoka as H
+        H = importlib.import_module(HEYOKA_PEERS[model])
+        p = H.values(params)
         for tol in ((1e-6, 1e-10) if quick else RTOLS):
             ta, _ = H.build(tol)
             out[f"heyoka tol {tol:.0e}"] = (lambda ta=ta: H.run_point(ta, p, n, w))
@@ -249,10 +267,12 @@ def summary(res: dict) -> list[dict]:
             sim_ = min((r for r in ok if r["method"].startswith("sim ")), key=lambda r: r["cpu_s"], default=None)
             peer = min((r for r in ok if not r["method"].startswith(("sim ", BASELINE))), key=lambda r: r["cpu_s"],
                        default=None)
+            scipy = min((r for r in ok if r["method"].startswith("scipy ")), key=lambda r: r["cpu_s"], default=None)
             out.append({"model": pt["model"], "point": pt["point"], "target": tgt,
                         "sim": sim_ and sim_["method"], "sim_cpu_s": sim_ and sim_["cpu_s"],
                         "peer": peer and peer["method"], "peer_cpu_s": peer and peer["cpu_s"],
-                        "peer_over_sim": (peer["cpu_s"] / sim_["cpu_s"]) if sim_ and peer else None})
+                        "peer_over_sim": (peer["cpu_s"] / sim_["cpu_s"]) if sim_ and peer else None,
+                        "scipy_over_sim": (scipy["cpu_s"] / sim_["cpu_s"]) if sim_ and scipy else None})
     return out
 
 
@@ -309,11 +329,40 @@ def _fmt_err(e: float) -> str:
     return f"<= {REF_FLOOR:.0e}" if e <= REF_FLOOR else f"{e:.1e}"
 
 
+def _loads(points: list[dict]) -> str:
+    loads = [pt["load_avg_before"][0] for pt in points] + [pt["load_avg_after"][0] for pt in points]
+    return f"{min(loads, default=0):.1f}-{max(loads, default=0):.1f}"
+
+
+def _rerun(res: dict) -> list[list[str]]:
+    """[model, point] of every point a ``--merge`` run re-measured."""
+    return [pt for mg in res.get("merged", []) for pt in mg["points"]]
+
+
+def _merge_notes(res: dict) -> list[str]:
+    """One paragraph per ``--merge`` run: which points it re-measured, and how (a later one's points win)."""
+    return [line for mg in res.get("merged", []) for line in _merge_note(res, mg)]
+
+
+def _merge_note(res: dict, mg: dict) -> list[str]:
+    rm = mg["machine"]
+    keys = {(m, p) for m, p in mg["points"]}
+    pts = [pt for pt in res["points"] if (pt["model"], pt["point"]) in keys]
+    names = ", ".join(f"{m} `{p}`" for m, p in mg["points"])
+    return [f"**Re-run points**: {names} were re-measured on {mg['date']} by `python -m bench.bench_precision "
+            f"--models {','.join(mg['models'])} --merge --reps {mg['repetitions']}` ({mg['repetitions']} interleaved "
+            f"repetitions, same protocol, simulator on {rm.get('sim_kernel', 'numba JIT kernels')}, load average "
+            f"{rm['load_avg_at_start'][0]:.1f} at its start, {_loads(pts)} during its points, heyoka "
+            f"{rm.get('heyoka', '?')}); their rows replace the full run's (the line above describes that run, and with "
+            f"it every point not re-run, the scaling and the start-up).", ""]
+
+
 def table(res: dict) -> str:
     """Markdown: the summary (fastest simulator method vs fastest peer per error level), the ×10 line, the
     full work-precision table (every method's CPU and wall median and label error) and the 1-/2-worker scaling."""
     m = res["machine"]
-    loads = [pt["load_avg_before"][0] for pt in res["points"]] + [pt["load_avg_after"][0] for pt in res["points"]]
+    rerun = _rerun(res)
+    base = [pt for pt in res["points"] if [pt["model"], pt["point"]] not in rerun]
     flags = (" --quick" if res.get("quick") else "") + (f" --reps {res['repetitions']}" if res["repetitions"] != 3 else "")
     lines = [f"Generated by `python -m bench.bench_precision{flags}` "
              f"on {m.get('cpu', '?')} ({m.get('cpus')} cores), {res['repetitions']} interleaved repetitions, "
@@ -323,18 +372,20 @@ def table(res: dict) -> str:
                 if m.get("pinned_cpu") is not None else "unpinned; ")
              + f"simulator on {m.get('sim_kernel', 'numba JIT kernels')}; "
              f"load average {m['load_avg_at_start'][0]:.1f} at the start, "
-             f"{min(loads, default=0):.1f}-{max(loads, default=0):.1f} during the points.  "
+             f"{f'{_loads(base)} during the points' if base else 'every point re-run (below)'}.  "
              f"Label error vs DOP853 rtol 1e-10 (its own accuracy ~{REF_FLOOR:.0e}); on the drill also vs the "
-             f"exact propagator (resolves ~1e-12).", "",
+             f"exact propagator (resolves ~1e-12).", "", *_merge_notes(res),
              "**Fastest method reaching a label error** (drill: error vs the exact propagator; other models: vs the "
-             "reference, so 1e-10 is not resolvable there):", "",
-             "| model | point | error <= | fastest simulator method | CPU ms | fastest peer | CPU ms | peer / simulator |",
-             "|---|---|---|---|---|---|---|---|"]
+             "reference, so 1e-9, its own accuracy, is the finest level there):", "",
+             "| model | point | error <= | fastest simulator method | CPU ms | fastest peer | CPU ms | peer / simulator "
+             "| fastest scipy / simulator |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for s in summary(res):
         sim_ = f"{s['sim']} | {s['sim_cpu_s'] * 1e3:.2f}" if s["sim"] else "none | -"
         peer = f"{s['peer']} | {s['peer_cpu_s'] * 1e3:.2f}" if s["peer"] else "none | -"
         ratio = f"{s['peer_over_sim']:.1f}" if s["peer_over_sim"] else "-"
-        lines.append(f"| {s['model']} | {s['point']} | {s['target']:.0e} | {sim_} | {peer} | {ratio} |")
+        sci = f"{s['scipy_over_sim']:.0f}" if s.get("scipy_over_sim") else "-"
+        lines.append(f"| {s['model']} | {s['point']} | {s['target']:.0e} | {sim_} | {peer} | {ratio} | {sci} |")
     for x in exact_vs_dopri5(res):
         base = (f"the kernel of the day the issue was filed needs {x['baseline']} (error vs exact "
                 f"{x['baseline_error_vs_exact']:.1e}) = {x['baseline_cpu_s'] * 1e3:.2f} ms: **×{x['ratio_vs_baseline']:.1f}**"
@@ -415,12 +466,16 @@ def sim_kernel_kind(models) -> str:
 
 
 def main(quick: bool = False, write_readme: bool | None = None, models: tuple[str, ...] | None = None,
-         scaling: bool | None = None, out_dir: Path | None = None, reps: int = 3) -> dict:
+         scaling: bool | None = None, out_dir: Path | None = None, reps: int = 3, merge: bool = False) -> dict:
     """Run, save to ``out_dir`` (default bench/results), and (by default for a full run, as under
     ``make bench``) rewrite the tables in docs/speed.md and bench/README.md.  ``scaling`` defaults to on for a
     full run.  A ``models`` subset is saved as ``precision_subset.json/.md`` and, unless asked, neither measures
-    the scaling nor touches the docs: the full run's figures stay where they are quoted."""
+    the scaling nor touches the docs: the full run's figures stay where they are quoted.  With ``merge`` the
+    subset's points also replace their namesakes in ``precision.json`` (the full run's) and the merged table is
+    written as ``precision.md`` (and into the docs with ``write_readme``), with a note naming the re-run points."""
     full = not quick and not models
+    if merge and (quick or not models):
+        raise ValueError("merge: re-run a --models subset at the full setting (not --quick) into precision.json")
     res = run(quick, models=models, reps=reps)
     res["quick"] = quick
     res["machine"]["sim_kernel"] = sim_kernel_kind(p["model"] for p in res["points"])
@@ -429,18 +484,40 @@ def main(quick: bool = False, write_readme: bool | None = None, models: tuple[st
         from bench.startup import startup
 
         res["startup"] = startup(reps=2 if quick else 5)
-    res["summary"] = summary(res)
-    res["exact_vs_dopri5"] = exact_vs_dopri5(res)
-    res["lean_vs_old"] = lean_vs_old(res)
     out_dir = Path(out_dir) if out_dir else RESULTS
     out_dir.mkdir(parents=True, exist_ok=True)
     stem = "precision_quick" if quick else ("precision" if full else "precision_subset")
-    (out_dir / f"{stem}.json").write_text(json.dumps(res, indent=1))
-    md = table(res)
-    (out_dir / f"{stem}.md").write_text(md)
+    md = _save(res, out_dir, stem)
+    if merge:
+        res = merged(json.loads((out_dir / "precision.json").read_text()), res, models)
+        md = _save(res, out_dir, "precision")
     if write_readme or (write_readme is None and full):
         print("table written into", ", ".join(write_readmes(md)) or "no file (markers missing)")
     return res
+
+
+def _save(res: dict, out_dir: Path, stem: str) -> str:
+    """Add the derived tables to ``res``, write ``stem``.json/.md into ``out_dir``; returns the markdown."""
+    res["summary"] = summary(res)
+    res["exact_vs_dopri5"] = exact_vs_dopri5(res)
+    res["lean_vs_old"] = lean_vs_old(res)
+    (out_dir / f"{stem}.json").write_text(json.dumps(res, indent=1))
+    md = table(res)
+    (out_dir / f"{stem}.md").write_text(md)
+    return md
+
+
+def merged(full: dict, sub: dict, models: tuple[str, ...]) -> dict:
+    """The full run ``full`` with the points of the subset run ``sub`` in place of its own (new points appended),
+    and a note of the re-run (``merged``: its models, points, date, repetitions and machine)."""
+    new = {(pt["model"], pt["point"]): pt for pt in sub["points"]}
+    new_keys = set(new)
+    pts = [new.pop((pt["model"], pt["point"]), pt) for pt in full["points"]] + list(new.values())
+    note = {"models": list(models), "points": [[pt["model"], pt["point"]] for pt in sub["points"]],
+            "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "repetitions": sub["repetitions"],
+            "machine": sub["machine"]}
+    earlier = [{**mg, "points": [q for q in mg["points"] if tuple(q) not in new_keys]} for mg in full.get("merged", [])]
+    return {**full, "points": pts, "merged": [mg for mg in earlier if mg["points"]] + [note]}
 
 
 if __name__ == "__main__":
@@ -454,9 +531,11 @@ if __name__ == "__main__":
     ap.add_argument("--no-write-readme", dest="write_readme", action="store_false",
                     help="leave the docs' tables alone (e.g. a --models subset)")
     ap.add_argument("--out-dir", type=Path, help="where precision.json/.md go (default bench/results)")
+    ap.add_argument("--merge", action="store_true", help="with --models: put the re-run points into the full "
+                    "run's results/precision.json/.md in place of theirs (a note in the table names them)")
     ap.add_argument("--reps", type=int, default=3, help="interleaved repetitions per method (default 3; medians)")
     a = ap.parse_args()
     if a.reps < 1:
         ap.error("--reps must be at least 1")
     main(a.quick, a.write_readme, tuple(m for m in a.models.split(",") if m) or None, a.scaling, out_dir=a.out_dir,
-         reps=a.reps)
+         reps=a.reps, merge=a.merge)

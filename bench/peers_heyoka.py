@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from bench import ETA_X, G_ACC, drill_classify
+from bench import ETA_X, G_ACC, drill_classify, drill_values as values  # noqa: F401 -- values: the peers' interface
 
 # runtime parameter layout
 (P_M1, P_M2, P_M3, P_K1, P_K2, P_K3, P_C1, P_C2, P_C3, P_PR, P_F0, P_FS, P_OM,

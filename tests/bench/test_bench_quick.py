@@ -164,3 +164,26 @@ def test_a_hybrid_propagator_is_a_simulator_method_with_its_own_lean_row():
     assert best[1e-6]["sim"] == "sim hybrid rtol 1e-09" and best[1e-6]["peer"] == "scipy DOP853 rtol 1e-08 (harness)"
     assert "| rimd | default | 2.70 (1.0e-05) | hybrid | 1.20 (1.4e-05) | ×2.25 |" in bp.table(
         {**res, "machine": {"load_avg_at_start": [0.0]}, "repetitions": 1})
+
+
+def test_merge_puts_the_rerun_points_in_place_and_names_them():
+    # a --models re-run replaces its points in the full run's results; the others, and the full run's own
+    # header figures, stay; the table says which points were re-run and how
+    def point(model, cpu_ms, load):
+        return {"model": model, "point": "default", "rows": [_row("sim dopri5 rtol 1e-07", cpu_ms, None)],
+                "load_avg_before": [load], "load_avg_after": [load], "unavailable": {}}
+
+    machine = {"load_avg_at_start": [0.5], "sim_kernel": "k"}
+    full = {"machine": machine, "repetitions": 7, "points": [point("pendulum", 1.0, 0.5), point("rimd", 2.0, 0.6)]}
+    sub = {"machine": {**machine, "load_avg_at_start": [3.0]}, "repetitions": 5, "points": [point("pendulum", 1.5, 3.2)]}
+    res = bp.merged(full, sub, ("pendulum",))
+    assert [(p["model"], p["rows"][0]["cpu_s"]) for p in res["points"]] == [("pendulum", 1.5e-3), ("rimd", 2e-3)]
+    md = bp.table(res)
+    assert "0.6-0.6 during the points" in md                       # the full run's own points only
+    assert "pendulum `default` were re-measured" in md and "--models pendulum --merge --reps 5" in md
+    assert "3.0 at its start, 3.2-3.2 during its points" in md
+    again = bp.table(bp.merged(res, {**sub, "points": [point("rimd", 2.5, 4.0)]}, ("rimd",)))   # a second re-run
+    assert "pendulum `default` were re-measured" in again and "rimd `default` were re-measured" in again
+    assert "every point re-run (below)" in again                   # no full-run point left
+    with pytest.raises(ValueError, match="merge"):
+        bp.main(quick=True, models=("pendulum",), merge=True)
