@@ -223,8 +223,8 @@ def run(args) -> int:
                           enabled=not args.no_mlflow, variant=Path(args.dataset).resolve().name) as mlflow:
             result = diagnose(ds, cfg, log=log, progress=bar, executor=executor)
             bar.close()
+            result = write_outputs(result, tmp)
             report = result.report
-            write_outputs(result, tmp)
             check_report(report)
             headline = _headline(report)
             if mlflow is not None:
@@ -240,6 +240,7 @@ def run(args) -> int:
         record_out_file(args.metrics, command="diagnose", kind="json")
     if not args.quiet:
         print("\n".join(summary_lines(report)))
+        print(cost_line(report["cost"]))
         print(f"report: {out / 'report.md'}" + (f"; headline numbers: {args.metrics}" if args.metrics else ""))
     return 0
 
@@ -330,6 +331,13 @@ def summary_lines(report: dict) -> list[str]:
             lines.append(f"  model error in the rig file: held-out ROP error {100 * err['rop_rel']:.3g} % (rms, "
                          f"relative" + ("" if floor is None else f"; noise floor {100 * floor:.3g} %") + ")")
     return lines
+
+
+def cost_line(cost: dict) -> str:
+    """One line of report.json ``cost``'s totals for the terminal (report.md has the table per stage)."""
+    t = cost["total"]
+    return (f"cost: {t['simulations']} simulations, {t['cpu_s']:.1f} s CPU, {t['wall_s']:.1f} s wall "
+            f"(load average {cost['load_avg'][0]:g}; per stage: report.md)")
 
 
 def _headline(report: dict) -> dict:

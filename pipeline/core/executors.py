@@ -81,6 +81,7 @@ class DaskExecutor:
     results gathered in the order submitted.  An exception (or Ctrl-C) cancels the batch's pending tasks."""
 
     task_threads: int | None = 1
+    runs_elsewhere = True       # tasks' CPU time is not this process's (pipeline.diagnosis.cost)
 
     def __init__(self, client, description: str = "dask") -> None:
         self.client = client

@@ -34,6 +34,10 @@ ENGINEERING: dict[str, tuple[str, str, float]] = {
     "force_n": ("contact force", "kN", 1e-3),
     "accel_m_s2": ("acceleration", "m/s²", 1.0),
     "peak_velocity_m_s": ("peak velocity", "m/s", 1.0),
+    # what a computation cost (a diagnosis's report.json 'cost')
+    "simulations": ("simulations", "", 1.0),
+    "cpu_s": ("CPU time", "s", 1.0),
+    "wall_s": ("wall time", "s", 1.0),
 }
 SUFFIXES = ("_sim", "_pred", "_predicted", "_lo", "_hi", "_verified")
 """Name suffixes kept after the label: ``rop_m_s_sim`` -> ``ROP (sim) [mm/s]``."""

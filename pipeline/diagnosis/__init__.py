@@ -13,4 +13,5 @@ report.py    residual structure, figures and report.md
 result.py    the typed results: SystemDiagnosis, SimulatedRuns, DiagnoseResult
 workflow.py  the whole dataset: every system diagnosed into a DiagnoseResult; writes nothing
 outputs.py   rig files, figures, report.json and report.md of a DiagnoseResult, written atomically
+cost.py      where the time goes: simulations, CPU and wall seconds per stage (report.json 'cost')
 """

@@ -39,12 +39,17 @@ class _Counted:
         return out, own.n_sims
 
 
-def _batch(executor: Executor, ev: Evaluator, shared: Evaluator, fn: Callable, items: list) -> list:
-    """``fn`` over ``items`` on the executor; the simulations counted on ``ev``."""
+def _batch(executor: Executor, ev: Evaluator, shared: Evaluator, fn: Callable, items: list,
+           labels: list[str] | None = None) -> list:
+    """``fn`` over ``items`` on the executor; the simulations counted on ``ev``, and each task's simulations, CPU and
+    wall seconds told to ``ev.cost`` under its label (the model it fits), where both are given."""
     if not items:
         return []
     done = executor.map(_Counted(fn), shared, items)
     ev.n_sims += sum(n for _, n in done)
+    if ev.cost is not None and labels is not None:
+        st, k = executor.stats, len(items)
+        ev.cost.tasks(labels, [n for _, n in done], st.cpu_s[-k:], st.wall_s[-k:])
     return [r for r, _ in done]
 
 
@@ -56,14 +61,17 @@ def _finish_task(ev: Evaluator, item: tuple[FitJob, list[StartFit]]) -> FitResul
     return finish_fit(ev, *item)
 
 
-def _fits(executor: Executor, ev: Evaluator, shared: Evaluator, jobs: list[FitJob]) -> list[FitResult]:
-    """Every start of every job as one batch, then every job's best start polished as another."""
+def _fits(executor: Executor, ev: Evaluator, shared: Evaluator, jobs: list[FitJob],
+          labels: list[str] | None = None) -> list[FitResult]:
+    """Every start of every job as one batch, then every job's best start polished as another (``labels``: the
+    model of each job, for the cost)."""
     pairs = [(j, k) for j, job in enumerate(jobs) for k in range(len(job.starts))]
-    ends = _batch(executor, ev, shared, _start_task, [(jobs[j], k) for j, k in pairs])
+    ends = _batch(executor, ev, shared, _start_task, [(jobs[j], k) for j, k in pairs],
+                  None if labels is None else [labels[j] for j, _ in pairs])
     per_job: list[list[StartFit]] = [[] for _ in jobs]
     for (j, _), end in zip(pairs, ends):
         per_job[j].append(end)
-    return _batch(executor, ev, shared, _finish_task, list(zip(jobs, per_job)))
+    return _batch(executor, ev, shared, _finish_task, list(zip(jobs, per_job)), labels)
 
 
 def random_starts(free: list[FreeParam], defaults: dict, n: int, rng) -> list[dict]:
@@ -118,7 +126,7 @@ def fit_models(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, cands
     nominal = [nominal_values(ev, idx) for idx in folds]
     base_jobs = [FitJob(idx, free, {}, [warm["base"].values] if warm else random_starts(free, d, cfg.n_starts, rng),
                         cfg.max_nfev, cfg.diff_step, coarse=not warm) for idx, d in zip(folds, nominal)]
-    outs = [{"base": b} for b in _fits(executor, ev, shared, base_jobs)]
+    outs = [{"base": b} for b in _fits(executor, ev, shared, base_jobs, ["base"] * len(base_jobs))]
     lines = [[f"  base: chi2/n = {o['base'].chi2 / o['base'].n:.4g}"] for o in outs]
     keys = [(f, eff) for f in range(len(folds)) for eff in cands]
     if warm:
@@ -127,13 +135,14 @@ def fit_models(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, cands
         #     fit may have compensated the missing effect with a base parameter, e.g. pm for mu)
         items = [(f, eff, (folds[f], b, cands[eff], free, cfg)) for f, eff in keys
                  for b in [outs[f]["base"].values, {p.name: nominal[f][p.name] for p in free}][:cfg.candidate_starts]]
-        found = _batch(executor, ev, shared, _candidate_start_task, [it for _, _, it in items])
+        found = _batch(executor, ev, shared, _candidate_start_task, [it for _, _, it in items],
+                       [eff for _, eff, _ in items])
         starts = {key: [] for key in keys}
         for (f, eff, _), s in zip(items, found):
             starts[(f, eff)].append(s)
     jobs = [FitJob(folds[f], free + list(cands[eff]), {}, starts[(f, eff)], cfg.max_nfev, cfg.diff_step,
                    coarse=not warm) for f, eff in keys]
-    for (f, eff), fr in zip(keys, _fits(executor, ev, shared, jobs)):
+    for (f, eff), fr in zip(keys, _fits(executor, ev, shared, jobs, [eff for _, eff in keys])):
         outs[f][eff] = fr
         lines[f].append(f"  {eff}: chi2/n = {fr.chi2 / fr.n:.4g}")
     _refit_base(executor, ev, shared, folds, cfg, free, outs, lines)
@@ -153,7 +162,7 @@ def _refit_base(executor: Executor, ev: Evaluator, shared: Evaluator, folds: lis
             continue
         start = {p.name: out[best].values[p.name] for p in free}
         todo.append((f, best, FitJob(folds[f], free, {}, [start], cfg.max_nfev + cfg.refine_nfev, cfg.diff_step)))
-    for (f, best, _), more in zip(todo, _fits(executor, ev, shared, [job for _, _, job in todo])):
+    for (f, best, _), more in zip(todo, _fits(executor, ev, shared, [job for _, _, job in todo], ["base"] * len(todo))):
         out = outs[f]
         if more.chi2 < out["base"].chi2:
             out["base"] = _extended(out["base"], more)
@@ -176,7 +185,8 @@ def _refine_leader(executor: Executor, ev: Evaluator, shared: Evaluator, folds: 
             continue
         todo.append((f, lead, FitJob(folds[f], free + list(cands[lead]), {}, [fr.values], cfg.refine_nfev,
                                      cfg.diff_step)))
-    for (f, lead, _), more in zip(todo, _fits(executor, ev, shared, [job for _, _, job in todo])):
+    for (f, lead, _), more in zip(todo, _fits(executor, ev, shared, [job for _, _, job in todo],
+                                              [lead for _, lead, _ in todo])):
         out = outs[f]
         if more.chi2 < out[lead].chi2:
             out[lead] = _extended(out[lead], more)
@@ -213,7 +223,7 @@ def fit_added(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, cands:
             nom = nominal_values(ev, folds[f])
             items.append((f, c, {**start_fits[f].values, **{p.name: nom[p.name] for p in calibratable(ev.system)}}))
     found_all = _batch(executor, ev, shared, _candidate_start_task,
-                       [(folds[f], b, cands[c], free, cfg) for f, c, b in items])
+                       [(folds[f], b, cands[c], free, cfg) for f, c, b in items], [c for _, c, _ in items])
     by_key: dict = {}
     for (f, c, _), s in zip(items, found_all):
         by_key.setdefault((f, c), []).append(s)
@@ -224,7 +234,7 @@ def fit_added(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, cands:
             starts.append({**start_fits[f].values, **extra_starts[c]})
         jobs.append(FitJob(folds[f], free + list(cands[c]), {}, starts, cfg.max_nfev + cfg.refine_nfev, cfg.diff_step))
     outs: list[dict[str, FitResult]] = [{} for _ in folds]
-    for (f, c), fr in zip(keys, _fits(executor, ev, shared, jobs)):
+    for (f, c), fr in zip(keys, _fits(executor, ev, shared, jobs, [c for _, c in keys])):
         outs[f][c] = fr
     return outs
 

@@ -128,6 +128,7 @@ class Evaluator:
         self.sim_settings = dict(sim_settings)
         self.settings = [run_settings(tg, sim_settings, fs_sim_hz) for tg in targets]
         self.n_sims = 0
+        self.cost = None        # a cost.CostRecorder told of every batch of fit tasks (None: none)
         self.profile_runs: frozenset = frozenset()     # runs whose undeclared DAQ chain is profiled out (nuisance)
         self.profile_signals: tuple[str, ...] = ()
         warm(system)
@@ -138,6 +139,7 @@ class Evaluator:
         out = copy.copy(self)
         out.n_threads = n_threads or self.n_threads
         out.n_sims = 0
+        out.cost = None
         return out
 
     def simulate(self, param_sets: list[dict], idx: list[int]) -> list[list]:

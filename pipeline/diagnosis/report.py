@@ -282,7 +282,33 @@ def markdown(report: dict, per_system: list[dict], seconds: float) -> str:
              "`nrms` = residual / noise = error / noise floor (1 = at the noise level; docs/diagnose.md).", ""]
     for rep in per_system:
         lines += _system_lines(rep)
+    if report.get("cost"):
+        lines += cost_lines(report["cost"])
     return "\n".join(lines)
+
+
+COST_COLUMNS = ("simulations", "cpu_s", "wall_s")
+
+
+def cost_lines(cost: dict) -> list[str]:
+    """report.md's table of where the time went: report.json ``cost``, a row per stage (its parts indented under it,
+    not added again to the total), the total and the machine's load average."""
+    from pipeline.core import units
+
+    systems = sorted({s["system"] for s in cost["stages"] if s["system"]})
+    head = ["stage", *(["system"] if len(systems) > 1 else []), *(units.label(c) for c in COST_COLUMNS)]
+    lines = ["## Cost", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+
+    def row(name: str, system: str, vals: dict) -> str:
+        cells = [name, *([system] if len(systems) > 1 else []),
+                 *(f"{units.convert(c, vals[c]):.4g}" if c != "simulations" else str(vals[c]) for c in COST_COLUMNS)]
+        return "| " + " | ".join(cells) + " |"
+    for s in cost["stages"]:
+        lines.append(row(s["stage"] if s["part_of"] is None else f"  ↳ {s['stage']}", s["system"], s))
+    lines.append(row("**total**", "", cost["total"]))
+    load = ", ".join(f"{x:g}" for x in cost["load_avg"])
+    return lines + ["", f"Indented rows are the fit tasks of the stage above by model, already in its numbers; the "
+                        f"total adds the other rows. Machine load average (1, 5, 15 min) at the end: {load}.", ""]
 
 
 def _system_lines(rep: dict) -> list[str]:

@@ -8,6 +8,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
     import sim
+    from pipeline.diagnosis.cost import DiagnosisCost, StageCost
     from pipeline.diagnosis.features import Target
     from pipeline.diagnosis.fit import FitResult
     from pipeline.diagnosis.model import Evaluator
@@ -21,7 +22,8 @@ class SystemDiagnosis:
     evaluator: the simulator of the system's runs (its ``targets`` in runs.csv order);
     fits: the reported fits by model name ('base' and every candidate effect);
     held_out: indices into the targets of the held-out runs, fold after fold;
-    final: the final model's name, the selected effect or 'base'.
+    final: the final model's name, the selected effect or 'base';
+    cost: the cost of each stage of the system's diagnosis (``pipeline.diagnosis.cost``).
     """
 
     report: dict
@@ -29,6 +31,7 @@ class SystemDiagnosis:
     fits: dict[str, FitResult]
     held_out: list[int]
     final: str
+    cost: tuple[StageCost, ...] = ()
 
     @property
     def system(self) -> str:
@@ -57,7 +60,8 @@ class DiagnoseResult:
 
     systems: per system, in the dataset's order; report: report.json's content;
     runs: the simulated runs the figures draw, aligned with ``systems``;
-    rigs: (file name, corrected ``sim.Rig``) per system; series: the measured series by run id [SI units].
+    rigs: (file name, corrected ``sim.Rig``) per system; series: the measured series by run id [SI units];
+    cost: where the time went, per stage (report.json ``cost``; None: not recorded).
     """
 
     systems: tuple[SystemDiagnosis, ...]
@@ -65,3 +69,4 @@ class DiagnoseResult:
     runs: tuple[SimulatedRuns, ...]
     rigs: tuple[tuple[str, sim.Rig], ...]
     series: dict[str, pd.DataFrame]
+    cost: DiagnosisCost | None = None

@@ -20,6 +20,7 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from pipeline.diagnosis.config import DiagnoseConfig  # noqa: F401  (re-exported: the commands import it from here)
+from pipeline.diagnosis.cost import CostRecorder, remote_cpu_of
 from pipeline.diagnosis.progress import NoProgress, Progress, fit_tasks
 from pipeline.diagnosis.features import (CONTROL_NAMES, Target, UnusableRecord, series_target, simulated_features,
                                          summary_target)
@@ -274,9 +275,11 @@ class _Diagnosis:
     chain: ChainEstimate | None
     unreproducible: dict[str, float]
     cands: dict
+    cost: CostRecorder
     scheme: str = ""
     folds: list = field(default_factory=list)
     warm: dict | None = None
+    fold_fits: list = field(default_factory=list)
     fits_per_fold: list[dict] = field(default_factory=list)
     test_idx: list[int] = field(default_factory=list)
     test_res: dict = field(default_factory=dict)
@@ -301,26 +304,33 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
                     progress: Progress | None = None, executor: Executor | None = None) -> SystemDiagnosis:
     """Diagnose one system's runs: its report entry, with the evaluator, the reported fits, the held-out runs
     and the final model the figures and the corrected rig need.  The fits run on ``executor`` (default: in this
-    process, on ``cfg.n_threads`` simulation threads); ``progress`` hears of each stage."""
+    process, on ``cfg.n_threads`` simulation threads); ``progress`` hears of each stage; the cost of each stage is
+    recorded (``cost``)."""
     progress = progress or NoProgress()
     progress.stage(f"{system}: checking the model's response is reproducible")
-    d = _prepare(system, targets, cfg, log, progress, executor)
-    _calibrate(d)
-    _judge_effects(d)
-    _pairs(d)
-    _discover(d)
+    d = _prepare(system, targets, cfg, log, progress, executor or InlineExecutor())
+    for name, step in (("calibration", _calibrate), ("held-out", _held_out), ("pairs", _pairs),
+                       ("discovery", _discover)):
+        with d.cost.stage(name):
+            step(d)
+    d.ev.cost = None
     return _assemble(d)
 
 
 def _prepare(system: str, targets: list[Target], cfg: DiagnoseConfig, log, progress: Progress,
-             executor: Executor | None) -> _Diagnosis:
-    """The fit settings (system defaults where unset), the evaluator, the DAQ chain estimate, the reproducibility
-    check and the candidate effects (``cfg.effects`` checked against the system's)."""
+             executor: Executor) -> _Diagnosis:
+    """The fit settings (system defaults where unset), the evaluator and the cost recorder counting its
+    simulations, the DAQ chain estimate, the reproducibility check and the candidate effects (``cfg.effects``
+    checked against the system's)."""
     cfg = replace(cfg, **{k: v for k, v in default_fit_settings(system).items() if getattr(cfg, k) is None})
     ev = Evaluator(system, targets, dict(cfg.sim_settings), cfg.fs_sim_hz, cfg.n_threads)
-    executor = executor or InlineExecutor()
-    chain = estimate_chain(ev, cfg, executor, log) if cfg.estimate_chain else None
-    unreproducible = unreproducible_runs(ev, cfg)
+    ev.cost = cost = CostRecorder(system, lambda: ev.n_sims, remote_cpu_of(executor))
+    chain = None
+    if cfg.estimate_chain:
+        with cost.stage("DAQ chain"):
+            chain = estimate_chain(ev, cfg, executor, log)
+    with cost.stage("unreproducible-run check"):
+        unreproducible = unreproducible_runs(ev, cfg)
     if unreproducible:
         log(f"{system}: model response not reproducible (chaotic or multi-stable): {', '.join(unreproducible)}")
     cands = candidates(system)
@@ -330,21 +340,15 @@ def _prepare(system: str, targets: list[Target], cfg: DiagnoseConfig, log, progr
             raise UserError(f"diagnose.effects: {', '.join(unknown)} not an effect of {system} "
                             f"(known: {', '.join(cands)})")
         cands = {e: cands[e] for e in cfg.effects}
-    return _Diagnosis(system, targets, cfg, ev, executor, log, progress, chain, unreproducible, cands)
+    return _Diagnosis(system, targets, cfg, ev, executor, log, progress, chain, unreproducible, cands, cost)
 
 
 def _calibrate(d: _Diagnosis) -> None:
     """Base + every candidate fitted on all runs (leave-one-out only: the reported parameters and the folds'
-    starting point) and on every fold's calibration runs; the held-out residuals, BIC and calibration χ² summed
-    over the folds."""
+    starting point) and on every fold's calibration runs."""
     system, targets, cfg, cands, log, progress = d.system, d.targets, d.cfg, d.cands, d.log, d.progress
     d.scheme, d.folds = make_folds(targets, cfg)
     rng = np.random.default_rng(cfg.seed)
-    names = ["base", *cands]
-    d.test_res = {m: [] for m in ["default", *names]}
-    d.test_halves = {m: [] for m in ["default", *names]}
-    d.bic = {m: 0.0 for m in names}
-    d.cal_chi2 = {m: 0.0 for m in names}
 
     def n_fit_tasks(n_folds: int, warm_start: bool) -> int:
         return fit_tasks(n_folds, len(cands), cfg.n_starts, cfg.candidate_starts, warm_start)
@@ -356,14 +360,25 @@ def _calibrate(d: _Diagnosis) -> None:
             log(line)
     progress.stage(f"{system}: base + {len(cands)} candidates on {len(d.folds)} fold(s)",
                    n_fit_tasks(len(d.folds), bool(d.warm)))
-    fold_fits = fit_models(d.ev, [cal for cal, _ in d.folds], cfg, cands, rng, d.executor, d.warm)
-    progress.stage(f"{system}: held-out errors of {len(cands) + 1} models")
-    for fi, ((cal, test), (fits, lines)) in enumerate(zip(d.folds, fold_fits)):
+    d.fold_fits = fit_models(d.ev, [cal for cal, _ in d.folds], cfg, cands, rng, d.executor, d.warm)
+
+
+def _held_out(d: _Diagnosis) -> None:
+    """The held-out residuals, BIC and calibration χ² of every model summed over the folds, and the verdict."""
+    system, cands, log = d.system, d.cands, d.log
+    names = ["base", *cands]
+    d.test_res = {m: [] for m in ["default", *names]}
+    d.test_halves = {m: [] for m in ["default", *names]}
+    d.bic = {m: 0.0 for m in names}
+    d.cal_chi2 = {m: 0.0 for m in names}
+    d.progress.stage(f"{system}: held-out errors of {len(cands) + 1} models")
+    for fi, ((cal, test), (fits, lines)) in enumerate(zip(d.folds, d.fold_fits)):
         log(f"{system}: fold {fi + 1}/{len(d.folds)} ({len(cal)} calibration, {len(test)} held-out runs)")
         for line in lines:
             log(line)
         d.fits_per_fold.append(fits)
         _add_fold(d, names, fits, test)
+    _judge_effects(d)
 
 
 def _add_fold(d: _Diagnosis, names: list[str], fits: dict, test: list[int]) -> None:
@@ -506,4 +521,5 @@ def _assemble(d: _Diagnosis) -> SystemDiagnosis:
         "recording": recording_report(targets, d.chain),
         "n_simulations": d.ev.n_sims,
     }
-    return SystemDiagnosis(report=report, evaluator=d.ev, fits=final_fits, held_out=d.test_idx, final=final)
+    return SystemDiagnosis(report=report, evaluator=d.ev, fits=final_fits, held_out=d.test_idx, final=final,
+                           cost=d.cost.rows())

@@ -6,6 +6,7 @@ import time
 from dataclasses import asdict, replace
 
 from pipeline.core.executors import Executor, InlineExecutor
+from pipeline.diagnosis.cost import CostRecorder, DiagnosisCost, load_average
 from pipeline.diagnosis.features import simulated_features
 from pipeline.diagnosis.report import figure_names, residual_structure
 from pipeline.diagnosis.result import DiagnoseResult, SimulatedRuns, SystemDiagnosis
@@ -54,13 +55,18 @@ def _presets(ds, system: str) -> list[str | None]:
 def _diagnose(ds, cfg: DiagnoseConfig, log, progress, executor: Executor) -> DiagnoseResult:
     t0 = time.time()
     skipped: dict[str, list[str]] = {}
-    targets = build_targets(ds, cfg, skipped)
-    diags, runs = [], []
+    features = CostRecorder()
+    with features.stage("features"):
+        targets = build_targets(ds, cfg, skipped)
+    diags, runs, costs = [], [], list(features.rows())
     for system, tgs in targets.items():
         diag = diagnose_system(system, tgs, cfg, log, progress, executor)
         if progress is not None:
             progress.stage(f"{system}: simulating the reported models for the figures")
-        sim_runs = simulate_runs(diag)
+        figs = CostRecorder(system, lambda: diag.evaluator.n_sims)
+        with figs.stage("figures: runs"):
+            sim_runs = simulate_runs(diag)
+        costs += [*diag.cost, *figs.rows()]
         notes = [SUMMARY_NOTE] if "summary" in diag.report["data"] else []
         notes += [UNREPRODUCIBLE_NOTE.format(run=r, nrms=x) for r, x in diag.report["unreproducible"].items()]
         notes += skipped.get(system, []) + [n for t in tgs for n in t.notes]     # what the recording left out
@@ -79,8 +85,10 @@ def _diagnose(ds, cfg: DiagnoseConfig, log, progress, executor: Executor) -> Dia
         systems.append(replace(diag, report={**diag.report, "figures": figure_names(diag)}))
     report = _combine([d.report for d in systems], dataset, cfg)
     report["wall_time_s"] = round(time.time() - t0, 1)
+    cost = DiagnosisCost(tuple(costs), load_average())
+    report["cost"] = cost.to_json()
     return DiagnoseResult(systems=tuple(systems), report=report, runs=tuple(runs), rigs=tuple(rigs),
-                          series=dict(ds.series))
+                          series=dict(ds.series), cost=cost)
 
 
 KEYS = ("verdict", "calibrated", "noise_floor", "default_error", "base_error", "candidates", "selected", "final_error",

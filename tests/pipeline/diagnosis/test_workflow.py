@@ -15,7 +15,7 @@ SYSTEM_KEYS = ["system", "n_runs", "unreproducible", "data", "split", "verdict",
                "base_systematic", "final_systematic", "heldout_n", "error_by_group", "base_score", "candidates",
                "selected", "selected_effects", "leader", "runner_up", "selected_params", "explained", "best_partial_candidate", "absorbed",
                "call", "indistinguishable", "second_effect", "pair_stage", "discrepancy", "proposal_adopted", "proposal_as_effect", "recording", "n_simulations", "residual_structure", "notes", "rig", "figures"]
-REPORT_KEYS = ["dataset", "config", *SYSTEM_KEYS, "systems", "wall_time_s"]
+REPORT_KEYS = ["dataset", "config", *SYSTEM_KEYS, "systems", "wall_time_s", "cost"]
 RIG_KEYS = ["explained", "selected", "source", "discrepancy", "verdict", "absorbed", "model_error", "noise_floor", "nrms",
             "rop_model_error", "notes",
             "file"]
@@ -85,6 +85,27 @@ def test_the_command_writes_report_json_with_its_keys(dataset, tmp_path):
     assert rep["figures"][0] == "residual_metal.png" and all((out / f).is_file() for f in rep["figures"])
     written = {p.name for p in out.iterdir() if not p.name.startswith(".")}     # beside the command's marker
     assert written == {"report.json", "report.md", "rig.yaml", *rep["figures"]}
+    _check_cost(rep, (out / "report.md").read_text())
+
+
+def _check_cost(rep: dict, md: str) -> None:
+    """report.json ``cost``: every stage of the diagnosis, the candidate's share of the calibration, the total the
+    sum of the top-level stages, the simulations those before the figures ran the report's count; report.md's table
+    prints it."""
+    cost = rep["cost"]
+    stages = [(s["stage"], s["part_of"]) for s in cost["stages"]]
+    assert stages == [("features", None), ("unreproducible-run check", None), ("calibration", None),
+                      ("base", "calibration"), ("sensor_lowpass", "calibration"), ("held-out", None), ("pairs", None),
+                      ("discovery", None), ("figures: runs", None), ("figures: drawing", None)]
+    top = [s for s in cost["stages"] if s["part_of"] is None]
+    for k in ("simulations", "cpu_s", "wall_s"):
+        assert abs(cost["total"][k] - sum(s[k] for s in top)) <= 0.002 * len(top), k     # rounded to 1 ms
+    fitting = [s["simulations"] for s in top if not s["stage"].startswith("figures")]
+    assert sum(fitting) == rep["n_simulations"] > 0
+    parts = [s for s in cost["stages"] if s["part_of"] == "calibration"]
+    cal = next(s for s in top if s["stage"] == "calibration")
+    assert sum(s["simulations"] for s in parts) == cal["simulations"]     # every simulation of it is a fit task's
+    assert "## Cost" in md and f"| **total** | {cost['total']['simulations']} |" in md
 
 
 @pytest.mark.parametrize("bad", [dict(n_starts=0), dict(grid=2.5), dict(candidate_starts=3), dict(explained_nrms=0.0),
