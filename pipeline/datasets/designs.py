@@ -1,0 +1,113 @@
+"""Designs in the unit cube [0, 1]^d: interior space-filling (scrambled Sobol', Latin hypercube) and Sobol' with a
+stated fraction of its points on the cube's boundary, where constrained optima of the operating point live (an
+upper bound of F0 or Fs is a face; both together an edge; a corner of the box is a corner of the cube).
+
+Coordinates are unitless (the sweep maps them to each parameter's range, linear or log); every design is
+deterministic in its seed.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+DESIGN_MEANINGS = {
+    "sobol": "scrambled Sobol' in the interior (first n points of 2^ceil(log2 n) when n is not a power of 2)",
+    "sobol-boundary": "sobol with boundary_fraction of the points on the box's boundary: its 2^d corners, then "
+                      "Sobol' points on every edge and face (where constrained optima sit)",
+    "lhs": "Latin hypercube in the interior",
+    "grid": "full factorial, end points included (n_points must be a product of levels)",
+}
+"""Design name -> what it puts where, one line each (``vibro sweep --help``, docs/train.md)."""
+
+BOUNDARY_FRACTION = 0.25
+"""Default share of a ``sobol-boundary`` design's points on the boundary (bench/bench_design.py measures it)."""
+
+
+def sobol(d: int, n: int, seed: int) -> np.ndarray:
+    """``n`` scrambled Sobol' points in [0, 1)^d: the first n of the 2^ceil(log2 n) sequence (a prefix keeps the low
+    discrepancy, not the exact balance of a power of 2)."""
+    from scipy.stats import qmc
+
+    m = max(0, math.ceil(math.log2(n))) if n > 0 else 0
+    return qmc.Sobol(d, scramble=True, seed=seed).random_base2(m)[:n] if n > 0 else np.empty((0, d))
+
+
+def lhs(d: int, n: int, seed: int) -> np.ndarray:
+    """``n`` Latin-hypercube points in [0, 1)^d."""
+    from scipy.stats import qmc
+
+    return qmc.LatinHypercube(d, seed=seed).random(n)
+
+
+def corners(d: int) -> np.ndarray:
+    """The 2^d corners of the unit cube, shape (2^d, d), in binary order (0...0 first, 1...1 last)."""
+    return np.array(list(itertools.product((0.0, 1.0), repeat=d)), dtype=np.float64).reshape(2 ** d, d)
+
+
+def faces(d: int, k: int) -> list[tuple[tuple[int, ...], tuple[float, ...]]]:
+    """The k-dimensional faces of the unit cube (0 < k < d; k = 1: edges, k = d - 1: facets): each as (free axes,
+    values 0/1 of the other axes in order)."""
+    out = []
+    for free in itertools.combinations(range(d), k):
+        for ends in itertools.product((0.0, 1.0), repeat=d - k):
+            out.append((free, ends))
+    return out
+
+
+def _boundary_counts(d: int, n_boundary: int, rng: np.random.Generator) -> tuple[int, dict[int, np.ndarray]]:
+    """Corners taken and, per face dimension k = 1 .. d-1, the points of each k-face: what is left after the corners is
+    shared equally between the face dimensions, then between the faces of one dimension (the remainders go to faces
+    drawn by ``rng``)."""
+    n_corners = min(n_boundary, 2 ** d)
+    rest = n_boundary - n_corners
+    dims = list(range(1, d))
+    per_face: dict[int, np.ndarray] = {}
+    for i, k in enumerate(dims):
+        share = rest // len(dims) + (1 if i < rest % len(dims) else 0)
+        nf = len(faces(d, k))
+        counts = np.full(nf, share // nf, dtype=np.int64)
+        counts[rng.permutation(nf)[:share % nf]] += 1
+        per_face[k] = counts
+    return n_corners, per_face
+
+
+def boundary_points(d: int, n_boundary: int, seed: int) -> np.ndarray:
+    """``n_boundary`` points on the boundary of [0, 1]^d (each has a coordinate exactly 0 or 1): all 2^d corners when
+    ``n_boundary`` >= 2^d (else that many corners drawn by ``seed``), the rest shared between the edges and faces
+    (:func:`_boundary_counts`), each face's points a scrambled Sobol' sequence on its free axes seeded by (seed, face).
+    In one dimension the boundary is the two ends: at most 2 points."""
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
+    n_boundary = min(n_boundary, 2) if d == 1 else n_boundary
+    n_corners, per_face = _boundary_counts(d, n_boundary, rng)
+    allc = corners(d)
+    pts = [allc if n_corners == 2 ** d else allc[np.sort(rng.permutation(2 ** d)[:n_corners])]]
+    for k, counts in per_face.items():
+        for j, ((free, ends), c) in enumerate(zip(faces(d, k), counts)):
+            if c == 0:
+                continue
+            block = np.empty((int(c), d))
+            fixed_axes = [a for a in range(d) if a not in free]
+            block[:, fixed_axes] = ends
+            face_seed = np.random.SeedSequence([seed, 2, k, j])
+            block[:, list(free)] = sobol(k, int(c), np.random.default_rng(face_seed))
+            pts.append(block)
+    return np.vstack(pts) if pts else np.empty((0, d))
+
+
+def interleave(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rows of ``a`` and ``b`` merged so that every prefix holds about the same share of each (by rank (i + 1/2) /
+    count, ``a`` first on ties): a prefix of the design (the learning curve's subsets) keeps its boundary fraction."""
+    keys = np.concatenate([(np.arange(len(a)) + 0.5) / max(len(a), 1), (np.arange(len(b)) + 0.5) / max(len(b), 1)])
+    order = np.argsort(keys, kind="stable")
+    return np.vstack([a, b])[order]
+
+
+def sobol_boundary(d: int, n: int, seed: int, fraction: float = BOUNDARY_FRACTION) -> np.ndarray:
+    """``n`` points of [0, 1]^d: round(``fraction`` × n) on the boundary (:func:`boundary_points`), the rest scrambled
+    Sobol' (:func:`sobol`, same seed) in the interior; merged by :func:`interleave`.  Deterministic in ``seed``."""
+    n_boundary = min(int(round(fraction * n)), n)
+    edge = boundary_points(d, n_boundary, seed)
+    inside = sobol(d, n - len(edge), seed)
+    return interleave(edge, inside)
