@@ -59,7 +59,8 @@ def add_parser(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=EPILOG.replace("{designs}", "\n".join(f"  {k:<15} {v}" for k, v in DESIGN_MEANINGS.items())))
     p.add_argument("--params", metavar="FILE.yaml", help="read the 'sweep' section of this params file "
-                   "(default: the built-in default sweep: drill, preset lab, MODELS.md section-2 ranges, sobol, 1024 points)")
+                   "(default: the built-in default sweep: drill, preset lab, MODELS.md section-2 ranges, sobol-boundary, "
+                   "1024 points)")
     p.add_argument("--out", default="data/sweep", metavar="DIR", help="dataset directory (default: data/sweep)")
     p.add_argument("--model", help="model name (drill, indenter-metal, indenter-sandstone, ...)")
     p.add_argument("--preset", help="named parameter set of the model; 'none' for the model defaults")
@@ -70,7 +71,7 @@ def add_parser(sub) -> None:
     p.add_argument("--vary", action="append", metavar="NAME=LOW:HIGH[:SCALE[:LEVELS]]",
                    help="vary a parameter (repeatable); SCALE linear (default) or log; LEVELS = grid points on "
                         "this axis. Given on the command line, --vary replaces the spec's whole 'vary' section")
-    p.add_argument("--design", choices=DESIGNS, help="where the points go (see 'designs' below; default sobol)")
+    p.add_argument("--design", choices=DESIGNS, help="where the points go (see 'designs' below; default sobol-boundary)")
     p.add_argument("--boundary-fraction", type=A.finite, metavar="F",
                    help=f"sobol-boundary: share of n_points on the boundary, in [0, 1] (default {BOUNDARY_FRACTION})")
     p.add_argument("--n-points", type=A.n_points, help="number of points (> 0)")
@@ -155,6 +156,8 @@ def spec_from_args(args):
         raw["vary"] = _parse_vary(args.vary)
     if args.settings:
         raw["settings"] = {**(raw.get("settings") or {}), **parse_settings(args.settings)}
+    if args.design and args.design != "sobol-boundary" and args.boundary_fraction is None:
+        raw.pop("boundary_fraction", None)      # the params file's share belongs to its own sobol-boundary design
     if args.boundary_fraction is not None and not 0.0 <= args.boundary_fraction <= 1.0:
         raise UserError(f"--boundary-fraction must be in [0, 1] (a share of n_points), got {args.boundary_fraction:g}")
     spec = make_spec(raw, model=None if rig else args.model, preset=None if rig else args.preset, design=args.design,

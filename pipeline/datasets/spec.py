@@ -127,7 +127,8 @@ def default_spec_dict() -> dict:
     from sim.registry import DEFAULT_MODEL, DEFAULT_PRESET
 
     return {"model": DEFAULT_MODEL, "preset": DEFAULT_PRESET, "fixed": {}, "vary": default_vary(DEFAULT_MODEL, DEFAULT_PRESET),
-            "design": "sobol", "n_points": 1024, "seed": 0, "settings": {}, "chunk_size": 64}
+            "design": "sobol-boundary", "boundary_fraction": designs.BOUNDARY_FRACTION, "n_points": 1024, "seed": 0,
+            "settings": {}, "chunk_size": 64}
 
 
 def _as_int(value, name: str, minimum: int | None = None) -> int:
