@@ -57,44 +57,60 @@ def faces(d: int, k: int) -> list[tuple[tuple[int, ...], tuple[float, ...]]]:
     return out
 
 
-def _boundary_counts(d: int, n_boundary: int, rng: np.random.Generator) -> tuple[int, dict[int, np.ndarray]]:
-    """Corners taken and, per face dimension k = 1 .. d-1, the points of each k-face: what is left after the corners is
-    shared equally between the face dimensions, then between the faces of one dimension (the remainders go to faces
-    drawn by ``rng``)."""
-    n_corners = min(n_boundary, 2 ** d)
-    rest = n_boundary - n_corners
+MAX_FACES = 100_000
+"""Above this many k-faces (many varied parameters) the faces of that dimension are drawn at random, one point each,
+instead of listed: the cube has 3^d - 2^d - 1 of them in all."""
+
+
+def _some_corners(d: int, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` distinct corners drawn by ``rng`` (all 2^d, in binary order, when n >= 2^d), without listing 2^d."""
+    if n >= 2 ** d:
+        return corners(d)
+    if d <= 16:
+        return corners(d)[np.sort(rng.permutation(2 ** d)[:n])]
+    if d <= 62:
+        idx = np.sort(rng.choice(2 ** d, size=n, replace=False)).astype(np.int64)
+        return ((idx[:, None] >> np.arange(d - 1, -1, -1)) & 1).astype(np.float64)
+    return rng.integers(0, 2, size=(n, d)).astype(np.float64)       # 2^-62 chance of a repeat
+
+
+def _face_plan(d: int, n_rest: int, rng: np.random.Generator) -> list[tuple[tuple[int, ...], tuple[float, ...], int, int]]:
+    """(free axes, ends of the other axes, points, index of the face among the k-faces) of every face that gets points: ``n_rest`` shared equally between the
+    face dimensions k = 1 .. d-1, then between the k-faces (the remainders go to faces drawn by ``rng``); with more than
+    ``MAX_FACES`` k-faces, that many distinct-or-not faces are drawn at random, one point each."""
     dims = list(range(1, d))
-    per_face: dict[int, np.ndarray] = {}
+    plan = []
     for i, k in enumerate(dims):
-        share = rest // len(dims) + (1 if i < rest % len(dims) else 0)
-        nf = len(faces(d, k))
-        counts = np.full(nf, share // nf, dtype=np.int64)
-        counts[rng.permutation(nf)[:share % nf]] += 1
-        per_face[k] = counts
-    return n_corners, per_face
+        share = n_rest // len(dims) + (1 if i < n_rest % len(dims) else 0)
+        if share == 0:
+            continue
+        if math.comb(d, k) * 2 ** (d - k) > MAX_FACES:
+            for j in range(share):
+                free = tuple(sorted(int(a) for a in rng.choice(d, size=k, replace=False)))
+                plan.append((free, tuple(float(e) for e in rng.integers(0, 2, size=d - k)), 1, j))
+            continue
+        listed = faces(d, k)
+        counts = np.full(len(listed), share // len(listed), dtype=np.int64)
+        counts[rng.permutation(len(listed))[:share % len(listed)]] += 1
+        plan.extend((free, ends, int(c), j) for j, ((free, ends), c) in enumerate(zip(listed, counts)) if c)
+    return plan
 
 
 def boundary_points(d: int, n_boundary: int, seed: int) -> np.ndarray:
     """``n_boundary`` points on the boundary of [0, 1]^d (each has a coordinate exactly 0 or 1): all 2^d corners when
     ``n_boundary`` >= 2^d (else that many corners drawn by ``seed``), the rest shared between the edges and faces
-    (:func:`_boundary_counts`), each face's points a scrambled Sobol' sequence on its free axes seeded by (seed, face).
+    (:func:`_face_plan`), each face's points a scrambled Sobol' sequence on its free axes seeded by (seed, face).
     In one dimension the boundary is the two ends: at most 2 points."""
     rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
     n_boundary = min(n_boundary, 2) if d == 1 else n_boundary
-    n_corners, per_face = _boundary_counts(d, n_boundary, rng)
-    allc = corners(d)
-    pts = [allc if n_corners == 2 ** d else allc[np.sort(rng.permutation(2 ** d)[:n_corners])]]
-    for k, counts in per_face.items():
-        for j, ((free, ends), c) in enumerate(zip(faces(d, k), counts)):
-            if c == 0:
-                continue
-            block = np.empty((int(c), d))
-            fixed_axes = [a for a in range(d) if a not in free]
-            block[:, fixed_axes] = ends
-            face_seed = np.random.SeedSequence([seed, 2, k, j])
-            block[:, list(free)] = sobol(k, int(c), np.random.default_rng(face_seed))
-            pts.append(block)
-    return np.vstack(pts) if pts else np.empty((0, d))
+    plan = _face_plan(d, max(n_boundary - 2 ** d, 0), rng)
+    pts = [_some_corners(d, min(n_boundary, 2 ** d), rng)]
+    for free, ends, c, j in plan:
+        block = np.empty((c, d))
+        block[:, [a for a in range(d) if a not in free]] = ends
+        block[:, list(free)] = sobol(len(free), c, np.random.default_rng(np.random.SeedSequence([seed, 2, len(free), j])))
+        pts.append(block)
+    return np.vstack(pts)
 
 
 def interleave(a: np.ndarray, b: np.ndarray) -> np.ndarray:

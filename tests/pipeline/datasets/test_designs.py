@@ -95,3 +95,12 @@ def test_cli_names_the_flag_and_lists_the_designs(tmp_path, capsys):
     text = capsys.readouterr().out
     for name, meaning in designs.DESIGN_MEANINGS.items():
         assert f"  {name:<15} {meaning}" in text
+
+
+def test_many_dimensions_without_listing_every_face():
+    """3^40 faces and 2^40 corners are never listed: corners are drawn, and beyond MAX_FACES faces of a dimension
+    its faces are drawn too."""
+    u = designs.sobol_boundary(40, 400, seed=0, fraction=0.25)
+    assert u.shape == (400, 40) and on_boundary(u).sum() == 100 and len(np.unique(u, axis=0)) == 400
+    b = designs.boundary_points(12, 4096 + 300, seed=1)                  # every corner, then 300 on edges and faces
+    assert len(b) == 4396 and on_boundary(b).all() and len(np.unique(b, axis=0)) == 4396
