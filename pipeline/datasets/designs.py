@@ -31,8 +31,9 @@ def sobol(d: int, n: int, seed: int) -> np.ndarray:
     discrepancy, not the exact balance of a power of 2)."""
     from scipy.stats import qmc
 
-    m = max(0, math.ceil(math.log2(n))) if n > 0 else 0
-    return qmc.Sobol(d, scramble=True, seed=seed).random_base2(m)[:n] if n > 0 else np.empty((0, d))
+    if n <= 0:
+        return np.empty((0, d))
+    return qmc.Sobol(d, scramble=True, seed=seed).random_base2(math.ceil(math.log2(n)))[:n]
 
 
 def lhs(d: int, n: int, seed: int) -> np.ndarray:
