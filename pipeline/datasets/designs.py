@@ -26,7 +26,7 @@ BOUNDARY_FRACTION = 0.25
 (bench/bench_design.py, docs/train.md "Designs with points on the boundary")."""
 
 
-def sobol(d: int, n: int, seed: int) -> np.ndarray:
+def sobol(d: int, n: int, seed: int | np.random.Generator) -> np.ndarray:
     """``n`` scrambled Sobol' points in [0, 1)^d: the first n of the 2^ceil(log2 n) sequence (a prefix keeps the low
     discrepancy, not the exact balance of a power of 2)."""
     from scipy.stats import qmc
