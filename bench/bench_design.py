@@ -182,6 +182,8 @@ def _models(rig_path: str | None) -> dict:
 def _args(argv):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[256, 512], help="design sizes (default 256 512)")
+    ap.add_argument("--models", nargs="+", default=["lab", "rig"], choices=["lab", "rig"],
+                    help="lab: the drill lab preset; rig: the corrected rig (default both)")
     ap.add_argument("--designs", nargs="+", default=["sobol", "sobol-boundary"], choices=["sobol", "sobol-boundary"],
                     help="designs to train on (default both)")
     ap.add_argument("--fractions", type=float, nargs="+", default=[0.25],
@@ -211,7 +213,10 @@ def main(argv: list[str] | None = None) -> dict:
     tr.update(targets=list(TARGETS), learning_curve=[])
     cfg = TrainConfig.from_dict(tr)
     rows = []
-    for model, rig in _models(a.rig).items():
+    chosen = {"lab": "lab", "rig": "corrected rig"}
+    for model, rig in _models(a.rig if "rig" in a.models else "").items():
+        if model not in {chosen[m] for m in a.models}:
+            continue
         run = simulator(sweep, rig)
         hidden = {k: run(v) for k, v in hidden_points(sweep, a.test_interior, a.test_boundary).items()}
         plans = ([("sobol", None)] if "sobol" in a.designs else []) + \
