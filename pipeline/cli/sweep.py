@@ -156,8 +156,6 @@ def spec_from_args(args):
         raw["vary"] = _parse_vary(args.vary)
     if args.settings:
         raw["settings"] = {**(raw.get("settings") or {}), **parse_settings(args.settings)}
-    if args.design and args.design != "sobol-boundary" and args.boundary_fraction is None:
-        raw.pop("boundary_fraction", None)      # the params file's share belongs to its own sobol-boundary design
     if args.boundary_fraction is not None and not 0.0 <= args.boundary_fraction <= 1.0:
         raise UserError(f"--boundary-fraction must be in [0, 1] (a share of n_points), got {args.boundary_fraction:g}")
     spec = make_spec(raw, model=None if rig else args.model, preset=None if rig else args.preset, design=args.design,

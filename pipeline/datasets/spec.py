@@ -213,6 +213,8 @@ def make_spec(raw: dict | None = None, **overrides) -> SweepSpec:
     from sim.models.base import ParameterError
 
     d = dict(default_spec_dict() if raw is None else raw)
+    if overrides.get("design") not in (None, "sobol-boundary") and overrides.get("boundary_fraction") is None:
+        d.pop("boundary_fraction", None)        # the raw spec's share belongs to its own sobol-boundary design
     d.update({k: v for k, v in overrides.items() if v is not None})
     unknown = set(d) - set(SPEC_KEYS) - set(EXEC_KEYS)
     if unknown:
@@ -328,17 +330,23 @@ def unit_design(spec: SweepSpec) -> np.ndarray:
     lhs: ``qmc.LatinHypercube(d, seed=seed)``.  grid: full factorial, end points included.  Dimensions are the
     varied parameters sorted by name (the last one varies fastest in a grid).
     """
-    d = len(spec.vary)
-    n = spec.n_points
-    if spec.design == "sobol":
-        return designs.sobol(d, n, spec.seed)
-    if spec.design == "sobol-boundary":
-        return designs.sobol_boundary(d, n, spec.seed, spec.boundary_fraction)
-    if spec.design == "lhs":
-        return designs.lhs(d, n, spec.seed)
-    levels = _grid_levels(spec.vary, n)
-    axes = [np.linspace(0.0, 1.0, L) for L in levels]
+    return UNIT_DESIGNS[spec.design](spec, len(spec.vary), spec.n_points)
+
+
+def _grid_unit(spec: SweepSpec, d: int, n: int) -> np.ndarray:
+    """Full factorial over each axis's levels in [0, 1], end points included (the last axis varies fastest)."""
+    axes = [np.linspace(0.0, 1.0, L) for L in _grid_levels(spec.vary, n)]
     return np.array(list(itertools.product(*axes)), dtype=np.float64).reshape(n, d)
+
+
+UNIT_DESIGNS = {
+    "sobol": lambda spec, d, n: designs.sobol(d, n, spec.seed),
+    "sobol-boundary": lambda spec, d, n: designs.sobol_boundary(d, n, spec.seed, spec.boundary_fraction),
+    "lhs": lambda spec, d, n: designs.lhs(d, n, spec.seed),
+    "grid": _grid_unit,
+}
+"""Design name -> (spec, d, n) -> unit-cube points: the one place a design's name becomes its points."""
+assert set(UNIT_DESIGNS) == set(DESIGNS), "every design of designs.DESIGN_MEANINGS needs its UNIT_DESIGNS entry"
 
 
 def design_points(spec: SweepSpec) -> pd.DataFrame:

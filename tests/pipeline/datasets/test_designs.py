@@ -104,3 +104,11 @@ def test_many_dimensions_without_listing_every_face():
     assert u.shape == (400, 40) and on_boundary(u).sum() == 100 and len(np.unique(u, axis=0)) == 400
     b = designs.boundary_points(12, 4096 + 300, seed=1)                  # every corner, then 300 on edges and faces
     assert len(b) == 4396 and on_boundary(b).all() and len(np.unique(b, axis=0)) == 4396
+
+
+def test_another_design_given_on_top_drops_the_raw_specs_boundary_fraction():
+    """params.yaml's sobol-boundary share does not block `--design sobol` (or make_spec(None, design="lhs"))."""
+    assert make_spec(None, design="lhs").boundary_fraction is None
+    assert make_spec(None).boundary_fraction == designs.BOUNDARY_FRACTION
+    with pytest.raises(UserError, match="only used by the sobol-boundary design"):
+        make_spec(None, design="sobol", boundary_fraction=0.3)
