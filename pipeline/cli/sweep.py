@@ -193,6 +193,7 @@ def run(args) -> int:
         probe(scheduler)            # an unreachable scheduler is refused before --out is created
     params = {"model": spec.model, "preset": spec.preset, "rig": args.rig or "", "design": spec.design, "n_points": spec.n_points,
               "seed": spec.seed, "chunk_size": spec.chunk_size, "fingerprint": spec.fingerprint,
+              **({"boundary_fraction": spec.boundary_fraction} if spec.boundary_fraction is not None else {}),
               "scheduler": scheduler or "local", "out": args.out,
               **{f"vary.{k}": f"{r.low:g}:{r.high:g}:{r.scale}" for k, r in spec.vary.items()},
               **{f"fixed.{k}": v for k, v in spec.fixed.items()},
