@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> dict:
     from pipeline.datasets.spec import make_spec
     from pipeline.datasets.store import package_versions
 
-    spec = make_spec(None, n_points=a.points)          # the default sweep (drill lab, LAB_SPACE, sobol)
+    spec = make_spec(None, n_points=a.points)          # the default sweep (drill lab, LAB_SPACE, its design)
     with tempfile.TemporaryDirectory(prefix="vibro-bench-sweep-") as tmp:
         tmp = Path(tmp)
         local = bench_local(spec, tmp)

@@ -24,6 +24,9 @@ QUICK_ARGS = {"bench_search": ["--budget", "60", "--seeds", "0", "--cases", "lab
                                 "3", "--results", str(BENCH_DIR / "results" / "quick")],
               "bench_optimise": ["--budget", "80", "--grid", "4", "4", "4", "--initial", "60", "--rounds", "1",
                                  "--results", str(BENCH_DIR / "results" / "quick")],
+              "bench_design": ["--sizes", "64", "--regressors", "gbt", "--classifiers", "gbt", "--test-interior", "128",
+                               "--test-boundary", "64", "--no-doc",
+                               "--out", str(BENCH_DIR / "results" / "quick" / "design.json")],
               "bench_sweep": ["--points", "32", "--peer-points", "2",
                               "--out", str(BENCH_DIR / "results" / "quick" / "sweep.json")],   # never the full results
               "bench_sweep_dask": ["--points", "256", "--repeat", "1", "--no-doc",

@@ -10,6 +10,9 @@ from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_s
                                parse_settings)
 from pipeline.core.errors import UserError
 from pipeline.core.rigfile import rig_name
+from pipeline.datasets.designs import BOUNDARY_FRACTION, DESIGN_MEANINGS
+
+DESIGNS = tuple(DESIGN_MEANINGS)
 
 EPILOG = """\
 spec (params.yaml section 'sweep'; command-line options override it):
@@ -18,11 +21,15 @@ spec (params.yaml section 'sweep'; command-line options override it):
   fixed: {gap_m: 0.0}          parameters held constant (on top of the rig)
   vary:                        varied parameters; scale linear|log; levels = grid points (grid only)
     frequency_hz: {low: 10.0, high: 400.0, scale: linear}
-  design: sobol|lhs|grid       n_points: 1024      seed: 0
+  design: sobol|sobol-boundary|lhs|grid   n_points: 1024      seed: 0
+  boundary_fraction: 0.25      sobol-boundary only: share of the points on the box's corners, edges, faces
   settings: {window: 32}       sim.Settings fields (part of the spec)
   chunk_size: 64               points per chunk file (execution detail)
   scheduler: null              Dask scheduler address, or local:N
   workers: null                local threads (default: all cores)
+
+designs (--design, sweep.design):
+{designs}
 
 output: OUT/part-XXXXX.parquet (one row per point: point_id, every resolved parameter, every
 MODELS.md section-5 label, status, reason, transient_cycles, n_steps, n_events) and
@@ -49,9 +56,11 @@ def add_parser(sub) -> None:
                     "Failed and non-steady runs stay in the dataset with their status and reason. An interrupted "
                     "sweep resumes where it stopped and ends with exactly the rows of an uninterrupted run. "
                     "Chunks run on local cores (threads) or on a Dask distributed cluster (--scheduler).",
-        formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG)
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=EPILOG.replace("{designs}", "\n".join(f"  {k:<15} {v}" for k, v in DESIGN_MEANINGS.items())))
     p.add_argument("--params", metavar="FILE.yaml", help="read the 'sweep' section of this params file "
-                   "(default: the built-in default sweep: drill, preset lab, MODELS.md section-2 ranges, sobol, 1024 points)")
+                   "(default: the built-in default sweep: drill, preset lab, MODELS.md section-2 ranges, sobol-boundary, "
+                   "1024 points)")
     p.add_argument("--out", default="data/sweep", metavar="DIR", help="dataset directory (default: data/sweep)")
     p.add_argument("--model", help="model name (drill, indenter-metal, indenter-sandstone, ...)")
     p.add_argument("--preset", help="named parameter set of the model; 'none' for the model defaults")
@@ -62,9 +71,9 @@ def add_parser(sub) -> None:
     p.add_argument("--vary", action="append", metavar="NAME=LOW:HIGH[:SCALE[:LEVELS]]",
                    help="vary a parameter (repeatable); SCALE linear (default) or log; LEVELS = grid points on "
                         "this axis. Given on the command line, --vary replaces the spec's whole 'vary' section")
-    p.add_argument("--design", choices=("sobol", "lhs", "grid"),
-                   help="sobol: scrambled Sobol' (first n points of 2^ceil(log2 n) when n is not a power of 2); "
-                        "lhs: Latin hypercube; grid: full factorial (n_points must be a product of levels)")
+    p.add_argument("--design", choices=DESIGNS, help="where the points go (see 'designs' below; default sobol-boundary)")
+    p.add_argument("--boundary-fraction", type=A.finite, metavar="F",
+                   help=f"sobol-boundary: share of n_points on the boundary, in [0, 1] (default {BOUNDARY_FRACTION})")
     p.add_argument("--n-points", type=A.n_points, help="number of points (> 0)")
     p.add_argument("--seed", type=A.seed, help="seed of the design (same seed -> same dataset)")
     p.add_argument("--setting", dest="settings", action="append", metavar="NAME=VALUE",
@@ -147,7 +156,10 @@ def spec_from_args(args):
         raw["vary"] = _parse_vary(args.vary)
     if args.settings:
         raw["settings"] = {**(raw.get("settings") or {}), **parse_settings(args.settings)}
-    spec = make_spec(raw, model=None if rig else args.model, preset=None if rig else args.preset, design=args.design, n_points=args.n_points,
+    if args.boundary_fraction is not None and not 0.0 <= args.boundary_fraction <= 1.0:
+        raise UserError(f"--boundary-fraction must be in [0, 1] (a share of n_points), got {args.boundary_fraction:g}")
+    spec = make_spec(raw, model=None if rig else args.model, preset=None if rig else args.preset, design=args.design,
+                     boundary_fraction=args.boundary_fraction, n_points=args.n_points,
                      seed=args.seed, chunk_size=args.chunk_size)
     # before any work (--dry-run too): the user's values and ranges outside what the model was validated on
     A.warn_out_of_range(spec.model, spec.preset, {**{k: spec.fixed[k] for k in own if k in spec.fixed},
@@ -181,6 +193,7 @@ def run(args) -> int:
         probe(scheduler)            # an unreachable scheduler is refused before --out is created
     params = {"model": spec.model, "preset": spec.preset, "rig": args.rig or "", "design": spec.design, "n_points": spec.n_points,
               "seed": spec.seed, "chunk_size": spec.chunk_size, "fingerprint": spec.fingerprint,
+              **({"boundary_fraction": spec.boundary_fraction} if spec.boundary_fraction is not None else {}),
               "scheduler": scheduler or "local", "out": args.out,
               **{f"vary.{k}": f"{r.low:g}:{r.high:g}:{r.scale}" for k, r in spec.vary.items()},
               **{f"fixed.{k}": v for k, v in spec.fixed.items()},

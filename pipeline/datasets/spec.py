@@ -1,5 +1,6 @@
 """Sweep specification: model + preset + fixed parameters + varied parameters (ranges, linear or log) + a
-design (``sobol``, ``lhs``, ``grid``) + number of points + seed + numerical settings; the design points.
+design (``sobol``, ``sobol-boundary``, ``lhs``, ``grid``: :mod:`pipeline.datasets.designs`) + number of points + seed +
+numerical settings; the design points.
 
 Units: every parameter in SI as in MODELS.md (``frequency_hz`` Hz, ``amplitude_n`` N, ...).
 """
@@ -16,16 +17,17 @@ import numpy as np
 import pandas as pd
 
 from pipeline.core.errors import UserError
+from pipeline.datasets import designs
 from vibrobase.errors import did_you_mean
 from vibrobase.unitcube import from_unit
 
 FORMAT_VERSION = 1
 """Version of the dataset format (part of every spec fingerprint)."""
-DESIGNS = ("sobol", "lhs", "grid")
+DESIGNS = tuple(designs.DESIGN_MEANINGS)
 
 SCALES = ("linear", "log")
 
-SPEC_KEYS = ("model", "preset", "fixed", "vary", "design", "n_points", "seed", "settings")
+SPEC_KEYS = ("model", "preset", "fixed", "vary", "design", "boundary_fraction", "n_points", "seed", "settings")
 
 EXEC_KEYS = ("chunk_size", "scheduler", "workers")
 
@@ -62,10 +64,12 @@ class SweepSpec:
     seed: int
     settings: dict[str, Any]         # every sim.Settings field, resolved (model defaults <- given)
     chunk_size: int = 64
+    boundary_fraction: float | None = None   # sobol-boundary only: share of the points on the box's boundary
 
     def canonical(self) -> dict:
-        """The fingerprinted part of the spec, as plain JSON-able data."""
-        return {
+        """The fingerprinted part of the spec, as plain JSON-able data (``boundary_fraction`` only in a
+        sobol-boundary spec: the other designs' fingerprints are those of the specs before it existed)."""
+        c = {
             "format": FORMAT_VERSION,
             "model": self.model,
             "preset": self.preset,
@@ -77,6 +81,9 @@ class SweepSpec:
             "seed": self.seed,
             "settings": {k: self.settings[k] for k in sorted(self.settings)},
         }
+        if self.design == "sobol-boundary":
+            c["boundary_fraction"] = self.boundary_fraction
+        return c
 
     @property
     def fingerprint(self) -> str:
@@ -98,7 +105,8 @@ class SweepSpec:
         c = self.canonical()
         return {"model": c["model"], "preset": c["preset"], "fixed": c["fixed"],
                 "vary": {k: {kk: vv for kk, vv in v.items() if vv is not None} for k, v in c["vary"]},
-                "design": c["design"], "n_points": c["n_points"], "seed": c["seed"],
+                "design": c["design"], **({"boundary_fraction": c["boundary_fraction"]} if "boundary_fraction" in c else {}),
+                "n_points": c["n_points"], "seed": c["seed"],
                 "settings": c["settings"], "chunk_size": self.chunk_size}
 
 
@@ -119,7 +127,8 @@ def default_spec_dict() -> dict:
     from sim.registry import DEFAULT_MODEL, DEFAULT_PRESET
 
     return {"model": DEFAULT_MODEL, "preset": DEFAULT_PRESET, "fixed": {}, "vary": default_vary(DEFAULT_MODEL, DEFAULT_PRESET),
-            "design": "sobol", "n_points": 1024, "seed": 0, "settings": {}, "chunk_size": 64}
+            "design": "sobol-boundary", "boundary_fraction": designs.BOUNDARY_FRACTION, "n_points": 1024, "seed": 0,
+            "settings": {}, "chunk_size": 64}
 
 
 def _as_int(value, name: str, minimum: int | None = None) -> int:
@@ -204,6 +213,8 @@ def make_spec(raw: dict | None = None, **overrides) -> SweepSpec:
     from sim.models.base import ParameterError
 
     d = dict(default_spec_dict() if raw is None else raw)
+    if overrides.get("design") not in (None, "sobol-boundary") and overrides.get("boundary_fraction") is None:
+        d.pop("boundary_fraction", None)        # the raw spec's share belongs to its own sobol-boundary design
     d.update({k: v for k, v in overrides.items() if v is not None})
     unknown = set(d) - set(SPEC_KEYS) - set(EXEC_KEYS)
     if unknown:
@@ -240,20 +251,12 @@ def make_spec(raw: dict | None = None, **overrides) -> SweepSpec:
     # design dimensions in sorted name order: the listing order in a YAML file (which tools may
     # re-sort) does not change the dataset
     vary = {str(k): _parse_range(str(k), vary_raw[k]) for k in sorted(vary_raw, key=str)}
-    design = d.get("design", "sobol")
-    if design not in DESIGNS:
-        raise UserError(f"sweep.design must be one of {', '.join(DESIGNS)}, got {design!r}")
     n_points = _as_int(d["n_points"], "n_points")
     if n_points < 1:
         raise UserError(f"sweep.n_points must be >= 1, got {n_points}")
+    design, fraction = _design_options(d, vary, n_points)
     seed = _as_int(d.get("seed", 0), "seed", minimum=0)
     chunk_size = _as_int(d.get("chunk_size", 64), "chunk_size", minimum=1)
-    if design != "grid":
-        with_levels = [k for k, r in vary.items() if r.levels is not None]
-        if with_levels:
-            raise UserError(f"sweep.vary.{with_levels[0]}.levels is only used by the grid design (design is {design})")
-    else:
-        _grid_levels(vary, n_points)         # validates
     settings = _coerce_settings(d.get("settings") or {}, mspec)
     # every range end must be a valid value of its parameter (e.g. frequency_hz > 0)
     by_name = {p.name: p for p in mspec.params}
@@ -268,7 +271,33 @@ def make_spec(raw: dict | None = None, **overrides) -> SweepSpec:
     except ParameterError as e:
         raise UserError(f"sweep.fixed: {e}") from None
     return SweepSpec(model=model, preset=preset, fixed=fixed, vary=vary, design=design, n_points=n_points,
-                     seed=seed, settings=settings, chunk_size=chunk_size)
+                     seed=seed, settings=settings, chunk_size=chunk_size, boundary_fraction=fraction)
+
+
+def _design_options(d: dict, vary: dict[str, Range], n_points: int) -> tuple[str, float | None]:
+    """The checked design name and its ``boundary_fraction`` (sobol-boundary only: default
+    ``designs.BOUNDARY_FRACTION``; None for the other designs); UserError naming the option."""
+    design = d.get("design", "sobol")
+    if design is None:
+        design = "sobol"
+    if not isinstance(design, str) or design not in DESIGNS:
+        hint = did_you_mean(design, DESIGNS) if isinstance(design, str) else ""
+        raise UserError(f"sweep.design: unknown design {design!r}{hint}; known: {', '.join(DESIGNS)}")
+    fraction = d.get("boundary_fraction")
+    if design != "sobol-boundary":
+        if fraction is not None:
+            raise UserError(f"sweep.boundary_fraction is only used by the sobol-boundary design (design is {design})")
+    else:
+        fraction = designs.BOUNDARY_FRACTION if fraction is None else _as_float(fraction, "sweep.boundary_fraction")
+        if not 0.0 <= fraction <= 1.0:
+            raise UserError(f"sweep.boundary_fraction must be in [0, 1] (a share of n_points), got {fraction:g}")
+    if design != "grid":
+        with_levels = [k for k, r in vary.items() if r.levels is not None]
+        if with_levels:
+            raise UserError(f"sweep.vary.{with_levels[0]}.levels is only used by the grid design (design is {design})")
+    else:
+        _grid_levels(vary, n_points)         # validates
+    return design, fraction
 
 
 def _grid_levels(vary: dict[str, Range], n_points: int) -> list[int]:
@@ -296,22 +325,28 @@ def unit_design(spec: SweepSpec) -> np.ndarray:
 
     sobol: scrambled Sobol' (``qmc.Sobol(d, scramble=True, seed=seed)``); for n not a power of 2 the
     first n points of the 2^ceil(log2 n) sequence are taken (a prefix of the sequence: low discrepancy
-    is kept, the exact balance of a power of 2 is not).  lhs: ``qmc.LatinHypercube(d, seed=seed)``.
-    grid: full factorial, end points included.  Dimensions are the varied parameters sorted by
-    name (the last one varies fastest in a grid).
+    is kept, the exact balance of a power of 2 is not).  sobol-boundary: ``boundary_fraction`` of the points on
+    the cube's corners, edges and faces, the rest sobol (:func:`designs.sobol_boundary`).
+    lhs: ``qmc.LatinHypercube(d, seed=seed)``.  grid: full factorial, end points included.  Dimensions are the
+    varied parameters sorted by name (the last one varies fastest in a grid).
     """
-    from scipy.stats import qmc
+    return UNIT_DESIGNS[spec.design](spec, len(spec.vary), spec.n_points)
 
-    d = len(spec.vary)
-    n = spec.n_points
-    if spec.design == "sobol":
-        m = max(0, math.ceil(math.log2(n)))
-        return qmc.Sobol(d, scramble=True, seed=spec.seed).random_base2(m)[:n]
-    if spec.design == "lhs":
-        return qmc.LatinHypercube(d, seed=spec.seed).random(n)
-    levels = _grid_levels(spec.vary, n)
-    axes = [np.linspace(0.0, 1.0, L) for L in levels]
+
+def _grid_unit(spec: SweepSpec, d: int, n: int) -> np.ndarray:
+    """Full factorial over each axis's levels in [0, 1], end points included (the last axis varies fastest)."""
+    axes = [np.linspace(0.0, 1.0, L) for L in _grid_levels(spec.vary, n)]
     return np.array(list(itertools.product(*axes)), dtype=np.float64).reshape(n, d)
+
+
+UNIT_DESIGNS = {
+    "sobol": lambda spec, d, n: designs.sobol(d, n, spec.seed),
+    "sobol-boundary": lambda spec, d, n: designs.sobol_boundary(d, n, spec.seed, spec.boundary_fraction),
+    "lhs": lambda spec, d, n: designs.lhs(d, n, spec.seed),
+    "grid": _grid_unit,
+}
+"""Design name -> (spec, d, n) -> unit-cube points: the one place a design's name becomes its points."""
+assert set(UNIT_DESIGNS) == set(DESIGNS), "every design of designs.DESIGN_MEANINGS needs its UNIT_DESIGNS entry"
 
 
 def design_points(spec: SweepSpec) -> pd.DataFrame:

@@ -142,7 +142,7 @@ def test_default_sweep_is_the_drill_lab_preset_over_lab_space():
 
     spec = make_spec(read_section(REPO / "params.yaml", "sweep", section_required=True))
     assert spec.fingerprint == make_spec(None).fingerprint
-    assert (spec.model, spec.preset, spec.design) == ("drill", "lab", "sobol")
+    assert (spec.model, spec.preset, spec.design, spec.boundary_fraction) == ("drill", "lab", "sobol-boundary", 0.25)
     assert {k: (r.low, r.high) for k, r in spec.vary.items()} == {k: tuple(v) for k, v in LAB_SPACE.items()}
 
 
