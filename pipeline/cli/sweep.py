@@ -10,7 +10,7 @@ from pipeline.cli.args import (add_quiet, add_rig, add_set, add_workers, check_s
                                parse_settings)
 from pipeline.core.errors import UserError
 from pipeline.core.rigfile import rig_name
-from pipeline.datasets.designs import BOUNDARY_FRACTION, DESIGN_MEANINGS
+from pipeline.core.design_names import BOUNDARY_FRACTION, DESIGN_MEANINGS
 
 DESIGNS = tuple(DESIGN_MEANINGS)
 
