@@ -61,6 +61,9 @@ def table(rows: list[dict]) -> str:
                      f" | {frac(lambda r: r['expected'] == 'unexplained')}"
                      f" | {within('delay_error_us', DELAY_TOL_US)} | {within('clock_error_ppm', CLOCK_TOL_PPM)} |")
     right = sum(r["correct"] for r in rows)
+    loads = [r["load_1min"] for r in rows if r.get("load_1min") is not None]
+    if loads:
+        lines.insert(0, f"Load average (1 min) after each diagnosis: {min(loads):.1f}-{max(loads):.1f}.\n")
     lines += [f"| **all** | | **{right}/{len(rows)}** | | | | | | |", "",
               "| log | chain | verdict | selected | nrms base → final | noise floor | diagnosis wall (CPU) |",
               "|---|---|---|---|---|---|---|"]
@@ -102,13 +105,14 @@ def main(argv: list[str] | None = None) -> int:
             continue
         if name not in done:
             r = run_case(s, c, a.noise, seed, a.threads, settings_of(col), a.n_runs, CHAINS[col])
-            done[name] = {**r, "column": col}
+            done[name] = {**r, "column": col, "load_1min": os.getloadavg()[0]}
             done_file.write_text(json.dumps(list(done.values()), indent=1, default=float))
             print(f"[{k}/{len(todo)}] {name}: {r['verdict']} {'✓' if r['correct'] else '✗'} (selected {r['selected']},"
                   f" nrms {_fmt(r['base_nrms'])} -> {_fmt(r['final_nrms'])}, {r['wall_time_s']:.0f} s)", flush=True)
         rows.append(done[name])
     load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
-    text = table(rows) + f"\n\nLoad average at the end (1, 5, 15 min): {load}; {len(rows)} logs, noise '{a.noise}'."
+    text = (table(rows) + f"\n\nLoad average when the tables were written (1, 5, 15 min): {load}; {len(rows)} logs, "
+                          f"noise '{a.noise}'.")
     print(text)
     if not a.no_doc:
         from bench import write_block
