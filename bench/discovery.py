@@ -183,6 +183,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--fresh", action="store_true", help="diagnose every case again (the logs are kept)")
     p.add_argument("--no-doc", action="store_true", help="do not rewrite docs/discovery.md")
     p.add_argument("--tables-only", action="store_true", help="write the tables from the stored rows, diagnose nothing")
+    p.add_argument("--block", metavar="NAME",
+                   help="write the tables between docs/discovery.md's discovery-NAME markers instead (a subset, e.g. "
+                        "the held-out kinds), leaving the matrix's table and the README's summary as they are")
     a = p.parse_args(argv)
     WORK.mkdir(parents=True, exist_ok=True)
     done_file = WORK / "rows.json"
@@ -207,8 +210,13 @@ def main(argv: list[str] | None = None) -> int:
     text = table(rows)
     print(text)
     summary = {"rows": len(rows), "right": sum(r["correct"] for r in rows)}
-    (RESULTS / "discovery.json").write_text(json.dumps({"summary": summary, "rows": rows}, indent=1, default=float))
-    if not a.no_doc and DOC.exists():
+    out = RESULTS / (f"discovery-{a.block}.json" if a.block else "discovery.json")
+    out.write_text(json.dumps({"summary": summary, "rows": rows}, indent=1, default=float))
+    if not a.no_doc and DOC.exists() and a.block:
+        from bench import write_block
+
+        write_block(DOC, f"<!-- discovery-{a.block}:start -->", f"<!-- discovery-{a.block}:end -->", text)
+    elif not a.no_doc and DOC.exists():
         from bench import write_block
 
         write_block(DOC, START, END, text)
