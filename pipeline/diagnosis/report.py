@@ -363,10 +363,15 @@ def _verdict_lines(rep: dict) -> list[str]:
         c = by[m]
         role = "selected" if m == rep["selected"] else ("leader" if m == lead1 else "runner-up")
         lines.append(f"| {m} ({role}) | {_fmt(c['error'])} ({_fmt(rep['noise_floor'])}) | {_fmt(c['nrms'])} | "
-                     f"{_fmt(c['systematic'])} | {_fmt(-c['delta_score'])} | {_fmt(c['delta_chi2_heldout'])} | "
-                     f"{'yes' if c['adequate'] else 'no'} | {'yes' if c['improves'] else 'no'} |")
+                     f"{_fmt(c['systematic'])} | {_judged(-c['delta_score'], c['delta_chi2_heldout'], c)}")
     lines.append("")
     return lines
+
+
+def _judged(delta_bic, delta_chi2, stats: dict) -> str:
+    """The judged cells of a model's row: ``ΔBIC | held-out Δχ² | adequate | improves |``."""
+    return (f"{_fmt(delta_bic)} | {_fmt(delta_chi2)} | {'yes' if stats['adequate'] else 'no'} | "
+            f"{'yes' if stats['improves'] else 'no'} |")
 
 
 def _second_effect_lines(second: dict) -> list[str]:
@@ -376,9 +381,8 @@ def _second_effect_lines(second: dict) -> list[str]:
               f"{second['text']}.", "",
               "| model | held-out nrms | systematic error | ΔBIC | held-out Δχ² | adequate | improves |",
               "|---|---|---|---|---|---|---|"]
-    lines += [f"| {c['name']} | {_fmt(c['nrms'])} | {_fmt(c['systematic'])} | {_fmt(c['delta_bic'])} | "
-              f"{_fmt(c['delta_chi2'])} | {'yes' if c['adequate'] else 'no'} | {'yes' if c['improves'] else 'no'} |"
-              for c in second["candidates"][:3]]
+    lines += [f"| {c['name']} | {_fmt(c['nrms'])} | {_fmt(c['systematic'])} | "
+              f"{_judged(c['delta_bic'], c['delta_chi2'], c)}" for c in second["candidates"][:3]]
     lines.append("")
     return lines
 
@@ -397,8 +401,7 @@ def _discrepancy_lines(disc: dict) -> list[str]:
         co = ", ".join(f"{t} = {p_['coefficients'][t]:.3g} ± {p_['coefficient_sd'][t]:.2g}" for t in p_["coefficients"])
         lines.append(f"| {k} | {'; '.join(p_['words'])} | {' + '.join(p_['forms'])} | {co} | "
                      f"{_fmt(p_['error'])} ({_fmt(p_['noise_floor'])}) | {_fmt(p_['nrms'])} | "
-                     f"{_fmt(p_['delta_bic'])} | {_fmt(p_['delta_chi2'])} | {'yes' if p_['adequate'] else 'no'} | "
-                     f"{'yes' if p_['improves'] else 'no'} |")
+                     f"{_judged(p_['delta_bic'], p_['delta_chi2'], p_)}")
     lines.append("")
     return lines
 
