@@ -124,11 +124,10 @@ def optimise(cfg: OptimiseConfig, out_dir, *, bundle=None, plan: OptimisePlan | 
 
         maps, map_sims = write_limit_maps(res, out)
         figs = [*figs, *maps]
-    rep = outputs.report_dict(res, figs, rows, fb, failed=failed, infill=infill and infill.report)
+    spread = None if rig is None or res.recommendation is None else recommendation_spread(cfg, rig, res.recommendation)
+    rep = outputs.report_dict(res, figs, rows, fb, failed=failed, infill=infill and infill.report, spread=spread)
     if map_sims:
         rep["metrics"]["limit_map_simulations"] = map_sims
-    if rig is not None and res.recommendation is not None:
-        outputs.add_spread(rep, recommendation_spread(cfg, rig, res.recommendation))
     reports = outputs.write_report(rep, res, out)
     metrics_file = Path(metrics_path) if metrics_path else None
     if metrics_file is not None:

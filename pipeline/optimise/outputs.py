@@ -63,10 +63,12 @@ def surrogate_note(res: OptimiseResult, feedback_file: str | None) -> str:
 
 
 def report_dict(res: OptimiseResult, figures: list[str], feedback_rows: int | None = None,
-                feedback_file: str | None = None, failed: OptimiseResult | None = None, infill=None) -> dict:
+                feedback_file: str | None = None, failed: OptimiseResult | None = None, infill=None,
+                spread=None) -> dict:
     """report.json of ``res``: keys :data:`REPORT_KEYS`; ``feedback_rows`` rows now in ``feedback_file``.
     ``failed``: the surrogate study that failed its verification, when ``res`` is the simulator study replacing it.
-    ``infill``: the infill loop's :class:`~pipeline.optimise.infill.InfillReport`, when one ran."""
+    ``infill``: the infill loop's :class:`~pipeline.optimise.infill.InfillReport`, when one ran.  ``spread``: the
+    recommendation's ROP spread on the rig (:class:`~pipeline.optimise.robustness.RopSpread`), when one was taken."""
     rep = {"study_name": res.study_name, "inputs": res.problem.space.names, "created": res.created,
            "tried": tried(res), "recommendation": res.recommendation}
     first = failed or res
@@ -91,6 +93,8 @@ def report_dict(res: OptimiseResult, figures: list[str], feedback_rows: int | No
                            "text": f"{why}: the recommendation comes from a study of "
                                    f"{len(res.trials)} trials straight on the simulator, not from the surrogate"}
     rep["outcome"] = res.outcome
+    if spread is not None:
+        rep["spread"] = spread.to_dict()
     if res.pareto_verified is not None:
         rep["pareto_verified"] = res.pareto_verified
         rep["objectives"] = res.objective_names
@@ -101,19 +105,11 @@ def report_dict(res: OptimiseResult, figures: list[str], feedback_rows: int | No
     if infill is not None:      # what the loop cost: infill points and the later rounds' verifications
         rep["metrics"].update({"infill_rounds": infill.n_rounds, "infill_simulations": infill.simulations,
                                "infill_agreed": infill.agreed})
+    if spread is not None:      # its half-widths, and the simulations it took (the nominal point and the samples)
+        rep["metrics"].update({"spread_simulations": spread.n_samples + 1,
+                               "rop_m_s_parameter_half_width": spread.parameter_half_width_m_s,
+                               "rop_m_s_combined_half_width": spread.combined_half_width_m_s})
     return rep
-
-
-def add_spread(rep: dict, spread) -> None:
-    """Put the recommendation's ROP spread (``RopSpread``) into ``rep`` after 'outcome', in the key order of
-    :data:`REPORT_KEYS`, and its half-widths and simulations into the metrics."""
-    items = list(rep.items())
-    at = [k for k, _ in items].index("outcome") + 1
-    rep.clear()
-    rep.update(items[:at] + [("spread", spread.to_dict())] + items[at:])
-    rep["metrics"].update({"spread_simulations": spread.n_samples + 1,
-                           "rop_m_s_parameter_half_width": spread.parameter_half_width_m_s,
-                           "rop_m_s_combined_half_width": spread.combined_half_width_m_s})
 
 
 def write_tables(res: OptimiseResult, out: Path) -> list[Path]:
