@@ -23,7 +23,7 @@ import json
 import os
 import sys
 
-from bench.identification import DOC, WORK, _fmt, expected, log_name, run_case, spec_of
+from bench.identification import DOC, WORK, _fmt, log_name, pair_of, run_case, spec_of
 
 CHAINS = {"off": None, "compensated": "butter8-comp", "uncompensated": "butter8", "undeclared": "butter8-undeclared",
           "saturated": "clip80"}
@@ -56,8 +56,8 @@ def table(rows: list[dict]) -> str:
             xs = [r[key] for r in rs if r.get(key) is not None]
             return f"{sum(x <= tol for x in xs)}/{len(xs)} (max {max(xs):.3g})" if xs else "—"
         lines.append(f"| {system} | {col} | {frac(lambda r: True)} | {frac(lambda r: r['expected'] == 'nothing missing')}"
-                     f" | {frac(lambda r: r['expected'] == 'selected' and not r['case'].startswith('pair:'))}"
-                     f" | {frac(lambda r: r['case'].startswith('pair:'))}"
+                     f" | {frac(lambda r: r['expected'] == 'selected' and not pair_of(r['case']))}"
+                     f" | {frac(lambda r: bool(pair_of(r['case'])))}"
                      f" | {frac(lambda r: r['expected'] == 'unexplained')}"
                      f" | {within('delay_error_us', DELAY_TOL_US)} | {within('clock_error_ppm', CLOCK_TOL_PPM)} |")
     right = sum(r["correct"] for r in rows)
@@ -118,9 +118,9 @@ def main(argv: list[str] | None = None) -> int:
         from bench import write_block
 
         write_block(DOC, START, END, text)
+    kinds = sorted({r["expected"] for r in rows})
     print(json.dumps({"rows": len(rows), "right": sum(r["correct"] for r in rows),
-                      "expected": {e: sum(r["expected"] == e for r in rows) for e in set(map(expected, CASES["drill"]))}}),
-          file=sys.stderr)
+                      "expected": {e: sum(r["expected"] == e for r in rows) for e in kinds}}), file=sys.stderr)
     return 0
 
 
