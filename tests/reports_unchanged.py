@@ -5,8 +5,9 @@ report.json number, verdict and rig file unchanged.
     python -m tests.reports_unchanged compare OLD NEW                # differences, one line each; exit 1 if any
 
 The cases cover each path of the diagnosis: a single split with one effect selected, a pair, leave-one-run-out,
-an undeclared DAQ chain estimated, and discovery.  The logs are the identification matrix's
-(``python -m bench.identification_chain`` writes them into bench/results/identification/logs).  Timing fields
+an undeclared DAQ chain estimated, discovery with nothing accepted and with a proposal accepted.  The logs are the
+identification matrix's and the discovery bench's (``python -m bench.identification_chain`` and
+``python -m bench.discovery`` write them under bench/results).  Timing fields
 (``wall_time_s``, ``cost``) are left out of the comparison.
 """
 from __future__ import annotations
@@ -18,20 +19,22 @@ import os
 import sys
 from pathlib import Path
 
-LOGS = Path(os.environ.get("VIBRO_GOLDEN_LOGS")
-            or Path(__file__).resolve().parents[1] / "bench" / "results" / "identification" / "logs")
-"""The stored logs (environment VIBRO_GOLDEN_LOGS: another checkout's, e.g. from a git worktree)."""
+RESULTS = Path(os.environ.get("VIBRO_GOLDEN_RESULTS") or Path(__file__).resolve().parents[1] / "bench" / "results")
+"""Where the stored logs are (environment VIBRO_GOLDEN_RESULTS: another checkout's bench/results, e.g. from a git
+worktree)."""
 
 CASES: dict[str, tuple[str, dict]] = {
-    "single": ("drill-guide_friction-rig-s0-n8", {}),
-    "pair": ("drill-shaker_coil+guide_friction-rig-butter8-s0-n8", {}),
-    "loro": ("drill-guide_friction-rig-s0-n8",
+    "single": ("identification/logs/drill-guide_friction-rig-s0-n8", {}),
+    "pair": ("identification/logs/drill-shaker_coil+guide_friction-rig-butter8-s0-n8", {}),
+    "loro": ("identification/logs/drill-guide_friction-rig-s0-n8",
              {"min_runs_holdout": 9, "effects": ["guide_friction", "shaker_coil", "rate_stiffening"]}),
-    "chain": ("drill-control-rig-butter8-undeclared-s0-n8", {"estimate_chain": True}),
-    "discovery": ("drill-guide_friction-rig-butter8-undeclared-s0-n8",
+    "chain": ("identification/logs/drill-control-rig-butter8-undeclared-s0-n8", {"estimate_chain": True}),
+    "discovery": ("identification/logs/drill-guide_friction-rig-butter8-undeclared-s0-n8",
                   {"effects": ["guide_friction", "shaker_coil", "tip_blunting"], "max_proposals": 2}),
+    "accepted": ("discovery/logs/drill-outside-contact_power-rig-s0-n8",
+                 {"effects": ["guide_friction", "tip_blunting"], "max_proposals": 2}),
 }
-"""Case name -> (log under LOGS, DiagnoseConfig settings)."""
+"""Case name -> (log under RESULTS, DiagnoseConfig settings)."""
 
 VOLATILE = ("wall_time_s", "cost")
 
@@ -45,7 +48,7 @@ def record(out: Path, only: list[str] | None, threads: int) -> None:
     for name, (log, settings) in CASES.items():
         if only and name not in only:
             continue
-        rep = diagnose_into(load_dataset(LOGS / log), out / name, DiagnoseConfig(n_threads=threads, **settings),
+        rep = diagnose_into(load_dataset(RESULTS / log), out / name, DiagnoseConfig(n_threads=threads, **settings),
                             log=lambda s: None).report
         r = next(iter(rep["systems"].values()))
         print(f"{name}: {r['verdict']}, selected {r['selected']}, pairs tried {r['pair_stage']['tried']}, "

@@ -30,9 +30,9 @@ import numpy as np
 from pipeline.core.executors import Executor
 from pipeline.diagnosis.calibrate import fit_added
 from pipeline.diagnosis.fit import FitResult
-from pipeline.diagnosis.heldout import fold_errors
+from pipeline.diagnosis.judge import Fitter, FoldScheme, Judged, judge
 from pipeline.diagnosis.model import Evaluator, FreeParam, calibratable
-from pipeline.diagnosis.verdict import ModelStats, decide
+from pipeline.diagnosis.verdict import ModelStats
 
 if TYPE_CHECKING:
     from pipeline.diagnosis.config import DiagnoseConfig
@@ -178,18 +178,17 @@ class Discovery:
     checks: dict
 
 
-def discover(ev: Evaluator, cfg: DiagnoseConfig, scheme: str, folds: list, fits_per_fold: list[dict],
-             warm: dict | None, base_stats: ModelStats, executor: Executor, log) -> Discovery | None:
-    """Screen the model's discrepancy terms at the calibrated base, re-fit the proposals on every fold and judge
-    them on the held-out runs (``cfg.max_proposals`` of them; None when the model has no terms)."""
+def discover(ev: Evaluator, cfg: DiagnoseConfig, scheme: FoldScheme, calibrated: Judged, base_stats: ModelStats,
+             executor: Executor, log) -> Discovery | None:
+    """Screen the model's discrepancy terms at the calibrated base (``calibrated``: the effects stage, whose base fits
+    the proposals start from), re-fit the proposals on every fold and judge them on the held-out runs
+    (``cfg.max_proposals`` of them; None when the model has no terms)."""
     terms = term_candidates(ev.system)
     structured = structured_candidates(ev.system)
     if not (terms or structured) or cfg.max_proposals < 1:
         return None
-    all_runs = list(range(len(ev.targets)))
-    base = (fits_per_fold[0]["base"] if scheme == "holdout" else warm["base"]).values
-    idx = folds[0][0] if scheme == "holdout" else all_runs
-    scr = screen(ev, idx, base, terms) if terms else Screening([], [], {}, {}, [])
+    base = calibrated.fits["base"]
+    scr = screen(ev, scheme.reported_runs, base.values, terms) if terms else Screening([], [], {}, {}, [])
     log(f"{ev.system}: discrepancy screening: support {scr.support or 'none'}, order {', '.join(scr.order)}")
     sets = proposal_sets(scr, cfg.max_proposals)
     cands = {proposal_name(s): tuple(terms[t] for t in s) for s in sets}
@@ -198,20 +197,16 @@ def discover(ev: Evaluator, cfg: DiagnoseConfig, scheme: str, folds: list, fits_
     # a structured candidate reshapes the response (a mode detuning a resonance): the base fit that absorbed it can be
     # far from the truth in every parameter, so its grid also starts at the rig's nominal values
     nominal = [proposal_name((n,)) for n in structured]
-    fold_fits = fit_added(ev, [cal for cal, _ in folds], cfg, cands, [f["base"] for f in fits_per_fold], executor,
-                          extra_starts=starts, nominal=nominal)
-    if scheme == "holdout":
-        reported = fold_fits[0]
-    else:
-        [reported] = fit_added(ev, [all_runs], cfg, cands, [warm["base"]], executor, extra_starts=starts,
-                               nominal=nominal)
-    names = list(cands)
-    err, stats = fold_errors(ev, folds, fold_fits, names)
-    for m in names:
-        log(f"  {m}: held-out nrms {err[m]['nrms']:.4g} (base {math.sqrt(base_stats.chi2 / max(base_stats.n, 1)):.4g})")
-    v = decide(base_stats, [stats[m] for m in names], cfg.rule())
-    return Discovery(screening=scr, fits=reported, err=err, stats=stats, accepted=v.selected, leader=v.leader,
-                     checks=v.checks)
+
+    def fit_on(runs: list[list[int]], start: list[FitResult]) -> list[dict[str, FitResult]]:
+        return fit_added(ev, runs, cfg, cands, start, executor, extra_starts=starts, nominal=nominal)
+    fitter = Fitter(lambda sets: fit_on(sets, [f["base"] for f in calibrated.fold_fits]),
+                    lambda: fit_on([scheme.reported_runs], [base])[0])
+    j = judge(ev, scheme, fitter, cfg.rule(), against=base_stats)
+    for m in j.stats:
+        log(f"  {m}: held-out nrms {j.err[m]['nrms']:.4g} (base {math.sqrt(base_stats.chi2 / max(base_stats.n, 1)):.4g})")
+    return Discovery(screening=scr, fits=j.fits, err={m: j.err[m] for m in j.stats}, stats=j.stats,
+                     accepted=j.verdict.selected, leader=j.verdict.leader, checks=j.verdict.checks)
 
 
 def spanned_effect(system: str, accepted: str, values: dict, effects: Collection[str]) -> tuple[str, dict] | None:

@@ -70,22 +70,26 @@ def systematic_error(ev: Evaluator, idx: list[int], halves: list[np.ndarray | No
     return float(math.sqrt(sum(w[g] * ratio[g] for g in num) / sum(w.values())))    # every |S|/P >= 0
 
 
-def fold_errors(ev: Evaluator, folds: list[tuple[list[int], list[int]]], fold_fits: list[dict], names: list[str]
-                ) -> tuple[dict[str, dict], dict[str, ModelStats]]:
+def fold_errors(ev: Evaluator, folds, fold_fits: list[dict], names: list[str], fixed: dict[str, dict] | None = None
+                ) -> tuple[dict[str, dict], dict[str, ModelStats], list[int]]:
     """The models ``names`` of every fold's fits (``fold_fits[f][name]``, fitted on the fold's calibration runs)
-    judged on the fold's held-out runs: per model its errors (``heldout_errors`` and ``systematic``) and its
-    ``ModelStats`` (BIC summed over the folds' calibration fits)."""
-    res = {m: [] for m in names}
-    halves = {m: [] for m in names}
+    and the ``fixed`` parameter sets (name -> values, the same in every fold) judged on the folds' held-out runs: per
+    model its errors (``heldout_errors`` and ``systematic``), per fitted model its ``ModelStats`` (BIC summed over
+    the folds' calibration fits), and the held-out runs fold after fold."""
+    fixed = fixed or {}
+    every = [*fixed, *names]
+    res = {m: [] for m in every}
+    halves = {m: [] for m in every}
     idx: list[int] = []
     bic = {m: 0.0 for m in names}
     for (_, test), fits in zip(folds, fold_fits):
-        for m, (r, h) in zip(names, ev.held_out([fits[m].values for m in names], test)):
+        sets = [*fixed.values(), *(fits[m].values for m in names)]
+        for m, (r, h) in zip(every, ev.held_out(sets, test)):
             res[m] += r
             halves[m] += h
         idx += test
         for m in names:
             bic[m] += fits[m].bic()
-    err = {m: {**heldout_errors(ev, idx, res[m]), "systematic": systematic_error(ev, idx, halves[m])} for m in names}
+    err = {m: {**heldout_errors(ev, idx, res[m]), "systematic": systematic_error(ev, idx, halves[m])} for m in every}
     stats = {m: ModelStats(m, bic[m], err[m]["chi2"], err[m]["n"], err[m]["systematic"]) for m in names}
-    return err, stats
+    return err, stats, idx

@@ -29,7 +29,8 @@ from pipeline.diagnosis.calibrate import fit_added, fit_additions, fit_models
 from pipeline.diagnosis.discovery import discover, proposal_terms, report as discovery_report, spanned_effect
 from pipeline.diagnosis.fit import FitResult
 from pipeline.diagnosis.nuisance import ChainEstimate, estimate_chain
-from pipeline.diagnosis.heldout import fold_errors, heldout_errors as _errors, systematic_error  # noqa: F401
+from pipeline.diagnosis.heldout import systematic_error  # noqa: F401  (re-exported)
+from pipeline.diagnosis.judge import FoldScheme, Fitter, Judged, judge, make_folds  # noqa: F401  (make_folds re-exported)
 from pipeline.diagnosis.result import SystemDiagnosis
 from pipeline.diagnosis.verdict import (SELECTED, UNEXPLAINED, ModelStats, Verdict, VerdictRule, closeness, decide,
                                         indistinguishable)
@@ -74,24 +75,6 @@ def build_targets(ds, cfg: DiagnoseConfig, skipped: dict[str, list[str]] | None 
             tg = summary_target(tg, ds.summary.loc[row["run_id"]], mh, sd, floor=cfg.summary_floor)
         out.setdefault(system, []).append(tg)
     return out
-
-
-def make_folds(targets: list[Target], cfg: DiagnoseConfig) -> tuple[str, list[tuple[list[int], list[int]]]]:
-    """Deterministic split.  >= min_runs_holdout runs: one split, every holdout_every-th run of the
-    (static force, frequency)-sorted list held out (offset 1, so both ends stay in calibration);
-    fewer: leave-one-run-out."""
-    n = len(targets)
-    c = [targets[i].controls for i in range(n)]
-    order = sorted(range(n), key=lambda i: (c[i].get("static_force_n", 0.0), c[i].get("gap_m", 0.0),
-                                            c[i].get("amplitude_n", c[i].get("amplitude_m", 0.0)),
-                                            c[i]["frequency_hz"], targets[i].run_id))
-    if n >= max(cfg.min_runs_holdout, 3):
-        test = sorted(order[j] for j in range(n) if j % cfg.holdout_every == 1)
-        cal = sorted(set(range(n)) - set(test))
-        return "holdout", [(cal, test)]
-    if n < 2:
-        raise UserError(f"system '{targets[0].system}': only {n} run; need at least 2 to hold one out")
-    return "leave-one-run-out", [([j for j in range(n) if j != i], [i]) for i in range(n)]
 
 
 def absorbed_parameters(fits: dict[str, FitResult], v: Verdict, cal_names: list[str]) -> dict:
@@ -166,23 +149,18 @@ def pair_stage(cfg: DiagnoseConfig, v: Verdict, n_candidates: int) -> PairStage:
                            f"{cfg.pair_nrms:g}")
 
 
-def _second_effect(ev: Evaluator, cfg: DiagnoseConfig, scheme: str, folds: list, first: str, cands: dict,
-                   fits_per_fold: list[dict], warm: dict | None, first_stats: ModelStats, executor: Executor,
-                   log) -> tuple[dict, dict, dict, Verdict]:
+def _second_effect(d: _Diagnosis, first: str) -> Judged:
     """Greedy forward selection's second step: ``first`` with each other candidate, fitted on every fold's
-    calibration runs and judged on its held-out runs against ``first`` alone by the same rule.  Returns the reported
-    fits, the held-out errors and statistics of every pair, and the verdict with ``first`` as the base."""
-    warm_pairs = None
-    if scheme != "holdout":
-        [warm_pairs] = fit_additions(ev, [list(range(len(ev.targets)))], cfg, first, cands, [warm[first]], executor)
-    fold_pairs = fit_additions(ev, [cal for cal, _ in folds], cfg, first, cands, [f[first] for f in fits_per_fold],
-                               executor)
-    names = list(fold_pairs[0])
-    err, stats = fold_errors(ev, folds, fold_pairs, names)
-    for m in names:
-        log(f"  {m}: held-out nrms {err[m]['nrms']:.4g}")
-    v2 = decide(first_stats, [stats[m] for m in names], cfg.rule())
-    return (fold_pairs[0] if scheme == "holdout" else warm_pairs), err, stats, v2
+    calibration runs (from the fold's fit with ``first``) and judged on its held-out runs against ``first`` alone by
+    the same rule; the reported fits start from the reported fit with ``first``."""
+    ev, cfg, cands, ex, effects = d.ev, d.cfg, d.cands, d.executor, d.effects
+    fitter = Fitter(
+        lambda sets: fit_additions(ev, sets, cfg, first, cands, [f[first] for f in effects.fold_fits], ex),
+        lambda: fit_additions(ev, [d.scheme.reported_runs], cfg, first, cands, [effects.fits[first]], ex)[0])
+    j = judge(ev, d.scheme, fitter, cfg.rule(), against=d.stats[first])
+    for m in j.stats:
+        d.log(f"  {m}: held-out nrms {j.err[m]['nrms']:.4g}")
+    return j
 
 
 def _second_report(first: str, fits: dict, stats: dict, v2: Verdict, rule: VerdictRule,
@@ -220,7 +198,7 @@ def recording_report(targets: list[Target], chain: ChainEstimate | None) -> dict
             "clipped": {t.run_id: dict(t.clipped) for t in targets if t.clipped}}
 
 
-def _as_effect(ev: Evaluator, cfg: DiagnoseConfig, scheme: str, folds: list, found, cands: dict,
+def _as_effect(ev: Evaluator, cfg: DiagnoseConfig, scheme: FoldScheme, found, cands: dict,
                stats: dict[str, ModelStats], executor: Executor, log) -> dict | None:
     """An accepted proposal that is a §6 effect in another form (``discovery.spanned_effect``): the effect refitted
     on every fold from the proposal's calibrated values with the parameter the proposal's coefficient gives (α = c / k)
@@ -238,23 +216,23 @@ def _as_effect(ev: Evaluator, cfg: DiagnoseConfig, scheme: str, folds: list, fou
     base_start = replace(fr, values={n: fr.values[n] for n in cal_names})      # the calibration, without the term
     log(f"{ev.system}: the proposal {found.accepted} is {eff} in another form: refitting {eff} from "
         + ", ".join(f"{k} = {x:.4g}" for k, x in start.items()))
-    fold_fits = fit_added(ev, [cal for cal, _ in folds], cfg, {eff: cands[eff]}, [base_start] * len(folds), executor,
-                          extra_starts={eff: start})
-    err, st = fold_errors(ev, folds, fold_fits, [eff])
-    if st[eff].bic >= stats[eff].bic:
+
+    def fit_on(sets: list[list[int]]) -> list[dict]:
+        return fit_added(ev, sets, cfg, {eff: cands[eff]}, [base_start] * len(sets), executor,
+                         extra_starts={eff: start})
+    fitter = Fitter(fit_on, lambda: fit_on([scheme.reported_runs])[0])
+    j = judge(ev, scheme, fitter, cfg.rule(), keep=lambda j: j.stats[eff].bic < stats[eff].bic)
+    if j.fits is None:
         log(f"  {eff} from the proposal: no better than its own fit")
         return None
-    reported = fold_fits[0][eff]
-    if scheme != "holdout":
-        reported = fit_added(ev, [list(range(len(ev.targets)))], cfg, {eff: cands[eff]}, [base_start], executor,
-                             extra_starts={eff: start})[0][eff]
+    reported = j.fits[eff]
     params = {p: reported.values[p] for p in reported.free if p not in cal_names}
     text = (f"the accepted proposal {' + '.join(proposal_terms(found.accepted))} is {eff} in another form: refitted "
             f"from {', '.join(f'{k} = {x:.4g}' for k, x in start.items())} (c / k) to "
-            f"{', '.join(f'{k} = {x:.4g}' for k, x in params.items())}, held-out nrms {err[eff]['nrms']:.3g}")
+            f"{', '.join(f'{k} = {x:.4g}' for k, x in params.items())}, held-out nrms {j.err[eff]['nrms']:.3g}")
     log(f"  {text}")
-    return {"effect": eff, "start": start, "params": params, "fit": reported, "err": err[eff], "stats": st[eff],
-            "fit_chi2": sum(f[eff].chi2 for f in fold_fits), "text": text}
+    return {"effect": eff, "start": start, "params": params, "fit": reported, "err": j.err[eff],
+            "stats": j.stats[eff], "fit_chi2": j.cal_chi2[eff], "text": text}
 
 
 def _param_report(fr: FitResult) -> dict:
@@ -276,19 +254,14 @@ class _Diagnosis:
     unreproducible: dict[str, float]
     cands: dict
     cost: CostRecorder
-    scheme: str = ""
-    folds: list = field(default_factory=list)
+    scheme: FoldScheme | None = None
     warm: dict | None = None
-    fold_fits: list = field(default_factory=list)
-    fits_per_fold: list[dict] = field(default_factory=list)
-    test_idx: list[int] = field(default_factory=list)
-    test_res: dict = field(default_factory=dict)
-    test_halves: dict = field(default_factory=dict)
-    bic: dict[str, float] = field(default_factory=dict)
-    cal_chi2: dict[str, float] = field(default_factory=dict)
+    fold_fits: list[dict] = field(default_factory=list)
+    effects: Judged | None = None
     err: dict = field(default_factory=dict)
     final_fits: dict = field(default_factory=dict)
     stats: dict[str, ModelStats] = field(default_factory=dict)
+    cal_chi2: dict[str, float] = field(default_factory=dict)
     first: Verdict | None = None
     v: Verdict | None = None
     cal_names: list[str] = field(default_factory=list)
@@ -347,62 +320,40 @@ def _calibrate(d: _Diagnosis) -> None:
     """Base + every candidate fitted on all runs (leave-one-out only: the reported parameters and the folds'
     starting point) and on every fold's calibration runs."""
     system, targets, cfg, cands, log, progress = d.system, d.targets, d.cfg, d.cands, d.log, d.progress
-    d.scheme, d.folds = make_folds(targets, cfg)
+    d.scheme = make_folds(targets, cfg)
     rng = np.random.default_rng(cfg.seed)
 
     def n_fit_tasks(n_folds: int, warm_start: bool) -> int:
         return fit_tasks(n_folds, len(cands), cfg.n_starts, cfg.candidate_starts, warm_start)
-    if d.scheme != "holdout":   # reported parameters: a fit on all runs (also the folds' starting point)
+
+    def fit_all() -> dict:      # the reported parameters: a fit on all runs (also the folds' starting point)
         log(f"{system}: fit on all {len(targets)} runs (reported parameters)")
         progress.stage(f"{system}: base + {len(cands)} candidates on all {len(targets)} runs", n_fit_tasks(1, False))
-        [(d.warm, lines)] = fit_models(d.ev, [list(range(len(targets)))], cfg, cands, rng, d.executor)
+        [(fits, lines)] = fit_models(d.ev, [d.scheme.reported_runs], cfg, cands, rng, d.executor)
         for line in lines:
             log(line)
-    progress.stage(f"{system}: base + {len(cands)} candidates on {len(d.folds)} fold(s)",
-                   n_fit_tasks(len(d.folds), bool(d.warm)))
-    d.fold_fits = fit_models(d.ev, [cal for cal, _ in d.folds], cfg, cands, rng, d.executor, d.warm)
+        return fits
+    d.warm = d.scheme.warm(fit_all)
+    folds = d.scheme.folds
+    progress.stage(f"{system}: base + {len(cands)} candidates on {len(folds)} fold(s)",
+                   n_fit_tasks(len(folds), bool(d.warm)))
+    fold_fits = fit_models(d.ev, [cal for cal, _ in folds], cfg, cands, rng, d.executor, d.warm)
+    for fi, ((cal, test), (_, lines)) in enumerate(zip(folds, fold_fits)):
+        log(f"{system}: fold {fi + 1}/{len(folds)} ({len(cal)} calibration, {len(test)} held-out runs)")
+        for line in lines:
+            log(line)
+    d.fold_fits = [fits for fits, _ in fold_fits]
 
 
 def _held_out(d: _Diagnosis) -> None:
-    """The held-out residuals, BIC and calibration χ² of every model summed over the folds, and the verdict."""
-    system, cands, log = d.system, d.cands, d.log
-    names = ["base", *cands]
-    d.test_res = {m: [] for m in ["default", *names]}
-    d.test_halves = {m: [] for m in ["default", *names]}
-    d.bic = {m: 0.0 for m in names}
-    d.cal_chi2 = {m: 0.0 for m in names}
-    d.progress.stage(f"{system}: held-out errors of {len(cands) + 1} models")
-    for fi, ((cal, test), (fits, lines)) in enumerate(zip(d.folds, d.fold_fits)):
-        log(f"{system}: fold {fi + 1}/{len(d.folds)} ({len(cal)} calibration, {len(test)} held-out runs)")
-        for line in lines:
-            log(line)
-        d.fits_per_fold.append(fits)
-        _add_fold(d, names, fits, test)
-    _judge_effects(d)
-
-
-def _add_fold(d: _Diagnosis, names: list[str], fits: dict, test: list[int]) -> None:
-    """One fold's held-out residuals (default, base and every candidate), BIC and calibration χ² added to the sums."""
-    sets = [{}] + [fits[m].values for m in names]
-    for m, (res, halves) in zip(["default", *names], d.ev.held_out(sets, test)):
-        d.test_res[m] += res
-        d.test_halves[m] += halves
-    d.test_idx += test
-    for m in names:
-        d.bic[m] += fits[m].bic()
-        d.cal_chi2[m] += fits[m].chi2
-
-
-def _judge_effects(d: _Diagnosis) -> None:
-    """Held-out errors and statistics of every model, the reported fits and the single-effect verdict."""
-    ev, test_idx = d.ev, d.test_idx
-    d.err = {m: {**_errors(ev, test_idx, d.test_res[m]),
-                 "systematic": systematic_error(ev, test_idx, d.test_halves[m])} for m in d.test_res}
-    # reported parameters: the single split's calibration fit, or a fit on all runs (leave-one-out)
-    d.final_fits = d.fits_per_fold[0] if d.scheme == "holdout" else d.warm
-    d.stats = {m: ModelStats(m, d.bic[m], d.err[m]["chi2"], d.err[m]["n"], d.err[m]["systematic"])
-               for m in ["base", *d.cands]}
-    d.v = d.first = decide(d.stats["base"], [d.stats[m] for m in d.cands], d.cfg.rule())
+    """The held-out errors of the nominal ('default'), base and every candidate model, their statistics summed
+    over the folds, the reported fits and the single-effect verdict."""
+    d.progress.stage(f"{d.system}: held-out errors of {len(d.cands) + 1} models")
+    fitter = Fitter(lambda sets: d.fold_fits, lambda: d.warm)
+    d.effects = judge(d.ev, d.scheme, fitter, d.cfg.rule(), against="base", fixed={"default": {}})
+    d.err, d.stats, d.cal_chi2 = dict(d.effects.err), dict(d.effects.stats), dict(d.effects.cal_chi2)
+    d.final_fits = dict(d.effects.fits)
+    d.v = d.first = d.effects.verdict
     d.cal_names = [q.name for q in calibratable(d.system)]
 
 
@@ -414,11 +365,11 @@ def _pairs(d: _Diagnosis) -> None:
         return
     d.log(f"{system}: {d.pair.reason}: adding a second effect")
     d.progress.stage(f"{system}: {v.leader} + each of {len(cands) - 1} other effects")
-    pair_fits, pair_err, pair_stats, v2 = _second_effect(d.ev, cfg, d.scheme, d.folds, v.leader, cands,
-                                                         d.fits_per_fold, d.warm, d.stats[v.leader], d.executor, d.log)
-    d.second = _second_report(v.leader, pair_fits, pair_stats, v2, cfg.rule(), d.cal_names)
-    d.final_fits = {**d.final_fits, **pair_fits}
-    d.err.update(pair_err)
+    pairs = _second_effect(d, v.leader)
+    v2 = pairs.verdict
+    d.second = _second_report(v.leader, pairs.fits, pairs.stats, v2, cfg.rule(), d.cal_names)
+    d.final_fits = {**d.final_fits, **pairs.fits}
+    d.err.update(pairs.err)
     pair_adequate = v2.leader is not None and v2.checks[v2.leader]["adequate"]
     if pair_adequate or (v2.leader is not None and v.kind != SELECTED):   # an adequate single stays
         kind = SELECTED if pair_adequate else UNEXPLAINED
@@ -432,12 +383,12 @@ def _discover(d: _Diagnosis) -> None:
     if d.v.kind == UNEXPLAINED and d.cfg.max_proposals >= 1:
         d.log(f"{d.system}: no §6 effect explains the residual: proposing the missing term")
         d.progress.stage(f"{d.system}: proposing the missing term")
-        d.found = discover(d.ev, d.cfg, d.scheme, d.folds, d.fits_per_fold, d.warm, d.stats["base"], d.executor, d.log)
+        d.found = discover(d.ev, d.cfg, d.scheme, d.effects, d.stats["base"], d.executor, d.log)
     if d.found is not None and d.found.accepted:
         d.final = d.found.accepted
         d.final_fits = {**d.final_fits, d.final: d.found.fits[d.final]}
         d.err[d.final] = d.found.err[d.final]
-        d.named = _as_effect(d.ev, d.cfg, d.scheme, d.folds, d.found, d.cands, d.stats, d.executor, d.log)
+        d.named = _as_effect(d.ev, d.cfg, d.scheme, d.found, d.cands, d.stats, d.executor, d.log)
 
 
 def _make_call(d: _Diagnosis) -> None:
@@ -450,7 +401,7 @@ def _make_call(d: _Diagnosis) -> None:
     if named is None:
         return
     eff = named["effect"]
-    d.bic[eff], d.cal_chi2[eff] = named["stats"].bic, named["fit_chi2"]
+    d.cal_chi2[eff] = named["fit_chi2"]
     d.stats[eff], d.err[eff], d.final_fits[eff] = named["stats"], named["err"], named["fit"]
     v_named = decide(d.stats["base"], [d.stats[m] for m in d.cands], d.cfg.rule())
     named["selected"] = v_named.selected == eff
@@ -463,7 +414,8 @@ def _make_call(d: _Diagnosis) -> None:
 
 def _candidate_rows(d: _Diagnosis) -> list[dict]:
     """report.json ``candidates``: every single effect, best BIC first."""
-    final_fits, err, bic, v = d.final_fits, d.err, d.bic, d.v
+    final_fits, err, v = d.final_fits, d.err, d.v
+    bic = {m: d.stats[m].bic for m in ["base", *d.cands]}
     return [{"effect": m, "params": {p: final_fits[m].values[p] for p in final_fits[m].free if p not in d.cal_names},
              "param_sd": {p: final_fits[m].sd[p] for p in final_fits[m].free},
              "calibrated": final_fits[m].values,
@@ -484,9 +436,9 @@ def _assemble(d: _Diagnosis) -> SystemDiagnosis:
         "n_runs": len(targets),
         "unreproducible": d.unreproducible,
         "data": sorted({t.kind for t in targets}),
-        "split": {"scheme": d.scheme, "held_out": [targets[i].run_id for i in sorted(set(d.test_idx))],
+        "split": {"scheme": d.scheme.name, "held_out": [targets[i].run_id for i in sorted(set(d.effects.held_out))],
                   "folds": [{"calibration": [targets[i].run_id for i in c], "held_out": [targets[i].run_id for i in t]}
-                            for c, t in d.folds]},
+                            for c, t in d.scheme.folds]},
         "verdict": v.kind,
         "calibrated": final_fits["base"].values,
         "calibrated_uncertainty": _param_report(final_fits["base"]),
@@ -499,7 +451,7 @@ def _assemble(d: _Diagnosis) -> SystemDiagnosis:
         "heldout_n": err["base"]["n"],
         "error_by_group": {"default": err["default"]["error_by_group"], "base": err["base"]["error_by_group"],
                            "final": err[final]["error_by_group"], "noise": err["base"]["noise_by_group"]},
-        "base_score": d.bic["base"],
+        "base_score": d.stats["base"].bic,
         "candidates": cand_list,
         "selected": v.selected,
         "selected_effects": v.selected.split("+") if v.selected else [],
@@ -521,5 +473,5 @@ def _assemble(d: _Diagnosis) -> SystemDiagnosis:
         "recording": recording_report(targets, d.chain),
         "n_simulations": d.ev.n_sims,
     }
-    return SystemDiagnosis(report=report, evaluator=d.ev, fits=final_fits, held_out=d.test_idx, final=final,
+    return SystemDiagnosis(report=report, evaluator=d.ev, fits=final_fits, held_out=d.effects.held_out, final=final,
                            cost=d.cost.rows())

@@ -31,14 +31,16 @@ def _targets(n):
 
 
 def test_folds_are_deterministic_and_disjoint():
-    scheme, folds = make_folds(_targets(16), DiagnoseConfig())
-    assert scheme == "holdout" and len(folds) == 1
-    cal, test = folds[0]
+    scheme = make_folds(_targets(16), DiagnoseConfig())
+    assert scheme.name == "holdout" and len(scheme.folds) == 1
+    cal, test = scheme.folds[0]
     assert len(test) == 4 and not set(cal) & set(test) and sorted(cal + test) == list(range(16))
     assert 0 not in test and 15 not in test                 # the frequency range ends stay in calibration
-    assert make_folds(_targets(16), DiagnoseConfig()) == (scheme, folds)
-    scheme, folds = make_folds(_targets(4), DiagnoseConfig())
-    assert scheme == "leave-one-run-out" and [t for _, t in folds] == [[0], [1], [2], [3]]
+    assert scheme.reported_runs == cal                      # a single split reports its calibration fits
+    assert make_folds(_targets(16), DiagnoseConfig()) == scheme
+    scheme = make_folds(_targets(4), DiagnoseConfig())
+    assert scheme.name == "leave-one-run-out" and [t for _, t in scheme.folds] == [[0], [1], [2], [3]]
+    assert scheme.reported_runs == [0, 1, 2, 3]             # leave-one-run-out reports a fit on all runs
 
 
 def _synth(tmp_path, name, *args):

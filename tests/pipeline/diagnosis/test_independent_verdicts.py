@@ -150,7 +150,7 @@ def test_a_contact_rate_product_proposal_is_refitted_and_named_as_rate_stiffenin
     cfg = DiagnoseConfig(max_nfev=6, refine_nfev=4, grid=2, profile_nfev=0, n_threads=2)
     targets = build_targets(load_dataset(tmp_path / spec.name), cfg)["pendulum"]
     ev = Evaluator("pendulum", targets, dict(cfg.sim_settings), cfg.fs_sim_hz, cfg.n_threads)
-    scheme, folds = make_folds(targets, cfg)
+    scheme = make_folds(targets, cfg)
     name = D.proposal_name(("contact_rate_product",))
     vals = {**{k: truth[k] for k in ("ki", "ci", "zeta")}, "contact_rate_product": truth["ki"] * truth["alpha"]}
     fr = FitResult(values=vals, sd={k: 0.0 for k in vals}, ci95={k: (v, v) for k, v in vals.items()}, chi2=0.0, n=1,
@@ -158,7 +158,7 @@ def test_a_contact_rate_product_proposal_is_refitted_and_named_as_rate_stiffenin
     found = D.Discovery(screening=D.Screening([], [], {}, {}, []), fits={name: fr}, err={}, stats={}, accepted=name,
                         leader=name, checks={})
     own = {"rate_stiffening": ModelStats("rate_stiffening", float("inf"), 0.0, 1, None)}
-    named = _as_effect(ev, cfg, scheme, folds, found, candidates("pendulum"), own, InlineExecutor(), lambda s: None)
+    named = _as_effect(ev, cfg, scheme, found, candidates("pendulum"), own, InlineExecutor(), lambda s: None)
     assert named is not None and named["effect"] == "rate_stiffening"
     assert named["start"]["alpha"] == pytest.approx(5.0, rel=1e-9)
     assert named["params"]["alpha"] == pytest.approx(5.0, rel=0.1), named["text"]
