@@ -11,8 +11,9 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from sim.layout import G_ACCEL as G_ACC   # [m/s²] per g: the project's one value, that of sim's peak_decel_g
+
 RESULTS = Path(__file__).resolve().parent / "results"
-G_ACC = 9.81
 
 DRILL_PARAMS = ("M1", "M2", "M3", "K1", "K2", "K3", "C1", "C2", "C3", "Pr",
                 "gap_m", "static_force_n", "amplitude_n", "frequency_hz")

@@ -8,6 +8,14 @@ from surrogate.errors import ConfigError
 from surrogate.names import TARGETS
 
 
+def _known_keys(d, cls, where: str) -> None:
+    """ConfigError naming the keys of the mapping ``d`` that are not fields of the dataclass ``cls``."""
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(d) - known)
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {unknown}; known: {', '.join(sorted(known))}")
+
+
 @dataclass
 class AdaptiveConfig:
     """Adaptive sampling (``vibro train --adaptive``): start from ``initial`` Sobol points, then add
@@ -47,15 +55,9 @@ class TrainConfig:
     @classmethod
     def from_dict(cls, d: dict | None) -> "TrainConfig":
         d = dict(d or {})
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ConfigError(f"train: unknown key(s) {unknown}; known: {', '.join(sorted(known))}")
+        _known_keys(d, cls, "train")
         ad = d.pop("adaptive", None) or {}
-        aknown = {f.name for f in fields(AdaptiveConfig)}
-        bad = sorted(set(ad) - aknown)
-        if bad:
-            raise ConfigError(f"train.adaptive: unknown key(s) {bad}; known: {', '.join(sorted(aknown))}")
+        _known_keys(ad, AdaptiveConfig, "train.adaptive")
         cfg = cls(**d, adaptive=AdaptiveConfig(**ad))
         merged = dict(DEFAULT_DOMAINS)
         merged.update(cfg.domains)

@@ -6,6 +6,7 @@ import sys
 
 from pipeline.cli import args as A
 from pipeline.core.errors import UserError
+from pipeline.core.units import G
 
 EPILOG = """\
 The mapping file (YAML) says which channel is which §7 signal, in which unit, and what the run table holds.
@@ -32,7 +33,8 @@ from the file (TDMS property, HDF5 attribute, MATLAB scalar variable; the run's 
     - {run_id: r02, group: "Run 002", channels: {}, duration_s: 2.0, summary: {rop_m_s: "1.5 mm/s"}}
                                               # channels: {} = no series, a summary.csv row only
 
-units (pipeline/core/units.py): s ms us | Hz kHz | m/s2 mm/s2 g (g = 9.81 m/s2, the project's) | N kN mN lbf |
+""" + f"""\
+units (pipeline/core/units.py): s ms us | Hz kHz | m/s2 mm/s2 g (g = {G:g} m/s2, the project's) | N kN mN lbf |
   m cm mm um in | m/s mm/s m/min m/h.  A unit the mapping gives must agree with the file's; a channel with no
   unit in either, an unknown unit or one of the wrong quantity is an error naming the file and the channel.
 time: t_s starts at 0 at forcing phase 0 (MODELS.md §7): a time channel is shifted by start (a value in its

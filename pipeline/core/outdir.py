@@ -252,15 +252,9 @@ def check_out_file(path: str | os.PathLike, *, flag: str, kind: str, inputs: Ite
     if managed is not None:
         raise UserError(f"{flag} {path} lies inside {managed[0]}, the output folder of 'vibro {managed[1]}' "
                         f"(replaced whole by its next run); write it elsewhere")
-    if os.path.lexists(path):
-        try:
-            st = os.stat(path)
-        except OSError:
-            raise UserError(f"{flag} {path} is a broken symbolic link; remove it or give another path") from None
-        if stat.S_ISDIR(st.st_mode):
-            raise UserError(f"{flag} {path} is a directory; give a file path")
-        if not stat.S_ISREG(st.st_mode):
-            raise UserError(f"{flag} {path} is not a regular file (a device, pipe or socket); give a file path")
+    if _file_or_nothing(path, flag, broken="remove it or give another path",
+                        folder="is a directory; give a file path",
+                        special="is not a regular file (a device, pipe or socket); give a file path"):
         if kind == "feedback":
             if not is_kind(path):
                 raise UserError(f"{flag} {path} exists and is not {what}; rows are only appended to one")
@@ -297,20 +291,31 @@ def _file_target(path: str | os.PathLike, flag: str) -> Path:
     return p
 
 
+def _file_or_nothing(path: Path, flag: str, *, broken: str, folder: str, special: str) -> bool:
+    """True when a regular file (a symbolic link followed) is at ``path``, False when nothing is; else UserError
+    "``flag`` ``path`` ...": "is a broken symbolic link; ``broken``", or ``folder`` / ``special`` for a folder or a
+    device, pipe or socket."""
+    if not os.path.lexists(path):
+        return False
+    try:
+        st = os.stat(path)
+    except OSError:
+        raise UserError(f"{flag} {path} is a broken symbolic link; {broken}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise UserError(f"{flag} {path} {folder}")
+    if not stat.S_ISREG(st.st_mode):
+        raise UserError(f"{flag} {path} {special}")
+    return True
+
+
 def check_out_prefix(prefix: str | os.PathLike, flag: str = "--out") -> Path:
     """The output PREFIX of a command writing PREFIX.png, PREFIX.parquet, ...: a file-like name in an existing or
     creatable folder; UserError naming ``flag`` when it names a folder, a device, a pipe or a blank name (``/dev/null``
     would write ``/dev/null.png`` into /dev, ``user/`` would write ``user.png`` beside the folder)."""
     p = _file_target(prefix, flag)
-    if os.path.lexists(p):
-        try:
-            st = os.stat(p)
-        except OSError:
-            raise UserError(f"{flag} {p} is a broken symbolic link; give another prefix") from None
-        if stat.S_ISDIR(st.st_mode):
-            raise UserError(f"{flag} {p} is a folder; give a file prefix inside it (e.g. {p}/name)")
-        if not stat.S_ISREG(st.st_mode):
-            raise UserError(f"{flag} {p} is a device, pipe or socket, not a prefix for files; give a file prefix")
+    _file_or_nothing(p, flag, broken="give another prefix",
+                     folder=f"is a folder; give a file prefix inside it (e.g. {p}/name)",
+                     special="is a device, pipe or socket, not a prefix for files; give a file prefix")
     parent = p.parent if str(p.parent) else Path(".")
     if parent.exists() and not parent.is_dir():
         raise UserError(f"{flag} {p}: {parent} is not a folder")

@@ -27,6 +27,7 @@ from pipeline.core.numbers import PLAUSIBLE_FACTOR, number, plausible
 from pipeline.core.bounded import MAX_CSV_BYTES, check_size
 from vibrobase.files import atomic_directory, duplicate_csv_column
 from pipeline.datasets.daq import DAQ_COLUMNS, DeclaredChain, declared_chains
+from sim.controls import CONTROLS
 
 RUN_COLUMNS = ("run_id", "system", "frequency_hz", "gap_m", "duration_s")
 """Required for every run.  The amplitude and static-force columns are required for the runs whose
@@ -37,8 +38,8 @@ RUN_NUMERIC = {"frequency_hz": "positive", "amplitude_n": "nonnegative", "amplit
 RUN_UPPER = {"frequency_hz": 1e6, "amplitude_n": 1e9, "amplitude_m": 10.0, "static_force_n": 1e9, "gap_m": 1.0,
              "duration_s": 1e5}
 """Largest physical value of each numeric runs.csv column [SI] (a lab rig is far inside; 1e300 is a typo)."""
-CONTROL_COLUMNS = ("amplitude_n", "amplitude_m", "static_force_n")
-"""Controls needed only by the runs whose model has them as a parameter."""
+CONTROL_COLUMNS = tuple(c for c in CONTROLS if c not in RUN_COLUMNS)
+"""Controls needed only by the runs whose model has them as a parameter (amplitude_n, amplitude_m, static_force_n)."""
 OPTIONAL_RUN_COLUMNS = {"record_start_s": "nonnegative"}
 """Optional numeric runs.csv columns; an empty cell means 'not given' for that run (record in steady state)."""
 MAX_RUNS = 500

@@ -9,6 +9,7 @@ import json
 import os
 import stat
 from pathlib import Path
+from typing import BinaryIO, Callable
 from urllib.parse import quote
 
 from pipeline.core.errors import UserError
@@ -54,16 +55,23 @@ def _existing_regular(path: Path, label: str, kind: str) -> int | None:
     return st.st_size
 
 
-def check_journal_file(path: Path, label: str) -> None:
-    """UserError unless ``path`` is absent, empty or an optuna journal (its first line a journal record)."""
-    size = _existing_regular(path, label, "an optuna journal file")
-    if not size:
-        return
+def _head(path: Path, label: str, kind: str, read: Callable[[BinaryIO], bytes]) -> bytes | None:
+    """``read`` of the start of ``path`` (opened for binary reading), None when it is absent or empty; UserError
+    for a folder, a device or pipe, or a file that cannot be read."""
+    if not _existing_regular(path, label, kind):
+        return None
     try:
         with open(path, "rb") as fh:
-            first = fh.readline(MAX_JOURNAL_LINE)
+            return read(fh)
     except OSError as e:
         raise UserError(f"{label}: {path}: {e.strerror or e}") from None
+
+
+def check_journal_file(path: Path, label: str) -> None:
+    """UserError unless ``path`` is absent, empty or an optuna journal (its first line a journal record)."""
+    first = _head(path, label, "an optuna journal file", lambda fh: fh.readline(MAX_JOURNAL_LINE))
+    if first is None:
+        return
     try:
         rec = json.loads(first.decode("utf-8")) if first.endswith(b"\n") else None
     except (UnicodeDecodeError, ValueError):
@@ -95,14 +103,9 @@ def _tables(path: Path, label: str, attempts: int = 5) -> set[str]:
 
 def check_sqlite_file(path: Path, label: str) -> None:
     """UserError unless ``path`` is absent, empty, or an SQLite database that is empty or has optuna's schema."""
-    size = _existing_regular(path, label, "an SQLite database file")
-    if not size:
+    magic = _head(path, label, "an SQLite database file", lambda fh: fh.read(len(SQLITE_MAGIC)))
+    if magic is None:
         return
-    try:
-        with open(path, "rb") as fh:
-            magic = fh.read(len(SQLITE_MAGIC))
-    except OSError as e:
-        raise UserError(f"{label}: {path}: {e.strerror or e}") from None
     if magic != SQLITE_MAGIC:
         raise UserError(f"{label}: {path} exists and is not an SQLite database; it was left unchanged "
                         "(name a new file)")

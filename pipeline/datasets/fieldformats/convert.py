@@ -12,7 +12,7 @@ import pandas as pd
 from pipeline.core.units import QUANTITY_OF, UnitError, column_factor
 from pipeline.datasets.fieldformats.base import Channel, FieldFormatError, Source, did_you_mean, join
 from pipeline.datasets.fieldformats.mapping import ChannelSpec, FromFile, Mapping, RunSpec, Value
-from pipeline.datasets.measured import RUN_COLUMNS, SERIES_SIGNALS, Dataset
+from pipeline.datasets.measured import CONTROL_COLUMNS, OPTIONAL_RUN_COLUMNS, RUN_COLUMNS, SERIES_SIGNALS, Dataset
 
 MIN_SAMPLES = 16
 """The fewest samples a §7 series may hold (pipeline.datasets.measured)."""
@@ -217,7 +217,7 @@ def import_runs(mapping: Mapping, open_file: Callable[[Path, str | None], Source
     finally:
         for src in sources.values():
             src.close()
-    first = [c for c in (*RUN_COLUMNS, "amplitude_n", "amplitude_m", "static_force_n", "record_start_s")
+    first = [c for c in (*RUN_COLUMNS, *CONTROL_COLUMNS, *OPTIONAL_RUN_COLUMNS)
              if any(c in r for r in rows)]
     cols = list(dict.fromkeys(first + [c for r in rows for c in r]))
     runs = pd.DataFrame([{c: r.get(c, np.nan) for c in cols} for r in rows], columns=cols)
