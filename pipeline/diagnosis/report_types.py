@@ -9,7 +9,7 @@ carries ``report_schema`` (``SCHEMA``); a file without it is read as schema 1, a
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 from typing import Any, Callable, Mapping
 
 SCHEMA = 1
@@ -661,6 +661,11 @@ COMBINED = ("verdict", "calibrated", "noise_floor", "default_error", "base_error
             "proposal_adopted")
 """The keys a several-system report.json also gives at its top level, each a mapping system -> value."""
 
+HEADLINE = ("system", "verdict", "selected", "explained", "noise_floor", "default_error", "base_error", "final_error",
+            "default_nrms", "base_nrms", "final_nrms", "base_systematic", "final_systematic", "proposal_adopted",
+            "wall_time_s")
+"""The top-level keys of ``DiagnoseReport.headline`` (then ``rig``)."""
+
 
 @dataclass(frozen=True)
 class DiagnoseReport:
@@ -707,6 +712,11 @@ class DiagnoseReport:
             out["cost"] = self.cost
         return out
 
+    def headline(self) -> dict:
+        """The headline numbers (``vibro diagnose --metrics``): report.json's top-level keys below, in its layout."""
+        j = self.to_json()
+        return {**{k: j[k] for k in HEADLINE}, "rig": j.get("rig")}
+
     @classmethod
     def from_json(cls, d: Mapping, source: str = "report.json") -> DiagnoseReport:
         """The report of report.json's content ``d`` (read from ``source``); a file without ``report_schema`` is
@@ -719,6 +729,3 @@ class DiagnoseReport:
         return cls(dataset=d["dataset"], config=d["config"],
                    systems=tuple(SystemReport.from_json(s) for s in d["systems"].values()),
                    wall_time_s=d.get("wall_time_s"), cost=d.get("cost"))
-
-    def with_cost(self, cost: Mapping[str, Any]) -> DiagnoseReport:
-        return replace(self, cost=cost)
