@@ -416,7 +416,7 @@ class ClockEstimate(_Record):
     """The estimated clock error."""
 
     value: float
-    """[ppm]"""
+    """The clock's rate error [ppm]."""
     sd: float
     """Its standard deviation [ppm]."""
 

@@ -66,7 +66,7 @@ class SimulatedRuns:
 class DiagnoseResult:
     """A whole dataset's diagnosis; nothing written yet (``pipeline.diagnosis.outputs`` writes it).
 
-    systems: per system, in the dataset's order; report: report.json's content (``DiagnoseReport.to_json``);
+    systems: per system, in the dataset's order; report: report.json as a ``DiagnoseReport`` (its ``to_json``);
     runs: the simulated runs the figures draw, aligned with ``systems``;
     rigs: (file name, corrected ``sim.Rig``) per system; series: the measured series by run id [SI units];
     cost: where the time went, per stage (report.json ``cost``; None: not recorded).

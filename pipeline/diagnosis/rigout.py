@@ -58,8 +58,9 @@ def rop_model_error(diag: SystemDiagnosis):
 
 
 def corrected_rig(diag: SystemDiagnosis, presets: list[str | None], dataset: str):
-    """(``sim.Rig``, report.json ``rig`` without its file name) of one system's diagnosis ``diag`` (its final fit, and its targets'
-    known parameters per run), the runs' ``presets`` and the ``dataset`` named in the rig's source."""
+    """(``sim.Rig``, report.json ``rig`` as a ``RigInfo`` without its file name) of one system's diagnosis ``diag``
+    (its final fit, and its targets' known parameters per run), the runs' ``presets`` and the ``dataset`` named in
+    the rig's source."""
     import sim
 
     rep, targets = diag.report, diag.targets
