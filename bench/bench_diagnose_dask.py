@@ -75,12 +75,14 @@ def _one(ds, cfg, scheduler: str | None) -> dict:
         ev = res.systems[0].evaluator
         probe = Evaluator(ev.system, ev.targets, ev.sim_settings, cfg.fs_sim_hz, 1)
         overhead = _overhead_per_task_s(ex, probe)
-    rep = res.report
+    rep = res.report.systems[0]
     return {"wall_s": wall, "cpu_s": cpu, "start_s": start_s, "n_tasks": st.n_tasks, "n_batches": st.n_batches,
             "task_wall_s": sum(st.wall_s), "task_cpu_s": sum(st.cpu_s), "overhead_per_task_s": overhead,
             "batch_of_task": list(st.batch), "task_cpu_each_s": list(st.cpu_s),
-            "result": {k: rep[k] for k in ("verdict", "selected", "calibrated", "base_nrms", "final_nrms")},
-            "n_simulations": rep["n_simulations"]}
+            "result": {"verdict": rep.verdict, "selected": "+".join(rep.selected) if rep.selected else None,
+                       "calibrated": rep.calibrated, "base_nrms": rep.errors.base.nrms,
+                       "final_nrms": rep.errors.final.nrms},
+            "n_simulations": rep.n_simulations}
 
 
 def _makespan(durations: list[float], workers: int) -> float:

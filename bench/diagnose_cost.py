@@ -56,8 +56,9 @@ def diagnose_log(system: str, case: str, noise: str, seed: int, n_runs: int | No
     out = WORK / "cost" / spec.name
     shutil.rmtree(out, ignore_errors=True)
     rep = diagnose_into(load_dataset(data), out, DiagnoseConfig(n_threads=threads), log=lambda s: None).report
-    return {"log": spec.name, "system": system, "case": case, "verdict": rep["verdict"], "selected": rep["selected"],
-            "n_runs": rep["n_runs"], "cost": rep["cost"]}
+    r = rep.systems[0]
+    return {"log": spec.name, "system": system, "case": case, "verdict": r.verdict,
+            "selected": "+".join(r.selected) if r.selected else None, "n_runs": r.n_runs, "cost": rep.cost}
 
 
 def _stage_table(rows: list[dict]) -> list[str]:

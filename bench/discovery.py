@@ -87,28 +87,30 @@ def run_case(system: str, case: str, noise: str, seed: int, threads: int, n_runs
     t0, c0 = time.time(), time.process_time()
     rep = diagnose_into(load_dataset(data), out, cfg, log=lambda s: None).report
     wall, cpu = time.time() - t0, time.process_time() - c0
-    r = rep["systems"][system]
-    disc = r.get("discrepancy") or {}
-    props = disc.get("proposals") or []
+    r = rep.system(system)
+    disc, e = r.discrepancy, r.errors
+    props = disc.proposals if disc else ()
     top = props[0] if props else None
-    row = {"system": system, "case": case, "noise": noise, "seed": seed, "name": name, "verdict": r["verdict"],
-           "selected": r["selected"], "selected_effects": r["selected_effects"], "base_nrms": r["base_nrms"],
-           "final_nrms": r["final_nrms"], "noise_floor": r["noise_floor"], "base_error": r["base_error"],
-           "final_error": r["final_error"], "accepted": disc.get("accepted"),
-           "proposals": [{k: p[k] for k in ("terms", "kinds", "coefficients", "coefficient_sd", "nrms", "error",
-                                            "adequate", "improves")} for p in props],
-           "screening": [{k: s[k] for k in ("term", "entered", "score", "in_support")} for s in disc.get("screening", [])],
-           "n_simulations": r["n_simulations"], "wall_time_s": round(wall, 1), "cpu_time_s": round(cpu, 1)}
+    row = {"system": system, "case": case, "noise": noise, "seed": seed, "name": name, "verdict": r.verdict,
+           "selected": "+".join(r.selected) if r.selected else None, "selected_effects": list(r.selected or ()),
+           "base_nrms": e.base.nrms, "final_nrms": e.final.nrms, "noise_floor": e.noise_floor,
+           "base_error": e.base.error, "final_error": e.final.error, "accepted": disc.accepted if disc else None,
+           "proposals": [{"terms": list(p.terms), "kinds": list(p.kinds), "coefficients": p.coefficients,
+                          "coefficient_sd": p.coefficient_sd, "nrms": p.nrms, "error": p.error, "adequate": p.adequate,
+                          "improves": p.improves} for p in props],
+           "screening": [{"term": s.term, "entered": s.entered, "score": s.score, "in_support": s.in_support}
+                         for s in (disc.screening if disc else ())],
+           "n_simulations": r.n_simulations, "wall_time_s": round(wall, 1), "cpu_time_s": round(cpu, 1)}
     if case.startswith("outside:"):
         kind = OUTSIDE_KIND[case.split(":", 1)[1]]
         row["expected"] = f"proposal: {kind}"
-        row["top_within_2x"] = bool(top is not None and top["nrms"] <= cfg.explained_nrms)
-        row["right_kind"] = bool(top is not None and kind in top["kinds"])
+        row["top_within_2x"] = bool(top is not None and top.nrms <= cfg.explained_nrms)
+        row["right_kind"] = bool(top is not None and kind in top.kinds)
         row["correct"] = row["top_within_2x"] and row["right_kind"]
     else:
         pair = set(case.split(":", 1)[1].split("+"))
         row["expected"] = "both effects"
-        row["correct"] = set(r["selected_effects"]) == pair
+        row["correct"] = set(r.selected or ()) == pair
     return row
 
 

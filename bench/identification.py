@@ -23,8 +23,12 @@ import math
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from pipeline.diagnosis.report_types import Recording, SystemReport
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -99,22 +103,23 @@ def run_case(system: str, case: str, noise: str, seed: int, threads: int, settin
     t0, c0 = time.time(), time.process_time()
     rep = diagnose_into(ds, out, DiagnoseConfig(n_threads=threads, **(settings or {})), log=lambda s: None).report
     wall, cpu = time.time() - t0, time.process_time() - c0
-    r = rep["systems"][system]
+    r = rep.system(system)
     truth = info["truth"]
-    verdict = r["verdict"]
+    verdict = r.verdict
     fitted, right_effects = _selected_fit(r, case)
     errors = {k: fitted[k] / truth[k] - 1.0 for k in fitted if k in truth}
-    base_err = {k: r["calibrated"][k] / truth[k] - 1.0 for k in info["calibratable"] if k in truth}
+    base_err = {k: r.calibrated[k] / truth[k] - 1.0 for k in info["calibratable"] if k in truth}
     correct = (verdict == expected(case)) and right_effects
+    e = r.errors
     return {"system": system, "case": case, "noise": noise, "seed": seed, "name": name, "chain": chain,
-            "expected": expected(case), "verdict": verdict, "selected": r["selected"], "leader": r["leader"],
+            "expected": expected(case), "verdict": verdict, "selected": _name(r.selected), "leader": _name(r.leader),
             "correct": bool(correct), "truth": {k: truth[k] for k in truth if k not in info["calibratable"]},
             "fitted": fitted, "param_errors": errors, "base_param_errors": base_err,
-            "checks": r["call"], "candidates": r["candidates"],
-            "base_nrms": r["base_nrms"], "final_nrms": r["final_nrms"], "base_systematic": r["base_systematic"],
-            "final_systematic": r["final_systematic"], "base_error": r["base_error"], "final_error": r["final_error"],
-            "noise_floor": r["noise_floor"], "n_simulations": r["n_simulations"], "n_runs": r["n_runs"],
-            "heldout_n": r["heldout_n"], **chain_errors(r.get("recording") or {}, info, data),
+            "checks": r.call.to_json(), "candidates": [c.to_json() for c in r.candidates],
+            "base_nrms": e.base.nrms, "final_nrms": e.final.nrms, "base_systematic": e.base.systematic,
+            "final_systematic": e.final.systematic, "base_error": e.base.error, "final_error": e.final.error,
+            "noise_floor": e.noise_floor, "n_simulations": r.n_simulations, "n_runs": r.n_runs,
+            "heldout_n": e.n, **chain_errors(r.recording, info, data),
             "wall_time_s": round(wall, 1), "cpu_time_s": round(cpu, 1),
             "generate_s": None if gen_s is None else round(gen_s, 1)}
 
@@ -137,23 +142,28 @@ def _log(spec, name: str, threads: int) -> tuple[Path, dict, float | None]:
     return data, json.loads(truth_file.read_text()), gen_s
 
 
-def _selected_fit(r: dict, case: str) -> tuple[dict, bool]:
+def _name(effects: tuple[str, ...] | None) -> str | None:
+    """A model's effects as the rows name them (``a+b``)."""
+    return None if effects is None else "+".join(effects)
+
+
+def _selected_fit(r: SystemReport, case: str) -> tuple[dict, bool]:
     """(the fitted parameters of the case's true effect(s) when selected, whether the right effect(s) were)."""
     pair = pair_of(case)
     if pair:
-        if sorted(r.get("selected_effects") or []) != sorted(pair):
+        if sorted(r.selected or ()) != sorted(pair):
             return {}, False
-        return dict(r["second_effect"]["candidates"][0]["params"]), True
+        return dict(r.second_effect.candidates[0].params), True
     effect = case if expected(case) == "selected" else None
-    if effect and r["selected"] == effect:
-        return dict(next(c for c in r["candidates"] if c["effect"] == effect)["params"]), True
+    if effect and r.selected == (effect,):
+        return dict(next(c for c in r.candidates if c.effects == (effect,)).params), True
     return {}, effect is None
 
 
-def chain_errors(recording: dict, info: dict, data: Path) -> dict:
+def chain_errors(recording: Recording, info: dict, data: Path) -> dict:
     """An estimated (undeclared) chain against the truth: the largest delay error [µs] over channels and rates (the
     truth: the filter's DC delay at that rate, 0 where compensated) and the clock's error [ppm]; {} when none."""
-    est = recording.get("estimated")
+    est = recording.estimated
     runs = (info.get("daq") or {}).get("runs") or {}
     if not est or not runs:
         return {}
@@ -162,11 +172,11 @@ def chain_errors(recording: dict, info: dict, data: Path) -> dict:
         t = np.loadtxt(data / "series" / f"{run_id}.csv", delimiter=",", skiprows=1, usecols=0, max_rows=2)
         fs = round(1.0 / float(t[1] - t[0]), 3)
         true_delay[fs] = 0.0 if d.get("compensated") else float(d.get("dc_delay_s", 0.0))
-    errs = [abs(x["value_s"] - true_delay[round(float(x["fs_hz"]), 3)]) * 1e6 for x in est["delays"]
-            if round(float(x["fs_hz"]), 3) in true_delay]
+    errs = [abs(x.value_s - true_delay[round(float(x.fs_hz), 3)]) * 1e6 for x in est.delays
+            if round(float(x.fs_hz), 3) in true_delay]
     clock = next(iter(runs.values())).get("clock_ppm", 0.0)
     return {"delay_error_us": max(errs) if errs else None,
-            "clock_error_ppm": abs(float(est["clock_ppm"]["value"]) - float(clock))}
+            "clock_error_ppm": abs(float(est.clock_ppm.value) - float(clock))}
 
 
 def replay(rows: list[dict], rule) -> list[dict]:

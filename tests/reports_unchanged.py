@@ -50,9 +50,9 @@ def record(out: Path, only: list[str] | None, threads: int) -> None:
             continue
         rep = diagnose_into(load_dataset(RESULTS / log), out / name, DiagnoseConfig(n_threads=threads, **settings),
                             log=lambda s: None).report
-        r = next(iter(rep["systems"].values()))
-        print(f"{name}: {r['verdict']}, selected {r['selected']}, pairs tried {r['pair_stage']['tried']}, "
-              f"proposal {r['proposal_adopted']}, {rep['wall_time_s']} s", flush=True)
+        r = rep.systems[0]
+        print(f"{name}: {r.verdict}, selected {'+'.join(r.selected) if r.selected else None}, pairs tried "
+              f"{r.pair_stage.tried}, proposal {r.proposal_adopted}, {rep.wall_time_s} s", flush=True)
 
 
 def _diff(a, b, path: str, out: list[str]) -> None:

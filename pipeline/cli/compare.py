@@ -101,9 +101,7 @@ def run(args) -> int:
     if args.metrics:
         check_out_file(args.metrics, flag="--metrics", kind="json", inputs=[*inputs, args.out],
                        overwrite=args.overwrite)
-    diag = _read_json(diag_file, "diagnosis report").get("rig") if diag_file.is_file() else None
-    if isinstance(diag, dict) and "explained" not in diag:   # several systems: system -> entry
-        diag = diag.get(rig.model)
+    diag = _diagnosis_rig(diag_file, rig.model) if diag_file.is_file() else None
     params = {"uncorrected": args.uncorrected, "corrected": args.corrected, "rig": args.rig, "samples": args.samples,
               "seed": args.seed}
     with tracking.chain("corrected", rig_name(args.rig)), \
@@ -139,3 +137,14 @@ def run(args) -> int:
     if not args.quiet:
         print(markdown(cmp))
     return 0
+
+
+def _diagnosis_rig(path: Path, model: str):
+    """The rig entry (``report_types.RigInfo``) of the diagnosis report.json ``path``: its system's, or the one
+    system's (None when a several-system diagnosis has none of ``model``)."""
+    from pipeline.diagnosis.report_types import DiagnoseReport
+
+    rep = DiagnoseReport.from_json(_read_json(path, "diagnosis report"), str(path))
+    if len(rep.systems) == 1:
+        return rep.systems[0].rig
+    return next((s.rig for s in rep.systems if s.system == model), None)

@@ -6,10 +6,14 @@ import json
 import sys
 from dataclasses import fields
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pipeline.cli.args import add_quiet, add_workers, check_workers
 from pipeline.cli import args as A
 from pipeline.core.errors import UserError
+
+if TYPE_CHECKING:
+    from pipeline.diagnosis.report_types import DiagnoseReport
 
 DESCRIPTION = """\
 Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<run_id>.csv, summary.csv).
@@ -226,21 +230,21 @@ def run(args) -> int:
             result = write_outputs(result, tmp)
             report = result.report
             check_report(report)
-            headline = _headline(report)
+            headline = report.headline()
             if mlflow is not None:
                 mlflow.log_metrics({k: float(v) for k, v in _flat_metrics(report).items()})
-                mlflow.set_tag("vibro.selected", json.dumps(report["selected"]))
-                mlflow.set_tag("vibro.proposal_adopted", json.dumps(report["proposal_adopted"]))
+                mlflow.set_tag("vibro.selected", json.dumps(headline["selected"]))
+                mlflow.set_tag("vibro.proposal_adopted", json.dumps(headline["proposal_adopted"]))
                 mlflow.log_artifacts(str(tmp), artifact_path="diagnose")
                 for rig_file in sorted(Path(tmp).glob("rig*.yaml")):     # the corrected rig, also on its own
                     mlflow.log_artifact(str(rig_file), artifact_path="rig")
-                mlflow.set_tag("vibro.rig_explained", str(bool(report["explained"])).lower())
+                mlflow.set_tag("vibro.rig_explained", str(report.explained).lower())
     if args.metrics:
         atomic_write_text(args.metrics, dump_json(headline))
         record_out_file(args.metrics, command="diagnose", kind="json")
     if not args.quiet:
         print("\n".join(summary_lines(report)))
-        print(cost_line(report["cost"]))
+        print(cost_line(report.cost))
         print(f"report: {out / 'report.md'}" + (f"; headline numbers: {args.metrics}" if args.metrics else ""))
     return 0
 
@@ -295,13 +299,12 @@ def check_signals(ds) -> None:
                                     f"nothing to diagnose")
 
 
-def check_report(report: dict) -> None:
+def check_report(report: DiagnoseReport) -> None:
     """UserError when the diagnosis produced no finite error (features the model cannot match at all)."""
     import math
 
-    for key in ("default_error", "base_error", "final_error"):
-        vals = report[key].values() if isinstance(report[key], dict) else [report[key]]
-        for v in vals:
+    for key, model in (("default_error", "default"), ("base_error", "base"), ("final_error", "final")):
+        for v in [getattr(s.errors, model).error for s in report.systems]:
             if v is None or not math.isfinite(float(v)) or float(v) > 1e100:   # 1e100: an overflow, not a fit
                 raise UserError(f"diagnosis {key} = {v!r}: the dataset's features are degenerate "
                                 f"(the model cannot be compared with them); check the measured signals")
@@ -311,21 +314,22 @@ VERDICT_WORDS = {"nothing missing": "nothing missing (the calibrated base model 
                  "unexplained": "unexplained (no §6 effect brings the model to the data)"}
 
 
-def summary_lines(report: dict) -> list[str]:
+def summary_lines(report: DiagnoseReport) -> list[str]:
     """A few lines per system for the terminal: the verdict, the held-out nrms before/after, error and noise floor
     (report.md has the tables, report.json every number)."""
     lines = []
-    for name, r in report["systems"].items():
-        verdict = f"{r['selected']} selected" if r["selected"] else VERDICT_WORDS.get(r["verdict"], r["verdict"])
-        if r.get("proposal_adopted"):
-            verdict += f"; adopted discrepancy term {' + '.join(r['proposal_adopted'])}"
-        lines.append(f"{name}: {verdict}")
-        lines.append(f"  held-out nrms {r['base_nrms']:.3g} (calibrated base) -> {r['final_nrms']:.3g} (final); "
+    for r in report.systems:
+        e = r.errors
+        verdict = f"{'+'.join(r.selected)} selected" if r.selected else VERDICT_WORDS.get(r.verdict, r.verdict)
+        if r.proposal_adopted:
+            verdict += f"; adopted discrepancy term {' + '.join(r.proposal_adopted)}"
+        lines.append(f"{r.system}: {verdict}")
+        lines.append(f"  held-out nrms {e.base.nrms:.3g} (calibrated base) -> {e.final.nrms:.3g} (final); "
                      f"1 = the noise level")
-        if r["final_error"] is not None and r["noise_floor"] is not None:
-            lines.append(f"  held-out error {r['final_error']:.3g} against a noise floor of {r['noise_floor']:.3g} "
+        if e.final.error is not None and e.noise_floor is not None:
+            lines.append(f"  held-out error {e.final.error:.3g} against a noise floor of {e.noise_floor:.3g} "
                          f"(error / floor = nrms)")
-        err = (r.get("rig") or {}).get("rop_model_error")
+        err = r.rig.rop_model_error if r.rig else None
         if err:         # the rig file's model_error, which compare's ROP spread adds to the parameters'
             floor = err.get("noise_floor_rel")
             lines.append(f"  model error in the rig file: held-out ROP error {100 * err['rop_rel']:.3g} % (rms, "
@@ -340,21 +344,12 @@ def cost_line(cost: dict) -> str:
             f"(load average {cost['load_avg'][0]:g}; per stage: report.md)")
 
 
-def _headline(report: dict) -> dict:
-    keys = ("system", "verdict", "selected", "explained", "noise_floor", "default_error", "base_error", "final_error",
-            "default_nrms", "base_nrms", "final_nrms", "base_systematic", "final_systematic", "proposal_adopted",
-            "wall_time_s")
-    out = {k: report[k] for k in keys}
-    out["rig"] = report.get("rig")
-    return out
-
-
-def _flat_metrics(report: dict) -> dict:
-    out = {"wall_time_s": report["wall_time_s"]}
-    for name, rep in report["systems"].items():
-        tag = name.split("-")[-1]
-        for k in ("noise_floor", "default_error", "base_error", "final_error", "default_nrms", "base_nrms",
-                  "final_nrms"):
-            out[f"{tag}.{k}"] = rep[k]
-        out[f"{tag}.explained"] = 1.0 if rep["explained"] else 0.0
+def _flat_metrics(report: DiagnoseReport) -> dict:
+    out = {"wall_time_s": report.wall_time_s}
+    for rep in report.systems:
+        tag, e = rep.system.split("-")[-1], rep.errors
+        out.update({f"{tag}.noise_floor": e.noise_floor, f"{tag}.default_error": e.default.error,
+                    f"{tag}.base_error": e.base.error, f"{tag}.final_error": e.final.error,
+                    f"{tag}.default_nrms": e.default.nrms, f"{tag}.base_nrms": e.base.nrms,
+                    f"{tag}.final_nrms": e.final.nrms, f"{tag}.explained": 1.0 if rep.explained else 0.0})
     return out

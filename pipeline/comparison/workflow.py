@@ -14,11 +14,14 @@ held-out error against the noise floor.
 """
 from __future__ import annotations
 
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 from pipeline.core.units import broken_words, point_words, spread_words
 from vibrobase.statuses import SETTLED_STATUSES
 from pipeline.optimise.robustness import rop_spread
+
+if TYPE_CHECKING:
+    from pipeline.diagnosis.report_types import RigInfo
 
 UNEXPLAINED_WARNING = ("The diagnosis left the rig's residual unexplained: the recommendation rests on a model known to "
                        "be wrong — held-out error {error:.3g} against a noise floor of {noise:.3g} ({ratio:.1f}× the noise).")
@@ -56,14 +59,15 @@ def broken_limits(optimise_report: Mapping, row: Mapping) -> dict[str, dict]:
     return out
 
 
-def compare(uncorrected: Mapping, corrected: Mapping, rig, diagnosis: Mapping | None = None, n_samples: int = 32,
+def compare(uncorrected: Mapping, corrected: Mapping, rig, diagnosis: RigInfo | None = None, n_samples: int = 32,
             seed: int = 0, settings: Mapping | None = None, n_threads: int | None = None,
             rig_name: str | None = None) -> dict:
     """The side-by-side comparison (a JSON-able dict; ROP in m/s, ``worth_mm_s`` in mm/s).  Each recommendation on
     each model also says which of that model's optimisation limits it breaks (``breaks_on_<model>``).
 
     ``uncorrected`` / ``corrected``: optimise report.json mappings; ``rig``: the corrected ``sim.Rig``;
-    ``diagnosis``: the diagnosis's report.json 'rig' entry (explained, model_error, noise_floor), if at hand."""
+    ``diagnosis``: the diagnosis's rig entry (``report_types.RigInfo``: explained, model_error, noise_floor), if at
+    hand."""
     from pipeline.core.errors import UserError
 
     for name, rep in (("uncorrected", uncorrected), ("corrected", corrected)):
@@ -91,8 +95,8 @@ def compare(uncorrected: Mapping, corrected: Mapping, rig, diagnosis: Mapping | 
            "corrected_fallback": (corrected.get("fallback") or {}).get("text"),
            "corrected_limits": {k: corrected["recommendation"].get(k) for k in ("power_w_sim", "peak_decel_g_sim",
                                                                               "binding", "on_bounds")}}
-    if diagnosis is not None and not diagnosis.get("explained", True):
-        err, noise = float(diagnosis["model_error"]), float(diagnosis["noise_floor"])
+    if diagnosis is not None and not diagnosis.explained:
+        err, noise = float(diagnosis.model_error), float(diagnosis.noise_floor)
         ratio = err / max(noise, 1e-300)
         out.update(explained=False, model_error_ratio=ratio,
                    warning=UNEXPLAINED_WARNING.format(error=err, noise=noise, ratio=ratio))

@@ -11,6 +11,7 @@ run.py       splitting, calibration, candidate ranking and selection for one sys
 rigout.py    the corrected rig of one system's diagnosis
 report.py    residual structure, figures and report.md
 result.py    the typed results: SystemDiagnosis, SimulatedRuns, DiagnoseResult
+report_types.py report.json as frozen records (SystemReport, DiagnoseReport), its only to_json/from_json
 workflow.py  the whole dataset: every system diagnosed into a DiagnoseResult; writes nothing
 outputs.py   rig files, figures, report.json and report.md of a DiagnoseResult, written atomically
 cost.py      where the time goes: simulations, CPU and wall seconds per stage (report.json 'cost')

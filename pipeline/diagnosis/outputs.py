@@ -35,15 +35,14 @@ def write_outputs(result: DiagnoseResult, out: str | os.PathLike) -> DiagnoseRes
             with rec.stage("figures: drawing"):
                 drawn = figures(diag, runs, result.series, tmp)
             drawing += rec.rows()
-            if drawn != diag.report["figures"]:     # report.json names the figures before they are drawn
+            if tuple(drawn) != diag.report.figures:     # report.json names the figures before they are drawn
                 raise RuntimeError(f"{diag.system}: figures drawn {drawn} differ from those reported "
-                                   f"{diag.report['figures']}")
+                                   f"{list(diag.report.figures)}")
         if result.cost is not None:
             cost = result.cost.with_stages(drawing)
-            result = replace(result, cost=cost, report={**result.report, "cost": cost.to_json()})
-        report = result.report
-        (tmp / "report.json").write_text(json.dumps(to_jsonable(report), indent=2))
-        (tmp / "report.md").write_text(markdown(report, [d.report for d in result.systems], report["wall_time_s"]))
+            result = replace(result, cost=cost, report=replace(result.report, cost=cost.to_json()))
+        (tmp / "report.json").write_text(json.dumps(to_jsonable(result.report.to_json()), indent=2))
+        (tmp / "report.md").write_text(markdown(result.report))
     return result
 
 

@@ -14,6 +14,8 @@ from scipy.stats import spearmanr  # noqa: E402
 from vibrobase.files import atomic_write_figure  # noqa: E402
 from pipeline.core.units import ENGINEERING, factor, label, set_label  # noqa: E402
 from pipeline.diagnosis.features import harmonic_fit, model_record, record_time  # noqa: E402
+from pipeline.diagnosis.report_types import (Candidate, Discrepancy, DiagnoseReport, ParamEstimate,  # noqa: E402
+                                             Recording, RunResidual, SecondEffect, SystemReport)
 from pipeline.diagnosis.result import SimulatedRuns, SystemDiagnosis  # noqa: E402
 from sim.controls import CONTROLS as CONTROL_KEYS  # noqa: E402
 
@@ -94,7 +96,7 @@ def figure_names(diag: SystemDiagnosis) -> list[str]:
     tag = _tag(diag.system)
     return ([f"residual_{tag}.png"] + [f"timehist_{diag.evaluator.targets[i].run_id}.png" for i in _timehist_runs(diag)]
             + ([f"summary_{tag}.png"] if _has_summary(diag) else [])
-            + ([f"proposals_{tag}.png"] if (diag.report.get("discrepancy") or {}).get("proposals") else []))
+            + ([f"proposals_{tag}.png"] if diag.report.discrepancy and diag.report.discrepancy.proposals else []))
 
 
 def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path) -> list[str]:
@@ -115,23 +117,28 @@ def figures(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, out: Path)
             models.append((f"with {final}", final_runs, "s"))
         fig = summary_figure(ev.targets, models, f"{sysname}: summary features, measured vs model")
         files.append(_save(fig, out / f"summary_{tag}.png"))
-    disc = diag.report.get("discrepancy") or {}
-    if disc.get("proposals"):
+    disc = diag.report.discrepancy
+    if disc and disc.proposals:
         files.append(_proposals_figure(diag, disc, out / f"proposals_{tag}.png"))
     return files
+
+
+def _x(r: RunResidual, key: str):
+    """A run's control ``key`` or its peak velocity [SI]."""
+    return r.peak_velocity_m_s if key == "peak_velocity_m_s" else r.controls.get(key)
 
 
 def _residual_figure(diag: SystemDiagnosis, path: Path) -> str:
     """The calibrated base's (and the final model's) per-run nrms against each varied control, the residual by
     harmonic and by time segment."""
     sysname, final = diag.system, diag.final
-    st = diag.report["residual_structure"]
-    rows = st["by_run"]
+    st = diag.report.residual_structure
+    rows = st.by_run
     keys = [k for k in (*CONTROL_KEYS, "peak_velocity_m_s")
-            if len({r.get(k) for r in rows if r.get(k) is not None}) > 1][:4]
-    hz = st["by_harmonic_hz"]
+            if len({_x(r, k) for r in rows if _x(r, k) is not None}) > 1][:4]
+    hz = st.by_harmonic_hz
     panels = [("control", k) for k in keys] + ([("harmonics", None)] if hz else []) + \
-        ([("segments", None)] if st["by_time_segment"] else [])
+        ([("segments", None)] if st.by_time_segment else [])
     ncol = min(3, max(len(panels), 1))
     nrow = max(1, math.ceil(len(panels) / ncol))
     fig, ax = plt.subplots(nrow, ncol, figsize=(4.4 * ncol, 3.6 * nrow), squeeze=False)
@@ -142,9 +149,10 @@ def _residual_figure(diag: SystemDiagnosis, path: Path) -> str:
         if kind == "control":
             k = set_label(a, "x", key)
             for col, lab, mk in series_:
-                a.scatter([r[key] * k for r in rows], [r[col] for r in rows], marker=mk, label=lab, alpha=0.7)
-            ho = [r for r in rows if r["held_out"]]
-            a.scatter([r[key] * k for r in ho], [r["base_nrms"] for r in ho], facecolors="none", edgecolors="k", s=90,
+                a.scatter([_x(r, key) * k for r in rows], [getattr(r, col) for r in rows], marker=mk, label=lab,
+                          alpha=0.7)
+            ho = [r for r in rows if r.held_out]
+            a.scatter([_x(r, key) * k for r in ho], [r.base_nrms for r in ho], facecolors="none", edgecolors="k", s=90,
                       label="held-out run")
             a.axhline(1.0, color="grey", ls="--", lw=1)
             a.set_yscale("log")
@@ -155,7 +163,7 @@ def _residual_figure(diag: SystemDiagnosis, path: Path) -> str:
             a.set_ylabel("calibrated base |residual| / noise")
             a.set_yscale("log")
         else:
-            a.plot(range(1, len(st["by_time_segment"]) + 1), st["by_time_segment"], "o-")
+            a.plot(range(1, len(st.by_time_segment) + 1), st.by_time_segment, "o-")
             a.set_xlabel("time segment of the record")
             a.set_ylabel("calibrated base residual / noise")
             a.ticklabel_format(axis="y", useOffset=False)
@@ -238,17 +246,17 @@ def summary_figure(targets: list, models: list[tuple[str, list[dict], str]], tit
     return fig
 
 
-def _proposals_figure(diag: SystemDiagnosis, disc: dict, path: Path) -> str:
+def _proposals_figure(diag: SystemDiagnosis, disc: Discrepancy, path: Path) -> str:
     """The held-out residual of every held-out run before (calibrated base) and after each discrepancy proposal,
     against the frequency, and the noise level."""
     f_of = {t.run_id: t.controls["frequency_hz"] for t in diag.evaluator.targets}
     fig, a = plt.subplots(figsize=(6.4, 4.2))
-    base = disc["base_by_run_nrms"]
+    base = disc.base_by_run_nrms
     a.scatter([f_of[r] for r in base], list(base.values()), marker="o", s=50, label="calibrated base (before)")
-    for k, p_ in enumerate(disc["proposals"], 1):
-        by = p_["by_run_nrms"]
+    for k, p_ in enumerate(disc.proposals, 1):
+        by = p_.by_run_nrms
         a.scatter([f_of[r] for r in by], list(by.values()), marker="sdv"[k - 1], alpha=0.8,
-                  label=f"#{k} {' + '.join(p_['forms'])} (nrms {p_['nrms']:.3g})")
+                  label=f"#{k} {' + '.join(p_.forms)} (nrms {p_.nrms:.3g})")
     a.axhline(1.0, color="grey", ls="--", lw=1, label="noise level")
     a.set_yscale("log")
     set_label(a, "x", "frequency_hz")
@@ -266,24 +274,29 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def _param_line(n: str, v: dict) -> str:
-    lo, hi = v["ci95"]
+def _name(effects: tuple[str, ...] | None) -> str | None:
+    """A model's effects as report.md names them (``a+b``)."""
+    return None if effects is None else "+".join(effects)
+
+
+def _param_line(n: str, v: ParamEstimate) -> str:
+    lo, hi = v.ci95
     if not (lo > 0 and hi / lo < 1e4):
-        return f"- {n} = {v['value']:.4g}: not identifiable from these data (95 % interval spans > 4 decades)"
-    return f"- {n} = {v['value']:.4g} ± {v['sd']:.2g} ({lo:.4g} … {hi:.4g})"
+        return f"- {n} = {v.value:.4g}: not identifiable from these data (95 % interval spans > 4 decades)"
+    return f"- {n} = {v.value:.4g} ± {v.sd:.2g} ({lo:.4g} … {hi:.4g})"
 
 
-def markdown(report: dict, per_system: list[dict], seconds: float) -> str:
+def markdown(report: DiagnoseReport) -> str:
     """report.md text."""
-    lines = [f"# Model diagnosis of `{report['dataset']}`", "",
-             f"Wall time {seconds:.0f} s. Errors are on held-out runs only (see 'split'), all weighted by the "
-             "measurement noise of each feature: `error` = ||(model − measured)/sd|| / ||measured/sd||, the "
+    lines = [f"# Model diagnosis of `{report.dataset}`", "",
+             f"Wall time {report.wall_time_s:.0f} s. Errors are on held-out runs only (see 'split'), all weighted by "
+             "the measurement noise of each feature: `error` = ||(model − measured)/sd|| / ||measured/sd||, the "
              "residual relative to the measured features; `noise_floor` = the same for a residual of pure noise; "
              "`nrms` = residual / noise = error / noise floor (1 = at the noise level; docs/diagnose.md).", ""]
-    for rep in per_system:
+    for rep in report.systems:
         lines += _system_lines(rep)
-    if report.get("cost"):
-        lines += cost_lines(report["cost"])
+    if report.cost:
+        lines += cost_lines(report.cost)
     return "\n".join(lines)
 
 
@@ -311,148 +324,150 @@ def cost_lines(cost: dict) -> list[str]:
                         f"total adds the other rows. Machine load average (1, 5, 15 min) at the end: {load}.", ""]
 
 
-def _system_lines(rep: dict) -> list[str]:
+def _system_lines(rep: SystemReport) -> list[str]:
     """report.md section of one system's report entry."""
-    lines = [f"## {rep['system']} ({rep['n_runs']} runs, {', '.join(rep['data'])} data, {rep['split']['scheme']})", ""]
+    lines = [f"## {rep.system} ({rep.n_runs} runs, {', '.join(rep.data)} data, {rep.split.scheme})", ""]
     lines += _verdict_lines(rep)
-    second = rep.get("second_effect")
+    second = rep.second_effect
     if second:
         lines += _second_effect_lines(second)
-    disc = rep.get("discrepancy")
-    if disc:
-        lines += _discrepancy_lines(disc)
-    if rep.get("indistinguishable"):
-        lines += [f"Indistinguishable on these data from {rep['leader'] if not second else second['first']} "
-                  f"(BIC within the margin): {', '.join(rep['indistinguishable'])}.", ""]
-    if rep.get("absorbed"):
+    if rep.discrepancy:
+        lines += _discrepancy_lines(rep.discrepancy)
+    if rep.indistinguishable:
+        lines += [f"Indistinguishable on these data from {_name(rep.leader if not second else second.first)} "
+                  f"(BIC within the margin): {', '.join(_name(m) for m in rep.indistinguishable)}.", ""]
+    if rep.absorbed:
         lines += ["Parameters the base fit moved to absorb the missing physics (base fit against the fit with "
-                  f"{rep['leader']}): " + ", ".join(f"{n} {a['base']:.4g} vs {a['with']:.4g} ({100 * a['change']:+.0f} %)"
-                                                  for n, a in rep["absorbed"].items()) + ".", ""]
-    if rep.get("rig"):
-        lines += [f"Corrected rig: [`{rep['rig']['file']}`]({rep['rig']['file']}) (use it with `--rig`): "
-                  f"{rep['rig']['source']}.", ""]
+                  f"{_name(rep.leader)}): " + ", ".join(f"{n} {a.base:.4g} vs {a.with_:.4g} ({100 * a.change:+.0f} %)"
+                                                        for n, a in rep.absorbed.items()) + ".", ""]
+    if rep.rig:
+        lines += [f"Corrected rig: [`{rep.rig.file}`]({rep.rig.file}) (use it with `--rig`): {rep.rig.source}.", ""]
     lines += _error_lines(rep)
     lines += _candidate_lines(rep)
-    lines += [""] + [f"![{f}]({f})" for f in rep["figures"]] + [""]
-    lines += _recording_lines(rep.get("recording"))
-    if rep.get("notes"):
-        lines += [f"Note: {n}" for n in rep["notes"]] + [""]
+    lines += [""] + [f"![{f}]({f})" for f in rep.figures] + [""]
+    lines += _recording_lines(rep.recording)
+    if rep.notes:
+        lines += [f"Note: {n}" for n in rep.notes] + [""]
     return lines
 
 
-def _verdict_lines(rep: dict) -> list[str]:
+def _verdict_lines(rep: SystemReport) -> list[str]:
     """The verdict, how close the call was, the pair stage and the single-effect step's leader and runner-up
     against the calibrated base."""
     lines = []
+    err = rep.errors
     verdict = {"nothing missing": "**nothing missing** (the calibrated base model is adequate)",
-               "selected": f"**{rep['selected']}** selected",
-               "unexplained": "**unexplained** (no §6 effect brings the model to the data)"}[rep["verdict"]]
-    lines += [f"Verdict: {verdict}.", "", f"How close the call was: {rep['call']['text']}.", ""]
-    stage = rep.get("pair_stage")
+               "selected": f"**{_name(rep.selected)}** selected",
+               "unexplained": "**unexplained** (no §6 effect brings the model to the data)"}[rep.verdict]
+    lines += [f"Verdict: {verdict}.", "", f"How close the call was: {rep.call.text}.", ""]
+    stage = rep.pair_stage
     if stage:
-        lines += [f"Two effects: {'tried' if stage['tried'] else 'not tried'} ({stage['reason']}).", ""]
-    second = rep.get("second_effect")
-    lead1 = second["first"] if second else rep["leader"]      # the single-effect step's leader
-    shown = [m for m in (lead1, rep["runner_up"]) if m]
-    by = {c["effect"]: c for c in rep["candidates"]}
+        lines += [f"Two effects: {'tried' if stage.tried else 'not tried'} ({stage.reason}).", ""]
+    second = rep.second_effect
+    lead1 = second.first if second else rep.leader      # the single-effect step's leader
+    shown = [m for m in (lead1, rep.runner_up) if m]
+    by = {c.effects: c for c in rep.candidates}
     lines += ["| model | held-out error (noise floor) | held-out nrms | systematic error | ΔBIC vs base | "
               "held-out Δχ² vs base | adequate | improves |", "|---|---|---|---|---|---|---|---|",
-              f"| calibrated base | {_fmt(rep['base_error'])} ({_fmt(rep['noise_floor'])}) | {_fmt(rep['base_nrms'])} | "
-              f"{_fmt(rep['base_systematic'])} | 0 | 0 | {'yes' if rep['call']['base']['adequate'] else 'no'} | — |"]
+              f"| calibrated base | {_fmt(err.base.error)} ({_fmt(err.noise_floor)}) | {_fmt(err.base.nrms)} | "
+              f"{_fmt(err.base.systematic)} | 0 | 0 | {'yes' if rep.call.base.adequate else 'no'} | — |"]
     for m in shown:
         c = by[m]
-        role = "selected" if m == rep["selected"] else ("leader" if m == lead1 else "runner-up")
-        lines.append(f"| {m} ({role}) | {_fmt(c['error'])} ({_fmt(rep['noise_floor'])}) | {_fmt(c['nrms'])} | "
-                     f"{_fmt(c['systematic'])} | {_judged(-c['delta_score'], c['delta_chi2_heldout'], c)}")
+        role = "selected" if m == rep.selected else ("leader" if m == lead1 else "runner-up")
+        lines.append(f"| {_name(m)} ({role}) | {_fmt(c.error)} ({_fmt(err.noise_floor)}) | {_fmt(c.nrms)} | "
+                     f"{_fmt(c.systematic)} | {_judged(-c.delta_score, c.delta_chi2_heldout, c)}")
     lines.append("")
     return lines
 
 
-def _judged(delta_bic, delta_chi2, stats: dict) -> str:
-    """The judged cells of a model's row: ``ΔBIC | held-out Δχ² | adequate | improves |``."""
-    return (f"{_fmt(delta_bic)} | {_fmt(delta_chi2)} | {'yes' if stats['adequate'] else 'no'} | "
-            f"{'yes' if stats['improves'] else 'no'} |")
+def _judged(delta_bic, delta_chi2, stats) -> str:
+    """The judged cells of a model's row (a candidate, a pair or a proposal): ``ΔBIC | held-out Δχ² | adequate |
+    improves |``."""
+    return (f"{_fmt(delta_bic)} | {_fmt(delta_chi2)} | {'yes' if stats.adequate else 'no'} | "
+            f"{'yes' if stats.improves else 'no'} |")
 
 
-def _second_effect_lines(second: dict) -> list[str]:
+def _second_effect_lines(second: SecondEffect) -> list[str]:
     """The second effect's step: its call and its three best pairs."""
     lines = []
-    lines += [f"Second effect, each added to {second['first']} and judged against {second['first']} alone: "
-              f"{second['text']}.", "",
+    first = _name(second.first)
+    lines += [f"Second effect, each added to {first} and judged against {first} alone: {second.text}.", "",
               "| model | held-out nrms | systematic error | ΔBIC | held-out Δχ² | adequate | improves |",
               "|---|---|---|---|---|---|---|"]
-    lines += [f"| {c['name']} | {_fmt(c['nrms'])} | {_fmt(c['systematic'])} | "
-              f"{_judged(c['delta_bic'], c['delta_chi2'], c)}" for c in second["candidates"][:3]]
+    lines += [f"| {_name(c.effects)} | {_fmt(c.nrms)} | {_fmt(c.systematic)} | "
+              f"{_judged(c.delta_bic, c.delta_chi2, c)}" for c in second.candidates[:3]]
     lines.append("")
     return lines
 
 
-def _discrepancy_lines(disc: dict) -> list[str]:
+def _discrepancy_lines(disc: Discrepancy) -> list[str]:
     """The proposals for the missing term: the call, the screening and every proposal."""
     lines = []
-    lines += [f"Proposing the missing term (no §6 effect explains the residual): {disc['text']}.", "",
+    lines += [f"Proposing the missing term (no §6 effect explains the residual): {disc.text}.", "",
               "Screening (non-negative sparse regression of the calibrated base's residual on each term's "
               "sensitivity, calibratable directions projected out): "
-              + ", ".join(f"{s['term']} (#{s['entered']}, score {s['score']:.2f}"
-                          + (", in the support)" if s["in_support"] else ")") for s in disc["screening"]) + ".",
+              + ", ".join(f"{s.term} (#{s.entered}, score {s.score:.2f}"
+                          + (", in the support)" if s.in_support else ")") for s in disc.screening) + ".",
               "", "| rank | proposal | terms | coefficients (sd) | held-out error (noise floor) | held-out nrms | "
               "ΔBIC | held-out Δχ² | adequate | improves |", "|---|---|---|---|---|---|---|---|---|---|"]
-    for k, p_ in enumerate(disc["proposals"], 1):
-        co = ", ".join(f"{t} = {p_['coefficients'][t]:.3g} ± {p_['coefficient_sd'][t]:.2g}" for t in p_["coefficients"])
-        lines.append(f"| {k} | {'; '.join(p_['words'])} | {' + '.join(p_['forms'])} | {co} | "
-                     f"{_fmt(p_['error'])} ({_fmt(p_['noise_floor'])}) | {_fmt(p_['nrms'])} | "
-                     f"{_judged(p_['delta_bic'], p_['delta_chi2'], p_)}")
+    for k, p_ in enumerate(disc.proposals, 1):
+        co = ", ".join(f"{t} = {p_.coefficients[t]:.3g} ± {p_.coefficient_sd[t]:.2g}" for t in p_.coefficients)
+        lines.append(f"| {k} | {'; '.join(p_.words)} | {' + '.join(p_.forms)} | {co} | "
+                     f"{_fmt(p_.error)} ({_fmt(p_.noise_floor)}) | {_fmt(p_.nrms)} | "
+                     f"{_judged(p_.delta_bic, p_.delta_chi2, p_)}")
     lines.append("")
     return lines
 
 
-def _error_lines(rep: dict) -> list[str]:
+def _error_lines(rep: SystemReport) -> list[str]:
     """Held-out errors of the default, calibrated and final models, and the calibrated and final parameters."""
-    lines = []
-    lines += [
-              "| model | held-out error | held-out nrms | systematic error |", "|---|---|---|---|",
-              f"| default parameters | {_fmt(rep['default_error'])} | {_fmt(rep['default_nrms'])} | — |",
-              f"| calibrated base (before) | {_fmt(rep['base_error'])} | {_fmt(rep['base_nrms'])} | "
-              f"{_fmt(rep['base_systematic'])} |",
-              f"| final (after) | {_fmt(rep['final_error'])} | {_fmt(rep['final_nrms'])} | "
-              f"{_fmt(rep['final_systematic'])} |",
-              f"| noise floor | {_fmt(rep['noise_floor'])} | 1 | 0 |", "",
-              "Calibrated base parameters (value, sd, 95 % interval):", ""]
-    lines += [_param_line(n, v) for n, v in rep["calibrated_uncertainty"].items()]
-    if rep["selected_params"]:
-        final = rep["selected"] or "the proposal " + " + ".join(rep["proposal_adopted"])
+    e = rep.errors
+    lines = [
+        "| model | held-out error | held-out nrms | systematic error |", "|---|---|---|---|",
+        f"| default parameters | {_fmt(e.default.error)} | {_fmt(e.default.nrms)} | — |",
+        f"| calibrated base (before) | {_fmt(e.base.error)} | {_fmt(e.base.nrms)} | {_fmt(e.base.systematic)} |",
+        f"| final (after) | {_fmt(e.final.error)} | {_fmt(e.final.nrms)} | {_fmt(e.final.systematic)} |",
+        f"| noise floor | {_fmt(e.noise_floor)} | 1 | 0 |", "",
+        "Calibrated base parameters (value, sd, 95 % interval):", ""]
+    lines += [_param_line(n, v) for n, v in rep.calibrated_uncertainty.items()]
+    if rep.selected_params:
+        final = _name(rep.selected) or "the proposal " + " + ".join(rep.proposal_adopted)
         lines += ["", f"Parameters with `{final}` (value, sd, 95 % interval):", ""]
-        lines += [_param_line(n, v) for n, v in rep["selected_params"].items()]
+        lines += [_param_line(n, v) for n, v in rep.selected_params.items()]
     return lines
 
 
-def _candidate_lines(rep: dict) -> list[str]:
+def _candidate_lines(rep: SystemReport) -> list[str]:
     """Every candidate effect with its fitted parameters and scores, and the calibrated base's residual structure."""
     lines = []
     lines += ["", "Candidates (score = BIC on calibration runs; lower is better):", "",
               "| effect | fitted effect parameters | held-out error | held-out nrms | systematic error | "
               "score − base score | held-out Δχ² |", "|---|---|---|---|---|---|---|"]
-    for c in rep["candidates"]:
-        ps = ", ".join(f"{k}={v:.3g}" for k, v in c["params"].items())
-        lines.append(f"| {c['effect']} | {ps} | {_fmt(c['error'])} | {_fmt(c['nrms'])} | {_fmt(c['systematic'])} | "
-                     f"{_fmt(c['delta_score'])} | {_fmt(c['delta_chi2_heldout'])} |")
-    st = rep["residual_structure"]
+    for c in rep.candidates:
+        lines.append(_candidate_row(c))
+    st = rep.residual_structure
     lines += ["", "Residual structure of the calibrated base model (Spearman correlation of per-run nrms with): "
-              + ", ".join(f"{k} {v:+.2f}" for k, v in st["spearman_base_nrms"].items() if v is not None) + "."]
-    if st["by_time_segment"]:
+              + ", ".join(f"{k} {v:+.2f}" for k, v in st.spearman_base_nrms.items() if v is not None) + "."]
+    if st.by_time_segment:
         lines.append("Residual / noise by quarter of the record: "
-                     + ", ".join(f"{x:.3g}" for x in st["by_time_segment"]) + ".")
+                     + ", ".join(f"{x:.3g}" for x in st.by_time_segment) + ".")
     return lines
 
 
-def _recording_lines(rec: dict | None) -> list[str]:
+def _candidate_row(c: Candidate) -> str:
+    ps = ", ".join(f"{k}={v:.3g}" for k, v in c.params.items())
+    return (f"| {_name(c.effects)} | {ps} | {_fmt(c.error)} | {_fmt(c.nrms)} | {_fmt(c.systematic)} | "
+            f"{_fmt(c.delta_score)} | {_fmt(c.delta_chi2_heldout)} |")
+
+
+def _recording_lines(rec: Recording | None) -> list[str]:
     """report.md lines on the DAQ chain: the declared chains, and the undeclared chain estimated as nuisance."""
     if not rec:
         return []
     out = []
-    if rec["declared"]:
-        out.append(f"Recording chain declared in runs.csv for {len(rec['declared'])} run(s): the model's signals went "
+    if rec.declared:
+        out.append(f"Recording chain declared in runs.csv for {len(rec.declared)} run(s): the model's signals went "
                    "through it before the comparison.")
-    if rec["estimated"]:
-        out.append("Recording: " + rec["estimated"]["text"] + ".")
+    if rec.estimated:
+        out.append("Recording: " + rec.estimated.text + ".")
     return out + ([""] if out else [])

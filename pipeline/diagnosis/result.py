@@ -12,13 +12,14 @@ if TYPE_CHECKING:
     from pipeline.diagnosis.features import Target
     from pipeline.diagnosis.fit import FitResult
     from pipeline.diagnosis.model import Evaluator
+    from pipeline.diagnosis.report_types import DiagnoseReport, SystemReport
 
 
 @dataclass(frozen=True)
 class SystemDiagnosis:
     """One system's diagnosis.
 
-    report: the system's entry of report.json (JSON-ready values only);
+    report: the system's entry of report.json (``pipeline.diagnosis.report_types.SystemReport``);
     evaluator: the simulator of the system's runs (its ``targets`` in runs.csv order);
     fits: the reported fits by model name ('base' and every candidate effect);
     held_out: indices into the targets of the held-out runs, fold after fold;
@@ -26,16 +27,23 @@ class SystemDiagnosis:
     cost: the cost of each stage of the system's diagnosis (``pipeline.diagnosis.cost``).
     """
 
-    report: dict
+    report: SystemReport
     evaluator: Evaluator
     fits: dict[str, FitResult]
     held_out: list[int]
     final: str
     cost: tuple[StageCost, ...] = ()
 
+    @classmethod
+    def of(cls, report: dict, **kw) -> SystemDiagnosis:
+        """The diagnosis whose report entry is ``report`` in report.json's layout (read by ``SystemReport``)."""
+        from pipeline.diagnosis.report_types import SystemReport
+
+        return cls(report=SystemReport.from_json(report), **kw)
+
     @property
     def system(self) -> str:
-        return self.report["system"]
+        return self.report.system
 
     @property
     def targets(self) -> list[Target]:
@@ -58,14 +66,14 @@ class SimulatedRuns:
 class DiagnoseResult:
     """A whole dataset's diagnosis; nothing written yet (``pipeline.diagnosis.outputs`` writes it).
 
-    systems: per system, in the dataset's order; report: report.json's content;
+    systems: per system, in the dataset's order; report: report.json as a ``DiagnoseReport`` (its ``to_json``);
     runs: the simulated runs the figures draw, aligned with ``systems``;
     rigs: (file name, corrected ``sim.Rig``) per system; series: the measured series by run id [SI units];
     cost: where the time went, per stage (report.json ``cost``; None: not recorded).
     """
 
     systems: tuple[SystemDiagnosis, ...]
-    report: dict
+    report: DiagnoseReport
     runs: tuple[SimulatedRuns, ...]
     rigs: tuple[tuple[str, sim.Rig], ...]
     series: dict[str, pd.DataFrame]

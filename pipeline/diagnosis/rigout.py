@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 
+from pipeline.diagnosis.report_types import RigInfo
 from pipeline.diagnosis.result import SystemDiagnosis
 
 UNEXPLAINED_PREFIX = "UNEXPLAINED"
@@ -45,11 +46,11 @@ def rop_model_error(diag: SystemDiagnosis):
     """The final model's held-out ROP error as a ``sim.ModelError`` (None when no held-out run measured ROP)."""
     import sim
 
-    groups = diag.report.get("error_by_group") or {}
-    err = (groups.get("final") or {}).get("rop_m_s")
+    errors = diag.report.errors
+    err = (errors.final.by_group or {}).get("rop_m_s")
     if err is None or not math.isfinite(float(err)):
         return None
-    noise = (groups.get("noise") or {}).get("rop_m_s")
+    noise = (errors.noise_by_group or {}).get("rop_m_s")
     runs = sorted({diag.targets[i].run_id for i in diag.held_out if "rop_m_s" in diag.targets[i].names})
     return sim.ModelError(rop_rel=float(err), noise_floor_rel=None if noise is None else float(noise),
                           basis=f"held-out rms ROP error of the diagnosis's final model ({diag.final}) over "
@@ -57,12 +58,13 @@ def rop_model_error(diag: SystemDiagnosis):
 
 
 def corrected_rig(diag: SystemDiagnosis, presets: list[str | None], dataset: str):
-    """(``sim.Rig``, info dict for report.json) of one system's diagnosis ``diag`` (its final fit, and its targets'
-    known parameters per run), the runs' ``presets`` and the ``dataset`` named in the rig's source."""
+    """(``sim.Rig``, report.json ``rig`` as a ``RigInfo`` without its file name) of one system's diagnosis ``diag``
+    (its final fit, and its targets' known parameters per run), the runs' ``presets`` and the ``dataset`` named in
+    the rig's source."""
     import sim
 
     rep, targets = diag.report, diag.targets
-    system = rep["system"]
+    system, final_err = rep.system, rep.errors.final
     spec = sim.get_model(system)
     notes = []
     preset, note = _common([p or None for p in presets], "preset")
@@ -89,31 +91,30 @@ def corrected_rig(diag: SystemDiagnosis, presets: list[str | None], dataset: str
         else:
             params[name] = float(fr.values[name])
     uncertainty = {n: float(fr.sd[n]) for n in fr.free}
-    absorbed = rep.get("absorbed") or {}
-    if rep["explained"]:
-        verdict = (f"explained with {rep['selected']}" if rep["selected"]
+    absorbed = rep.absorbed or {}
+    if rep.explained:
+        verdict = (f"explained with {'+'.join(rep.selected)}" if rep.selected
                    else "explained by the calibrated base model (no effect needed)")
     else:
         verdict = (f"{UNEXPLAINED_PREFIX}: no §6 effect explains the residual; calibrated base model, known to be wrong "
-                   f"by held-out error {rep['final_error']:.3g} against a noise floor of {rep['noise_floor']:.3g} "
-                   f"(nrms {rep['final_nrms']:.3g})")
-        names = ", ".join(f"{n} ({100 * a['change']:+.0f} % against the fit with {a['effect']})"
+                   f"by held-out error {final_err.error:.3g} against a noise floor of {rep.noise_floor:.3g} "
+                   f"(nrms {final_err.nrms:.3g})")
+        names = ", ".join(f"{n} ({100 * a.change:+.0f} % against the fit with {'+'.join(a.effects)})"
                           for n, a in absorbed.items())
         if terms:
             verdict = (f"{UNEXPLAINED_PREFIX} by the §6 effects; adopted the discrepancy proposal "
-                       f"{' + '.join(terms)} (held-out error {rep['final_error']:.3g} against a noise floor of "
-                       f"{rep['noise_floor']:.3g}, nrms {rep['final_nrms']:.3g}; base model's error "
-                       f"{rep['base_error']:.3g})")
+                       f"{' + '.join(terms)} (held-out error {final_err.error:.3g} against a noise floor of "
+                       f"{rep.noise_floor:.3g}, nrms {final_err.nrms:.3g}; base model's error "
+                       f"{rep.errors.base.error:.3g})")
         else:
             verdict += ("; parameters that may have absorbed the missing physics: " + names if names else
                         "; the calibrated parameters may have absorbed part of the missing physics")
     source = f"vibro diagnose {dataset} ({system}): {verdict}"
     rig = sim.Rig(model=system, preset=preset, parameters=params, effects=effects, uncertainty=uncertainty,
                   source=source, discrepancy=terms, model_error=rop_model_error(diag))
-    info = {"explained": bool(rep["explained"]), "selected": rep["selected"], "source": source,
-            "discrepancy": terms or None,
-            "verdict": rep.get("verdict"), "absorbed": absorbed,
-            "model_error": float(rep["final_error"]), "noise_floor": float(rep["noise_floor"]),
-            "nrms": float(rep["final_nrms"]),
-            "rop_model_error": None if rig.model_error is None else rig.model_error.to_mapping(), "notes": notes}
+    info = RigInfo(explained=bool(rep.explained), selected=rep.selected, source=source, discrepancy=terms or None,
+                   verdict=rep.verdict, absorbed=absorbed, model_error=float(final_err.error),
+                   noise_floor=float(rep.noise_floor), nrms=float(final_err.nrms),
+                   rop_model_error=None if rig.model_error is None else rig.model_error.to_mapping(), notes=tuple(notes),
+                   file=None)
     return rig, info

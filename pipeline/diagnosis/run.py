@@ -473,5 +473,5 @@ def _assemble(d: _Diagnosis) -> SystemDiagnosis:
         "recording": recording_report(targets, d.chain),
         "n_simulations": d.ev.n_sims,
     }
-    return SystemDiagnosis(report=report, evaluator=d.ev, fits=final_fits, held_out=d.effects.held_out, final=final,
-                           cost=d.cost.rows())
+    return SystemDiagnosis.of(report, evaluator=d.ev, fits=final_fits, held_out=d.effects.held_out, final=final,
+                              cost=d.cost.rows())

@@ -1,5 +1,6 @@
 """Whole-dataset diagnosis: every system diagnosed, its runs simulated for the figures, its corrected rig and the
-combined report built.  Nothing is written (``pipeline.diagnosis.outputs`` does that)."""
+report built (``pipeline.diagnosis.report_types.DiagnoseReport``).  Nothing is written
+(``pipeline.diagnosis.outputs`` does that)."""
 from __future__ import annotations
 
 import time
@@ -9,6 +10,7 @@ from pipeline.core.executors import Executor, InlineExecutor
 from pipeline.diagnosis.cost import CostRecorder, DiagnosisCost, load_average
 from pipeline.diagnosis.features import simulated_features
 from pipeline.diagnosis.report import figure_names, residual_structure
+from pipeline.diagnosis.report_types import DiagnoseReport, ResidualStructure
 from pipeline.diagnosis.result import DiagnoseResult, SimulatedRuns, SystemDiagnosis
 from pipeline.diagnosis.rigout import corrected_rig, rig_file_name
 from pipeline.diagnosis.run import DiagnoseConfig, build_targets, diagnose_system
@@ -67,43 +69,24 @@ def _diagnose(ds, cfg: DiagnoseConfig, log, progress, executor: Executor) -> Dia
         with figs.stage("figures: runs"):
             sim_runs = simulate_runs(diag)
         costs += [*diag.cost, *figs.rows()]
-        notes = [SUMMARY_NOTE] if "summary" in diag.report["data"] else []
-        notes += [UNREPRODUCIBLE_NOTE.format(run=r, nrms=x) for r, x in diag.report["unreproducible"].items()]
+        notes = [SUMMARY_NOTE] if "summary" in diag.report.data else []
+        notes += [UNREPRODUCIBLE_NOTE.format(run=r, nrms=x) for r, x in diag.report.unreproducible.items()]
         notes += skipped.get(system, []) + [n for t in tgs for n in t.notes]     # what the recording left out
-        diag = replace(diag, report={**diag.report, "residual_structure": residual_structure(diag, sim_runs.base,
-                                                                                             sim_runs.final),
-                                     "notes": notes})
+        structure = ResidualStructure.from_json(residual_structure(diag, sim_runs.base, sim_runs.final))
+        diag = replace(diag, report=replace(diag.report, residual_structure=structure, notes=tuple(notes)))
         diags.append(diag)
         runs.append(sim_runs)
     dataset = str(ds.path) if ds.path else "dataset"
     systems, rigs = [], []
     for diag in diags:
         rig, info = corrected_rig(diag, _presets(ds, diag.system), dataset)
-        info["file"] = rig_file_name(diag.system, len(diags))
-        rigs.append((info["file"], rig))
-        diag = replace(diag, report={**diag.report, "rig": info})
-        systems.append(replace(diag, report={**diag.report, "figures": figure_names(diag)}))
-    report = _combine([d.report for d in systems], dataset, cfg)
-    report["wall_time_s"] = round(time.time() - t0, 1)
+        info = replace(info, file=rig_file_name(diag.system, len(diags)))
+        rigs.append((info.file, rig))
+        diag = replace(diag, report=replace(diag.report, rig=info))
+        systems.append(replace(diag, report=replace(diag.report, figures=tuple(figure_names(diag)))))
     cost = DiagnosisCost(tuple(costs), load_average())
-    report["cost"] = cost.to_json()
+    report = DiagnoseReport(dataset=dataset, config=asdict(cfg), systems=tuple(d.report for d in systems),
+                            wall_time_s=round(time.time() - t0, 1), cost=cost.to_json())
     return DiagnoseResult(systems=tuple(systems), report=report, runs=tuple(runs), rigs=tuple(rigs),
                           series=dict(ds.series), cost=cost)
 
-
-KEYS = ("verdict", "calibrated", "noise_floor", "default_error", "base_error", "candidates", "selected", "final_error",
-        "default_nrms", "base_nrms", "final_nrms", "base_systematic", "final_systematic", "rig", "proposal_adopted")
-
-
-def _combine(per: list[dict], dataset: str, cfg: DiagnoseConfig) -> dict:
-    """One system: its keys at the top level.  Several: `system` is the list and every key maps system ->
-    value (`explained` is true only if every system is explained)."""
-    base = {"dataset": dataset, "config": asdict(cfg)}
-    if len(per) == 1:
-        return {**base, **per[0], "systems": {per[0]["system"]: per[0]}}
-    out = {**base, "system": [p["system"] for p in per]}
-    for k in KEYS:
-        out[k] = {p["system"]: p[k] for p in per}
-    out["explained"] = all(p["explained"] for p in per)
-    out["systems"] = {p["system"]: p for p in per}
-    return out

@@ -29,6 +29,7 @@ from vibrobase.files import atomic_write_bytes, atomic_write_text  # noqa: E402
 from vibrobase.jsonable import dump_json, flatten  # noqa: E402
 from sim.controls import CONTROLS  # noqa: E402
 from sim.models.discrepancy import PARAM_OF  # noqa: E402
+from pipeline.diagnosis.report_types import DiagnoseReport, SystemReport  # noqa: E402
 
 
 @dataclass
@@ -412,39 +413,40 @@ DIAG_COLUMNS = (("default_error", "default params"), ("base_error", "before (cal
                 ("selected", "selected effect"), ("explained", "explained"))
 
 
-def _diag_rows(name: str, rep: dict) -> list[dict]:
-    """One row per system of a diagnose report.json (``systems`` = {system: {...}}), else the headline."""
-    systems = rep.get("systems") if isinstance(rep.get("systems"), dict) else None
-    if not systems:
-        systems = {str(rep.get("system", name)): rep}
-    rows = []
-    for system, r in systems.items():
-        if isinstance(r, dict):
-            row = {"dataset": name, "system": system}
-            for key, _ in DIAG_COLUMNS:
-                v = r.get(key)
-                if key == "selected" and not v:
-                    v = "none"
-                row[key] = ", ".join(map(str, v)) if isinstance(v, list) else v
-            rows.append(row)
-    return rows
+def _diag_rows(name: str, rep: DiagnoseReport) -> list[dict]:
+    """One row per system of a diagnosis."""
+    return [{"dataset": name, "system": r.system, "default_error": r.errors.default.error,
+             "base_error": r.errors.base.error, "final_error": r.errors.final.error, "noise_floor": r.noise_floor,
+             "selected": "+".join(r.selected) if r.selected else "none", "explained": r.explained}
+            for r in rep.systems]
+
+
+def _headline_rows(name: str, headline: dict) -> list[dict]:
+    """The row of a ``vibro diagnose --metrics`` file (``DiagnoseReport.headline``), where no report.json is at hand."""
+    row = {"dataset": name, "system": str(headline.get("system", name))}
+    for key, _ in DIAG_COLUMNS:
+        v = headline.get(key)
+        row[key] = "none" if key == "selected" and not v else v
+    return [row]
 
 
 def section_diagnose(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) -> None:
     doc.add(Heading("4. Measured-data diagnosis (before / after)"))
     path = inp.p(inp.diagnose)
-    reports: dict[str, dict] = {}
+    reports: dict[str, DiagnoseReport] = {}
     if path.is_dir():
         for p in sorted(path.glob("*/report.json")) + ([path / "report.json"] if (path / "report.json").exists() else []):
-            reports[p.parent.name] = _read_json(p) or {}
+            d = _read_json(p)
+            if d:
+                reports[p.parent.name] = DiagnoseReport.from_json(d, str(p))
+    rows = [r for name, rep in reports.items() for r in _diag_rows(name, rep)]
     if not reports:
         for m in _metrics_files(inp, "diagnose"):
             name = m.stem.split("-", 1)[1] if "-" in m.stem else m.stem
-            reports[name] = _read_json(m) or {}
-    if not reports:
+            rows += _headline_rows(name, _read_json(m) or {})
+    if not rows:
         doc.add(Para(f"No diagnosis results at `{inp.diagnose}`: the diagnose stage has not run."))
         return
-    rows = [r for name, rep in reports.items() for r in _diag_rows(name, rep)]
     summary["diagnose"] = rows
     doc.add(Para("Relative feature error of the model against each measured dataset, every feature weighted by its "
                  "measurement noise (||(model − measured)/sd|| / ||measured/sd||): with the default parameters, after "
@@ -486,45 +488,41 @@ UNIDENTIFIABLE_SPAN = 100.0
 """A parameter whose 95 % interval spans more than this factor (two decades) is flagged "not identifiable"."""
 
 
-def calibrated_rows(rep: dict, system: str) -> list[list]:
+def calibrated_rows(rep: SystemReport) -> list[list]:
     """Rows (parameter, role, default, calibrated, ± sd, 95 % interval, unit) of one system's diagnosis, every value
     from the selected model's fit (the calibrated base parameters fitted together with the selected effect, then the
     effect's own), else from the base fit; an interval wider than UNIDENTIFIABLE_SPAN says "not identifiable"."""
-    info = _param_info(system)
-    cal = rep.get("calibrated") or {}
-    block = rep.get("selected_params") if isinstance(rep.get("selected_params"), dict) else None
+    info = _param_info(rep.system)
+    cal = rep.calibrated
+    block = rep.selected_params
     with_effect = block is not None
     if block is None:
-        block = rep.get("calibrated_uncertainty")
-    if not isinstance(block, dict):
-        block = {n: {"value": v} for n, v in cal.items()} if isinstance(cal, dict) else {}
+        block = rep.calibrated_uncertainty
     rows = []
     for name, d in block.items():
-        if not isinstance(d, dict):
-            continue
-        adopted = PARAM_OF.get(name, name) in (rep.get("proposal_adopted") or ())    # a term, or the mode's
+        adopted = PARAM_OF.get(name, name) in (rep.proposal_adopted or ())    # a term, or the mode's
         added = "adopted discrepancy term" if adopted else "selected effect"
         role = ("calibrated (with the effect)" if name in cal else added) if with_effect else "calibrated"
         default, unit = info.get(name, (None, ""))
-        ci = d.get("ci95") if isinstance(d.get("ci95"), list) and len(d["ci95"]) == 2 else None
+        ci = d.ci95 if d.ci95 is not None and len(d.ci95) == 2 else None
         span = None
         if ci:
             span = f"{fmt(ci[0])} .. {fmt(ci[1])}"
             lo, hi = (float(x) for x in ci)
             if lo <= 0 or hi / lo > UNIDENTIFIABLE_SPAN:
                 span = f"not identifiable ({span})"
-        rows.append([name, role, default, d.get("value"), d.get("sd"), span, unit])
+        rows.append([name, role, default, d.value, d.sd, span, unit])
     return rows
 
 
-def _calibrated_tables(doc: Document, reports: dict[str, dict], summary: dict) -> None:
+def _calibrated_tables(doc: Document, reports: dict[str, DiagnoseReport], summary: dict) -> None:
     """The diagnosis's calibrated parameters (and the selected effect's) per dataset and system, with the
     model defaults next to them: what a rig file of the measured machine would hold."""
     out = {}
     for name, rep in reports.items():
-        systems = rep.get("systems") if isinstance(rep.get("systems"), dict) else {str(rep.get("system", name)): rep}
-        for system, r in systems.items():
-            rows = calibrated_rows(r, system) if isinstance(r, dict) else []
+        for r in rep.systems:
+            system = r.system
+            rows = calibrated_rows(r)
             if not rows:
                 continue
             out[f"{name}/{system}"] = {row[0]: row[3] for row in rows}

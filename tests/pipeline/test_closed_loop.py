@@ -58,9 +58,9 @@ def test_corrected_recommendation_reaches_the_truths_best(tmp_path, effect, seed
     from pipeline.cli.diagnose import load_config
 
     cfg = load_config(str(Path(__file__).resolve().parents[2] / "params.yaml"), {}, None, None)
-    rep = diagnose_into(load_dataset(tmp_path / "log"), tmp_path / "diag", cfg, log=lambda s: None).report
+    rep = diagnose_into(load_dataset(tmp_path / "log"), tmp_path / "diag", cfg, log=lambda s: None).report.systems[0]
     corrected = read_rig(tmp_path / "diag" / "rig.yaml")
-    assert rep["selected"] == effect, rep["rig"]["source"]
+    assert rep.selected == (effect,), rep.rig.source
     point_c, _ = _best(corrected)
     point_lab, _ = _best(Rig("drill", "lab"))
     _, truth_best = _best(truth)
@@ -94,15 +94,15 @@ def test_out_of_library_loop_reaches_the_truths_best(tmp_path):
     spec = LogSpec("drill", outside="quadratic_damping", noise="rig", seed=0, n_runs=8)
     info = generate(spec, tmp_path / "log", threads=2)
     rep = diagnose_into(load_dataset(tmp_path / "log"), tmp_path / "diag", DiagnoseConfig(n_threads=2),
-                        log=lambda s: None).report["systems"]["drill"]
-    assert rep["verdict"] == "unexplained" and rep["proposal_adopted"] == ["tool_quadratic_drag"], \
-        json.dumps(rep["discrepancy"], default=str)[:2000]
+                        log=lambda s: None).report.system("drill")
+    assert rep.verdict == "unexplained" and rep.proposal_adopted == ("tool_quadratic_drag",), \
+        json.dumps(rep.discrepancy.to_json(), default=str)[:2000]
     corrected = read_rig(tmp_path / "diag" / "rig.yaml")
     assert set(corrected.discrepancy) == {"tool_quadratic_drag"}
     truth_values = info["truth"]
     cq = truth_values.pop("cq")
     truth = Rig("drill", "lab").with_values({**truth_values, "tool_quadratic_drag": cq})
-    uncorrected = Rig("drill", "lab").with_values(rep["calibrated"])          # the calibrated base, no proposal
+    uncorrected = Rig("drill", "lab").with_values(rep.calibrated)          # the calibrated base, no proposal
     point_c, _ = _best(corrected)
     point_u, _ = _best(uncorrected)
     _, truth_best = _best(truth)

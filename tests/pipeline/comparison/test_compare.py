@@ -6,6 +6,7 @@ import json
 import pytest
 
 from pipeline.comparison.workflow import compare, markdown, model_rig
+from pipeline.diagnosis.report_types import RigInfo
 from sim import Rig
 
 INPUTS = ["frequency_hz", "amplitude_n", "static_force_n"]
@@ -29,7 +30,9 @@ def test_both_points_on_both_models_and_the_worth(tmp_path):
     corrected_rig = Rig("drill", "lab", effects={"shaker_coil": {"tau": 1e-4, "beta": 3e3}},
                         uncertainty={"beta": 300.0})
     cmp = compare(_opt(LAB_BEST), _opt(OTHER, corrected_rig.overrides()), corrected_rig,
-                  {"explained": False, "model_error": 0.2, "noise_floor": 0.04}, n_samples=4,
+                  RigInfo(explained=False, selected=None, source="", discrepancy=None, verdict="unexplained",
+                          absorbed={}, model_error=0.2, noise_floor=0.04, nrms=5.0, rop_model_error=None, notes=(),
+                          file="rig.yaml"), n_samples=4,
                   settings={"window": 8})
     t = cmp["recommendations"]
     on_rig = {k: corrected_rig.simulate(**t[k]["point"], settings={"window": 8}).labels["rop_m_s"] for k in t}

@@ -2,12 +2,16 @@
 ``source`` — on hand-made diagnosis results (the end-to-end case is in test_diagnose.py)."""
 from __future__ import annotations
 
+import json
+from dataclasses import replace
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
 
 from pipeline.diagnosis.features import Target
 from pipeline.diagnosis.fit import FitResult
+from pipeline.diagnosis.report_types import DiagnoseReport, ModelErrors, RigInfo
 from pipeline.diagnosis.result import SystemDiagnosis
 from pipeline.diagnosis.rigout import UNEXPLAINED_PREFIX, corrected_rig, rig_file_name
 
@@ -19,10 +23,19 @@ def _fit(values: dict, sd: dict) -> FitResult:
 
 def _diag(selected, explained, fits, final, targets, error_by_group=None, held_out=()) -> SystemDiagnosis:
     """A diagnosis of ``targets`` (an evaluator stand-in holding only them) with these ``fits``."""
-    report = {"system": "drill", "selected": selected, "explained": explained, "final_error": 0.21,
-              "noise_floor": 0.042, "final_nrms": 35.0, "error_by_group": error_by_group}
-    return SystemDiagnosis(report=report, evaluator=SimpleNamespace(targets=targets), fits=fits,
+    return SystemDiagnosis(report=_report(selected, explained, error_by_group), evaluator=SimpleNamespace(targets=targets), fits=fits,
                            held_out=list(held_out), final=final)
+
+
+def _report(selected, explained, error_by_group=None, rig=None):
+    """A drill report (the stored one-system fixture's) with this verdict, held-out errors and rig."""
+    rep = DiagnoseReport.from_json(json.loads((Path(__file__).parent / "data" / "report_single.json").read_text()))
+    s = rep.systems[0]
+    groups = error_by_group or {"final": {}, "noise": {}}
+    errors = replace(s.errors, final=ModelErrors(0.21, 35.0, None, groups["final"]), noise_floor=0.042,
+                     noise_by_group=groups["noise"])
+    return replace(s, selected=tuple(selected.split("+")) if selected else None, explained=explained, errors=errors,
+                   absorbed={}, rig=rig)
 
 
 def _targets(known_m1=(12.0, 12.0)):
@@ -47,7 +60,7 @@ def test_selected_effect_goes_under_effects_with_the_jointly_fitted_base():
     assert "M1" not in rig.parameters                       # known and equal to the preset: not repeated
     assert rig.parameters["K2"] == 6e6                      # known and different from the preset
     assert rig.uncertainty["tau"] == pytest.approx(0.05 * 1.1e-4)
-    assert info["explained"] and "explained with shaker_coil" in rig.source and not info["notes"]
+    assert info.explained and "explained with shaker_coil" in rig.source and not info.notes
     assert rig.resolve(frequency_hz=200.0)["tau"] == 1.1e-4   # the effect is on when the rig is simulated
 
 
@@ -58,7 +71,7 @@ def test_unexplained_writes_the_calibrated_base_and_says_how_wrong():
     assert rig.effects == {} and rig.parameters["K1"] == 5e8
     assert rig.source.startswith(f"vibro diagnose d (drill): {UNEXPLAINED_PREFIX}")
     assert "0.21" in rig.source and "0.042" in rig.source     # held-out error against the noise floor
-    assert info["explained"] is False and info["model_error"] == 0.21 and info["noise_floor"] == 0.042
+    assert info.explained is False and info.model_error == 0.21 and info.noise_floor == 0.042
 
 
 def test_the_held_out_rop_error_becomes_the_rigs_model_error():
@@ -71,17 +84,17 @@ def test_the_held_out_rop_error_becomes_the_rigs_model_error():
     rig, info = corrected_rig(_diag(None, True, fits, "base", targets, groups, held_out=[1, 1]), ["lab", "lab"], "d")
     assert rig.model_error.rop_rel == 0.034 and rig.model_error.noise_floor_rel == 0.012
     assert "1 held-out run" in rig.model_error.basis and "(base)" in rig.model_error.basis
-    assert info["rop_model_error"] == rig.model_error.to_mapping()
+    assert info.rop_model_error == rig.model_error.to_mapping()
     no_rop = {"final": {"accel_m_s2": 0.2}, "noise": {"accel_m_s2": 0.05}}
     rig, info = corrected_rig(_diag(None, True, fits, "base", targets, no_rop, held_out=[0]), ["lab", "lab"], "d")
-    assert rig.model_error is None and info["rop_model_error"] is None
+    assert rig.model_error is None and info.rop_model_error is None
 
 
 def test_runs_that_disagree_on_a_known_parameter_are_noted():
     fits = {"base": _fit(BASE, {k: 0.1 * v for k, v in BASE.items()})}
     rig, info = corrected_rig(_diag(None, True, fits, "base", _targets((12.0, 13.0))), ["lab", None], "d")
     assert rig.parameters["M1"] == 12.0
-    assert any("M1" in n for n in info["notes"]) and any("preset" in n for n in info["notes"])
+    assert any("M1" in n for n in info.notes) and any("preset" in n for n in info.notes)
 
 
 def test_file_names():
@@ -92,9 +105,11 @@ def test_file_names():
 def test_the_terminal_summary_says_the_rigs_rop_model_error():
     from pipeline.cli.diagnose import summary_lines
 
-    entry = {"selected": None, "verdict": "explained", "base_nrms": 3.0, "final_nrms": 1.1, "final_error": 0.02,
-             "noise_floor": 0.018, "rig": {"rop_model_error": {"rop_rel": 0.034, "noise_floor_rel": 0.012}}}
-    lines = summary_lines({"systems": {"drill": entry}})
+    rig = RigInfo(explained=True, selected=None, source="", discrepancy=None, verdict="explained", absorbed={},
+                  model_error=0.02, noise_floor=0.018, nrms=1.1,
+                  rop_model_error={"rop_rel": 0.034, "noise_floor_rel": 0.012}, notes=(), file="rig.yaml")
+    entry = replace(_report(None, True, rig=rig), verdict="explained")
+    lines = summary_lines(DiagnoseReport("d", {}, (entry,)))
     assert "held-out ROP error 3.4 % (rms, relative; noise floor 1.2 %)" in lines[-1]
-    entry["rig"]["rop_model_error"] = None
-    assert not any("model error in the rig file" in ln for ln in summary_lines({"systems": {"drill": entry}}))
+    entry = replace(entry, rig=replace(rig, rop_model_error=None))
+    assert not any("model error in the rig file" in ln for ln in summary_lines(DiagnoseReport("d", {}, (entry,))))

@@ -15,7 +15,7 @@ SYSTEM_KEYS = ["system", "n_runs", "unreproducible", "data", "split", "verdict",
                "base_systematic", "final_systematic", "heldout_n", "error_by_group", "base_score", "candidates",
                "selected", "selected_effects", "leader", "runner_up", "selected_params", "explained", "best_partial_candidate", "absorbed",
                "call", "indistinguishable", "second_effect", "pair_stage", "discrepancy", "proposal_adopted", "proposal_as_effect", "recording", "n_simulations", "residual_structure", "notes", "rig", "figures"]
-REPORT_KEYS = ["dataset", "config", *SYSTEM_KEYS, "systems", "wall_time_s", "cost"]
+REPORT_KEYS = ["report_schema", "dataset", "config", *SYSTEM_KEYS, "systems", "wall_time_s", "cost"]
 RIG_KEYS = ["explained", "selected", "source", "discrepancy", "verdict", "absorbed", "model_error", "noise_floor", "nrms",
             "rop_model_error", "notes",
             "file"]
@@ -62,12 +62,12 @@ def test_diagnose_returns_a_frozen_result_and_writes_nothing(dataset, tmp_path, 
         res.report = {}
     diag = res.systems[0]
     assert isinstance(diag, SystemDiagnosis) and isinstance(res.runs[0], SimulatedRuns)
-    assert list(res.report) == REPORT_KEYS and list(diag.report) == SYSTEM_KEYS
-    assert res.report["systems"]["indenter-metal"] is diag.report
-    assert _private_keys(res.report) == []
+    assert list(res.report.to_json()) == REPORT_KEYS and list(diag.report.to_json()) == SYSTEM_KEYS
+    assert res.report.systems == (diag.report,) and res.report.system("indenter-metal") is diag.report
+    assert _private_keys(res.report.to_json()) == []
     assert set(diag.fits) == {"base", "sensor_lowpass"} and diag.final in diag.fits
     assert diag.held_out and all(0 <= i < len(diag.targets) for i in diag.held_out)
-    assert res.rigs[0][0] == "rig.yaml" == diag.report["rig"]["file"] and res.rigs[0][1].model == "indenter-metal"
+    assert res.rigs[0][0] == "rig.yaml" == diag.report.rig.file and res.rigs[0][1].model == "indenter-metal"
 
 
 def test_the_command_writes_report_json_with_its_keys(dataset, tmp_path):

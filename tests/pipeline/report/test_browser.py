@@ -49,9 +49,8 @@ def test_report_loads_every_figure_decodes_and_the_answer_is_above_the_fold(tmp_
     (tmp_path / "results/optimise/rop").mkdir(parents=True)
     (tmp_path / "results/optimise/rop/report.json").write_text(json.dumps({"recommendation": rec}))
     (tmp_path / "results/diagnose/rig").mkdir(parents=True)
-    (tmp_path / "results/diagnose/rig/report.json").write_text(json.dumps(
-        {"system": "drill", "default_error": 1.19, "base_error": 0.181, "final_error": 0.0214, "noise_floor": 0.044,
-         "selected": "shaker_coil", "explained": True}))
+    shutil.copy(Path(__file__).parents[1] / "diagnosis/data/report_single.json",    # a stored diagnosis of a drill
+                tmp_path / "results/diagnose/rig/report.json")
     assert main(["report", "--out", "results/report", "--no-mlflow"]) == 0, capsys.readouterr().err
     html = tmp_path / "results/report/report.html"
     seen = _browse(html)

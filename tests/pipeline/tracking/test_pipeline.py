@@ -159,6 +159,25 @@ def test_run_main_without_dvc_yaml_is_a_one_line_error(tmp_path: Path):
 
 
 # ------------------------------------------------------------------------------------------ report
+def _diagnosis(systems: dict):
+    """The stored two-system diagnosis (tests/pipeline/diagnosis/data) with, per system, these (default, base, final)
+    errors, selected effects and explained (noise floor 0.1)."""
+    from dataclasses import replace
+
+    from pipeline.diagnosis.report_types import DiagnoseReport
+
+    stored = Path(__file__).parents[1] / "diagnosis" / "data" / "report_systems.json"
+    rep = DiagnoseReport.from_json(json.loads(stored.read_text()))
+    out = []
+    for s in rep.systems:
+        (d, b, f), selected, explained = systems[s.system]
+        e = s.errors
+        errors = replace(e, default=replace(e.default, error=d), base=replace(e.base, error=b),
+                         final=replace(e.final, error=f), noise_floor=0.1)
+        out.append(replace(s, errors=errors, selected=selected, explained=explained))
+    return replace(rep, systems=tuple(out))
+
+
 def _fake_outputs(root: Path) -> None:
     import numpy as np
     import pandas as pd
@@ -191,11 +210,9 @@ def _fake_outputs(root: Path) -> None:
     (root / "metrics").mkdir()
     diag = root / "results/diagnose/seed000-published"      # the layout of `vibro diagnose` report.json
     diag.mkdir(parents=True)
-    (diag / "report.json").write_text(json.dumps({"systems": {
-        "indenter-metal": {"default_error": 0.5, "base_error": 0.3, "final_error": 0.12, "noise_floor": 0.1,
-                           "selected": ["shaker_coil"], "explained": True},
-        "indenter-sandstone": {"default_error": 0.6, "base_error": 0.4, "final_error": 0.4, "noise_floor": 0.1,
-                               "selected": [], "explained": False}}}))
+    (diag / "report.json").write_text(json.dumps(_diagnosis({
+        "indenter-metal": ((0.5, 0.3, 0.12), ("shaker_coil",), True),
+        "indenter-sandstone": ((0.6, 0.4, 0.4), None, False)}).to_json()))
     (root / "params.yaml").write_text("sweep: {model: drill, preset: lab}\nreport: {title: Test report}\n")
 
 
