@@ -30,9 +30,10 @@ import numpy as np
 from pipeline.core.executors import Executor
 from pipeline.diagnosis.calibrate import fit_added
 from pipeline.diagnosis.fit import FitResult
+from pipeline.diagnosis.heldout import HeldOut
 from pipeline.diagnosis.judge import Fitter, FoldScheme, Judged, judge
 from pipeline.diagnosis.model import Evaluator, FreeParam, calibratable
-from pipeline.diagnosis.verdict import ModelStats
+from pipeline.diagnosis.verdict import Check, ModelStats
 
 if TYPE_CHECKING:
     from pipeline.diagnosis.config import DiagnoseConfig
@@ -171,11 +172,11 @@ class Discovery:
 
     screening: Screening
     fits: dict[str, FitResult]
-    err: dict[str, dict]
+    err: dict[str, HeldOut]
     stats: dict[str, ModelStats]
     accepted: str | None
     leader: str | None
-    checks: dict
+    checks: dict[str, Check]
 
 
 def discover(ev: Evaluator, cfg: DiagnoseConfig, scheme: FoldScheme, calibrated: Judged, base_stats: ModelStats,
@@ -204,7 +205,7 @@ def discover(ev: Evaluator, cfg: DiagnoseConfig, scheme: FoldScheme, calibrated:
                     lambda: fit_on([scheme.reported_runs], [base])[0])
     j = judge(ev, scheme, fitter, cfg.rule(), against=base_stats)
     for m in j.stats:
-        log(f"  {m}: held-out nrms {j.err[m]['nrms']:.4g} (base {math.sqrt(base_stats.chi2 / max(base_stats.n, 1)):.4g})")
+        log(f"  {m}: held-out nrms {j.err[m].nrms:.4g} (base {math.sqrt(base_stats.chi2 / max(base_stats.n, 1)):.4g})")
     return Discovery(screening=scr, fits=j.fits, err={m: j.err[m] for m in j.stats}, stats=j.stats,
                      accepted=j.verdict.selected, leader=j.verdict.leader, checks=j.verdict.checks)
 
@@ -226,42 +227,41 @@ def spanned_effect(system: str, accepted: str, values: dict, effects: Collection
     return span.effect, {span.param: float(values[terms[0]] / values[per])}
 
 
-def report(d: Discovery, base_err: dict, cal_names: list[str]) -> dict:
-    """report.json ``discrepancy``: the screening table, the proposals ranked by held-out nrms (at most three), the
-    accepted one and a sentence."""
+def report(d: Discovery, base_err: HeldOut, cal_names: list[str]):
+    """report.json ``discrepancy`` (a ``report_types.Discrepancy``): the screening table, the proposals ranked by
+    held-out nrms (at most three), the accepted one and a sentence."""
     import sim.models.discrepancy as vocab
+    from pipeline.diagnosis.report_types import Discrepancy, Proposal, ScreeningRow
 
     scr = d.screening
     cand = vocab.CANDIDATES
-    screening = [{"term": t, "words": vocab.TERMS[t].words, "form": vocab.TERMS[t].form, "kind": vocab.TERMS[t].kind,
-                  "entered": scr.order.index(t) + 1, "score": scr.score[t], "estimate": scr.estimate[t],
-                  "in_support": t in scr.support} for t in scr.order]
+    screening = tuple(ScreeningRow(t, vocab.TERMS[t].words, vocab.TERMS[t].form, vocab.TERMS[t].kind,
+                                   scr.order.index(t) + 1, scr.score[t], scr.estimate[t], t in scr.support)
+                      for t in scr.order)
     rows = []
-    for m in sorted(d.err, key=lambda m: (d.err[m]["nrms"], d.stats[m].bic)):
-        fr, c, terms = d.fits[m], d.checks[m], proposal_terms(m)
+    for m in sorted(d.err, key=lambda m: (d.err[m].nrms, d.stats[m].bic)):
+        fr, c, terms, e = d.fits[m], d.checks[m], proposal_terms(m), d.err[m]
         params = [q for t in terms for q in cand[t].params]
-        rows.append({
-            "name": m, "terms": terms,
-            "words": [cand[t].words for t in terms], "forms": [cand[t].form for t in terms],
-            "kinds": sorted({cand[t].kind for t in terms}),
-            "coefficients": {q: fr.values[q] for q in params}, "coefficient_sd": {q: fr.sd[q] for q in params},
-            "coefficient_ci95": {q: list(fr.ci95[q]) for q in params},
-            "calibrated": {n: fr.values[n] for n in cal_names},
-            "nrms": d.err[m]["nrms"], "error": d.err[m]["error"], "noise_floor": d.err[m]["noise_floor"],
-            "systematic": d.err[m]["systematic"], "by_run_nrms": d.err[m]["by_run_nrms"],
-            **{k: c[k] for k in ("delta_bic", "delta_chi2", "improves", "adequate")}})
+        rows.append(Proposal(
+            name=m, terms=tuple(terms), words=tuple(cand[t].words for t in terms),
+            forms=tuple(cand[t].form for t in terms), kinds=tuple(sorted({cand[t].kind for t in terms})),
+            coefficients={q: fr.values[q] for q in params}, coefficient_sd={q: fr.sd[q] for q in params},
+            coefficient_ci95={q: tuple(fr.ci95[q]) for q in params}, calibrated={n: fr.values[n] for n in cal_names},
+            nrms=e.nrms, error=e.error, noise_floor=e.noise_floor, systematic=e.systematic,
+            by_run_nrms=e.by_run_nrms, delta_bic=c.delta_bic, delta_chi2=c.delta_chi2,
+            improves=c.improves, adequate=c.adequate))
     top = rows[0] if rows else None
     if d.accepted:
-        a = next(r for r in rows if r["name"] == d.accepted)
-        text = (f"proposed and accepted: {' + '.join(a['forms'])} ({'; '.join(a['words'])}): held-out nrms "
-                f"{base_err['nrms']:.3g} → {a['nrms']:.3g}, error {base_err['error']:.3g} → {a['error']:.3g} against a "
-                f"noise floor of {a['noise_floor']:.3g}")
+        a = next(r for r in rows if r.name == d.accepted)
+        text = (f"proposed and accepted: {' + '.join(a.forms)} ({'; '.join(a.words)}): held-out nrms "
+                f"{base_err.nrms:.3g} → {a.nrms:.3g}, error {base_err.error:.3g} → {a.error:.3g} against a "
+                f"noise floor of {a.noise_floor:.3g}")
     elif top is not None:
-        text = (f"no proposal brings the held-out error to the noise (best: {' + '.join(top['forms'])}, nrms "
-                f"{base_err['nrms']:.3g} → {top['nrms']:.3g}); the missing term is not in the vocabulary "
+        text = (f"no proposal brings the held-out error to the noise (best: {' + '.join(top.forms)}, nrms "
+                f"{base_err.nrms:.3g} → {top.nrms:.3g}); the missing term is not in the vocabulary "
                 f"of this model ({', '.join(dict.fromkeys([*scr.order, *(t for m in d.err for t in proposal_terms(m))]))})")
     else:
         text = "no proposal"
-    return {"screening": screening, "path_bic": scr.path_bic, "proposals": rows[:3],
-            "base_by_run_nrms": base_err["by_run_nrms"],
-            "accepted": proposal_terms(d.accepted) if d.accepted else None, "text": text}
+    return Discrepancy(screening=screening, path_bic=tuple(scr.path_bic), proposals=tuple(rows[:3]),
+                       base_by_run_nrms=base_err.by_run_nrms,
+                       accepted=tuple(proposal_terms(d.accepted)) if d.accepted else None, text=text)

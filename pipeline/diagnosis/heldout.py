@@ -4,6 +4,7 @@ records' halves); ``fold_errors`` accumulates them over the folds of a diagnosis
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -11,7 +12,31 @@ from pipeline.diagnosis.model import Evaluator
 from pipeline.diagnosis.verdict import ModelStats
 
 
-def heldout_errors(ev: Evaluator, idx: list[int], res: list[np.ndarray]) -> dict:
+@dataclass(frozen=True)
+class HeldOut:
+    """A model's errors on held-out runs (noise-normalised residuals; see ``heldout_errors``)."""
+
+    nrms: float
+    """sqrt(χ² / n) [-]: 1 is the noise level."""
+    chi2: float
+    """Sum of squared normalised residuals [-]."""
+    n: int
+    """Residuals compared."""
+    by_run_nrms: dict[str, float]
+    """nrms per run id [-]."""
+    error: float | None
+    """||r|| / ||y/sd|| [-] (None: a signal of zeros)."""
+    noise_floor: float | None
+    """The same for a residual of pure noise [-]."""
+    error_by_group: dict[str, float | None]
+    """``error`` per feature group [-]."""
+    noise_by_group: dict[str, float | None]
+    """``noise_floor`` per feature group [-]."""
+    systematic: float | None = None
+    """Relative systematic error from the records' halves [-] (None: no halves; ``systematic_error``)."""
+
+
+def heldout_errors(ev: Evaluator, idx: list[int], res: list[np.ndarray]) -> HeldOut:
     """nrms, relative error and noise floor over runs ``idx`` given their noise-normalised residual vectors.
 
     All three are on the noise-weighted scale the verdict uses (each feature divided by its noise sd):
@@ -34,11 +59,10 @@ def heldout_errors(ev: Evaluator, idx: list[int], res: list[np.ndarray]) -> dict
 
     def rel(x: float, d: float) -> float | None:
         return math.sqrt(x / d) if d > 0 else None
-    return {"nrms": float(np.sqrt(np.mean(allr ** 2))), "chi2": float(allr @ allr), "n": int(allr.size),
-            "by_run_nrms": by_run,
-            "error": rel(float(allr @ allr), signal), "noise_floor": rel(float(allr.size), signal),
-            "error_by_group": {g: rel(num[g], den[g]) for g in num},
-            "noise_by_group": {g: rel(cnt[g], den[g]) for g in num}}
+    return HeldOut(nrms=float(np.sqrt(np.mean(allr ** 2))), chi2=float(allr @ allr), n=int(allr.size),
+                   by_run_nrms=by_run, error=rel(float(allr @ allr), signal), noise_floor=rel(float(allr.size), signal),
+                   error_by_group={g: rel(num[g], den[g]) for g in num},
+                   noise_by_group={g: rel(cnt[g], den[g]) for g in num})
 
 
 def systematic_error(ev: Evaluator, idx: list[int], halves: list[np.ndarray | None]) -> float | None:
@@ -71,7 +95,7 @@ def systematic_error(ev: Evaluator, idx: list[int], halves: list[np.ndarray | No
 
 
 def fold_errors(ev: Evaluator, folds, fold_fits: list[dict], names: list[str], fixed: dict[str, dict] | None = None
-                ) -> tuple[dict[str, dict], dict[str, ModelStats], list[int]]:
+                ) -> tuple[dict[str, HeldOut], dict[str, ModelStats], list[int]]:
     """The models ``names`` of every fold's fits (``fold_fits[f][name]``, fitted on the fold's calibration runs)
     and the ``fixed`` parameter sets (name -> values, the same in every fold) judged on the folds' held-out runs: per
     model its errors (``heldout_errors`` and ``systematic``), per fitted model its ``ModelStats`` (BIC summed over
@@ -90,6 +114,6 @@ def fold_errors(ev: Evaluator, folds, fold_fits: list[dict], names: list[str], f
         idx += test
         for m in names:
             bic[m] += fits[m].bic()
-    err = {m: {**heldout_errors(ev, idx, res[m]), "systematic": systematic_error(ev, idx, halves[m])} for m in every}
-    stats = {m: ModelStats(m, bic[m], err[m]["chi2"], err[m]["n"], err[m]["systematic"]) for m in names}
+    err = {m: replace(heldout_errors(ev, idx, res[m]), systematic=systematic_error(ev, idx, halves[m])) for m in every}
+    stats = {m: ModelStats(m, bic[m], err[m].chi2, err[m].n, err[m].systematic) for m in names}
     return err, stats, idx

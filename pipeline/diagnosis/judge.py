@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar, Protocol
 
 from pipeline.core.errors import UserError
-from pipeline.diagnosis.heldout import fold_errors
+from pipeline.diagnosis.heldout import HeldOut, fold_errors
 from pipeline.diagnosis.verdict import ModelStats, Verdict, VerdictRule, decide
 
 if TYPE_CHECKING:
@@ -117,7 +117,7 @@ class Judged:
 
     fold_fits: list[Fits]
     fits: Fits | None
-    err: dict[str, dict]
+    err: dict[str, HeldOut]
     stats: dict[str, ModelStats]
     cal_chi2: dict[str, float]
     verdict: Verdict | None

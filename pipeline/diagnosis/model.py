@@ -13,7 +13,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from pipeline.diagnosis.features import (Target, peak_velocity, sampling_plan, simulated_features,
+from pipeline.diagnosis.features import (Target, sampling_plan, simulated_features,
                                          simulated_halves)
 from pipeline.core.errors import UserError
 from sim.models.base import FitBound
@@ -200,14 +200,3 @@ class Evaluator:
         sims = self.simulate(param_sets, idx)
         return [([self.residual_of(i, r) for i, r in zip(idx, row)],
                  [simulated_halves(self.targets[i], r) for i, r in zip(idx, row)]) for row in sims]
-
-    def run_details(self, params: dict, idx: list[int]) -> list[dict]:
-        """Per run: normalised residual, simulated features and peak velocity (for reports)."""
-        sims = self.simulate([params], idx)[0]
-        out = []
-        for i, r in zip(idx, sims):
-            tg = self.targets[i]
-            m = simulated_features(tg, r)
-            out.append({"run": i, "residual": self.residual_of(i, r), "model": m, "result": r,
-                        "peak_velocity_m_s": peak_velocity(r)})
-        return out

@@ -46,13 +46,15 @@ class ChainEstimate:
     clock_sd_ppm: float
     base_chi2_per_n: float
 
-    def to_report(self) -> dict:
+    def to_record(self):
+        """report.json ``recording.estimated`` (a ``report_types.EstimatedChain``)."""
+        from pipeline.diagnosis.report_types import ChannelDelay, ClockEstimate, EstimatedChain
+
         sd = dict(self.delay_sd_s)
-        return {"runs": list(self.runs),
-                "delays": [{"channel": s, "fs_hz": fs, "value_s": v, "sd_s": sd[(s, fs)]} for (s, fs), v in self.delay_s],
-                "clock_ppm": {"value": self.clock_ppm, "sd": self.clock_sd_ppm},
-                "base_chi2_per_n": self.base_chi2_per_n,
-                "text": self.text()}
+        return EstimatedChain(runs=tuple(self.runs),
+                              delays=tuple(ChannelDelay(s, fs, v, sd[(s, fs)]) for (s, fs), v in self.delay_s),
+                              clock_ppm=ClockEstimate(self.clock_ppm, self.clock_sd_ppm),
+                              base_chi2_per_n=self.base_chi2_per_n, text=self.text())
 
     def text(self) -> str:
         sd = dict(self.delay_sd_s)

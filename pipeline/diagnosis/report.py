@@ -15,8 +15,9 @@ from vibrobase.files import atomic_write_figure  # noqa: E402
 from pipeline.core.units import ENGINEERING, factor, label, set_label  # noqa: E402
 from pipeline.diagnosis.features import harmonic_fit, model_record, record_time  # noqa: E402
 from pipeline.diagnosis.report_types import (Candidate, Discrepancy, DiagnoseReport, ParamEstimate,  # noqa: E402
-                                             Recording, RunResidual, SecondEffect, SystemReport)
-from pipeline.diagnosis.result import SimulatedRuns, SystemDiagnosis  # noqa: E402
+                                             Recording, ResidualStructure, RunResidual, SecondEffect,
+                                             SystemReport)
+from pipeline.diagnosis.result import SimulatedRun, SimulatedRuns, SystemDiagnosis  # noqa: E402
 from sim.controls import CONTROLS as CONTROL_KEYS  # noqa: E402
 
 
@@ -29,21 +30,21 @@ def _nrms(r: np.ndarray) -> float:
     return float(np.sqrt(np.mean(r ** 2))) if r.size else float("nan")
 
 
-def residual_structure(diag: SystemDiagnosis, base_runs: list[dict], final_runs: list[dict]) -> dict:
+def residual_structure(diag: SystemDiagnosis, base_runs: list[SimulatedRun],
+                       final_runs: list[SimulatedRun]) -> ResidualStructure:
     """How the calibrated base model's residual depends on frequency, amplitude, static force, peak
     indenter velocity, harmonic frequency and time within the run (all runs; Spearman correlations)."""
     ev = diag.evaluator
     rows = []
     for b, f in zip(base_runs, final_runs):
-        tg = ev.targets[b["run"]]
-        rows.append({"run_id": tg.run_id, **{k: tg.controls.get(k) for k in CONTROL_KEYS}, **tg.controls,
-                     "peak_velocity_m_s": b["peak_velocity_m_s"],
-                     "base_nrms": _nrms(b["residual"]), "final_nrms": _nrms(f["residual"]),
-                     "held_out": b["run"] in diag.held_out})
+        tg = ev.targets[b.run]
+        rows.append(RunResidual(tg.run_id, {**{k: tg.controls.get(k) for k in CONTROL_KEYS}, **tg.controls},
+                                b.peak_velocity_m_s, _nrms(b.residual), _nrms(f.residual), b.run in diag.held_out))
     corr = {}
-    y = [r["base_nrms"] for r in rows]
+    y = [r.base_nrms for r in rows]
     for key in (*CONTROL_KEYS, "peak_velocity_m_s"):
-        x = [r[key] if r[key] is not None else np.nan for r in rows]
+        x = [v if v is not None else np.nan
+             for v in (r.peak_velocity_m_s if key == "peak_velocity_m_s" else r.controls[key] for r in rows)]
         if all(v is None or not np.isfinite(v) for v in x):
             continue
         if len(set(x)) > 2:
@@ -51,29 +52,30 @@ def residual_structure(diag: SystemDiagnosis, base_runs: list[dict], final_runs:
             corr[key] = None if rho is None or not np.isfinite(rho) else float(rho)
     by_h: dict[float, list[float]] = {}
     for b in base_runs:
-        tg = ev.targets[b["run"]]
+        tg = ev.targets[b.run]
         if tg.kind != "series":
             continue
         for j, name in enumerate(tg.names):
             if name.startswith("accel_m_s2:h") and name.endswith(":re"):
                 k = int(name.split(":h")[1].split(":")[0])
                 hz = round(k * tg.controls["frequency_hz"] / 50.0) * 50.0
-                by_h.setdefault(hz, []).append(math.hypot(b["residual"][j], b["residual"][j + 1]))
+                by_h.setdefault(hz, []).append(math.hypot(b.residual[j], b.residual[j + 1]))
     seg = []
     for b in base_runs:
-        tg = ev.targets[b["run"]]
-        if tg.kind != "series" or not tg.segments or b["model"] is None:
+        tg = ev.targets[b.run]
+        if tg.kind != "series" or not tg.segments or b.model is None:
             continue
         for sig, segs in tg.segments.items():
             names = [n for n in tg.names if n.startswith(sig + ":")]
             j0 = tg.names.index(names[0])
-            m = b["model"][j0:j0 + len(names)]
+            m = b.model[j0:j0 + len(names)]
             mc = m[0::2] + 1j * m[1::2]
             sd = tg.sd[j0] * math.sqrt(segs.shape[0])
             seg.append([_nrms(np.abs(s - mc) / sd) for s in segs])
-    return {"by_run": rows, "spearman_base_nrms": corr,
-            "by_harmonic_hz": {f"{k:g}": float(np.sqrt(np.mean(np.square(v)))) for k, v in sorted(by_h.items())},
-            "by_time_segment": [float(x) for x in np.sqrt(np.mean(np.square(seg), axis=0))] if seg else []}
+    return ResidualStructure(
+        by_run=tuple(rows), spearman_base_nrms=corr,
+        by_harmonic_hz={f"{k:g}": float(np.sqrt(np.mean(np.square(v)))) for k, v in sorted(by_h.items())},
+        by_time_segment=tuple(float(x) for x in np.sqrt(np.mean(np.square(seg), axis=0))) if seg else ())
 
 
 def _save(fig, path: Path) -> str:
@@ -181,10 +183,10 @@ def _timehist_figure(diag: SystemDiagnosis, runs: SimulatedRuns, series: dict, i
     ev, final = diag.evaluator, diag.final
     base_runs, final_runs, default_runs = runs.base, runs.final, runs.default
     tg = ev.targets[i]
-    k = [d["run"] for d in base_runs].index(i)
-    results = {"model defaults": default_runs[k]["result"], "calibrated base": base_runs[k]["result"]}
+    k = [d.run for d in base_runs].index(i)
+    results = {"model defaults": default_runs[k].result, "calibrated base": base_runs[k].result}
     if final != "base":
-        results[f"with {final}"] = final_runs[k]["result"]
+        results[f"with {final}"] = final_runs[k].result
     f = tg.controls["frequency_hz"]
     if tg.kind != "series":
         return None
@@ -238,7 +240,7 @@ def summary_figure(targets: list, models: list[tuple[str, list[dict], str]], tit
         a.errorbar(xs, [tg.y[j] * k for _, tg, j in rows], yerr=[tg.sd[j] * k for _, tg, j in rows], fmt="ko",
                    label="measured")
         for lab, runs_, mk in models:
-            ys = [np.nan if runs_[i]["model"] is None else runs_[i]["model"][j] * k for i, _, j in rows]
+            ys = [np.nan if runs_[i].model is None else runs_[i].model[j] * k for i, _, j in rows]
             a.plot(xs, ys, mk, label=lab, alpha=0.8)
         a.set_title(ENGINEERING[feat][0] if feat in ENGINEERING else feat)
     ax[0, 0].legend(fontsize=7)

@@ -123,7 +123,7 @@ class Split(_Record):
     """How the runs were split between calibration and judgement."""
 
     scheme: str
-    """'holdout' (one split) or 'loro' (leave one run out)."""
+    """The fold scheme's name (``judge.Holdout.name``, ``judge.LeaveOneRunOut.name``)."""
     held_out: tuple[str, ...] = _f(_seq())
     """Every run held out in some fold, sorted."""
     folds: tuple[Fold, ...] = _f(_seq(_rec(Fold)))
@@ -363,8 +363,8 @@ class Discrepancy(_Record):
     """The proposals fitted."""
     base_by_run_nrms: Mapping[str, float] = _f()
     """The base model's held-out nrms per run [-]."""
-    accepted: str | None = _f()
-    """The accepted proposal's name, if any."""
+    accepted: tuple[str, ...] | None = _f(_opt(_seq()))
+    """The accepted proposal's terms, if any."""
     text: str = _f()
     """Discovery's call in a sentence."""
 

@@ -5,6 +5,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    import numpy as np
     import pandas as pd
 
     import sim
@@ -34,13 +35,6 @@ class SystemDiagnosis:
     final: str
     cost: tuple[StageCost, ...] = ()
 
-    @classmethod
-    def of(cls, report: dict, **kw) -> SystemDiagnosis:
-        """The diagnosis whose report entry is ``report`` in report.json's layout (read by ``SystemReport``)."""
-        from pipeline.diagnosis.report_types import SystemReport
-
-        return cls(report=SystemReport.from_json(report), **kw)
-
     @property
     def system(self) -> str:
         return self.report.system
@@ -52,14 +46,25 @@ class SystemDiagnosis:
 
 
 @dataclass(frozen=True)
-class SimulatedRuns:
-    """Every run of a system simulated with the default, calibrated base and final parameters.  Each row:
-    ``run`` (target index), ``residual`` (noise-normalised), ``result`` (SimulationResult or None), ``model``
-    (simulated features or None), ``peak_velocity_m_s`` [m/s] (None without a history)."""
+class SimulatedRun:
+    """One run simulated for the report: ``run`` (target index), ``residual`` (noise-normalised), ``result``
+    (SimulationResult or None), ``model`` (simulated features or None), ``peak_velocity_m_s`` [m/s] (None without a
+    history)."""
 
-    default: list[dict]
-    base: list[dict]
-    final: list[dict]
+    run: int
+    residual: np.ndarray
+    result: object
+    model: np.ndarray | None
+    peak_velocity_m_s: float | None
+
+
+@dataclass(frozen=True)
+class SimulatedRuns:
+    """Every run of a system simulated with the default, calibrated base and final parameters."""
+
+    default: list[SimulatedRun]
+    base: list[SimulatedRun]
+    final: list[SimulatedRun]
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -29,8 +29,10 @@ from pipeline.diagnosis.calibrate import fit_added, fit_additions, fit_models
 from pipeline.diagnosis.discovery import discover, proposal_terms, report as discovery_report, spanned_effect
 from pipeline.diagnosis.fit import FitResult
 from pipeline.diagnosis.nuisance import ChainEstimate, estimate_chain
-from pipeline.diagnosis.heldout import systematic_error  # noqa: F401  (re-exported)
+from pipeline.diagnosis.heldout import HeldOut, systematic_error  # noqa: F401  (systematic_error re-exported)
 from pipeline.diagnosis.judge import FoldScheme, Fitter, Judged, judge, make_folds  # noqa: F401  (make_folds re-exported)
+from pipeline.diagnosis import report_types as R
+from pipeline.diagnosis.report_types import PairStage
 from pipeline.diagnosis.result import SystemDiagnosis
 from pipeline.diagnosis.verdict import (SELECTED, UNEXPLAINED, ModelStats, Verdict, VerdictRule, closeness, decide,
                                         indistinguishable)
@@ -77,10 +79,10 @@ def build_targets(ds, cfg: DiagnoseConfig, skipped: dict[str, list[str]] | None 
     return out
 
 
-def absorbed_parameters(fits: dict[str, FitResult], v: Verdict, cal_names: list[str]) -> dict:
+def absorbed_parameters(fits: dict[str, FitResult], v: Verdict, cal_names: list[str]) -> dict[str, R.Absorption]:
     """Calibrated parameters that moved between the base fit and the fit with the leading candidate (selected, or
     the best partial explanation) by more than 3 combined sd and 2 %: the base fit compensated part of the missing
-    physics with them.  {parameter: {"base", "with", "change"}}; empty when nothing leads."""
+    physics with them.  Parameter -> its ``Absorption``; empty when nothing leads."""
     other = v.leader
     if other is None or other not in fits:
         return {}
@@ -90,7 +92,7 @@ def absorbed_parameters(fits: dict[str, FitResult], v: Verdict, cal_names: list[
         vb, vw = b.values[n], w.values[n]
         sd = math.hypot(b.sd.get(n, 0.0), w.sd.get(n, 0.0))
         if abs(vw - vb) > max(3.0 * sd, 0.02 * abs(vw)):
-            out[n] = {"base": vb, "with": vw, "change": vb / vw - 1.0, "effect": other}
+            out[n] = R.Absorption(vb, vw, vb / vw - 1.0, _effects(other))
     return out
 
 
@@ -123,14 +125,6 @@ def unreproducible_runs(ev: Evaluator, cfg: DiagnoseConfig) -> dict[str, float]:
     return out
 
 
-@dataclass(frozen=True)
-class PairStage:
-    """Whether the greedy pair stage ran, and why (or why not) in a sentence (report.json ``pair_stage``)."""
-
-    tried: bool
-    reason: str
-
-
 def pair_stage(cfg: DiagnoseConfig, v: Verdict, n_candidates: int) -> PairStage:
     """The pair stage runs when the single-effect leader improves on the base but leaves its held-out nrms above
     ``cfg.pair_nrms`` (adequate or not): the data ask for more than one effect.  A log one effect explains to the
@@ -141,7 +135,7 @@ def pair_stage(cfg: DiagnoseConfig, v: Verdict, n_candidates: int) -> PairStage:
         return PairStage(False, "fewer than two candidate effects")
     if v.leader is None:
         return PairStage(False, "no effect improves on the calibrated base, so none to add a second to")
-    nrms = v.checks[v.leader]["nrms"]
+    nrms = v.checks[v.leader].nrms
     if nrms <= cfg.pair_nrms:
         return PairStage(False, f"{v.leader} alone leaves held-out nrms {nrms:.3g}, within pair_nrms "
                                 f"{cfg.pair_nrms:g} of the noise: no pair tried")
@@ -159,51 +153,74 @@ def _second_effect(d: _Diagnosis, first: str) -> Judged:
         lambda: fit_additions(ev, [d.scheme.reported_runs], cfg, first, cands, [effects.fits[first]], ex)[0])
     j = judge(ev, d.scheme, fitter, cfg.rule(), against=d.stats[first])
     for m in j.stats:
-        d.log(f"  {m}: held-out nrms {j.err[m]['nrms']:.4g}")
+        d.log(f"  {m}: held-out nrms {j.err[m].nrms:.4g}")
     return j
 
 
 def _second_report(first: str, fits: dict, stats: dict, v2: Verdict, rule: VerdictRule,
-                   cal_names: list[str]) -> dict:
+                   cal_names: list[str]) -> R.SecondEffect:
     """report.json ``second_effect``: every pair tried against ``first`` alone, the call, and the pairs the data
     cannot tell apart."""
-    rows = [{"name": m, "effects": m.split("+"),
-             "params": {p: fits[m].values[p] for p in fits[m].free if p not in cal_names},
-             "param_sd": {p: fits[m].sd[p] for p in fits[m].free if p not in cal_names},
-             **{k: v2.checks[m][k] for k in ("nrms", "systematic", "delta_bic", "delta_chi2", "improves", "adequate")}}
-            for m in sorted(stats, key=lambda m: stats[m].bic)]
+    rows = [R.PairCandidate(effects=_effects(m),
+                            params={p: fits[m].values[p] for p in fits[m].free if p not in cal_names},
+                            param_sd={p: fits[m].sd[p] for p in fits[m].free if p not in cal_names},
+                            nrms=c.nrms, systematic=c.systematic, delta_bic=c.delta_bic, delta_chi2=c.delta_chi2,
+                            improves=c.improves, adequate=c.adequate)
+            for m, c in ((m, v2.checks[m]) for m in sorted(stats, key=lambda m: stats[m].bic))]
     lead = v2.leader
     if lead is None:
-        text = (f"no second effect improves on {first} alone (best: {rows[0]['name']}, held-out nrms "
-                f"{rows[0]['nrms']:.3g} against {v2.checks[first]['nrms']:.3g})" if rows else "no other effect to add")
+        text = (f"no second effect improves on {first} alone (best: {'+'.join(rows[0].effects)}, held-out nrms "
+                f"{rows[0].nrms:.3g} against {v2.checks[first].nrms:.3g})" if rows else "no other effect to add")
     else:
         c = v2.checks[lead]
-        text = (f"{lead}: held-out nrms {v2.checks[first]['nrms']:.3g} → {c['nrms']:.3g}, ΔBIC {c['delta_bic']:.3g} and "
-                f"held-out Δχ² {c['delta_chi2']:.3g} against {first} alone; "
-                + ("adequate: both effects selected" if c["adequate"] else f"still above the noise (limit {rule.explained_nrms:g})"))
+        text = (f"{lead}: held-out nrms {v2.checks[first].nrms:.3g} → {c.nrms:.3g}, ΔBIC {c.delta_bic:.3g} and "
+                f"held-out Δχ² {c.delta_chi2:.3g} against {first} alone; "
+                + ("adequate: both effects selected" if c.adequate else f"still above the noise (limit {rule.explained_nrms:g})"))
     same = indistinguishable(v2, stats, rule)
     if same:
         text += f"; indistinguishable on these data from {', '.join(same)} (ΔBIC < {rule.bic_margin:g})"
-    return {"first": first, "candidates": rows, "leader": lead, "indistinguishable": same, "text": text}
+    return R.SecondEffect(first=_effects(first), candidates=tuple(rows), leader=_effects(lead),
+                          indistinguishable=tuple(_effects(m) for m in same), text=text)
 
 
-def recording_report(targets: list[Target], chain: ChainEstimate | None) -> dict:
+def _effects(name: str | None) -> R.Effects | None:
+    """A model name of the fits ("a", "a+b") as the report's tuple of effects (None: no model)."""
+    return None if name is None else tuple(name.split("+"))
+
+
+def recording_report(targets: list[Target], chain: ChainEstimate | None) -> R.Recording:
     """report.json ``recording``: the DAQ chain each run declares, the undeclared chain estimated as nuisance
     (delay per channel and clock, with sd; None when every series run declares its chain or estimation is off),
     and the fraction of saturated samples left out per run and channel."""
-    declared = {t.run_id: {"filter": None if t.chain.filter is None else t.chain.filter.text(),
-                           "delay_s": t.chain.delay_s, "clock_ppm": t.chain.clock_ppm}
+    declared = {t.run_id: R.DeclaredChain(None if t.chain.filter is None else t.chain.filter.text(), t.chain.delay_s,
+                                          t.chain.clock_ppm)
                 for t in targets if t.chain is not None}
-    return {"declared": declared, "estimated": chain.to_report() if chain is not None else None,
-            "clipped": {t.run_id: dict(t.clipped) for t in targets if t.clipped}}
+    return R.Recording(declared=declared, estimated=chain.to_record() if chain is not None else None,
+                       clipped={t.run_id: dict(t.clipped) for t in targets if t.clipped})
+
+
+@dataclass(frozen=True)
+class AsEffect:
+    """An accepted proposal refitted as the §6 effect it spans: the effect, the start the proposal gave its parameter
+    [SI], the refit's parameters [SI], its reported fit, held-out errors and statistics, calibration χ² summed over
+    the folds, and a sentence."""
+
+    effect: str
+    start: dict[str, float]
+    params: dict[str, float]
+    fit: FitResult
+    err: HeldOut
+    stats: ModelStats
+    fit_chi2: float
+    text: str
 
 
 def _as_effect(ev: Evaluator, cfg: DiagnoseConfig, scheme: FoldScheme, found, cands: dict,
-               stats: dict[str, ModelStats], executor: Executor, log) -> dict | None:
+               stats: dict[str, ModelStats], executor: Executor, log) -> AsEffect | None:
     """An accepted proposal that is a §6 effect in another form (``discovery.spanned_effect``): the effect refitted
     on every fold from the proposal's calibrated values with the parameter the proposal's coefficient gives (α = c / k)
     and judged on the held-out runs; None when the proposal spans no effect or the refit is no better than the
-    effect's own fit (BIC).  {effect, start, params, fit, err, stats, fit_chi2, text}."""
+    effect's own fit (BIC)."""
     import sim
 
     fr = found.fits[found.accepted]
@@ -229,14 +246,13 @@ def _as_effect(ev: Evaluator, cfg: DiagnoseConfig, scheme: FoldScheme, found, ca
     params = {p: reported.values[p] for p in reported.free if p not in cal_names}
     text = (f"the accepted proposal {' + '.join(proposal_terms(found.accepted))} is {eff} in another form: refitted "
             f"from {', '.join(f'{k} = {x:.4g}' for k, x in start.items())} (c / k) to "
-            f"{', '.join(f'{k} = {x:.4g}' for k, x in params.items())}, held-out nrms {j.err[eff]['nrms']:.3g}")
+            f"{', '.join(f'{k} = {x:.4g}' for k, x in params.items())}, held-out nrms {j.err[eff].nrms:.3g}")
     log(f"  {text}")
-    return {"effect": eff, "start": start, "params": params, "fit": reported, "err": j.err[eff],
-            "stats": j.stats[eff], "fit_chi2": j.cal_chi2[eff], "text": text}
+    return AsEffect(eff, start, params, reported, j.err[eff], j.stats[eff], j.cal_chi2[eff], text)
 
 
-def _param_report(fr: FitResult) -> dict:
-    return {n: {"value": fr.values[n], "sd": fr.sd[n], "ci95": list(fr.ci95[n])} for n in fr.free}
+def _param_report(fr: FitResult) -> dict[str, R.ParamEstimate]:
+    return {n: R.ParamEstimate(fr.values[n], fr.sd[n], tuple(fr.ci95[n])) for n in fr.free}
 
 
 @dataclass
@@ -258,7 +274,7 @@ class _Diagnosis:
     warm: dict | None = None
     fold_fits: list[dict] = field(default_factory=list)
     effects: Judged | None = None
-    err: dict = field(default_factory=dict)
+    err: dict[str, HeldOut] = field(default_factory=dict)
     final_fits: dict = field(default_factory=dict)
     stats: dict[str, ModelStats] = field(default_factory=dict)
     cal_chi2: dict[str, float] = field(default_factory=dict)
@@ -266,11 +282,12 @@ class _Diagnosis:
     v: Verdict | None = None
     cal_names: list[str] = field(default_factory=list)
     pair: PairStage | None = None
-    second: dict | None = None
+    second: R.SecondEffect | None = None
     final: str = "base"
     found: object = None
-    named: dict | None = None
-    call: dict | None = None
+    named: AsEffect | None = None
+    named_selected: bool = False
+    call: R.Call | None = None
 
 
 def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log=print,
@@ -370,7 +387,7 @@ def _pairs(d: _Diagnosis) -> None:
     d.second = _second_report(v.leader, pairs.fits, pairs.stats, v2, cfg.rule(), d.cal_names)
     d.final_fits = {**d.final_fits, **pairs.fits}
     d.err.update(pairs.err)
-    pair_adequate = v2.leader is not None and v2.checks[v2.leader]["adequate"]
+    pair_adequate = v2.leader is not None and v2.checks[v2.leader].adequate
     if pair_adequate or (v2.leader is not None and v.kind != SELECTED):   # an adequate single stays
         kind = SELECTED if pair_adequate else UNEXPLAINED
         d.v = replace(v, kind=kind, selected=v2.leader if kind == SELECTED else None, leader=v2.leader)
@@ -396,82 +413,70 @@ def _make_call(d: _Diagnosis) -> None:
     replaces the verdict when it is adequate)."""
     d.call = closeness(d.first, d.stats, d.cfg.rule())
     if d.second is not None:
-        d.call["text"] = f"one effect: {d.call['text']}; two effects: {d.second['text']}"
+        d.call = replace(d.call, text=f"one effect: {d.call.text}; two effects: {d.second.text}")
     named = d.named
     if named is None:
         return
-    eff = named["effect"]
-    d.cal_chi2[eff] = named["fit_chi2"]
-    d.stats[eff], d.err[eff], d.final_fits[eff] = named["stats"], named["err"], named["fit"]
+    eff = named.effect
+    d.cal_chi2[eff] = named.fit_chi2
+    d.stats[eff], d.err[eff], d.final_fits[eff] = named.stats, named.err, named.fit
     v_named = decide(d.stats["base"], [d.stats[m] for m in d.cands], d.cfg.rule())
-    named["selected"] = v_named.selected == eff
+    d.named_selected = v_named.selected == eff
     d.v = replace(d.v, checks={**d.v.checks, eff: v_named.checks[eff]})
-    if named["selected"]:
+    if d.named_selected:
         d.v, d.final = v_named, eff
         d.call = closeness(v_named, d.stats, d.cfg.rule())
-    d.call["text"] += f"; {named['text']}" + ("" if named["selected"] else " (not adequate: the proposal stays)")
+    d.call = replace(d.call, text=d.call.text + f"; {named.text}"
+                     + ("" if d.named_selected else " (not adequate: the proposal stays)"))
 
 
-def _candidate_rows(d: _Diagnosis) -> list[dict]:
+def _candidate_rows(d: _Diagnosis) -> tuple[R.Candidate, ...]:
     """report.json ``candidates``: every single effect, best BIC first."""
     final_fits, err, v = d.final_fits, d.err, d.v
     bic = {m: d.stats[m].bic for m in ["base", *d.cands]}
-    return [{"effect": m, "params": {p: final_fits[m].values[p] for p in final_fits[m].free if p not in d.cal_names},
-             "param_sd": {p: final_fits[m].sd[p] for p in final_fits[m].free},
-             "calibrated": final_fits[m].values,
-             "error": err[m]["error"], "nrms": err[m]["nrms"], "systematic": err[m]["systematic"],
-             "score": bic[m], "delta_score": bic[m] - bic["base"], "delta_chi2_heldout": v.checks[m]["delta_chi2"],
-             "improves": v.checks[m]["improves"], "adequate": v.checks[m]["adequate"],
-             "calibration_chi2": d.cal_chi2[m]} for m in sorted(d.cands, key=lambda m: bic[m])]
+    return tuple(R.Candidate(
+        effects=(m,), params={p: final_fits[m].values[p] for p in final_fits[m].free if p not in d.cal_names},
+        param_sd={p: final_fits[m].sd[p] for p in final_fits[m].free}, calibrated=final_fits[m].values,
+        error=err[m].error, nrms=err[m].nrms, systematic=err[m].systematic, score=bic[m],
+        delta_score=bic[m] - bic["base"], delta_chi2_heldout=v.checks[m].delta_chi2,
+        improves=v.checks[m].improves, adequate=v.checks[m].adequate, calibration_chi2=d.cal_chi2[m])
+        for m in sorted(d.cands, key=lambda m: bic[m]))
+
+
+def _model_errors(e: HeldOut, systematic: bool = True) -> R.ModelErrors:
+    return R.ModelErrors(e.error, e.nrms, e.systematic if systematic else None, e.error_by_group)
 
 
 def _assemble(d: _Diagnosis) -> SystemDiagnosis:
     """The system's report entry (report.json), with the evaluator, the reported fits, the held-out runs and the
     final model."""
     _make_call(d)
-    cand_list = _candidate_rows(d)
     targets, err, v, final, final_fits, found, named = d.targets, d.err, d.v, d.final, d.final_fits, d.found, d.named
-    report = {
-        "system": d.system,
-        "n_runs": len(targets),
-        "unreproducible": d.unreproducible,
-        "data": sorted({t.kind for t in targets}),
-        "split": {"scheme": d.scheme.name, "held_out": [targets[i].run_id for i in sorted(set(d.effects.held_out))],
-                  "folds": [{"calibration": [targets[i].run_id for i in c], "held_out": [targets[i].run_id for i in t]}
-                            for c, t in d.scheme.folds]},
-        "verdict": v.kind,
-        "calibrated": final_fits["base"].values,
-        "calibrated_uncertainty": _param_report(final_fits["base"]),
-        "noise_floor": err["base"]["noise_floor"],
-        "noise_sd": {t.run_id: t.noise for t in targets if t.noise},
-        "default_error": err["default"]["error"], "base_error": err["base"]["error"],
-        "final_error": err[final]["error"],
-        "default_nrms": err["default"]["nrms"], "base_nrms": err["base"]["nrms"], "final_nrms": err[final]["nrms"],
-        "base_systematic": err["base"]["systematic"], "final_systematic": err[final]["systematic"],
-        "heldout_n": err["base"]["n"],
-        "error_by_group": {"default": err["default"]["error_by_group"], "base": err["base"]["error_by_group"],
-                           "final": err[final]["error_by_group"], "noise": err["base"]["noise_by_group"]},
-        "base_score": d.stats["base"].bic,
-        "candidates": cand_list,
-        "selected": v.selected,
-        "selected_effects": v.selected.split("+") if v.selected else [],
-        "leader": v.leader,
-        "runner_up": v.runner_up,
-        "selected_params": _param_report(final_fits[final]) if final != "base" else None,
-        "explained": v.explained,
-        "best_partial_candidate": v.leader if v.kind == UNEXPLAINED else None,
-        "absorbed": absorbed_parameters(final_fits, v, d.cal_names),
-        "call": d.call,
-        "indistinguishable": indistinguishable(d.first, d.stats, d.cfg.rule()),
-        "second_effect": d.second,
-        "pair_stage": asdict(d.pair),
-        "discrepancy": discovery_report(found, err["base"], d.cal_names) if found is not None else None,
-        "proposal_adopted": (proposal_terms(found.accepted) if found is not None and found.accepted
-                             and not (named and named["selected"]) else None),
-        "proposal_as_effect": ({k: named[k] for k in ("effect", "start", "params", "selected", "text")}
-                               if named is not None else None),
-        "recording": recording_report(targets, d.chain),
-        "n_simulations": d.ev.n_sims,
-    }
-    return SystemDiagnosis.of(report, evaluator=d.ev, fits=final_fits, held_out=d.effects.held_out, final=final,
-                              cost=d.cost.rows())
+    ids = [t.run_id for t in targets]
+    report = R.SystemReport(
+        system=d.system, n_runs=len(targets), unreproducible=d.unreproducible,
+        data=tuple(sorted({t.kind for t in targets})),
+        split=R.Split(d.scheme.name, tuple(ids[i] for i in sorted(set(d.effects.held_out))),
+                      tuple(R.Fold(tuple(ids[i] for i in c), tuple(ids[i] for i in t)) for c, t in d.scheme.folds)),
+        verdict=v.kind, calibrated=final_fits["base"].values,
+        calibrated_uncertainty=_param_report(final_fits["base"]),
+        noise_sd={t.run_id: t.noise for t in targets if t.noise},
+        errors=R.HeldOutErrors(default=_model_errors(err["default"], systematic=False),
+                               base=_model_errors(err["base"]), final=_model_errors(err[final]),
+                               noise_floor=err["base"].noise_floor, noise_by_group=err["base"].noise_by_group,
+                               n=err["base"].n),
+        base_score=d.stats["base"].bic, candidates=_candidate_rows(d),
+        selected=_effects(v.selected), leader=_effects(v.leader), runner_up=_effects(v.runner_up),
+        selected_params=_param_report(final_fits[final]) if final != "base" else None,
+        explained=v.explained, best_partial_candidate=_effects(v.leader) if v.kind == UNEXPLAINED else None,
+        absorbed=absorbed_parameters(final_fits, v, d.cal_names), call=d.call,
+        indistinguishable=tuple(_effects(m) for m in indistinguishable(d.first, d.stats, d.cfg.rule())),
+        second_effect=d.second, pair_stage=d.pair,
+        discrepancy=discovery_report(found, err["base"], d.cal_names) if found is not None else None,
+        proposal_adopted=(tuple(proposal_terms(found.accepted)) if found is not None and found.accepted
+                          and not d.named_selected else None),
+        proposal_as_effect=(R.ProposalAsEffect(named.effect, named.start, named.params, d.named_selected, named.text)
+                            if named is not None else None),
+        recording=recording_report(targets, d.chain), n_simulations=d.ev.n_sims)
+    return SystemDiagnosis(report=report, evaluator=d.ev, fits=final_fits, held_out=d.effects.held_out, final=final,
+                           cost=d.cost.rows())

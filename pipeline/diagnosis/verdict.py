@@ -66,6 +66,26 @@ class ModelStats:
 
 
 @dataclass(frozen=True)
+class Check:
+    """What the rule saw of one model against the reference (``Verdict.checks``; report.json ``call`` entries)."""
+
+    adequate: bool
+    """Held-out residual at the noise level (rule 1)."""
+    nrms: float
+    """Held-out nrms [-]."""
+    systematic: float | None
+    """Held-out systematic error [-] (None: no series halves)."""
+    delta_bic: float
+    """The reference's BIC minus the model's (calibration runs) [-]."""
+    delta_chi2: float
+    """The reference's held-out χ² minus the model's [-]."""
+    systematic_gain: float | None
+    """Systematic error removed against the reference [-]."""
+    improves: bool
+    """Improves on the reference (rule 2; False for the reference itself)."""
+
+
+@dataclass(frozen=True)
 class Verdict:
     """The call and the numbers behind it: ``kind`` (NOTHING_MISSING, SELECTED, UNEXPLAINED), the selected effect,
     the leader (best improving candidate, selected or not) and the runner-up (next by BIC), and per model why."""
@@ -74,7 +94,7 @@ class Verdict:
     selected: str | None
     leader: str | None
     runner_up: str | None
-    checks: dict = field(default_factory=dict)    # model -> {adequate, improves, delta_bic, delta_chi2, ...}
+    checks: dict[str, Check] = field(default_factory=dict)    # model -> what the rule saw of it
 
     @property
     def explained(self) -> bool:
@@ -109,18 +129,17 @@ def decide(base: ModelStats, candidates: list[ModelStats], rule: VerdictRule) ->
     ranked = sorted(candidates, key=lambda m: m.bic)
     checks = {}
     for m in [base, *ranked]:
-        checks[m.name] = {"adequate": adequate(m, rule), "nrms": m.nrms, "systematic": m.systematic,
-                          "delta_bic": base.bic - m.bic, "delta_chi2": base.chi2 - m.chi2,
-                          "systematic_gain": _gain(base, m),
-                          "improves": m is not base and improves(base, m, rule)}
-    winners = [m for m in ranked if checks[m.name]["improves"]]
+        checks[m.name] = Check(adequate=adequate(m, rule), nrms=m.nrms, systematic=m.systematic,
+                               delta_bic=base.bic - m.bic, delta_chi2=base.chi2 - m.chi2,
+                               systematic_gain=_gain(base, m), improves=m is not base and improves(base, m, rule))
+    winners = [m for m in ranked if checks[m.name].improves]
     leader = winners[0] if winners else None
     others = [m for m in ranked if m is not leader]
     runner = others[0].name if others else None
     if leader is not None:
-        kind = SELECTED if checks[leader.name]["adequate"] else UNEXPLAINED
+        kind = SELECTED if checks[leader.name].adequate else UNEXPLAINED
         return Verdict(kind, leader.name if kind == SELECTED else None, leader.name, runner, checks)
-    kind = NOTHING_MISSING if checks[base.name]["adequate"] else UNEXPLAINED
+    kind = NOTHING_MISSING if checks[base.name].adequate else UNEXPLAINED
     return Verdict(kind, None, None, runner, checks)
 
 
@@ -131,47 +150,53 @@ def indistinguishable(v: Verdict, stats: dict[str, ModelStats], rule: VerdictRul
         return []
     lead = stats[v.leader].bic
     return [m for m, c in v.checks.items()
-            if m != v.leader and c.get("improves") and stats[m].bic - lead < rule.bic_margin]
+            if m != v.leader and c.improves and stats[m].bic - lead < rule.bic_margin]
 
 
 def _ratio(x: float | None, limit: float) -> str:
     return "n/a" if x is None else f"{x:.3g} ({x / limit:.2g}× the limit {limit:g})"
 
 
-def closeness(v: Verdict, stats: dict[str, ModelStats], rule: VerdictRule) -> dict:
-    """How close the call was: the numbers each threshold saw, and a sentence a user can weigh."""
+def _entry(check: Check, name: str | None = None):
+    from dataclasses import asdict
+
+    from pipeline.diagnosis.report_types import CallEntry
+
+    return CallEntry(name=None if name is None else tuple(name.split("+")), **asdict(check))
+
+
+def closeness(v: Verdict, stats: dict[str, ModelStats], rule: VerdictRule):
+    """How close the call was (a ``report_types.Call``): the numbers each threshold saw, and a sentence a user can
+    weigh."""
+    from pipeline.diagnosis.report_types import Call
+
     base = stats["base"]
     c = v.checks
-    out = {"base": c[base.name]}
-    if v.leader:
-        out["leader"] = {"name": v.leader, **c[v.leader]}
-    if v.runner_up:
-        out["runner_up"] = {"name": v.runner_up, **c[v.runner_up]}
+    gap = share = None
     if v.kind == SELECTED:
         lead = c[v.leader]
         gap = (stats[v.runner_up].bic - stats[v.leader].bic) if v.runner_up else math.inf
-        text = (f"{v.leader} selected: held-out nrms {_ratio(lead['nrms'], rule.explained_nrms)}, systematic error "
-                f"{_ratio(lead['systematic'], rule.systematic_tol)}; BIC better than the base by {lead['delta_bic']:.3g} "
+        text = (f"{v.leader} selected: held-out nrms {_ratio(lead.nrms, rule.explained_nrms)}, systematic error "
+                f"{_ratio(lead.systematic, rule.systematic_tol)}; BIC better than the base by {lead.delta_bic:.3g} "
                 f"(margin {rule.bic_margin:g}) and than the runner-up {v.runner_up} by {gap:.3g}; held-out χ² "
-                f"{lead['delta_chi2']:.3g} below the base's (margin {rule.test_margin:g})")
-        out["bic_gap_to_runner_up"] = gap
+                f"{lead.delta_chi2:.3g} below the base's (margin {rule.test_margin:g})")
     elif v.kind == NOTHING_MISSING:
         best = c[v.runner_up] if v.runner_up else None
-        text = (f"nothing missing: the calibrated base has held-out nrms {_ratio(c['base']['nrms'], rule.explained_nrms)} "
-                f"and systematic error {_ratio(c['base']['systematic'], rule.systematic_tol)}")
+        text = (f"nothing missing: the calibrated base has held-out nrms {_ratio(c['base'].nrms, rule.explained_nrms)} "
+                f"and systematic error {_ratio(c['base'].systematic, rule.systematic_tol)}")
         if best:
-            text += (f"; the best candidate {v.runner_up} gains ΔBIC {best['delta_bic']:.3g} (margin {rule.bic_margin:g}) "
-                     f"and held-out Δχ² {best['delta_chi2']:.3g} (margin {rule.test_margin:g})")
+            text += (f"; the best candidate {v.runner_up} gains ΔBIC {best.delta_bic:.3g} (margin {rule.bic_margin:g}) "
+                     f"and held-out Δχ² {best.delta_chi2:.3g} (margin {rule.test_margin:g})")
     else:
         who = v.leader or v.runner_up
-        text = (f"unexplained: the calibrated base has held-out nrms {c['base']['nrms']:.3g} and systematic error "
-                f"{_ratio(c['base']['systematic'], rule.systematic_tol)}")
+        text = (f"unexplained: the calibrated base has held-out nrms {c['base'].nrms:.3g} and systematic error "
+                f"{_ratio(c['base'].systematic, rule.systematic_tol)}")
         if who:
             w = c[who]
             excess = max(base.chi2 - base.n, 1e-300)
-            got = max(0.0, min(1.0, w["delta_chi2"] / excess))
-            out["best_candidate_share"] = got
-            text += (f"; the best candidate {who} removes {100 * got:.0f} % of the excess held-out χ² and leaves nrms "
-                     f"{w['nrms']:.3g}, systematic error {_ratio(w['systematic'], rule.systematic_tol)}")
-    out["text"] = text
-    return out
+            share = max(0.0, min(1.0, w.delta_chi2 / excess))
+            text += (f"; the best candidate {who} removes {100 * share:.0f} % of the excess held-out χ² and leaves nrms "
+                     f"{w.nrms:.3g}, systematic error {_ratio(w.systematic, rule.systematic_tol)}")
+    return Call(base=_entry(c[base.name]), leader=_entry(c[v.leader], v.leader) if v.leader else None,
+                runner_up=_entry(c[v.runner_up], v.runner_up) if v.runner_up else None, bic_gap_to_runner_up=gap,
+                best_candidate_share=share, text=text)

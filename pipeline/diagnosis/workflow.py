@@ -8,10 +8,10 @@ from dataclasses import asdict, replace
 
 from pipeline.core.executors import Executor, InlineExecutor
 from pipeline.diagnosis.cost import CostRecorder, DiagnosisCost, load_average
-from pipeline.diagnosis.features import simulated_features
+from pipeline.diagnosis.features import peak_velocity, simulated_features
 from pipeline.diagnosis.report import figure_names, residual_structure
-from pipeline.diagnosis.report_types import DiagnoseReport, ResidualStructure
-from pipeline.diagnosis.result import DiagnoseResult, SimulatedRuns, SystemDiagnosis
+from pipeline.diagnosis.report_types import DiagnoseReport
+from pipeline.diagnosis.result import DiagnoseResult, SimulatedRun, SimulatedRuns, SystemDiagnosis
 from pipeline.diagnosis.rigout import corrected_rig, rig_file_name
 from pipeline.diagnosis.run import DiagnoseConfig, build_targets, diagnose_system
 
@@ -40,9 +40,7 @@ def simulate_runs(diag: SystemDiagnosis) -> SimulatedRuns:
     ev = diag.evaluator
     idx = list(range(len(ev.targets)))
     sets = [{}, diag.fits["base"].values, diag.fits[diag.final].values]
-    rows = [[{"run": i, "residual": ev.residual_of(i, r), "result": r,
-              "model": simulated_features(ev.targets[i], r),
-              "peak_velocity_m_s": (float(r.history["vel_m_s"].max()) if r.history is not None else None)}
+    rows = [[SimulatedRun(i, ev.residual_of(i, r), r, simulated_features(ev.targets[i], r), peak_velocity(r))
              for i, r in zip(idx, row)] for row in ev.simulate(sets, idx)]
     return SimulatedRuns(default=rows[0], base=rows[1], final=rows[2])
 
@@ -72,7 +70,7 @@ def _diagnose(ds, cfg: DiagnoseConfig, log, progress, executor: Executor) -> Dia
         notes = [SUMMARY_NOTE] if "summary" in diag.report.data else []
         notes += [UNREPRODUCIBLE_NOTE.format(run=r, nrms=x) for r, x in diag.report.unreproducible.items()]
         notes += skipped.get(system, []) + [n for t in tgs for n in t.notes]     # what the recording left out
-        structure = ResidualStructure.from_json(residual_structure(diag, sim_runs.base, sim_runs.final))
+        structure = residual_structure(diag, sim_runs.base, sim_runs.final)
         diag = replace(diag, report=replace(diag.report, residual_structure=structure, notes=tuple(notes)))
         diags.append(diag)
         runs.append(sim_runs)

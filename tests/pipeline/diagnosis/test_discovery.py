@@ -106,26 +106,32 @@ def test_the_hidden_mode_is_a_structured_candidate_of_every_model(system):
 def test_a_structured_proposal_reports_its_parameters():
     """report(): a proposal of the hidden mode lists its kind "mode", its three parameters with sd and interval."""
     from pipeline.diagnosis.fit import FitResult
-    from pipeline.diagnosis.verdict import ModelStats
+    from pipeline.diagnosis.verdict import Check, ModelStats
     from sim.models.discrepancy import MODE, MODE_PARAMS
 
     name = D.proposal_name((MODE,))
     vals = {"K1": 1e8, "C1": 1e4, "Pr": 2e3, **dict(zip(MODE_PARAMS, (0.25, 1000.0, 0.05)))}
     fr = FitResult(values=vals, free=list(vals), chi2=10.0, n=100, nfev=20, sd={k: 0.1 * v for k, v in vals.items()},
                    ci95={k: (0.8 * v, 1.2 * v) for k, v in vals.items()})
-    err = {"nrms": 1.1, "error": 0.01, "noise_floor": 0.009, "systematic": 0.001, "by_run_nrms": [1.0, 1.2]}
+    from pipeline.diagnosis.heldout import HeldOut
+
+    err = HeldOut(nrms=1.1, chi2=121.0, n=100, by_run_nrms={"a": 1.0, "b": 1.2}, error=0.01, noise_floor=0.009,
+                  error_by_group={}, noise_by_group={}, systematic=0.001)
+    base_err = HeldOut(nrms=20.0, chi2=4e4, n=100, by_run_nrms={"a": 19.0, "b": 21.0}, error=0.2, noise_floor=0.009,
+                       error_by_group={}, noise_by_group={})
     d = D.Discovery(screening=D.Screening([], [], {}, {}, []), fits={name: fr}, err={name: err},
                     stats={name: ModelStats(name=name, bic=50.0, chi2=121.0, n=100, systematic=0.001)},
                     accepted=name, leader=name,
-                    checks={name: {"delta_bic": -50.0, "delta_chi2": 400.0, "improves": True, "adequate": True}})
-    rep = D.report(d, {"nrms": 20.0, "error": 0.2, "by_run_nrms": [19.0, 21.0]}, ["K1", "C1", "Pr"])
-    [p] = rep["proposals"]
-    assert p["kinds"] == ["mode"] and p["terms"] == [MODE]
-    assert list(p["coefficients"]) == list(MODE_PARAMS) and p["coefficients"]["load_path_mode_hz"] == 1000.0
-    assert rep["accepted"] == [MODE] and "hidden mass" in rep["text"]
+                    checks={name: Check(adequate=True, nrms=1.1, systematic=0.001, delta_bic=-50.0, delta_chi2=400.0,
+                                        systematic_gain=None, improves=True)})
+    rep = D.report(d, base_err, ["K1", "C1", "Pr"])
+    [p] = rep.proposals
+    assert p.kinds == ("mode",) and p.terms == (MODE,)
+    assert list(p.coefficients) == list(MODE_PARAMS) and p.coefficients["load_path_mode_hz"] == 1000.0
+    assert rep.accepted == (MODE,) and "hidden mass" in rep.text
+    assert rep.to_json()["proposals"][0]["terms"] == [MODE]       # a list in report.json
     import dataclasses     # not accepted: the text names every candidate tried, the structured one too
-    text = D.report(dataclasses.replace(d, accepted=None), {"nrms": 20.0, "error": 0.2, "by_run_nrms": [19.0, 21.0]},
-                    ["K1", "C1", "Pr"])["text"]
+    text = D.report(dataclasses.replace(d, accepted=None), base_err, ["K1", "C1", "Pr"]).text
     assert text.endswith(f"not in the vocabulary of this model ({MODE})")
 
 

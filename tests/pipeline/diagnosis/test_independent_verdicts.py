@@ -159,7 +159,7 @@ def test_a_contact_rate_product_proposal_is_refitted_and_named_as_rate_stiffenin
                         leader=name, checks={})
     own = {"rate_stiffening": ModelStats("rate_stiffening", float("inf"), 0.0, 1, None)}
     named = _as_effect(ev, cfg, scheme, found, candidates("pendulum"), own, InlineExecutor(), lambda s: None)
-    assert named is not None and named["effect"] == "rate_stiffening"
-    assert named["start"]["alpha"] == pytest.approx(5.0, rel=1e-9)
-    assert named["params"]["alpha"] == pytest.approx(5.0, rel=0.1), named["text"]
-    assert named["err"]["nrms"] <= cfg.explained_nrms, named["text"]
+    assert named is not None and named.effect == "rate_stiffening"
+    assert named.start["alpha"] == pytest.approx(5.0, rel=1e-9)
+    assert named.params["alpha"] == pytest.approx(5.0, rel=0.1), named.text
+    assert named.err.nrms <= cfg.explained_nrms, named.text

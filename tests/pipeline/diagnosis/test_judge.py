@@ -68,8 +68,8 @@ def test_held_out_errors_bic_and_verdict_are_the_folds_sums():
     j = judge(ev, loro, _fitter([]), rule, against="base", fixed={"nominal": {"x": 3.0}})
     # base at x = 2 on every held-out run i: residual i + 1 on 3 features
     chi2 = sum(3 * (i + 1) ** 2 for i in range(4))
-    assert j.err["base"]["chi2"] == pytest.approx(chi2) and j.err["base"]["n"] == 12
-    assert j.err["nominal"]["nrms"] == pytest.approx(math.sqrt(sum(3 * (2.0 * (i + 1)) ** 2 for i in range(4)) / 12))
+    assert j.err["base"].chi2 == pytest.approx(chi2) and j.err["base"].n == 12
+    assert j.err["nominal"].nrms == pytest.approx(math.sqrt(sum(3 * (2.0 * (i + 1)) ** 2 for i in range(4)) / 12))
     assert "nominal" not in j.stats                        # a fixed model is scored, not judged
     assert j.stats["base"].bic == pytest.approx(4 * (100.0 + math.log(6)))
     assert j.stats["good"].bic == pytest.approx(4 * (2.0 + 2 * math.log(6)))

@@ -82,7 +82,7 @@ def test_control_is_nothing_missing_even_when_a_candidate_fits_round_off():
 def test_an_effect_is_selected_when_it_wins_everywhere_and_is_adequate():
     v = decide(_m("base", 0.0, 40.0, 0.08), [_m("a", -5e4, 1.1, 0.0004), _m("b", -1e4, 20.0, 0.03)], RULE)
     assert (v.kind, v.selected, v.leader, v.runner_up) == (SELECTED, "a", "a", "b")
-    assert v.checks["a"]["improves"] and v.checks["a"]["adequate"] and not v.checks["base"]["adequate"]
+    assert v.checks["a"].improves and v.checks["a"].adequate and not v.checks["base"].adequate
 
 
 def test_an_effect_that_brings_the_base_to_the_noise_level_is_material():
@@ -123,7 +123,7 @@ def test_a_residual_far_above_the_noise_is_not_explained_by_a_small_systematic_e
     coil the best partial explanation."""
     base = _m("base", 0.0, 60.0, 0.1)
     v = decide(base, [_m("coil", -9e4, 13.0, 0.004)], RULE)
-    assert (v.kind, v.leader) == (UNEXPLAINED, "coil") and not v.checks["coil"]["adequate"]
+    assert (v.kind, v.leader) == (UNEXPLAINED, "coil") and not v.checks["coil"].adequate
     assert decide(base, [_m("coil", -9e4, 13.0, 0.004)], replace(RULE, systematic_nrms_cap=20.0)).kind == SELECTED
 
 
@@ -215,7 +215,7 @@ def test_heldout_error_and_noise_floor_are_on_the_nrms_scale():
         targets.append(SimpleNamespace(run_id=f"r{k}", y=y, sd=sd, group=["accel"] * 8 + ["force"] * 8 + ["rop"] * 2))
         res.append(rng.normal(0, 2.7, y.size))          # the model 2.7 x the noise off everywhere
     e = heldout_errors(SimpleNamespace(targets=targets), [0, 1, 2], res)
-    assert e["error"] / e["noise_floor"] == pytest.approx(e["nrms"], rel=1e-12)
-    assert e["error"] > e["noise_floor"] and e["nrms"] > 2
-    assert e["error_by_group"]["rop"] is None and e["noise_by_group"]["rop"] is None
-    assert all(0 < e["noise_by_group"][g] < 1 for g in ("accel", "force"))
+    assert e.error / e.noise_floor == pytest.approx(e.nrms, rel=1e-12)
+    assert e.error > e.noise_floor and e.nrms > 2
+    assert e.error_by_group["rop"] is None and e.noise_by_group["rop"] is None
+    assert all(0 < e.noise_by_group[g] < 1 for g in ("accel", "force"))

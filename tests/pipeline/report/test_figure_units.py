@@ -65,14 +65,15 @@ def test_the_check_catches_a_factor_1000():
 
 def test_diagnosis_summary_figure(monkeypatch):
     from pipeline.diagnosis.report import summary_figure
+    from pipeline.diagnosis.result import SimulatedRun
 
     names = ["peak_force_n", "rop_m_s"]
     targets, runs = [], []
     for f in np.linspace(120.0, 420.0, 6):
         y = np.array([RNG.uniform(3000, 5500), RNG.uniform(0.0005, 0.0035)])
         targets.append(SimpleNamespace(kind="summary", names=names, controls={"frequency_hz": f}, y=y, sd=0.01 * y))
-        runs.append({"model": y * RNG.uniform(0.95, 1.05, 2)})
-    ys = np.array([t.y for t in targets] + [r["model"] for r in runs])
+        runs.append(SimulatedRun(len(runs), np.zeros(2), None, y * RNG.uniform(0.95, 1.05, 2), None))
+    ys = np.array([t.y for t in targets] + [r.model for r in runs])
     fig = summary_figure(targets, [("calibrated base", runs, "o")], "drill")
     si = {"frequency_hz": (120.0, 420.0), "peak_force_n": (ys[:, 0].min(), ys[:, 0].max()),
           "rop_m_s": (ys[:, 1].min(), ys[:, 1].max())}
