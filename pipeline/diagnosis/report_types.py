@@ -726,6 +726,13 @@ class DiagnoseReport:
             from pipeline.core.errors import UserError
 
             raise UserError(f"{source}: report schema {schema!r} not readable by this version (reads {SCHEMA})")
-        return cls(dataset=d["dataset"], config=d["config"],
-                   systems=tuple(SystemReport.from_json(s) for s in d["systems"].values()),
-                   wall_time_s=d.get("wall_time_s"), cost=d.get("cost"))
+        try:
+            return cls(dataset=d["dataset"], config=d["config"],
+                       systems=tuple(SystemReport.from_json(s) for s in d["systems"].values()),
+                       wall_time_s=d.get("wall_time_s"), cost=d.get("cost"))
+        except (KeyError, TypeError, AttributeError, ValueError) as e:
+            from pipeline.core.errors import UserError
+
+            what = f"no '{e.args[0]}'" if isinstance(e, KeyError) else str(e)
+            raise UserError(f"{source}: not a diagnosis report this version reads ({what}); diagnose the data again "
+                            f"with this version") from None

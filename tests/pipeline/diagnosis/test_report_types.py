@@ -13,7 +13,8 @@ from pipeline.diagnosis.report_types import SCHEMA, SCHEMA_KEY, DiagnoseReport
 
 DATA = Path(__file__).parent / "data"
 FIXTURES = sorted(DATA.glob("report_*.json"))
-STORED = sorted(Path("/work/main/bench/results/identification/diagnoses").glob("*/report.json"))
+STORED = sorted((Path(__file__).resolve().parents[3] / "bench" / "results" / "identification" / "diagnoses")
+                .glob("*/report.json"))
 """The identification matrix's diagnoses, where this machine has them (gitignored)."""
 
 
@@ -45,3 +46,12 @@ def test_a_newer_schema_is_refused():
     d = {**json.loads((DATA / "report_single.json").read_text()), SCHEMA_KEY: SCHEMA + 1}
     with pytest.raises(UserError, match=r"somewhere/report\.json.*schema 2"):
         DiagnoseReport.from_json(d, "somewhere/report.json")
+
+
+def test_an_older_layout_is_refused_in_one_line():
+    """A report.json from before a field existed (here ``pair_stage``) names the file and the missing key."""
+    d = json.loads((DATA / "report_single.json").read_text())
+    for s in d["systems"].values():
+        del s["pair_stage"]
+    with pytest.raises(UserError, match=r"old/report\.json: not a diagnosis report this version reads \(no 'pair_stage'\)"):
+        DiagnoseReport.from_json(d, "old/report.json")
