@@ -22,12 +22,17 @@ Effects = tuple[str, ...]
 Codec = tuple[Callable[[Any], Any], Callable[[Any], Any]]
 
 
+def effects_of(name: str | None) -> Effects | None:
+    """The effects of a model named as the diagnosis' fits name it ("a", "a+b"); None for None."""
+    return None if name is None else tuple(name.split("+"))
+
+
 def _same(x):
     return x
 
 
 PLAIN: Codec = (_same, _same)
-EFFECTS: Codec = (lambda s: tuple(s.split("+")), "+".join)
+EFFECTS: Codec = (effects_of, "+".join)
 
 
 def _opt(c: Codec) -> Codec:

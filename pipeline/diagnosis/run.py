@@ -32,7 +32,7 @@ from pipeline.diagnosis.nuisance import ChainEstimate, estimate_chain
 from pipeline.diagnosis.heldout import HeldOut, systematic_error  # noqa: F401  (systematic_error re-exported)
 from pipeline.diagnosis.judge import FoldScheme, Fitter, Judged, judge, make_folds  # noqa: F401  (make_folds re-exported)
 from pipeline.diagnosis import report_types as R
-from pipeline.diagnosis.report_types import PairStage
+from pipeline.diagnosis.report_types import PairStage, effects_of
 from pipeline.diagnosis.result import SystemDiagnosis
 from pipeline.diagnosis.verdict import (SELECTED, UNEXPLAINED, ModelStats, Verdict, VerdictRule, closeness, decide,
                                         indistinguishable)
@@ -92,7 +92,7 @@ def absorbed_parameters(fits: dict[str, FitResult], v: Verdict, cal_names: list[
         vb, vw = b.values[n], w.values[n]
         sd = math.hypot(b.sd.get(n, 0.0), w.sd.get(n, 0.0))
         if abs(vw - vb) > max(3.0 * sd, 0.02 * abs(vw)):
-            out[n] = R.Absorption(vb, vw, vb / vw - 1.0, _effects(other))
+            out[n] = R.Absorption(vb, vw, vb / vw - 1.0, effects_of(other))
     return out
 
 
@@ -161,7 +161,7 @@ def _second_report(first: str, fits: dict, stats: dict, v2: Verdict, rule: Verdi
                    cal_names: list[str]) -> R.SecondEffect:
     """report.json ``second_effect``: every pair tried against ``first`` alone, the call, and the pairs the data
     cannot tell apart."""
-    rows = [R.PairCandidate(effects=_effects(m),
+    rows = [R.PairCandidate(effects=effects_of(m),
                             params={p: fits[m].values[p] for p in fits[m].free if p not in cal_names},
                             param_sd={p: fits[m].sd[p] for p in fits[m].free if p not in cal_names},
                             nrms=c.nrms, systematic=c.systematic, delta_bic=c.delta_bic, delta_chi2=c.delta_chi2,
@@ -179,13 +179,8 @@ def _second_report(first: str, fits: dict, stats: dict, v2: Verdict, rule: Verdi
     same = indistinguishable(v2, stats, rule)
     if same:
         text += f"; indistinguishable on these data from {', '.join(same)} (ΔBIC < {rule.bic_margin:g})"
-    return R.SecondEffect(first=_effects(first), candidates=tuple(rows), leader=_effects(lead),
-                          indistinguishable=tuple(_effects(m) for m in same), text=text)
-
-
-def _effects(name: str | None) -> R.Effects | None:
-    """A model name of the fits ("a", "a+b") as the report's tuple of effects (None: no model)."""
-    return None if name is None else tuple(name.split("+"))
+    return R.SecondEffect(first=effects_of(first), candidates=tuple(rows), leader=effects_of(lead),
+                          indistinguishable=tuple(effects_of(m) for m in same), text=text)
 
 
 def recording_report(targets: list[Target], chain: ChainEstimate | None) -> R.Recording:
@@ -466,11 +461,11 @@ def _assemble(d: _Diagnosis) -> SystemDiagnosis:
                                noise_floor=err["base"].noise_floor, noise_by_group=err["base"].noise_by_group,
                                n=err["base"].n),
         base_score=d.stats["base"].bic, candidates=_candidate_rows(d),
-        selected=_effects(v.selected), leader=_effects(v.leader), runner_up=_effects(v.runner_up),
+        selected=effects_of(v.selected), leader=effects_of(v.leader), runner_up=effects_of(v.runner_up),
         selected_params=_param_report(final_fits[final]) if final != "base" else None,
-        explained=v.explained, best_partial_candidate=_effects(v.leader) if v.kind == UNEXPLAINED else None,
+        explained=v.explained, best_partial_candidate=effects_of(v.leader) if v.kind == UNEXPLAINED else None,
         absorbed=absorbed_parameters(final_fits, v, d.cal_names), call=d.call,
-        indistinguishable=tuple(_effects(m) for m in indistinguishable(d.first, d.stats, d.cfg.rule())),
+        indistinguishable=tuple(effects_of(m) for m in indistinguishable(d.first, d.stats, d.cfg.rule())),
         second_effect=d.second, pair_stage=d.pair,
         discrepancy=discovery_report(found, err["base"], d.cal_names) if found is not None else None,
         proposal_adopted=(tuple(proposal_terms(found.accepted)) if found is not None and found.accepted

@@ -160,9 +160,9 @@ def _ratio(x: float | None, limit: float) -> str:
 def _entry(check: Check, name: str | None = None):
     from dataclasses import asdict
 
-    from pipeline.diagnosis.report_types import CallEntry
+    from pipeline.diagnosis.report_types import CallEntry, effects_of
 
-    return CallEntry(name=None if name is None else tuple(name.split("+")), **asdict(check))
+    return CallEntry(name=effects_of(name), **asdict(check))
 
 
 def closeness(v: Verdict, stats: dict[str, ModelStats], rule: VerdictRule):
