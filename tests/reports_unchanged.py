@@ -33,8 +33,12 @@ CASES: dict[str, tuple[str, dict]] = {
                   {"effects": ["guide_friction", "shaker_coil", "tip_blunting"], "max_proposals": 2}),
     "accepted": ("discovery/logs/drill-outside-contact_power-rig-s0-n8",
                  {"effects": ["guide_friction", "tip_blunting"], "max_proposals": 2}),
+    "make-run-seed000": ("measured/seed000-published", {"n_starts": 2, "max_nfev": 15, "seed": 0}),
+    "make-run-drill-rig": ("measured/drill-rig", {"n_starts": 2, "max_nfev": 15, "seed": 0}),
 }
-"""Case name -> (log under RESULTS, DiagnoseConfig settings)."""
+"""Case name -> (log under RESULTS, or the repository's measured/ folder; DiagnoseConfig settings: the make-run
+cases take params.yaml's)."""
+ROOT = Path(__file__).resolve().parents[1]
 
 VOLATILE = ("wall_time_s", "cost")
 
@@ -48,7 +52,7 @@ def record(out: Path, only: list[str] | None, threads: int) -> None:
     for name, (log, settings) in CASES.items():
         if only and name not in only:
             continue
-        rep = diagnose_into(load_dataset(RESULTS / log), out / name, DiagnoseConfig(n_threads=threads, **settings),
+        rep = diagnose_into(load_dataset(ROOT / log if log.startswith("measured/") else RESULTS / log), out / name, DiagnoseConfig(n_threads=threads, **settings),
                             log=lambda s: None).report
         r = rep.systems[0]
         print(f"{name}: {r.verdict}, selected {'+'.join(r.selected) if r.selected else None}, pairs tried "

@@ -182,11 +182,19 @@ def load_sweep(path: Path) -> tuple[pd.DataFrame, dict]:
     return df, meta
 
 
+def _stage_folder(doc: Document, inp: ReportInputs, heading: str, where: Path, what: str, stage: str) -> Path | None:
+    """A section's heading, then its stage's output folder ``where``; None, said in the section, when it is not there."""
+    doc.add(Heading(heading))
+    path = inp.p(where)
+    if path.is_dir():
+        return path
+    doc.add(Para(f"No {what} at `{where}`: the {stage} stage has not run."))
+    return None
+
+
 def section_sweep(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) -> None:
-    doc.add(Heading("1. Dataset (sweep)"))
-    path = inp.p(inp.sweep)
-    if not path.is_dir():
-        doc.add(Para(f"No sweep dataset at `{inp.sweep}`: the sweep stage has not run."))
+    path = _stage_folder(doc, inp, "1. Dataset (sweep)", inp.sweep, "sweep dataset", "sweep")
+    if path is None:
         return
     df, meta = load_sweep(path)
     n = len(df)
@@ -233,10 +241,8 @@ def section_sweep(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) 
 
 
 def section_train(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) -> None:
-    doc.add(Heading("2. Surrogate accuracy (train)"))
-    path = inp.p(inp.surrogate)
-    if not path.is_dir():
-        doc.add(Para(f"No surrogate bundle at `{inp.surrogate}`: the train stage has not run."))
+    path = _stage_folder(doc, inp, "2. Surrogate accuracy (train)", inp.surrogate, "surrogate bundle", "train")
+    if path is None:
         return
     from surrogate.bundle import MANIFEST, PAYLOAD, verify_bundle
     from surrogate.errors import SurrogateError
@@ -339,10 +345,9 @@ def _eng_value(key: str, v):
 
 
 def section_optimise(doc: Document, figs: _Figs, inp: ReportInputs, summary: dict) -> None:
-    doc.add(Heading("3. Recommended operating point (optimise, verified by the simulator)"))
-    path = inp.p(inp.optimise)
-    if not path.is_dir():
-        doc.add(Para(f"No optimisation results at `{inp.optimise}`: the optimise stage has not run."))
+    path = _stage_folder(doc, inp, "3. Recommended operating point (optimise, verified by the simulator)",
+                         inp.optimise, "optimisation results", "optimise")
+    if path is None:
         return
     found = _recommendation(path)
     if found:
