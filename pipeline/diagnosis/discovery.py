@@ -33,13 +33,11 @@ from pipeline.diagnosis.fit import FitResult
 from pipeline.diagnosis.heldout import fold_errors
 from pipeline.diagnosis.model import Evaluator, FreeParam, calibratable
 from pipeline.diagnosis.verdict import ModelStats, decide
+from sim.models.discrepancy import PROBE_AT  # the strength the models' term bounds are chosen for
 
 if TYPE_CHECKING:
     from pipeline.diagnosis.config import DiagnoseConfig
 
-PROBE_AT = 0.45
-"""The probe strength of a term: this fraction of its log10 fit range above the lower bound (about the strength
-that changes the labels by ~10 %)."""
 CAL_STEP = 0.01
 """Step [log10] of the calibratable parameters' sensitivity columns."""
 MAX_SUPPORT = 2

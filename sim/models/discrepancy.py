@@ -164,6 +164,12 @@ SPANS: dict[str, Span] = {
 stiffness the effect multiplies: the pendulum's and RIMD's ki, the indenter's k1, the drill's K1)."""
 
 
+PROBE_AT = 0.45
+"""The probe strength of a term: this fraction of its log10 fit range above the lower bound (about the strength that
+changes the labels by ~10 %).  A model's ``discrepancy_bounds`` are chosen so that it does (the conformance test
+checks the labels move there); the diagnosis' screening starts from it."""
+
+
 def mode_bounds(hz_lo: float, hz_hi: float) -> dict[str, FitBound]:
     """Fit bounds of the hidden mode: its frequency in [hz_lo, hz_hi] [Hz] (a model's own: from below its forcing to
     well above its contact's harmonics), a mass of 2 % to 2x the impacting mass's and a damping ratio 0.5-50 %.

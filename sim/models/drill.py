@@ -389,7 +389,7 @@ SPEC = ModelSpec(
     diagnose_max_harmonic_hz=3000.0,
     diagnose_fit={"candidate_starts": 1, "max_nfev": 10},
     # discrepancy terms (sim.models.discrepancy) at the lab preset's scale: lo changes the ROP by ~0.5-1 %, the probe
-    # (sim/models/discrepancy PROBE_AT) by ~5-20 %, hi by 25-60 %.  contact_rate_product is left out: a release where
+    # (sim.models.discrepancy.PROBE_AT) by ~5-20 %, hi by 25-60 %.  contact_rate_product is left out: a release where
     # the δ δ̇ term takes Pc to 0 while K1 δ + C1 ẋ1 > 0 leaves the surface relaxing (phase I's base law) into the bit,
     # and the onset guard x1 − xt fires at once (event storms at some strengths); the independent reference treats
     # that overlap with two more events — the kernel's phase I would need the same before the term can be offered
