@@ -23,7 +23,12 @@ EXTENSIONS = (
     ("a §6 effect", ("sim/models/effects.py", "sim/models/terms.py"),
      "its `EFFECTS` entry, its term, one line in each model's `EFFECTS` list",
      "tests/sim/test_conformance.py"),
-    ("a discrepancy term", ("sim/models/discrepancy.py",), "its declaration (site and form)",
+    ("a discrepancy term", ("sim/models/discrepancy.py", "tests/reference_solutions.py",
+                            "tests/sim/test_discrepancy_terms.py"),
+     "one `Term` in `TERMS` (its site and the powers of the site's variables: the kernels' site sums are generated "
+     "from it, no model's code changes); its independent form in the reference (`DISCREPANCY_PARAMS`, "
+     "`DISCREPANCY` and the force it adds), a visible strength per model in `VISIBLE_DISCREPANCY`; a model offers "
+     "it by naming it in `ModelSpec.discrepancy` with fit bounds",
      "tests/sim/test_discrepancy_terms.py"),
     ("a model", ("sim/models/drill.py", "sim/registry.py", "tests/reference_solutions.py"),
      "`sim/models/<name>.py` (like the drill's), its registry line, an independent reference",

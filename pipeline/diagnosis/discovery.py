@@ -34,13 +34,11 @@ from pipeline.diagnosis.heldout import HeldOut
 from pipeline.diagnosis.judge import Fitter, FoldScheme, Judged, judge
 from pipeline.diagnosis.model import Evaluator, FreeParam, calibratable
 from pipeline.diagnosis.verdict import Check, ModelStats
+from sim.models.discrepancy import probe_value  # noqa: F401  (the strength the models' term bounds are chosen for)
 
 if TYPE_CHECKING:
     from pipeline.diagnosis.config import DiagnoseConfig
 
-PROBE_AT = 0.45
-"""The probe strength of a term: this fraction of its log10 fit range above the lower bound (about the strength
-that changes the labels by ~10 %)."""
 CAL_STEP = 0.01
 """Step [log10] of the calibratable parameters' sensitivity columns."""
 MAX_SUPPORT = 2
@@ -68,12 +66,6 @@ def structured_candidates(system: str) -> dict[str, tuple[FreeParam, ...]]:
     spec = sim.get_model(system)
     return {n: tuple(spec.discrepancy_bounds[p] for p in c.params) for n, c in STRUCTURED.items()
             if all(p in spec.discrepancy for p in c.params)}
-
-
-def probe_value(b: FreeParam) -> float:
-    """A term's probe strength [its unit] (``PROBE_AT``)."""
-    lo, hi = b.bounds
-    return float(10 ** (lo + PROBE_AT * (hi - lo)))
 
 
 @dataclass(frozen=True)

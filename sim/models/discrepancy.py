@@ -5,7 +5,13 @@ with a fixed form at a fixed site: the contact force expression (``contact_*``, 
 threshold indicators, so the switching stays consistent) or the impacting mass's equation of motion (``tool_*``).
 A model lists the terms it has in ``ModelSpec.discrepancy``; the diagnosis proposes a sparse combination of them
 (``pipeline.diagnosis.discovery``) and a rig file carries an adopted one as a ``discrepancy:`` entry of term names
-and coefficients (``sim.rig``) — never an expression.  The kernels compose ``contact_extra`` and ``tool_loss``.
+and coefficients (``sim.rig``) — never an expression.
+
+A term is declared once, in ``TERMS``: its site and its form as the exponents of the site's two variables
+(``SITES``).  The site sums the kernels call, ``contact_extra`` and ``tool_loss``, are generated from those
+declarations at import (``site_source``: a Horner form in the site's first variable), and a model reads the
+coefficients of the whole block once (``terms_at(p, first)``, ``first`` from ``vocabulary_at``): a new term is one
+line here, its reference in tests/reference_solutions.py and its visible strengths.
 
 One *structured* candidate sits beside the terms: ``load_path_mode``, a hidden mass on a spring and damper at the
 impacting mass (an extra mode in the load path), three parameters (``MODE_PARAMS``: mass ratio, frequency, damping
@@ -15,9 +21,10 @@ is §6 ``suspension_hardening``.
 """
 from __future__ import annotations
 
+import linecache
 import math
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Callable, Mapping, Sequence
 
 from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.models.fitbound import FitBound
@@ -28,21 +35,64 @@ TOOL = "tool"
 
 
 @dataclass(frozen=True)
+class Site:
+    """Where terms act and what they are polynomials in: ``x`` and ``y`` as (code in the site function, symbol), the
+    site function's ``name`` and ``args`` (after the coefficient tuple), ``lhs`` (the force a term joins, in symbols)
+    whether the form says y before x (``y_first``) and which variable a term's form must contain (``vanish``: 0 = x,
+    1 = y), so that the term vanishes where the site's force must not move (no penetration; a mass at rest).  A
+    term's force is c x^a y^b; the site sums them in Horner form in x, after factoring out the least power of each
+    (``site_source``)."""
+
+    name: str
+    args: tuple[str, ...]
+    x: tuple[str, str]
+    y: tuple[str, str]
+    lhs: str
+    vanish: int
+    y_first: bool = False
+
+
+SITES: dict[str, Site] = {
+    CONTACT: Site("contact_extra", ("d", "dd"), ("max(d, 0.0)", "δ₊"), ("dd", "δ̇"), "F_c +=", vanish=0),
+    TOOL: Site("tool_loss", ("v",), ("abs(v)", "|v|"), ("v", "v"), "F_tool −=", vanish=1, y_first=True),
+}
+"""The sites: the contact force expression (δ₊ = max(δ, 0) the penetration, δ̇ its rate; also in the contact's release
+and threshold indicators) and the force opposing the impacting mass's velocity v."""
+
+_SUPER = str.maketrans("0123456789", "⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+@dataclass(frozen=True)
 class Term:
-    """One discrepancy term: ``name`` (= its parameter), unit, site (CONTACT or TOOL), form in symbols, kind of
-    physics (what a researcher would call it) and its meaning in words."""
+    """One discrepancy term: ``name`` (= its parameter), unit, site (CONTACT or TOOL), its form c x^a y^b as the
+    exponents ``powers`` = (a, b) of its site's variables (``SITES``), kind of physics (what a researcher would call
+    it) and its meaning in words."""
 
     name: str
     unit: str
     site: str
-    form: str
+    powers: tuple[int, int]
     kind: str
     words: str
+
+    def __post_init__(self):
+        if self.site not in SITES or min(self.powers) < 0 or self.powers[SITES[self.site].vanish] < 1:
+            raise ValueError(f"discrepancy term '{self.name}': its site {self.site!r} must be one of {tuple(SITES)} "
+                             f"and its powers {self.powers} non-negative, with the site's vanishing variable "
+                             f"(δ₊ at the contact, v at the tool)")
 
     @property
     def params(self) -> tuple[str, ...]:
         """The parameters of the term: its own name."""
         return (self.name,)
+
+    @property
+    def form(self) -> str:
+        """The form in symbols, e.g. ``F_c += c δ₊²`` (from ``powers``)."""
+        site = SITES[self.site]
+        f = [sym + (str(n).translate(_SUPER) if n > 1 else "")
+             for (_, sym), n in zip((site.x, site.y), self.powers) if n]
+        return f"{site.lhs} c {' '.join(f[::-1] if site.y_first else f)}"
 
 
 @dataclass(frozen=True)
@@ -60,19 +110,17 @@ class Structured:
 
 
 TERMS: dict[str, Term] = {t.name: t for t in (
-    Term("contact_quadratic", "N/m^2", CONTACT, "F_c += c δ₊²", "contact",
-         "contact stiffening quadratic in penetration"),
-    Term("contact_cubic", "N/m^3", CONTACT, "F_c += c δ₊³", "contact",
-         "contact stiffening cubic in penetration"),
-    Term("contact_rate_product", "N s/m^2", CONTACT, "F_c += c δ₊ δ̇", "contact",
+    Term("contact_quadratic", "N/m^2", CONTACT, (2, 0), "contact", "contact stiffening quadratic in penetration"),
+    Term("contact_cubic", "N/m^3", CONTACT, (3, 0), "contact", "contact stiffening cubic in penetration"),
+    Term("contact_rate_product", "N s/m^2", CONTACT, (1, 1), "contact",
          "contact damping growing with penetration (Hunt–Crossley-like)"),
-    Term("tool_viscous", "N s/m", TOOL, "F_tool −= c v", "velocity_loss",
-         "viscous loss on the impacting mass"),
-    Term("tool_quadratic_drag", "N s^2/m^2", TOOL, "F_tool −= c v |v|", "velocity_loss",
+    Term("tool_viscous", "N s/m", TOOL, (0, 1), "velocity_loss", "viscous loss on the impacting mass"),
+    Term("tool_quadratic_drag", "N s^2/m^2", TOOL, (1, 1), "velocity_loss",
          "velocity-squared loss (drag) on the impacting mass"),
 )}
-"""The vocabulary, in the kernels' parameter order (``index_of(PARAMS, *TERMS)``; δ₊ = max(δ, 0) the penetration, δ̇ its rate, v the impacting
-mass's velocity)."""
+"""The vocabulary, in the kernels' parameter order (contiguous from ``vocabulary_at(PARAMS)``; δ₊ = max(δ, 0) the
+penetration, δ̇ its rate, v the impacting mass's velocity).  The only declaration of a term: the site sums below are
+generated from it."""
 
 MODE = "load_path_mode"
 MODE_PARAMS = ("load_path_mode_ratio", "load_path_mode_hz", "load_path_mode_zeta")
@@ -116,6 +164,18 @@ SPANS: dict[str, Span] = {
 stiffness the effect multiplies: the pendulum's and RIMD's ki, the indenter's k1, the drill's K1)."""
 
 
+PROBE_AT = 0.45
+"""The probe strength of a term: this fraction of its log10 fit range above the lower bound (about the strength that
+changes the labels by ~10 %).  A model's ``discrepancy_bounds`` are chosen so that it does (the conformance test
+checks the labels move there); the diagnosis' screening starts from it."""
+
+
+def probe_value(b: FitBound) -> float:
+    """A term's probe strength [its unit]: ``PROBE_AT`` of its log10 fit range ``b.bounds`` above the lower bound."""
+    lo, hi = b.bounds
+    return float(10 ** (lo + PROBE_AT * (hi - lo)))
+
+
 def mode_bounds(hz_lo: float, hz_hi: float) -> dict[str, FitBound]:
     """Fit bounds of the hidden mode: its frequency in [hz_lo, hz_hi] [Hz] (a model's own: from below its forcing to
     well above its contact's harmonics), a mass of 2 % to 2x the impacting mass's and a damping ratio 0.5-50 %.
@@ -146,19 +206,76 @@ def discrepancy_params(acts_on: Mapping[str, str]) -> tuple[Param, ...]:
     return tuple(out)
 
 
-@njit(cache=True, inline="always")
-def contact_extra(cq, cc, cp, d, dd):
-    """The contact terms [N]: cq δ₊² + cc δ₊³ + cp δ₊ δ̇ (cq [N/m²], cc [N/m³], cp [N s/m²], δ [m], δ̇ [m/s]);
-    exactly 0.0 when the three coefficients are 0."""
-    dp = max(d, 0.0)
-    return dp * (dp * (cq + cc * dp) + cp * dd)
+def vocabulary_at(params: Sequence[Param]) -> int:
+    """Index of the first term's parameter in a model's parameter vector ``params``: the terms follow it contiguously
+    in vocabulary order (as ``discrepancy_params`` lays them out), which ``terms_at`` reads."""
+    names = [q.name for q in params]
+    first = names.index(next(iter(TERMS)))
+    if tuple(names[first:first + len(TERMS)]) != tuple(TERMS):
+        raise ValueError(f"the discrepancy terms must follow each other in vocabulary order {tuple(TERMS)}")
+    return first
 
 
-@njit(cache=True, inline="always")
-def tool_loss(cv, cq, v):
-    """The tool terms' force [N] opposing the impacting mass's velocity v [m/s]: cv v + cq v |v| (cv [N s/m],
-    cq [N s²/m²]); exactly 0.0 when both are 0."""
-    return v * (cv + cq * abs(v))
+def _power(code: str, n: int) -> str:
+    return " * ".join([code] * n)
+
+
+def _site_sum(site: Site, at: Mapping[str, tuple[int, Term]]) -> str:
+    """The expression of a site's sum of terms ``at`` (name -> (position in the coefficient tuple, term)): with
+    x^a0 y^b0 the least powers factored out, Horner in x, each level's coefficients c y^(b - b0) in vocabulary order.
+    The contact's δ₊ (c₂ δ̇ + δ₊ (c₀ + δ₊ c₁)) and the tool's v (c₃ + |v| c₄) are the evaluation orders of the
+    hand-written sums they replace, bit for bit (IEEE + and × commute exactly)."""
+    if not at:
+        return "0.0"
+    a0 = min(t.powers[0] for _, t in at.values())
+    b0 = min(t.powers[1] for _, t in at.values())
+    levels: dict[int, list[str]] = {}
+    for i, t in at.values():
+        levels.setdefault(t.powers[0] - a0, []).append(" * ".join([f"c[{i}]"] + ["y"] * (t.powers[1] - b0)))
+    expr = ""
+    for k in range(max(levels), -1, -1):
+        expr = f"x * ({expr})" if expr else ""
+        if k in levels:
+            expr = " + ".join(levels[k] + ([expr] if expr else []))
+    for var, n in (("y", b0), ("x", a0)):
+        if n:
+            expr = f"{_power(var, n)} * ({expr})"
+    return expr
+
+
+def site_source(terms: Mapping[str, Term]) -> str:
+    """Python source of ``terms_at(p, i)`` (the coefficients of the vocabulary ``terms``, a tuple read from the
+    parameter vector p at i on) and of every site's sum (``SITES``: ``contact_extra(c, d, dd)``, ``tool_loss(c, v)``)
+    of those coefficients c; exactly 0.0 while the site's coefficients are 0."""
+    reads = "".join(f"p[i + {j}], " for j in range(len(terms)))
+    out = [f"def terms_at(p, i):\n    return ({reads})\n"]
+    for name, site in SITES.items():
+        at = {n: (j, t) for j, (n, t) in enumerate(terms.items()) if t.site == name}
+        forms = "; ".join(f"c[{j}] {t.name}: {t.form}" for j, t in at.values())
+        out.append(f"def {site.name}(c, {', '.join(site.args)}):\n"
+                   f"    \"\"\"The {name} site's terms [N] (generated): {forms or 'none'}.\"\"\"\n"
+                   f"    x = {site.x[0]}\n    y = {site.y[0]}\n"
+                   f"    return {_site_sum(site, at)}\n")
+    return "\n\n".join(out)
+
+
+def site_functions(terms: Mapping[str, Term]) -> dict[str, Callable]:
+    """``site_source(terms)`` as Python functions by name (registered with linecache, so tracebacks show them)."""
+    src = site_source(terms)
+    fname = f"<sim.models.discrepancy sites {abs(hash(src)):x}>"
+    linecache.cache[fname] = (len(src), None, src.splitlines(True), fname)
+    ns: dict = {"__name__": __name__}
+    exec(compile(src, fname, "exec"), ns)
+    return {n: ns[n] for n in ("terms_at", *(s.name for s in SITES.values()))}
+
+
+# The kernels' site functions, generated from TERMS (inlined into every kernel; scalars and a tuple of floats only, no
+# branch: numba adds no reference counting where a model calls them inside its phase branches).  Not cached on disk
+# by numba (no source file): being inlined, they are compiled only as part of their callers.
+_SITES = site_functions(TERMS)
+terms_at = njit(inline="always")(_SITES["terms_at"])
+contact_extra = njit(inline="always")(_SITES["contact_extra"])
+tool_loss = njit(inline="always")(_SITES["tool_loss"])
 
 
 @njit(cache=True, inline="always")

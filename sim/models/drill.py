@@ -34,8 +34,8 @@ import numpy as np
 from sim.jit import interpreted, njit  # numba is imported on first use (sim/jit.py)
 
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
-from sim.models.discrepancy import (MODE_PARAMS, MODE_STATES, TERMS as DISCREPANCY_TERMS, contact_extra,
-                                    discrepancy_params, mode_accel, mode_bounds, mode_force, tool_loss)
+from sim.models.discrepancy import (MODE_PARAMS, MODE_STATES, contact_extra, discrepancy_params, mode_accel,
+                                    mode_bounds, mode_force, terms_at, tool_loss, vocabulary_at)
 from sim.models.effects import effect_params
 from sim.models.param import index_of
 from sim.models.contact import kelvin_voigt, rock_slider_rate, rock_surface_rate
@@ -61,10 +61,10 @@ def _pr_at(pr, gamma, gap, xb):
 
 
 @njit(cache=True, inline="always")
-def _pc_at(k1, alpha, c1, x1, v1, xb, cq, cc, cp):
+def _pc_at(k1, alpha, c1, x1, v1, xb, dc):
     """Phase-II contact force expression [N] from scalars; rate_stiffening: K1 → K1 (1 + α max(ẋ1, 0)); the
-    discrepancy contact terms (cq, cc, cp; sim.models.discrepancy) with δ = x1 − xb, δ̇ = ẋ1."""
-    return kelvin_voigt(rate_stiffened(k1, alpha, v1), c1, x1 - xb, v1) + contact_extra(cq, cc, cp, x1 - xb, v1)
+    discrepancy contact terms (dc: the vocabulary's coefficients, sim.models.discrepancy) with δ = x1 − xb, δ̇ = ẋ1."""
+    return kelvin_voigt(rate_stiffened(k1, alpha, v1), c1, x1 - xb, v1) + contact_extra(dc, x1 - xb, v1)
 
 
 @njit(cache=True, inline="always")
@@ -76,7 +76,7 @@ def _pr_eff(y, p):
 @njit(cache=True, inline="always")
 def _pc_expr(y, p):
     """Phase-II contact force expression [N] of the state ``y`` (``_pc_at``)."""
-    return _pc_at(p[K1], p[ALPHA], p[C1], y[IX1], y[IV1], y[IXB], p[DQ], p[DC], p[DP])
+    return _pc_at(p[K1], p[ALPHA], p[C1], y[IX1], y[IV1], y[IXB], terms_at(p, DISC))
 
 
 @njit(cache=True, inline="always")
@@ -93,7 +93,7 @@ def _rhs_at(t, y, ph, p, dy):
     c1, c2, c3 = p[C1], p[C2], p[C3]
     pr, gap, fs, f0, freq, gamma = p[PR], p[GAP], p[FS], p[F0], p[FREQ], p[GAMMA]
     tau, beta, alpha, mu, kappa, veps = p[TAU], p[BETA], p[ALPHA], p[MU], p[KAPPA], p[VEPS]
-    cq, cc, cp, tv, tq = p[DQ], p[DC], p[DP], p[TV], p[TQ]
+    dc = terms_at(p, DISC)
     ratio = p[IMODE]
     fm = mode_force(ratio, p[IMODE + 1], p[IMODE + 2], m1, y[IXH], y[IVH])
     vh = y[IVH]
@@ -104,13 +104,13 @@ def _rhs_at(t, y, ph, p, dy):
         dxt = rock_surface_rate(k1, c1, xt, xb)
         dxb = 0.0
     elif ph == 1:
-        pc = _pc_at(k1, alpha, c1, x1, v1, xb, cq, cc, cp)
+        pc = _pc_at(k1, alpha, c1, x1, v1, xb, dc)
         dxt = v1
         dxb = 0.0
     else:
         pc = _pr_at(pr, gamma, gap, xb)
         dxt = v1
-        dxb = rock_slider_rate(_pc_at(k1, alpha, c1, x1, v1, xb, cq, cc, cp), pc, c1)
+        dxb = rock_slider_rate(_pc_at(k1, alpha, c1, x1, v1, xb, dc), pc, c1)
     d12 = x1 - x2
     # bit-exciter link: damper, (hardening) spring, guide friction; each effect term is exactly 0 when off (the
     # friction's tanh, a libm call per stage, is then not evaluated).  The friction keeps libm's tanh: the exp form of
@@ -120,7 +120,7 @@ def _rhs_at(t, y, ph, p, dy):
         s12 += mu * math.tanh((v1 - v2) / veps)
     s23 = c3 * (v2 - v3) + k3 * (x2 - x3)
     dy[IX1] = v1
-    a1 = (fh - s12 - pc - tool_loss(tv, tq, v1) + fm) / m1
+    a1 = (fh - s12 - pc - tool_loss(dc, v1) + fm) / m1
     dy[IV1] = a1
     dy[IX2] = v2
     dy[IV2] = (fs + s12 - s23) / m2
@@ -145,7 +145,7 @@ def guards(t, y, z, ph, p, g):
     """The phase's guards (MODELS.md §2), from scalars read first (``_rhs_at``); a phase with one guard sets the other
     to -1."""
     x1, v1, xt, xb = y[IX1], y[IV1], y[IXT], y[IXB]
-    pc = _pc_at(p[K1], p[ALPHA], p[C1], x1, v1, xb, p[DQ], p[DC], p[DP])
+    pc = _pc_at(p[K1], p[ALPHA], p[C1], x1, v1, xb, terms_at(p, DISC))
     pr = _pr_at(p[PR], p[GAMMA], p[GAP], xb)
     if ph == 0:
         a = x1 - xt                                 # I -> II/III: bit reaches the rock surface
@@ -258,7 +258,7 @@ PARAMS = (
                              "sensor_lowpass": "the bit's recorded acceleration"}),
     *discrepancy_params({"contact": "in Pc of phase II, δ = x1 − xb, δ̇ = ẋ1", "tool": "on M1, v = ẋ1"}),
 )
-DQ, DC, DP, TV, TQ = index_of(PARAMS, *DISCREPANCY_TERMS)
+DISC = vocabulary_at(PARAMS)   # the discrepancy terms' coefficients from here on (terms_at)
 IMODE = index_of(PARAMS, *MODE_PARAMS)[0]   # then its frequency and damping ratio
 GAMMA, TAU, BETA, ALPHA, MU, KAPPA, FC = index_of(PARAMS, "gamma", "tau", "beta", "alpha", "mu", "kappa", "fc")
 NP = len(PARAMS)
@@ -389,7 +389,7 @@ SPEC = ModelSpec(
     diagnose_max_harmonic_hz=3000.0,
     diagnose_fit={"candidate_starts": 1, "max_nfev": 10},
     # discrepancy terms (sim.models.discrepancy) at the lab preset's scale: lo changes the ROP by ~0.5-1 %, the probe
-    # (sim/models/discrepancy PROBE_AT) by ~5-20 %, hi by 25-60 %.  contact_rate_product is left out: a release where
+    # (sim.models.discrepancy.PROBE_AT) by ~5-20 %, hi by 25-60 %.  contact_rate_product is left out: a release where
     # the δ δ̇ term takes Pc to 0 while K1 δ + C1 ẋ1 > 0 leaves the surface relaxing (phase I's base law) into the bit,
     # and the onset guard x1 − xt fires at once (event storms at some strengths); the independent reference treats
     # that overlap with two more events — the kernel's phase I would need the same before the term can be offered

@@ -28,8 +28,8 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import FitBound, ModelSpec, Param, SynthRig
-from sim.models.discrepancy import (MODE_PARAMS, MODE_STATES, TERMS as DISCREPANCY_TERMS, contact_extra,
-                                    discrepancy_params, mode_accel, mode_bounds, mode_force, tool_loss)
+from sim.models.discrepancy import (MODE_PARAMS, MODE_STATES, contact_extra, discrepancy_params, mode_accel,
+                                    mode_bounds, mode_force, terms_at, tool_loss, vocabulary_at)
 from sim.models.effects import effect_params
 from sim.models.param import index_of
 from sim.models.contact import branch_depth, branch_force, coulomb_sign, kelvin_voigt, released_force
@@ -89,8 +89,7 @@ def _body(t, y, p, fr, dy):
     beta = p[BETA]
     mu = p[MU]
     kappa = p[KAPPA]
-    tv = p[TV]
-    tq = p[TQ]
+    dc = terms_at(p, DISC)
     ratio = p[IMODE]
     fm = mode_force(ratio, p[IMODE + 1], p[IMODE + 2], m1, y[IXH], y[IVH])
     vh = y[IVH]
@@ -102,7 +101,7 @@ def _body(t, y, p, fr, dy):
     fem, dfem = coil_force(fa * math.sin(om * t), beta, dphi1, tau, fem_y)
     inner = c2 * dphi1 + hardened_spring(k2, phi1, kappa) + guide_friction(mu, dphi1, veps)
     dy[IX1] = v1
-    a1 = (fem - inner - fr - tool_loss(tv, tq, v1) + fm) / m1
+    a1 = (fem - inner - fr - tool_loss(dc, v1) + fm) / m1
     dy[IV1] = a1
     dy[IX2] = v2
     dy[IV2] = (-fem + inner - c3 * dphi2 - k3 * phi2) / m2
@@ -122,7 +121,7 @@ def _metal_expr(y, p):
     d = y[IX1] - p[GAP]
     v1 = y[IV1]
     return (kelvin_voigt(rate_stiffened(p[K1], p[ALPHA], v1), p[C1], d, v1)
-            + contact_extra(p[DQ], p[DC], p[DP], d, v1))
+            + contact_extra(terms_at(p, DISC), d, v1))
 
 
 @njit(cache=True, inline="always")
@@ -355,7 +354,7 @@ COMMON = (
     *discrepancy_params({"contact": "in the metal's Kelvin–Voigt expression, δ = x1 − G, δ̇ = ẋ1 (not the sandstone)",
                          "tool": "on m1, v = ẋ1"}),
 )
-DQ, DC, DP, TV, TQ = index_of(COMMON, *DISCREPANCY_TERMS)
+DISC = vocabulary_at(COMMON)   # the discrepancy terms' coefficients from here on (terms_at)
 IMODE = index_of(COMMON, *MODE_PARAMS)[0]   # then its frequency and damping ratio
 TAU, BETA, ALPHA, MU, GAMMA, KAPPA, FC = index_of(COMMON, "tau", "beta", "alpha", "mu", "gamma", "kappa", "fc")
 # The kernel's parameter vector ends with the effects' parameters; P and D only feed static_force_n.

@@ -34,8 +34,8 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
-from sim.models.discrepancy import (MODE_PARAMS, MODE_STATES, TERMS as DISCREPANCY_TERMS, contact_extra,
-                                    discrepancy_params, mode_accel, mode_bounds, mode_force, tool_loss)
+from sim.models.discrepancy import (MODE_PARAMS, MODE_STATES, contact_extra, discrepancy_params, mode_accel,
+                                    mode_bounds, mode_force, terms_at, tool_loss, vocabulary_at)
 from sim.models.effects import effect_params
 from sim.models.param import index_of
 from sim.models.contact import kelvin_voigt, released_force
@@ -57,10 +57,10 @@ GUARD_STATES = (ITH, IOM)     # the states the guards read (θ, θ̇): the only 
 
 
 @njit(cache=True, inline="always")
-def _force_at(ki, alpha, ci, d, dd, cq, cc, cp):
+def _force_at(ki, alpha, ci, d, dd, dc):
     """Spring–dashpot force expression ki (1 + α max(δ̇,0)) δ + ci δ̇ [N] (unclamped), from scalars, with the
-    discrepancy contact terms (cq, cc, cp; sim.models.discrepancy)."""
-    return kelvin_voigt(rate_stiffened(ki, alpha, dd), ci, d, dd) + contact_extra(cq, cc, cp, d, dd)
+    discrepancy contact terms (dc: the vocabulary's coefficients, sim.models.discrepancy)."""
+    return kelvin_voigt(rate_stiffened(ki, alpha, dd), ci, d, dd) + contact_extra(dc, d, dd)
 
 
 @njit(cache=True, inline="always")
@@ -73,7 +73,7 @@ def _delta(y, p, s, c):
 def _force_expr(y, p, s, c):
     """``_force_at`` of the state (s, c = sin θ, cos θ)."""
     d, dd = _delta(y, p, s, c)
-    return _force_at(p[KI], p[ALPHA], p[CI], d, dd, p[DQ], p[DC], p[DP])
+    return _force_at(p[KI], p[ALPHA], p[CI], d, dd, terms_at(p, DISC))
 
 
 @njit(cache=True, inline="always")
@@ -82,7 +82,7 @@ def _thdd(y, p, fi, s, c, sin_wt, fm):
     w0 = math.sqrt(p[GRAV] / p[LEN])
     return (p[A0] * om * om / p[LEN] * c * sin_wt - p[GRAV] / p[LEN] * s
             - 2.0 * p[ZETA] * w0 * y[IOM] - fi * c / (p[MASS] * p[LEN])
-            - tool_loss(p[TV], p[TQ], p[LEN] * y[IOM]) / (p[MASS] * p[LEN]) + fm / (p[MASS] * p[LEN]))
+            - tool_loss(terms_at(p, DISC), p[LEN] * y[IOM]) / (p[MASS] * p[LEN]) + fm / (p[MASS] * p[LEN]))
 
 
 @njit(cache=True, inline="always")
@@ -113,7 +113,7 @@ def guards(t, y, z, ph, p, g):
     th = y[ITH]
     om_ = y[IOM]
     lenp, gap, ki, ci, alpha = p[LEN], p[GAP], p[KI], p[CI], p[ALPHA]     # read before the branches (``_rhs_at``)
-    cq, cc, cp = p[DQ], p[DC], p[DP]
+    dc = terms_at(p, DISC)
     if ph == 0 and th > -math.pi and lenp * th < gap:
         # free flight, certainly short of the stop: for θ ∈ (−π, 0) sin θ < 0, and for θ ≥ 0 sin θ ≤ θ, so
         # δ = l sin θ − gap < 0 and the guard min(δ, ·) is negative.  l θ − gap [m] is then returned instead of the
@@ -126,7 +126,7 @@ def guards(t, y, z, ph, p, g):
     else:
         s, c = math.sin(th), math.cos(th)
         d = lenp * s - gap
-        ind = _force_at(ki, alpha, ci, d, lenp * om_ * c, cq, cc, cp) / ki
+        ind = _force_at(ki, alpha, ci, d, lenp * om_ * c, dc) / ki
     two_indicator_guard(g, d, ind, ph)
 
 
@@ -191,7 +191,7 @@ PARAMS = (
                          "tool": "tangential on the hammer, v = l θ̇"}),
 )
 (ALPHA,) = index_of(PARAMS, "alpha")
-DQ, DC, DP, TV, TQ = index_of(PARAMS, *DISCREPANCY_TERMS)
+DISC = vocabulary_at(PARAMS)   # the discrepancy terms' coefficients from here on (terms_at)
 IMODE = index_of(PARAMS, *MODE_PARAMS)[0]   # then its frequency and damping ratio
 
 STATES = ("theta", "theta_dot", "work", *MODE_STATES)

@@ -33,8 +33,8 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
 from sim.models.param import index_of
-from sim.models.discrepancy import (MODE_PARAMS, MODE_STATES, TERMS as DISCREPANCY_TERMS, contact_extra,
-                                    discrepancy_params, mode_accel, mode_bounds, mode_force, tool_loss)
+from sim.models.discrepancy import (MODE_PARAMS, MODE_STATES, contact_extra, discrepancy_params, mode_accel,
+                                    mode_bounds, mode_force, terms_at, tool_loss, vocabulary_at)
 from sim.models.effects import effect_params
 from sim.models.contact import hunt_crossley, hunt_crossley_damping
 from sim.models.sensor import sensor_lowpass
@@ -73,14 +73,14 @@ def _rhs_at(t, y, ph, p, dy):
     m1, k1, c1, m2, k2, c2 = p[M1], p[K1], p[C1], p[M2], p[K2], p[C2]
     ki, lam, ni, f0, gap, alpha, kappa = p[KI], p[LAM], p[NI], p[F0], p[GAP], p[ALPHA], p[KAPPA]
     om = 2.0 * math.pi * p[FREQ]
-    cq, cc, cp, tv, tq = p[DQ], p[DC], p[DP], p[TV], p[TQ]
+    dc = terms_at(p, DISC)
     ratio = p[IMODE]
     fm = mode_force(ratio, p[IMODE + 1], p[IMODE + 2], m2, y[IXH], y[IVH])
     vh = y[IVH]
     # the discrepancy contact terms join the Hunt–Crossley force, clamped at 0 (the indicators stay δ, 1 + λi ẋ2);
     # without them the force is the base model's, unclamped, bit for bit
     hc = _force_at(ki, alpha, ni, lam, gap, x2, v2)
-    extra = contact_extra(cq, cc, cp, x2 - gap, v2)
+    extra = contact_extra(dc, x2 - gap, v2)
     fi = (hc if extra == 0.0 else max(hc + extra, 0.0)) if ph > 0 else 0.0
     phi = x2 - x1
     dphi = v2 - v1
@@ -89,7 +89,7 @@ def _rhs_at(t, y, ph, p, dy):
     dy[IX1] = v1
     dy[IV1] = (f - c1 * v1 - k1 * x1 + inner) / m1
     dy[IX2] = v2
-    a2 = (-inner - fi - tool_loss(tv, tq, v2) + fm) / m2
+    a2 = (-inner - fi - tool_loss(dc, v2) + fm) / m2
     dy[IV2] = a2
     dy[IW] = f * v1
     dy[IXH] = vh
@@ -165,7 +165,7 @@ PARAMS = (
                          "tool": "on the hammer m2, v = ẋ2"}),
 )
 ALPHA, KAPPA = index_of(PARAMS, "alpha", "kappa")
-DQ, DC, DP, TV, TQ = index_of(PARAMS, *DISCREPANCY_TERMS)
+DISC = vocabulary_at(PARAMS)   # the discrepancy terms' coefficients from here on (terms_at)
 IMODE = index_of(PARAMS, *MODE_PARAMS)[0]   # then its frequency and damping ratio
 
 STATES = ("x1", "v1", "x2", "v2", "work", *MODE_STATES)

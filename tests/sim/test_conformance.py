@@ -216,7 +216,7 @@ def test_conformance_discrepancy_term_visible_and_off_at_zero(model, term):
     vocabulary parameter with fit bounds; at 0 the labels and final state are the base model's bit for bit; at its
     probe strength (the start of the diagnosis' screening; a structured candidate's parameters all at theirs) it
     moves the labels without failing the run."""
-    from pipeline.diagnosis.discovery import probe_value
+    from sim.models.discrepancy import probe_value
     from sim.models.discrepancy import CANDIDATES, PARAM_OF
 
     spec = sim.get_model(model)

@@ -291,3 +291,71 @@ def test_discrepancy_term_against_reference(model, term):
     assert got["period"] == ref["period"]
     for k in LABELS:
         assert _rel(got[k], ref[k]) <= REL, (k, got[k], ref[k])
+
+
+# ============================================================================= (c) the vocabulary as data
+# The kernels' site sums (contact_extra, tool_loss) are generated from sim.models.discrepancy.TERMS: checked here in
+# Python (the interpreter's IEEE double arithmetic is the compiled code's, no fastmath in sim/) without numba.
+_XS = [(d, dd) for d in (-2e-4, 0.0, 3e-6, 1.7e-4, 0.37) for dd in (-0.21, -0.0, 0.0, 1e-3, 0.9)]
+
+
+def _coefs(rng, n):
+    return tuple(float(x) for x in rng.lognormal(0.0, 8.0, n))
+
+
+def test_the_simulator_vocabulary_is_the_references():
+    """A new term is declared once (sim/models/discrepancy.py ``TERMS``) and given its reference here: both lists
+    agree in order (the simulator's parameter order)."""
+    from sim.models.discrepancy import TERMS
+
+    assert tuple(TERMS) == DISCREPANCY_PARAMS
+
+
+def test_generated_site_sums_are_the_hand_written_forms_bit_for_bit():
+    """The generated sums evaluate in the order of the hand-written ones they replaced (so fits stay identical):
+    δ₊ (δ₊ (cq + cc δ₊) + cp δ̇) and v (cv + cq |v|), bit for bit, and 0.0 while the coefficients are 0."""
+    from sim.jit import interpreted
+    from sim.models import discrepancy as D
+
+    contact, tool = interpreted(D.contact_extra), interpreted(D.tool_loss)
+    rng = np.random.default_rng(3)
+    for _ in range(40):
+        c = _coefs(rng, len(D.TERMS))
+        for d, dd in _XS:
+            cq, cc, cp, cv, cd = c
+            dp = max(d, 0.0)
+            assert contact(c, d, dd) == dp * (dp * (cq + cc * dp) + cp * dd)
+            assert tool(c, dd) == dd * (cv + cd * abs(dd))
+    for d, dd in _XS:
+        assert contact((0.0,) * 5, d, dd) == 0.0 and tool((0.0,) * 5, dd) == 0.0
+    p = np.arange(40.0)
+    assert interpreted(D.terms_at)(p, 7) == tuple(p[7:7 + len(D.TERMS)])
+
+
+def test_a_new_term_is_one_declaration():
+    """A vocabulary with extra terms (not added to the models) generates site sums that carry every term, each c x^a y^b
+    of its declared powers at its position in the coefficient tuple, and a form said from the same powers."""
+    from sim.models.discrepancy import CONTACT, SITES, TERMS, TOOL, Term, site_functions, site_source
+
+    extra = {t.name: t for t in (Term("contact_dummy", "N s^2/m^3", CONTACT, (1, 2), "contact", "a test term"),
+                                 Term("tool_dummy", "N s^3/m^3", TOOL, (2, 1), "velocity_loss", "a test term"))}
+    assert extra["contact_dummy"].form == "F_c += c δ₊ δ̇²" and extra["tool_dummy"].form == "F_tool −= c v |v|²"
+    vocab = {**TERMS, **extra}
+    src = site_source(vocab)
+    assert all(t in src for t in vocab)
+    fns = site_functions(vocab)
+    assert fns["terms_at"](np.arange(20.0), 3) == tuple(range(3, 3 + len(vocab)))
+    var = {CONTACT: lambda d, dd: (max(d, 0.0), dd), TOOL: lambda v: (abs(v), v)}
+    for j, t in enumerate(vocab.values()):
+        for d, dd in _XS:
+            args = (d, dd) if t.site == CONTACT else (dd,)
+            x, y = var[t.site](*args)
+            c = tuple(2.5 if i == j else 0.0 for i in range(len(vocab)))
+            got = fns[SITES[t.site].name](c, *args)
+            other = [s for s in SITES if s != t.site][0]
+            assert got == pytest.approx(2.5 * x ** t.powers[0] * y ** t.powers[1], rel=1e-15, abs=0.0), (t.name, d, dd)
+            assert fns[SITES[other].name](c, *((d, dd) if other == CONTACT else (dd,))) == 0.0
+    with pytest.raises(ValueError, match="powers"):
+        Term("off_contact", "N s/m", CONTACT, (0, 1), "contact", "a force without penetration")
+    with pytest.raises(ValueError, match="powers"):
+        Term("at_rest", "N", TOOL, (1, 0), "velocity_loss", "a force on a mass at rest")
