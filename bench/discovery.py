@@ -209,6 +209,10 @@ def main(argv: list[str] | None = None) -> int:
                   f"proposals {[p['terms'] for p in r['proposals']]}, nrms {_fmt(r['base_nrms'])} -> "
                   f"{_fmt(r['final_nrms'])} ({r['wall_time_s']:.0f} s)", flush=True)
         rows.append(done[name])
+    if a.tables_only and not rows:     # no stored rows here: say so rather than overwrite the tables with empty ones
+        print(f"bench.discovery --tables-only: no stored rows in {done_file} for this selection; nothing written",
+              file=sys.stderr)
+        return 2
     text = table(rows)
     print(text)
     summary = {"rows": len(rows), "right": sum(r["correct"] for r in rows)}

@@ -324,6 +324,10 @@ def main(argv: list[str] | None = None) -> int:
               f"(selected {r['selected']}, nrms {_fmt(r['base_nrms'])} -> {_fmt(r['final_nrms'])}, "
               f"systematic {_fmt(r['base_systematic'])} -> {_fmt(r['final_systematic'])}, {r['wall_time_s']:.0f} s)",
               flush=True)
+    if a.replay and not rows:      # no stored rows here: say so rather than overwrite the tables with empty ones
+        print(f"bench.identification --replay: no stored rows in {done_file} for this selection; nothing written",
+              file=sys.stderr)
+        return 2
     if a.replay:
         from pipeline.diagnosis.run import DiagnoseConfig
         c = DiagnoseConfig()
