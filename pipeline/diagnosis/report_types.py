@@ -106,7 +106,7 @@ class Absorption(_Record):
     """The value in the fit with ``effect`` [SI]."""
     change: float = _f()
     """base / with - 1 [-]."""
-    effect: Effects = _f(EFFECTS)
+    effects: Effects = _f(EFFECTS, key="effect")
     """The effect(s) of the fit compared with."""
 
 

@@ -74,6 +74,19 @@ def test_unexplained_writes_the_calibrated_base_and_says_how_wrong():
     assert info.explained is False and info.model_error == 0.21 and info.noise_floor == 0.042
 
 
+def test_an_unexplained_rig_names_the_parameters_that_absorbed_the_missing_physics():
+    from pipeline.diagnosis.report_types import Absorption
+
+    fits = {"base": _fit(BASE, {k: 0.1 * v for k, v in BASE.items()})}
+    diag = _diag(None, False, fits, "base", _targets())
+    moved = {"Pr": Absorption(base=2800.0, with_=2500.0, change=0.12, effects=("shaker_coil", "guide_friction"))}
+    diag = replace(diag, report=replace(diag.report, absorbed=moved))
+    rig, info = corrected_rig(diag, ["lab", "lab"], "d")
+    assert "may have absorbed the missing physics: Pr (+12 % against the fit with shaker_coil+guide_friction)" \
+        in rig.source
+    assert info.absorbed == moved and info.to_json()["absorbed"]["Pr"]["effect"] == "shaker_coil+guide_friction"
+
+
 def test_the_held_out_rop_error_becomes_the_rigs_model_error():
     """The final model's held-out ROP error (relative, noise-weighted) is the rig's ``model_error``; without ROP on
     the held-out runs the rig gives none (unknown, not 0)."""
