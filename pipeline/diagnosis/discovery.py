@@ -193,12 +193,11 @@ def discover(ev: Evaluator, cfg: DiagnoseConfig, scheme: FoldScheme, calibrated:
 
     def fit_on(runs: list[list[int]], start: list[FitResult]) -> list[dict[str, FitResult]]:
         return fit_added(ev, runs, cfg, cands, start, executor, extra_starts=starts, nominal=nominal)
-    fitter = Fitter(lambda sets: fit_on(sets, [f["base"] for f in calibrated.fold_fits]),
-                    lambda: fit_on([scheme.reported_runs], [base])[0])
+    fitter = Fitter.from_starts(fit_on, scheme, [f["base"] for f in calibrated.fold_fits], base)
     j = judge(ev, scheme, fitter, cfg.rule(), against=base_stats)
     for m in j.stats:
         log(f"  {m}: held-out nrms {j.err[m].nrms:.4g} (base {math.sqrt(base_stats.chi2 / max(base_stats.n, 1)):.4g})")
-    return Discovery(screening=scr, fits=j.fits, err={m: j.err[m] for m in j.stats}, stats=j.stats,
+    return Discovery(screening=scr, fits=j.fits, err=j.err, stats=j.stats,
                      accepted=j.verdict.selected, leader=j.verdict.leader, checks=j.verdict.checks)
 
 

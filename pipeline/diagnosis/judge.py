@@ -9,7 +9,7 @@ effects stage starts every fold).  ``make_folds`` picks one from the number of r
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, ClassVar, Protocol
 
 from pipeline.core.errors import UserError
@@ -107,6 +107,13 @@ class Fitter:
     on_folds: Callable[[list[list[int]]], list[Fits]]
     on_all: Callable[[], Fits]
 
+    @classmethod
+    def from_starts(cls, fit: Callable[[list[list[int]], list[FitResult]], list[Fits]], scheme: FoldScheme,
+                    fold_starts: list[FitResult], reported_start: FitResult) -> Fitter:
+        """A stage that builds on an earlier one: ``fit(run sets, start fits)`` on every fold from that fold's entry
+        of ``fold_starts``, and on the scheme's reported runs from ``reported_start`` (the earlier reported fit)."""
+        return cls(lambda sets: fit(sets, fold_starts), lambda: fit([scheme.reported_runs], [reported_start])[0])
+
 
 @dataclass(frozen=True)
 class Judged:
@@ -143,4 +150,4 @@ def judge(ev: Evaluator, scheme: FoldScheme, fitter: Fitter, rule: VerdictRule,
     out = Judged(fold_fits, None, err, stats, cal_chi2, verdict, held_out)
     if keep is not None and not keep(out):
         return out
-    return Judged(fold_fits, scheme.reported(fold_fits, fitter.on_all), err, stats, cal_chi2, verdict, held_out)
+    return replace(out, fits=scheme.reported(fold_fits, fitter.on_all))

@@ -42,9 +42,9 @@ def residual_structure(diag: SystemDiagnosis, base_runs: list[SimulatedRun],
                                 b.peak_velocity_m_s, _nrms(b.residual), _nrms(f.residual), b.run in diag.held_out))
     corr = {}
     y = [r.base_nrms for r in rows]
+    covariates = [{**{k: r.controls[k] for k in CONTROL_KEYS}, "peak_velocity_m_s": r.peak_velocity_m_s} for r in rows]
     for key in (*CONTROL_KEYS, "peak_velocity_m_s"):
-        x = [v if v is not None else np.nan
-             for v in (r.peak_velocity_m_s if key == "peak_velocity_m_s" else r.controls[key] for r in rows)]
+        x = [np.nan if c[key] is None else c[key] for c in covariates]
         if all(v is None or not np.isfinite(v) for v in x):
             continue
         if len(set(x)) > 2:

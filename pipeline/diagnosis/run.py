@@ -148,9 +148,10 @@ def _second_effect(d: _Diagnosis, first: str) -> Judged:
     calibration runs (from the fold's fit with ``first``) and judged on its held-out runs against ``first`` alone by
     the same rule; the reported fits start from the reported fit with ``first``."""
     ev, cfg, cands, ex, effects = d.ev, d.cfg, d.cands, d.executor, d.effects
-    fitter = Fitter(
-        lambda sets: fit_additions(ev, sets, cfg, first, cands, [f[first] for f in effects.fold_fits], ex),
-        lambda: fit_additions(ev, [d.scheme.reported_runs], cfg, first, cands, [effects.fits[first]], ex)[0])
+
+    def fit_on(sets: list[list[int]], starts: list[FitResult]) -> list[dict]:
+        return fit_additions(ev, sets, cfg, first, cands, starts, ex)
+    fitter = Fitter.from_starts(fit_on, d.scheme, [f[first] for f in effects.fold_fits], effects.fits[first])
     j = judge(ev, d.scheme, fitter, cfg.rule(), against=d.stats[first])
     for m in j.stats:
         d.log(f"  {m}: held-out nrms {j.err[m].nrms:.4g}")
@@ -229,10 +230,9 @@ def _as_effect(ev: Evaluator, cfg: DiagnoseConfig, scheme: FoldScheme, found, ca
     log(f"{ev.system}: the proposal {found.accepted} is {eff} in another form: refitting {eff} from "
         + ", ".join(f"{k} = {x:.4g}" for k, x in start.items()))
 
-    def fit_on(sets: list[list[int]]) -> list[dict]:
-        return fit_added(ev, sets, cfg, {eff: cands[eff]}, [base_start] * len(sets), executor,
-                         extra_starts={eff: start})
-    fitter = Fitter(fit_on, lambda: fit_on([scheme.reported_runs])[0])
+    def fit_on(sets: list[list[int]], starts: list[FitResult]) -> list[dict]:
+        return fit_added(ev, sets, cfg, {eff: cands[eff]}, starts, executor, extra_starts={eff: start})
+    fitter = Fitter.from_starts(fit_on, scheme, [base_start] * len(scheme.folds), base_start)
     j = judge(ev, scheme, fitter, cfg.rule(), keep=lambda j: j.stats[eff].bic < stats[eff].bic)
     if j.fits is None:
         log(f"  {eff} from the proposal: no better than its own fit")
