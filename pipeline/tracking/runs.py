@@ -154,20 +154,41 @@ def _first_contact(mlflow):
                         f"MLFLOW_TRACKING_URI, or pass --no-mlflow") from None
 
 
+@contextlib.contextmanager
+def _creating_store():
+    """Held while a SQLite store's tables and experiment may be created: two commands started together on a fresh
+    repository would otherwise both create the tables (SQLite: 'table experiments already exists')."""
+    uri = tracking_uri()
+    if not uri.startswith("sqlite:///"):
+        yield
+        return
+    import fcntl
+
+    lock = Path(uri[len("sqlite:///"):] + ".lock")
+    lock.parent.mkdir(parents=True, exist_ok=True)
+    with open(lock, "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
 def setup():
     """Point mlflow at the configured store and experiment; returns the mlflow module."""
     _quiet_mlflow()
     import mlflow
 
     mlflow.set_tracking_uri(tracking_uri())
-    if _first_contact(mlflow) is None:
-        art = project_root() / "mlartifacts"
-        uri = tracking_uri()
-        kwargs = {"artifact_location": art.as_uri()} if uri.startswith("sqlite:") else {}
-        try:          # the kind at creation: the UI never sees the experiment without it
-            mlflow.create_experiment(experiment_name(), tags={EXPERIMENT_KIND_TAG: EXPERIMENT_KIND}, **kwargs)
-        except Exception:  # noqa: BLE001 - created concurrently by another process
-            pass
+    with _creating_store():
+        if _first_contact(mlflow) is None:
+            art = project_root() / "mlartifacts"
+            uri = tracking_uri()
+            kwargs = {"artifact_location": art.as_uri()} if uri.startswith("sqlite:") else {}
+            try:          # the kind at creation: the UI never sees the experiment without it
+                mlflow.create_experiment(experiment_name(), tags={EXPERIMENT_KIND_TAG: EXPERIMENT_KIND}, **kwargs)
+            except Exception:  # noqa: BLE001 - created concurrently by another process
+                pass
     exp = mlflow.set_experiment(experiment_name())
     if (exp.tags or {}).get(EXPERIMENT_KIND_TAG) != EXPERIMENT_KIND:      # created before the tag existed
         try:
