@@ -286,6 +286,20 @@ def _interleaved(systems: list[str], only: list[str] | None) -> list[tuple[str, 
     return out
 
 
+BEFORE_CHAIN_DEFAULT = {"estimate_chain": False}
+"""The settings of a stored case that names none: it ran before the undeclared chain was estimated by default."""
+
+
+def _settings(items: list[str]) -> dict:
+    """``["estimate_chain=false", "max_nfev=10"]`` -> diagnose settings (true/false, numbers)."""
+    out = {}
+    for item in items:
+        k, _, v = item.partition("=")
+        low = v.strip().lower()
+        out[k.strip()] = low == "true" if low in ("true", "false") else float(v) if "." in v or "e" in low else int(v)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--systems", nargs="+", default=["drill", "indenter-metal", "indenter-sandstone", "pendulum", "rimd"])
@@ -299,12 +313,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--fresh", action="store_true", help="diagnose every case again (the logs are kept)")
     p.add_argument("--replay", action="store_true", help="recompute verdicts from stored statistics only")
     p.add_argument("--no-doc", action="store_true", help="do not rewrite docs/identification.md")
+    p.add_argument("--setting", action="append", default=[], metavar="KEY=VALUE",
+                   help="a diagnose setting for every case (repeatable), e.g. estimate_chain=false; a stored case is "
+                        "reused only when it ran with the same settings")
     a = p.parse_args(argv)
+    settings = _settings(a.setting)
     if a.quick:
         a.seeds, a.noise = a.seeds[:1], a.noise[:1]
     WORK.mkdir(parents=True, exist_ok=True)
     done_file = WORK / "rows.json"
-    done = {r["name"]: r for r in json.loads(done_file.read_text())} if done_file.exists() and not a.fresh else {}
+    stored = json.loads(done_file.read_text()) if done_file.exists() else []
+    other = [r for r in stored if r.get("settings", BEFORE_CHAIN_DEFAULT) != settings]     # kept, not reused
+    done = {r["name"]: r for r in stored if r not in other} if not a.fresh else {}
     todo = [(s, c, n, seed) for seed in a.seeds for c, s in _interleaved(a.systems, a.cases) for n in a.noise]
     rows = []
     for k, (s, c, n, seed) in enumerate(todo, 1):
@@ -316,10 +336,10 @@ def main(argv: list[str] | None = None) -> int:
             if name in done:
                 rows.append(done[name])
             continue
-        r = run_case(s, c, n, seed, a.threads, n_runs=a.n_runs)
+        r = {**run_case(s, c, n, seed, a.threads, settings, n_runs=a.n_runs), "settings": settings}
         done[name] = r
         rows.append(r)
-        done_file.write_text(json.dumps(list(done.values()), indent=1, default=float))
+        done_file.write_text(json.dumps([*other, *done.values()], indent=1, default=float))
         print(f"[{k}/{len(todo)}] {name}: {r['verdict']} {'✓' if r['correct'] else '✗'} "
               f"(selected {r['selected']}, nrms {_fmt(r['base_nrms'])} -> {_fmt(r['final_nrms'])}, "
               f"systematic {_fmt(r['base_systematic'])} -> {_fmt(r['final_systematic'])}, {r['wall_time_s']:.0f} s)",

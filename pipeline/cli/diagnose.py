@@ -106,8 +106,9 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
   record_window [64]       a steady-state series is compared over its first this many cycles (0 = all)
   summary_sd [{}]          e.g. {peak_decel_g: [rel, 0.05], impacts_per_cycle: [abs, 0.5]}
   seed [0]                 seed of the random starts
-  estimate_chain [false]   estimate an undeclared DAQ chain (delay per channel, clock) as nuisance; set it in
-                           --params (a per-channel delay would also take up the sensor_lowpass effect's phase)
+  estimate_chain [model]   estimate an undeclared DAQ chain (delay per channel, clock) as nuisance beside every
+                           fit, never as an effect (default true; the pendulum's false); false: the records are
+                           taken as the rig's signals unfiltered
   scheduler [null]         Dask scheduler (tcp://host:8786) or local:N that runs the fits; null = this process
                            (--threads simulation threads); not part of the report: the numbers are the same
 examples:
@@ -126,7 +127,8 @@ def add_parser(sub) -> None:
     p.add_argument("--out", required=True, metavar="DIR", help="output directory (report.json, report.md, figures)")
     p.add_argument("--params", metavar="FILE.yaml", help="read settings from this file's 'diagnose' section")
     p.add_argument("--setting", "--set", dest="sets", action="append", metavar="KEY=VALUE",
-                   help="override one numeric 'diagnose' setting (repeatable), e.g. --setting max_nfev=10; "
+                   help="override one 'diagnose' setting (repeatable), e.g. --setting max_nfev=10 or "
+                        "--setting estimate_chain=false; "
                         "alias --set (older spelling)")
     p.add_argument("--effects", nargs="+", metavar="EFFECT", help="only try these candidate effects")
     p.add_argument("--metrics", metavar="FILE.json",
@@ -205,7 +207,7 @@ def run(args) -> int:
     from pipeline.diagnosis.workflow import diagnose
     from pipeline.diagnosis.outputs import write_outputs
 
-    cfg = load_config(args.params, parse_assignments(args.sets, "--setting"), args.effects, check_workers(args.threads))
+    cfg = load_config(args.params, parse_assignments(args.sets, "--setting", words=("estimate_chain",)), args.effects, check_workers(args.threads))
     scheduler = scheduler_of(args.params, args.scheduler)
     ds = load_dataset(args.dataset)
     check_signals(ds)

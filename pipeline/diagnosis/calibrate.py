@@ -150,6 +150,21 @@ def fit_models(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, cands
     return list(zip(outs, lines))
 
 
+def refit(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, added: dict[str, list[FreeParam]],
+          start_fits: list[dict[str, FitResult]], executor: Executor) -> list[dict[str, FitResult]]:
+    """Per fold: ``start_fits[f]`` with the models of ``added`` (name -> its parameters beside the calibratable
+    ones) fitted again on the fold's runs from their values there (one start each, ``refine_nfev`` iterations):
+    after something the fits depend on changed (the undeclared chain's clock)."""
+    free = list(calibratable(ev.system))
+    keys = [(f, m) for f in range(len(folds)) for m in added]
+    jobs = [FitJob(folds[f], free + list(added[m]), {}, [start_fits[f][m].values], cfg.refine_nfev, cfg.diff_step)
+            for f, m in keys]
+    outs = [dict(s) for s in start_fits]
+    for (f, m), fr in zip(keys, _fits(executor, ev, ev.for_tasks(executor.task_threads), jobs, [m for _, m in keys])):
+        outs[f][m] = _extended(start_fits[f][m], fr)
+    return outs
+
+
 def _refit_base(executor: Executor, ev: Evaluator, shared: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig,
                 free: list[FreeParam], outs: list[dict[str, FitResult]], lines: list[list[str]]) -> None:
     """Fit the base model once more from the calibratable values of the best candidate fit, when that fit is

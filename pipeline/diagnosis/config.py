@@ -56,7 +56,7 @@ def check_config(cfg) -> None:
         check_setting(name, getattr(cfg, name))
     if cfg.effects is not None and (not isinstance(cfg.effects, list) or not all(isinstance(e, str) for e in cfg.effects)):
         raise UserError(f"diagnose setting 'effects' must be a list of effect names, got {cfg.effects!r}")
-    if not isinstance(cfg.estimate_chain, bool):
+    if cfg.estimate_chain is not None and not isinstance(cfg.estimate_chain, bool):
         raise UserError(f"diagnose setting 'estimate_chain' must be true or false, got {cfg.estimate_chain!r}")
     for name in ("sim_settings", "summary_sd"):
         if not isinstance(getattr(cfg, name), dict):
@@ -102,9 +102,8 @@ class DiagnoseConfig:
     summary_sd: dict = field(default_factory=dict)   # e.g. {"peak_decel_g": ["rel", 0.05]}
     seed: int = 0
     n_threads: int | None = None
-    estimate_chain: bool = False        # estimate an undeclared DAQ chain (delay per channel, clock) as nuisance;
-    #                                     off by default: a per-channel delay also takes up an accelerometer's own
-    #                                     low-pass (the sensor_lowpass effect), so it is asked for, not assumed
+    estimate_chain: bool | None = None  # estimate an undeclared DAQ chain (delay per channel, clock) as nuisance
+    #                                     beside every fit; None: the model's default (ModelSpec.diagnose_chain)
 
     def __post_init__(self) -> None:
         check_config(self)

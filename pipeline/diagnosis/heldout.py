@@ -9,6 +9,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from pipeline.diagnosis.model import Evaluator
+from pipeline.diagnosis.nuisance import calibration_chains
 from pipeline.diagnosis.verdict import ModelStats
 
 
@@ -106,9 +107,9 @@ def fold_errors(ev: Evaluator, folds, fold_fits: list[dict], names: list[str], f
     halves = {m: [] for m in every}
     idx: list[int] = []
     bic = {m: 0.0 for m in names}
-    for (_, test), fits in zip(folds, fold_fits):
+    for (cal, test), fits in zip(folds, fold_fits):
         sets = [*fixed.values(), *(fits[m].values for m in names)]
-        for m, (r, h) in zip(every, ev.held_out(sets, test)):
+        for m, (r, h) in zip(every, ev.held_out(sets, test, calibration_chains(ev, sets, cal))):
             res[m] += r
             halves[m] += h
         idx += test

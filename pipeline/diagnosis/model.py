@@ -57,8 +57,9 @@ def default_max_harmonic_hz(system: str) -> float:
 
 
 def default_fit_settings(system: str) -> dict:
-    """Default candidate_starts and max_nfev of ``system`` (``ModelSpec.diagnose_fit``; DiagnoseConfig None values)."""
-    return dict(_spec(system).diagnose_fit)
+    """Default candidate_starts, max_nfev (``ModelSpec.diagnose_fit``) and estimate_chain (``diagnose_chain``) of
+    ``system``: the DiagnoseConfig values left None."""
+    return {**_spec(system).diagnose_fit, "estimate_chain": _spec(system).diagnose_chain}
 
 
 warm = sim_warm
@@ -172,7 +173,11 @@ class Evaluator:
         return out
 
     def residual_of(self, i: int, res) -> np.ndarray:
-        tg = self.targets[i]
+        return self.residual_for(self.targets[i], res)
+
+    @staticmethod
+    def residual_for(tg: Target, res) -> np.ndarray:
+        """Noise-normalised residual of target ``tg`` (a run's, or it read through another chain) from ``res``."""
         m = simulated_features(tg, res)
         if m is None:        # runaway / failed: compare with zero response (large, finite residual)
             m = np.zeros_like(tg.y)
@@ -194,9 +199,18 @@ class Evaluator:
                     for row in sims]
         return [np.concatenate([self.residual_of(i, r) for i, r in zip(idx, row)]) for row in sims]
 
-    def held_out(self, param_sets: list[dict], idx: list[int]) -> list[tuple[list[np.ndarray], list]]:
+    def held_out(self, param_sets: list[dict], idx: list[int], chains: list | None = None
+                 ) -> list[tuple[list[np.ndarray], list]]:
         """Per parameter set: the normalised residual of every run ``idx`` and the model's features of each half
-        of its record (``features.simulated_halves``; None for summary runs)."""
+        of its record (``features.simulated_halves``; None for summary runs).  ``chains``: per set, an undeclared
+        chain (``nuisance.calibration_chains``) read on the profiled runs in place of the targets' own."""
+        from pipeline.diagnosis.nuisance import with_chain
+
         sims = self.simulate(param_sets, idx)
-        return [([self.residual_of(i, r) for i, r in zip(idx, row)],
-                 [simulated_halves(self.targets[i], r) for i, r in zip(idx, row)]) for row in sims]
+        chains = chains or [None] * len(param_sets)
+        out = []
+        for row, nuis in zip(sims, chains):
+            tgs = [with_chain(self.targets[i], nuis if i in self.profile_runs else None) for i in idx]
+            out.append(([self.residual_for(tg, r) for tg, r in zip(tgs, row)],
+                        [simulated_halves(tg, r) for tg, r in zip(tgs, row)]))
+        return out

@@ -1,13 +1,16 @@
-"""An undeclared recording chain estimated as nuisance parameters beside the calibration (never a §6 effect).
+"""An undeclared recording chain estimated as nuisance parameters beside every fit (never a §6 effect).
 
 Where runs.csv declares no DAQ chain for a series run, the log's chain is unknown: a delay per channel (what the
 anti-alias filter and the DAQ's alignment leave, shared by every run of the log at the same sampling rate: the
-filter follows the rate) and one clock error ε.  They are estimated once, on the base model's calibration: the base
-model is fitted to every run with the chain profiled out of its residual (for each parameter set simulated, the
-delays and ε that fit its features best, a cheap least squares on the harmonics' phases, ``profile``); for records
-from rest the clock is then searched with the model sampled at the clock's instants (``estimate_chain``); and the
-chain found is held fixed for every model the diagnosis fits and judges (base, candidates, pairs, proposals).  The physics never trades against it:
-no candidate can move it, and it cannot move with a candidate.
+filter follows the rate) and one clock error ε.  They are profiled out of every model's residual: for each
+parameter set simulated, the delays and ε that fit its features best (a cheap least squares on the harmonics'
+phases, ``profile``).  A chain fixed from the base model's fit would take up whatever of a missing effect looks like
+a delay (a shaker coil's lag, guide friction's phase, an accelerometer's own low-pass) before any candidate is
+fitted; profiled inside each fit, the chain moves with the model, and a model's held-out runs are read through the
+chain of its own calibration runs (``calibration_chains``).  The base model's fit starts it (``estimate_chain``):
+for records from rest the clock is located there with the model sampled at the clock's instants, and each fit
+profiles what is left as a rotation; the clock is located again at the leading candidate's fit before the fits
+are judged, and at the final model's for the report (``locate_chain``).
 
 The chain acts on the features as ``instrument.rotation``: harmonic k of signal s turns by k Ω (ε t̄ − τ_s).  A
 delay is told from the clock by the clock's drift of phase over the record, which the records' two halves show
@@ -16,14 +19,15 @@ fitting the harmonics below PROFILE_CEILINGS_HZ in turn.
 """
 from __future__ import annotations
 
+import copy
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from pipeline.diagnosis.features import _coefs, _features, model_on_record, simulated_features
-from pipeline.diagnosis.instrument import Nuisance, apply_gain, channel, rotation
+from pipeline.diagnosis.features import _coefs, _features, model_on_record
+from pipeline.diagnosis.instrument import Nuisance, channel, rotation
 
 MAX_DELAY_S = 2e-3
 """Bound of an estimated delay [s] (a delta-sigma ADC's uncompensated filter delays by ~1 ms at 25 kHz)."""
@@ -45,6 +49,8 @@ class ChainEstimate:
     clock_ppm: float
     clock_sd_ppm: float
     base_chi2_per_n: float
+    model: str = "base"
+    """The model whose fit the chain was profiled in (the final one)."""
 
     def to_record(self):
         """report.json ``recording.estimated`` (a ``report_types.EstimatedChain``)."""
@@ -59,7 +65,7 @@ class ChainEstimate:
     def text(self) -> str:
         sd = dict(self.delay_sd_s)
         d = ", ".join(f"{s} at {fs:g} Hz {1e6 * v:.2f} ± {1e6 * sd[(s, fs)]:.2f} µs" for (s, fs), v in self.delay_s)
-        return (f"undeclared DAQ chain estimated on the base model's calibration and held fixed for every model: "
+        return (f"undeclared DAQ chain profiled in every model's fit, as fitted with the {self.model} model: "
                 f"delay {d}; clock {self.clock_ppm:.2f} ± {self.clock_sd_ppm:.2f} ppm ({len(self.runs)} runs)")
 
 
@@ -104,52 +110,133 @@ def profile_items(tg, res, keys: tuple) -> list[_Item]:
     return out
 
 
-def _residual(x: np.ndarray, items: list[_Item], ceiling: float, clock: bool = True) -> np.ndarray:
-    tau, eps = (1e-6 * x[:-1], 1e-6 * x[-1]) if clock else (1e-6 * x, 0.0)
-    out = []
-    for it in items:
-        keep = it.kw <= 2.0 * math.pi * ceiling
-        z = rotation(it.kw[keep], tau[it.sig[keep]], eps, it.tbar, it.span) * it.m[keep] - it.y[keep]
-        out += [z.real / it.sd_re[keep], z.imag / it.sd_im[keep]]
-    return np.concatenate(out) if out else np.zeros(0)
+@dataclass(frozen=True)
+class _Kept:
+    """The items' harmonics below a ceiling, concatenated: angular frequency, channel, model and measured pair, sd
+    of its real and imaginary part, mid time and length of its stretch (per harmonic)."""
+
+    kw: np.ndarray
+    sig: np.ndarray
+    m: np.ndarray
+    y: np.ndarray
+    sd_re: np.ndarray
+    sd_im: np.ndarray
+    tbar: np.ndarray
+    span: np.ndarray
 
 
-def profile(items: list[_Item], n_sig: int, clock: bool = True) -> tuple[np.ndarray, np.ndarray, float, int]:
-    """The delays [µs] and clock error [ppm] (``clock``; else the delays alone) that fit ``items`` best: (x, Jacobian
-    of the normalised residual at x, χ², number of residuals)."""
+def _kept(items: list[_Item], ceiling: float) -> _Kept:
+    """The harmonics of ``items`` below ``ceiling`` [Hz], in one set of arrays."""
+    keep = [it.kw <= 2.0 * math.pi * ceiling for it in items]
+    cat = lambda f: np.concatenate([f(it)[k] for it, k in zip(items, keep)]) if items else np.zeros(0)  # noqa: E731
+    return _Kept(cat(lambda it: it.kw), cat(lambda it: it.sig).astype(int), cat(lambda it: it.m), cat(lambda it: it.y),
+                 cat(lambda it: it.sd_re), cat(lambda it: it.sd_im), cat(lambda it: np.full(it.kw.size, it.tbar)),
+                 cat(lambda it: np.full(it.kw.size, it.span)))
+
+
+def _split(x: np.ndarray, clock: bool) -> tuple[np.ndarray, float]:
+    return (1e-6 * x[:-1], 1e-6 * x[-1]) if clock else (1e-6 * x, 0.0)
+
+
+def _residual(x: np.ndarray, k: _Kept, clock: bool = True) -> np.ndarray:
+    tau, eps = _split(x, clock)
+    z = rotation(k.kw, tau[k.sig], eps, k.tbar, k.span) * k.m - k.y
+    return np.concatenate([z.real / k.sd_re, z.imag / k.sd_im])
+
+
+def _jacobian(x: np.ndarray, k: _Kept, clock: bool = True) -> np.ndarray:
+    """d residual / d x (delays [µs], clock [ppm]) of ``_residual``, analytic: a delay turns its channel's pairs
+    by −i kΩ, the clock by i kΩ t̄ and scales them by the sinc's derivative."""
+    tau, eps = _split(x, clock)
+    u = k.kw * eps * k.span / (2.0 * np.pi)
+    sinc = np.sinc(u)
+    turn = np.exp(1j * k.kw * (eps * k.tbar - tau[k.sig]))
+    zm = sinc * turn * k.m
+    block = np.zeros((k.kw.size, x.size), dtype=complex)
+    block[np.arange(k.kw.size), k.sig] = -1j * k.kw * zm * 1e-6
+    if clock:
+        safe = np.where(u != 0.0, u, 1.0)
+        dsinc = np.where(u != 0.0, (np.cos(np.pi * u) - sinc) / safe, 0.0)
+        block[:, -1] = (dsinc * k.kw * k.span / (2.0 * np.pi) * turn * k.m + 1j * k.kw * k.tbar * zm) * 1e-6
+    return np.concatenate([block.real / k.sd_re[:, None], block.imag / k.sd_im[:, None]])
+
+
+def lowest_delays_us(keys: tuple) -> np.ndarray:
+    """Lower bound of each channel's delay [µs]: a causal chain only delays, but a multiplexed ADC may sample a
+    channel up to one sample interval before the instant it is dated, so down to −1/fs."""
+    return np.array([-1e6 / fs for _, fs in keys])
+
+
+def profile(items: list[_Item], n_sig: int, clock: bool = True, lowest_us: np.ndarray | None = None
+            ) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """The delays [µs] and clock error [ppm] (``clock``; else the delays alone) that fit ``items`` best, each delay
+    within [``lowest_us``, MAX_DELAY_S] (default lower bound −MAX_DELAY_S): (x, Jacobian of the normalised residual
+    at x, χ², number of residuals)."""
     x = np.zeros(n_sig + int(clock))
     lim = np.r_[np.full(n_sig, 1e6 * MAX_DELAY_S), [1e6 * MAX_CLOCK] * int(clock)]
-    sol = None
+    low = -lim.copy()
+    if lowest_us is not None:
+        low[:n_sig] = lowest_us
     for ceiling in PROFILE_CEILINGS_HZ:
-        sol = least_squares(_residual, x, bounds=(-lim, lim), args=(items, ceiling, clock), method="trf",
-                            x_scale=10.0, xtol=1e-10, ftol=1e-10, max_nfev=200)
+        kept = _kept(items, ceiling)
+        if kept.kw.size == 0 and math.isfinite(ceiling):
+            continue
+        sol = None
+        if kept.kw.size * 2 >= x.size:      # Levenberg-Marquardt (MINPACK): twice as fast as the bounded trf here
+            sol = least_squares(_residual, x, jac=_jacobian, args=(kept, clock), method="lm", x_scale=10.0,
+                                xtol=1e-10, ftol=1e-10, max_nfev=200)
+        if sol is None or np.any(sol.x > lim) or np.any(sol.x < low):
+            sol = least_squares(_residual, np.clip(x, low, lim), jac=_jacobian, bounds=(low, lim),
+                                args=(kept, clock), method="trf", x_scale=10.0, xtol=1e-10, ftol=1e-10, max_nfev=200)
         x = sol.x
     return x, sol.jac, float(2.0 * sol.cost), int(sol.fun.size)
 
 
+def with_chain(tg, nuis: Nuisance | None):
+    """``tg`` with the undeclared chain ``nuis`` in place of its own (a shallow copy; ``tg`` when ``nuis`` is None)."""
+    if nuis is None:
+        return tg
+    out = copy.copy(tg)
+    out.nuisance = nuis
+    return out
+
+
+def _profiled_chain(ev, row: list, idx: list[int]) -> tuple[Nuisance | None, tuple | None]:
+    """The chain that fits the simulations ``row`` of runs ``idx`` best (``profile`` over the profiled runs among
+    them), with the profile's (x, Jacobian, χ², n); (None, None) when none of them is profiled."""
+    sig_names = ev.profile_signals
+    items = [it for i, r in zip(idx, row) if i in ev.profile_runs
+             for it in profile_items(ev.targets[i], r, sig_names)]
+    if not items:
+        return None, None
+    prof = profile(items, len(sig_names), lowest_us=lowest_delays_us(sig_names))
+    x = prof[0]
+    return Nuisance(tuple((key, 1e-6 * v) for key, v in zip(sig_names, x[:-1])), 1e-6 * x[-1]), prof
+
+
 def profiled_residuals(ev, sims: list[list], idx: list[int], low_only: bool) -> list[np.ndarray]:
     """``Evaluator.residuals`` with the chain of ``ev.profile_runs`` profiled out of every parameter set's
-    residual (the chain that fits that set's simulations best, ``profile``)."""
-    sig_names = ev.profile_signals
+    residual (the chain that fits that set's simulations best, ``profile``, in place of the targets' own)."""
     out = []
     for row in sims:
-        items = [it for i, r in zip(idx, row) if i in ev.profile_runs
-                 for it in profile_items(ev.targets[i], r, sig_names)]
-        nuis = None
-        if items:
-            x = profile(items, len(sig_names))[0]
-            nuis = Nuisance(tuple((key, 1e-6 * v) for key, v in zip(sig_names, x[:-1])), 1e-6 * x[-1])
+        nuis = _profiled_chain(ev, row, idx)[0]
         parts = []
         for i, r in zip(idx, row):
             tg = ev.targets[i]
-            ri = ev.residual_of(i, r)
-            m = simulated_features(tg, r)
-            if nuis is not None and i in ev.profile_runs and m is not None:   # the targets stay as they are
-                tau = np.array([nuis.delay(channel(tg, s)) for s, _ in tg.pairs])
-                ri = (apply_gain(m, tg.pair_at, rotation(tg.pair_kw, tau, nuis.clock, *tg.spans[0])) - tg.y) / tg.sd
+            ri = ev.residual_for(with_chain(tg, nuis) if i in ev.profile_runs else tg, r)
             parts.append(ri[tg.low] if low_only else ri)
         out.append(np.concatenate(parts))
     return out
+
+
+def calibration_chains(ev, param_sets: list[dict], cal: list[int]) -> list[Nuisance | None]:
+    """Per parameter set, the chain that fits its simulations of the calibration runs ``cal`` best (None: none of
+    them profiled): a model's held-out runs are read through the chain of its own calibration, never one fitted to
+    the held-out runs themselves."""
+    cal = [i for i in cal if i in ev.profile_runs]
+    if not cal or not param_sets:
+        return [None] * len(param_sets)
+    return [_profiled_chain(ev, row, cal)[0] for row in ev.simulate(param_sets, cal)]
 
 
 def undeclared_runs(targets) -> list[int]:
@@ -157,16 +244,16 @@ def undeclared_runs(targets) -> list[int]:
     return [i for i, t in enumerate(targets) if t.kind == "series" and t.chain is None and t.pairs]
 
 
-def estimate_chain(ev, cfg, executor, log=print) -> ChainEstimate | None:
-    """Fit the base model to every run with the undeclared chain profiled out, then set the chain of that fit on
-    the undeclared runs' targets (held fixed from then on); None when every series run declares its chain."""
-    import copy
-
+def estimate_chain(ev, cfg, executor, log=print, exclude: set[str] = frozenset()) -> ChainEstimate | None:
+    """Fit the base model to every run with the undeclared chain profiled out, set the chain of that fit on the
+    undeclared runs' targets (the clock at the instants for records from rest) and profile the chain in every fit
+    from then on; None when every series run declares its chain.  The runs ``exclude`` (ids: the model's response
+    there is not reproducible) are left out: their delays stay 0."""
     from pipeline.diagnosis.calibrate import _fits, nominal_values, random_starts
     from pipeline.diagnosis.fit import FitJob
     from pipeline.diagnosis.model import calibratable
 
-    und = undeclared_runs(ev.targets)
+    und = [i for i in undeclared_runs(ev.targets) if ev.targets[i].run_id not in exclude]
     if not und:
         return None
     sig_names = tuple(dict.fromkeys(channel(ev.targets[i], s) for i in und for s, _ in ev.targets[i].pairs))
@@ -178,9 +265,21 @@ def estimate_chain(ev, cfg, executor, log=print) -> ChainEstimate | None:
     job = FitJob(idx, free, {}, random_starts(free, nominal_values(ev, idx), cfg.n_starts, rng), cfg.max_nfev,
                  cfg.diff_step, coarse=True)
     [fr] = _fits(executor, ev, pev.for_tasks(executor.task_threads), [job])
-    x0, jac0, chi2_0, n0 = _at_clock(ev, und, fr.values, sig_names, None)
+    est = _locate(ev, und, sig_names, fr.values, fr.chi2 / max(fr.n, 1), "base")
+    ev.profile_runs, ev.profile_signals = frozenset(und), sig_names
+    log(f"{ev.system}: {est.text()}")
+    return est
+
+
+def _locate(ev, und: list[int], keys: tuple, values: dict, chi2_per_n: float, model: str) -> ChainEstimate:
+    """The chain that fits the model at ``values`` best on the undeclared runs ``und``, set on their targets: for
+    steady-state records delays and clock as a rotation (exact there); for records from rest the clock at the
+    model's instants, searched on ``CLOCK_GRID``, and the delays profiled at each clock."""
+    x0, jac0, chi2_0, n0 = _at_clock(ev, und, values, keys, None)
     if all(ev.targets[i].record_start_s is None for i in und):     # steady state: the rotation is exact
-        return _finish(ev, und, sig_names, x0[:-1], float(x0[-1]), None, (x0, jac0, chi2_0, n0), fr, log)
+        est = _estimate(ev, und, keys, (x0, jac0, chi2_0, n0), float(x0[-1]), chi2_per_n, model)
+        _set(ev, und, None, Nuisance(est.delay_s, 1e-6 * float(x0[-1])))
+        return est
     # the rotation is exact for a steady state only: a record from rest has its transient stretched by the clock too
     # (a drill log read 66 ppm for 80 by the rotation; χ²/n 0.91 there, 0.17 with the clock at the instants).  So
     # the clock is applied at the model's instants and searched on a grid around the rotation's estimate (coarse,
@@ -191,7 +290,7 @@ def estimate_chain(ev, cfg, executor, log=print) -> ChainEstimate | None:
         for e in centre + step * np.arange(-half, half + 1):
             e = round(float(np.clip(e, -1e6 * MAX_CLOCK, 1e6 * MAX_CLOCK)), 6)
             if e not in pts:
-                pts[e] = _at_clock(ev, und, fr.values, sig_names, e)
+                pts[e] = _at_clock(ev, und, values, keys, e)
         centre = min(pts, key=lambda e: pts[e][2])
     eps = centre
     x, _, chi2, n = pts[eps]
@@ -200,27 +299,37 @@ def estimate_chain(ev, cfg, executor, log=print) -> ChainEstimate | None:
     scale = max(1.0, chi2 / max(n - x.size - 1, 1))
     # one sd: where χ² rises by the scale; at least half the fine grid's step (its resolution)
     clock_sd = max(float(np.sqrt(scale / a)) if a > 0 else math.inf, 0.5 * CLOCK_GRID[-1][0])
-    return _finish(ev, und, sig_names, x, eps, clock_sd, pts[eps], fr, log)
-
-
-def _finish(ev, und: list[int], keys: tuple, delays_us: np.ndarray, eps_ppm: float, clock_sd: float | None,
-            prof: tuple, fr, log) -> ChainEstimate:
-    """The estimate, its sd (the profile's Jacobian ``prof``, inflated by χ²/dof when above 1; the clock's
-    ``clock_sd`` where it was searched at the instants, else from the Jacobian too) set on the targets: the clock at
-    the instants where searched there (``clock_sd`` given), else as a rotation (steady state: exact)."""
-    x, jac, chi2, n = prof
-    scale = max(1.0, chi2 / max(n - x.size, 1))     # a model error inflates the sd as in the calibration
-    sd = np.sqrt(np.clip(np.diag(np.linalg.pinv(jac.T @ jac)) * scale, 0.0, None))
-    at_instants = clock_sd is not None
-    est = ChainEstimate(runs=tuple(ev.targets[i].run_id for i in und),
-                        delay_s=tuple((s, 1e-6 * float(v)) for s, v in zip(keys, delays_us)),
-                        delay_sd_s=tuple((s, 1e-6 * float(v)) for s, v in zip(keys, sd)),
-                        clock_ppm=eps_ppm, clock_sd_ppm=clock_sd if at_instants else float(sd[-1]),
-                        base_chi2_per_n=fr.chi2 / max(fr.n, 1))
-    rotation_only = Nuisance(est.delay_s, 0.0 if at_instants else 1e-6 * eps_ppm)
-    _set(ev, und, eps_ppm if at_instants else None, rotation_only)
-    log(f"{ev.system}: {est.text()}")
+    est = replace(_estimate(ev, und, keys, pts[eps], eps, chi2_per_n, model), clock_sd_ppm=clock_sd)
+    _set(ev, und, eps, Nuisance(est.delay_s, 0.0))
     return est
+
+
+def _estimate(ev, und: list[int], keys: tuple, prof: tuple, clock_ppm: float, chi2_per_n: float,
+              model: str) -> ChainEstimate:
+    """The estimate of a profile ``prof`` (x: delays [µs], then the clock [ppm] where profiled, Jacobian, χ², n) with
+    the clock ``clock_ppm``; sd from the Jacobian, inflated by χ²/dof when above 1 (a model error inflates it as in
+    the calibration).  A profile of the delays alone (the clock at the instants) has no clock sd: 0."""
+    x, jac, chi2, n = prof
+    scale = max(1.0, chi2 / max(n - jac.shape[1], 1))
+    sd = np.sqrt(np.clip(np.diag(np.linalg.pinv(jac.T @ jac)) * scale, 0.0, None))
+    clock_sd = float(sd[-1]) if jac.shape[1] > len(keys) else 0.0
+    return ChainEstimate(runs=tuple(ev.targets[i].run_id for i in und),
+                         delay_s=tuple((s, 1e-6 * float(v)) for s, v in zip(keys, x[:len(keys)])),
+                         delay_sd_s=tuple((s, 1e-6 * float(v)) for s, v in zip(keys, sd[:len(keys)])),
+                         clock_ppm=clock_ppm, clock_sd_ppm=clock_sd, base_chi2_per_n=chi2_per_n, model=model)
+
+
+def locate_chain(ev, est: ChainEstimate | None, model: str, values: dict, log=print) -> ChainEstimate | None:
+    """The chain located again at ``model``'s fit ``values`` (``_locate``) and set on the targets: at the leading
+    candidate's before the fits are judged, at the final model's after them, for what reads the final model then
+    (figures, residuals, the rig file).  ``est`` unchanged when nothing is profiled."""
+    und = sorted(ev.profile_runs)
+    if est is None or not und:
+        return est
+    out = _locate(ev, und, ev.profile_signals, values, est.base_chi2_per_n, model)
+    if model != "base":
+        log(f"{ev.system}: {out.text()}")
+    return out
 
 
 CLOCK_GRID = ((5.0, 6), (1.0, 4))
@@ -243,4 +352,4 @@ def _at_clock(ev, und: list[int], values: dict, keys: tuple, eps_ppm: float | No
     _set(ev, und, eps_ppm, None)
     row = ev.simulate([values], und)[0]
     items = [it for i, r in zip(und, row) for it in profile_items(ev.targets[i], r, keys)]
-    return profile(items, len(keys), clock=eps_ppm is None)
+    return profile(items, len(keys), clock=eps_ppm is None, lowest_us=lowest_delays_us(keys))

@@ -144,6 +144,8 @@ class ModelSpec:
     diagnose_max_harmonic_hz: float = 1000.0                  # highest harmonic the diagnosis uses as a feature [Hz]
     diagnose_fit: dict[str, int] = field(default_factory=lambda: {"candidate_starts": 1, "max_nfev": 10})
     # diagnosis fit effort: random starts per candidate, least-squares iterations (DIAGNOSE_FIT_KEYS)
+    diagnose_chain: bool = True
+    # whether the diagnosis estimates an undeclared DAQ chain (a delay per channel, a clock) beside every fit by default
     exact: str | None = None   # module of an exact propagator of the model's phases (sim/exact/), if any
     # discrepancy terms the model has (sim.models.discrepancy; each a parameter, off at 0) and their fit bounds
     # [SI]: lo = where the term just becomes measurable, hi = large but still simulable

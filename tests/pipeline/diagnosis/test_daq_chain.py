@@ -113,6 +113,40 @@ def test_profile_recovers_delays_per_channel_and_the_clock():
     assert x[2] == pytest.approx(1e6 * eps, abs=5.0)                     # ppm
 
 
+def _profile_items(seed: int = 3, tau=(95e-6, 140e-6), eps: float = 40e-6):
+    rng = np.random.default_rng(seed)
+    taus = dict(zip(("accel_m_s2", "force_n"), tau))
+    items = []
+    for start, cycles in ((0.15, 28.3), (0.45, 35.9)):
+        t = np.arange(int(cycles / F * FS)) / FS
+        meas = {s: _impacts(t, d, eps, start) + 0.02 * rng.standard_normal(t.size) for s, d in taus.items()}
+        tg = _target(t, meas, record_start=start)
+        model = {s: _impacts(t, 0.0, 0.0, start) for s in taus}
+        items += profile_items(tg, _fake_result(start + t, model), tuple((s, FS) for s in taus))
+    return items
+
+
+def test_the_profiles_analytic_jacobian_is_the_residuals_derivative():
+    from pipeline.diagnosis.nuisance import _jacobian, _kept, _residual
+
+    kept = _kept(_profile_items(), math.inf)
+    x = np.array([80.0, 150.0, 30.0])          # µs, µs, ppm: away from the optimum, so every term counts
+    numeric = np.column_stack([(_residual(x + h, kept) - _residual(x - h, kept)) / 2e-3
+                               for h in 1e-3 * np.eye(3)])
+    assert np.abs(_jacobian(x, kept) - numeric).max() <= 1e-6 * np.abs(numeric).max()
+
+
+def test_a_delay_is_bounded_below_by_one_sample_interval():
+    """A causal chain only delays; a multiplexed ADC may date a channel up to one sample before it samples it.
+    Data whose channel leads by 3 sample intervals put it there unbounded, at the bound when bounded."""
+    from pipeline.diagnosis.nuisance import lowest_delays_us
+
+    keys = (("accel_m_s2", FS), ("force_n", FS))
+    items = _profile_items(tau=(95e-6, -3.0 / FS))
+    assert profile(items, 2)[0][1] == pytest.approx(-3e6 / FS, abs=5.0)
+    assert profile(items, 2, lowest_us=lowest_delays_us(keys))[0][1] == pytest.approx(-1e6 / FS, abs=1e-6)
+
+
 def test_saturated_samples_are_left_out_of_the_features():
     rng = np.random.default_rng(0)
     t = np.arange(int(20.4 / F * FS)) / FS
@@ -149,7 +183,7 @@ def _diagnose(tmp_path, data, *args):
 
     out = tmp_path / (data.name + "-diag")
     params = tmp_path / "params-chain.yaml"
-    params.write_text("diagnose:\n  estimate_chain: true\n")        # the undeclared chain's estimate is opt-in
+    params.write_text("diagnose:\n  estimate_chain: true\n")        # the default, said where the test relies on it
     assert main(["diagnose", str(data), "--out", str(out), "--quiet", "--no-mlflow", "--params", str(params), *args]) == 0
     return json.loads((out / "report.json").read_text()), (out / "report.md").read_text()
 

@@ -94,9 +94,10 @@ def _check_cost(rep: dict, md: str) -> None:
     prints it."""
     cost = rep["cost"]
     stages = [(s["stage"], s["part_of"]) for s in cost["stages"]]
-    assert stages == [("features", None), ("unreproducible-run check", None), ("calibration", None),
+    assert stages == [("features", None), ("unreproducible-run check", None), ("DAQ chain", None), ("calibration", None),
                       ("base", "calibration"), ("sensor_lowpass", "calibration"), ("held-out", None), ("pairs", None),
-                      ("discovery", None), ("figures: runs", None), ("figures: drawing", None)]
+                      ("discovery", None), ("DAQ chain at the final model", None), ("figures: runs", None),
+                      ("figures: drawing", None)]
     top = [s for s in cost["stages"] if s["part_of"] is None]
     for k in ("simulations", "cpu_s", "wall_s"):
         assert abs(cost["total"][k] - sum(s[k] for s in top)) <= 0.002 * len(top), k     # rounded to 1 ms
