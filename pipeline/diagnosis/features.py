@@ -632,7 +632,8 @@ def sampling_plan(tg: Target, frequency_hz: float, warmup_s: float = 0.0) -> tup
     times = t0 + np.arange(-n_pre, tg.t_rec.size * sub) * dt
     end = t0 + tg.duration_s
     chain = tg.chain or tg.timing
-    if chain is not None:           # a declared (or estimated) delay and clock: the plant at the true instants
+    # a declared (or estimated) delay and clock: the plant at the true instants (a null chain changes nothing)
+    if chain is not None and (chain.delay_s or chain.clock_ppm):
         times = chain.true_times(times, t0)
         end = float(times[-1]) + dt
         if times[0] < 0:            # delayed past the start from rest: the first samples hold the rest state

@@ -16,8 +16,8 @@ import pytest
 
 from pipeline.core.errors import UserError
 from pipeline.datasets.daq import DaqFilter, DeclaredChain, parse_filter
-from pipeline.diagnosis.features import (MAX_CLIPPED_FRACTION, Target, clipped_samples, series_target,
-                                         simulated_features)
+from pipeline.diagnosis.features import (MAX_CLIPPED_FRACTION, Target, clipped_samples, sampling_plan,
+                                         series_target, simulated_features)
 from pipeline.diagnosis.instrument import Nuisance
 from pipeline.diagnosis.nuisance import profile, profile_items
 
@@ -97,22 +97,6 @@ def _fake_result(t_abs: np.ndarray, sigs: dict):
     return SimpleNamespace(history=pd.DataFrame({"t_s": t_abs, **sigs}))
 
 
-def test_profile_recovers_delays_per_channel_and_the_clock():
-    rng = np.random.default_rng(3)
-    tau = {"accel_m_s2": 95e-6, "force_n": 140e-6}
-    eps, items = 40e-6, []
-    for start, cycles in ((0.15, 28.3), (0.45, 35.9)):
-        t = np.arange(int(cycles / F * FS)) / FS
-        meas = {s: _impacts(t, d, eps, start) + 0.02 * rng.standard_normal(t.size) for s, d in tau.items()}
-        tg = _target(t, meas, record_start=start)
-        model = {s: _impacts(t, 0.0, 0.0, start) for s in tau}
-        items += profile_items(tg, _fake_result(start + t, model), tuple((s, FS) for s in tau))
-    x = profile(items, 2)[0]
-    assert x[0] == pytest.approx(1e6 * tau["accel_m_s2"], abs=5.0)      # µs
-    assert x[1] == pytest.approx(1e6 * tau["force_n"], abs=5.0)
-    assert x[2] == pytest.approx(1e6 * eps, abs=5.0)                     # ppm
-
-
 def _profile_items(seed: int = 3, tau=(95e-6, 140e-6), eps: float = 40e-6):
     rng = np.random.default_rng(seed)
     taus = dict(zip(("accel_m_s2", "force_n"), tau))
@@ -124,6 +108,13 @@ def _profile_items(seed: int = 3, tau=(95e-6, 140e-6), eps: float = 40e-6):
         model = {s: _impacts(t, 0.0, 0.0, start) for s in taus}
         items += profile_items(tg, _fake_result(start + t, model), tuple((s, FS) for s in taus))
     return items
+
+
+def test_profile_recovers_delays_per_channel_and_the_clock():
+    x = profile(_profile_items(tau=(95e-6, 140e-6), eps=40e-6), 2)[0]
+    assert x[0] == pytest.approx(95.0, abs=5.0)      # µs
+    assert x[1] == pytest.approx(140.0, abs=5.0)
+    assert x[2] == pytest.approx(40.0, abs=5.0)      # ppm
 
 
 def test_the_profiles_analytic_jacobian_is_the_residuals_derivative():
@@ -145,6 +136,17 @@ def test_a_delay_is_bounded_below_by_one_sample_interval():
     items = _profile_items(tau=(95e-6, -3.0 / FS))
     assert profile(items, 2)[0][1] == pytest.approx(-3e6 / FS, abs=5.0)
     assert profile(items, 2, lowest_us=lowest_delays_us(keys))[0][1] == pytest.approx(-1e6 / FS, abs=1e-6)
+
+
+def test_a_declared_null_chain_samples_the_model_as_no_chain():
+    """runs.csv may say a log has no chain (``daq_filter`` none): the model is then sampled bit for bit as without
+    the column (and no undeclared chain is estimated for it)."""
+    t = np.arange(2000) / FS
+    tg = _target(t, {"accel_m_s2": np.sin(2 * np.pi * F * t)}, record_start=0.15)
+    before = sampling_plan(tg, F, 0.0)
+    tg.chain = DeclaredChain(parse_filter("none", "x"), 0.0, 0.0)
+    after = sampling_plan(tg, F, 0.0)
+    assert np.array_equal(before[0], after[0]) and before[1:] == after[1:]
 
 
 def test_saturated_samples_are_left_out_of_the_features():
