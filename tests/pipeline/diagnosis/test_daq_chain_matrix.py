@@ -11,16 +11,22 @@ import pytest
 from bench import identification as ident
 from bench import identification_chain as chain
 
-RIGHT = [("control", "compensated"), ("control", "uncompensated"), ("control", "undeclared"), ("control", "saturated"),
-         ("shaker_coil", "compensated"), ("shaker_coil", "uncompensated"), ("shaker_coil", "undeclared"),
-         ("shaker_coil", "saturated"),
-         ("guide_friction", "compensated"), ("guide_friction", "uncompensated"), ("guide_friction", "undeclared"),
+RIGHT = [("control", "compensated"), ("control", "uncompensated"), ("control", "saturated"),
+         ("shaker_coil", "compensated"), ("shaker_coil", "uncompensated"), ("shaker_coil", "saturated"),
+         ("guide_friction", "compensated"), ("guide_friction", "uncompensated"),
          ("rate_stiffening", "compensated"),
-         ("pair:shaker_coil+guide_friction", "compensated"), ("pair:shaker_coil+guide_friction", "uncompensated")]
+         ("sensor_lowpass", "undeclared"),
+         ("pair:shaker_coil+guide_friction", "compensated"), ("pair:shaker_coil+guide_friction", "uncompensated"),
+         ("pair:shaker_coil+guide_friction", "saturated")]
 WRONG = {("guide_friction", "saturated"): "the impacts' samples are left out and friction is not found",
          ("rate_stiffening", "uncompensated"): "a second effect (tip_blunting) is added",
          ("rate_stiffening", "saturated"): "a second effect (guide_friction) is added",
-         ("rate_stiffening", "undeclared"): "selected, but alpha comes out 7 % and the clock 6 ppm from the truth"}
+         # the verdicts below are right; the clock is located with the parameters held at a fit the rotation biased
+         ("control", "undeclared"): "nothing missing, but the clock comes out 8.7 ppm from the truth",
+         ("shaker_coil", "undeclared"): "selected, but the clock comes out 7.6 ppm from the truth",
+         ("guide_friction", "undeclared"): "selected, but the clock comes out 6.0 ppm from the truth",
+         ("rate_stiffening", "undeclared"): "selected, but alpha comes out 5.8 % from the truth",
+         ("pair:shaker_coil+guide_friction", "undeclared"): "both named, but the clock comes out 8.7 ppm off"}
 
 
 @pytest.mark.slow
