@@ -291,13 +291,12 @@ BEFORE_CHAIN_DEFAULT = {"estimate_chain": False}
 
 
 def _settings(items: list[str]) -> dict:
-    """``["estimate_chain=false", "max_nfev=10"]`` -> diagnose settings (true/false, numbers)."""
-    out = {}
-    for item in items:
-        k, _, v = item.partition("=")
-        low = v.strip().lower()
-        out[k.strip()] = low == "true" if low in ("true", "false") else float(v) if "." in v or "e" in low else int(v)
-    return out
+    """``["estimate_chain=false", "max_nfev=10"]`` -> diagnose settings of their types, as ``vibro diagnose
+    --setting`` reads them."""
+    from pipeline.cli.args import parse_assignments
+    from pipeline.cli.diagnose import TEXT_DIAGNOSE_SETTINGS, typed_settings
+
+    return typed_settings(parse_assignments(items, "--setting", words=TEXT_DIAGNOSE_SETTINGS))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -317,7 +316,12 @@ def main(argv: list[str] | None = None) -> int:
                    help="a diagnose setting for every case (repeatable), e.g. estimate_chain=false; a stored case is "
                         "reused only when it ran with the same settings")
     a = p.parse_args(argv)
-    settings = _settings(a.setting)
+    from pipeline.core.errors import UserError
+
+    try:
+        settings = _settings(a.setting)
+    except UserError as e:
+        p.error(str(e))
     if a.quick:
         a.seeds, a.noise = a.seeds[:1], a.noise[:1]
     WORK.mkdir(parents=True, exist_ok=True)

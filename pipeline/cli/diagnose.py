@@ -144,11 +144,14 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
+TEXT_DIAGNOSE_SETTINGS = ("estimate_chain",)
+"""Settings whose ``--setting`` value is text (true/false), not a number."""
+
+
 def load_config(path: str | None, sets: dict, effects: list[str] | None, threads: int | None):
     """DiagnoseConfig from params.yaml's 'diagnose' section + overrides (UserError naming bad keys); numbers
     given as text or 6.0 become the config's types here, and the config checks its bounds when built."""
     from pipeline.core.params import read_section
-    from pipeline.diagnosis.config import FLOAT_BOUNDS, INT_BOUNDS, ZERO_ALLOWED
     from pipeline.diagnosis.run import DiagnoseConfig
 
     values: dict = dict(read_section(path, "diagnose"))
@@ -158,6 +161,16 @@ def load_config(path: str | None, sets: dict, effects: list[str] | None, threads
         values["effects"] = effects
     if threads:
         values["n_threads"] = threads
+    return DiagnoseConfig(**typed_settings(values))
+
+
+def typed_settings(values: dict) -> dict:
+    """``values`` (setting -> value, numbers and true/false possibly as text) with every setting of its
+    DiagnoseConfig type; UserError naming an unknown setting or a bad value."""
+    from pipeline.diagnosis.config import FLOAT_BOUNDS, INT_BOUNDS, ZERO_ALLOWED
+    from pipeline.diagnosis.run import DiagnoseConfig
+
+    values = dict(values)
     known = {f.name: f for f in fields(DiagnoseConfig)}
     for k in values:
         if k not in known:
@@ -175,7 +188,7 @@ def load_config(path: str | None, sets: dict, effects: list[str] | None, threads
             values[k] = A.number(v, f"diagnose setting '{k}'", lo=0.0, lo_open=k not in ZERO_ALLOWED, hi=FLOAT_BOUNDS[k])
     if values.get("sim_settings") is not None:
         values["sim_settings"] = A.check_settings(values["sim_settings"], "diagnose setting 'sim_settings'")
-    return DiagnoseConfig(**values)
+    return values
 
 
 def scheduler_of(path: str | None, flag: str | None) -> str | None:
@@ -207,7 +220,8 @@ def run(args) -> int:
     from pipeline.diagnosis.workflow import diagnose
     from pipeline.diagnosis.outputs import write_outputs
 
-    cfg = load_config(args.params, parse_assignments(args.sets, "--setting", words=("estimate_chain",)), args.effects, check_workers(args.threads))
+    sets = parse_assignments(args.sets, "--setting", words=TEXT_DIAGNOSE_SETTINGS)
+    cfg = load_config(args.params, sets, args.effects, check_workers(args.threads))
     scheduler = scheduler_of(args.params, args.scheduler)
     ds = load_dataset(args.dataset)
     check_signals(ds)

@@ -9,8 +9,8 @@ a delay (a shaker coil's lag, guide friction's phase, an accelerometer's own low
 fitted; profiled inside each fit, the chain moves with the model, and a model's held-out runs are read through the
 chain of its own calibration runs (``calibration_chains``).  The base model's fit starts it (``estimate_chain``):
 for records from rest the clock is located there with the model sampled at the clock's instants, and each fit
-profiles what is left as a rotation; the clock is located again at the leading candidate's fit before the fits
-are judged, and at the final model's for the report (``locate_chain``).
+profiles what is left as a rotation; where two effects are tried the clock is located again at the leader's and
+the leading pair's fits, and at the final model's for the report (``locate_chain``).
 
 The chain acts on the features as ``instrument.rotation``: harmonic k of signal s turns by k Ω (ε t̄ − τ_s).  A
 delay is told from the clock by the clock's drift of phase over the record, which the records' two halves show
@@ -320,9 +320,9 @@ def _estimate(ev, und: list[int], keys: tuple, prof: tuple, clock_ppm: float, ch
 
 
 def locate_chain(ev, est: ChainEstimate | None, model: str, values: dict, log=print) -> ChainEstimate | None:
-    """The chain located again at ``model``'s fit ``values`` (``_locate``) and set on the targets: at the leading
-    candidate's before the fits are judged, at the final model's after them, for what reads the final model then
-    (figures, residuals, the rig file).  ``est`` unchanged when nothing is profiled."""
+    """The chain located again at ``model``'s fit ``values`` (``_locate``) and set on the targets: at the leader's
+    and the leading pair's where two effects are tried, at the final model's for what reads it then (figures,
+    residuals, the rig file).  ``est`` unchanged when nothing is profiled."""
     und = sorted(ev.profile_runs)
     if est is None or not und:
         return est

@@ -399,13 +399,10 @@ def _leader_relocated(d: _Diagnosis, lead: str) -> tuple[list[dict], dict] | Non
 def relocated(d: _Diagnosis, fits: list[dict[str, FitResult]], reference: str, added: dict) -> str | None:
     """Locate an undeclared chain again at the fit of the model that leads ``fits`` (per fold, or the reported
     fits; BIC summed), when it beats ``reference`` by the BIC margin; that model, or None when nothing moved.  On
-    records from rest the clock was located at the base model's fit, which missing physics biases (a drill log
-    with a shaker coil and guide friction read −377 ppm for a 50 ppm clock), and each fit profiles on top of it
-    only a rotation, which a transient does not follow exactly.  Nothing to do for steady-state records.  Measured
-    on the drill's undeclared-chain logs: locating it again at the single leader before the single effects are
-    judged turned the coil's held-out nrms from 1.3 to 2.0 (and a spurious second effect followed), so it is done
-    where two effects are tried; fitting the delays alone after it, the clock held at the instants, gave the
-    rate-stiffening log a spurious sensor low-pass."""
+    records from rest the clock was located at the base model's fit, which missing physics biases, and each fit
+    profiles on top of it only a rotation, which a transient does not follow exactly.  Nothing to do for
+    steady-state records.  Done where two effects are tried, not before the single effects are judged
+    (docs/diagnose.md says what that did)."""
     ev = d.ev
     if d.chain is None or all(ev.targets[i].record_start_s is None for i in ev.profile_runs) or d.cfg.refine_nfev <= 0:
         return None

@@ -245,9 +245,8 @@ SPEC = ModelSpec(
     # candidates start from the calibrated base and from the rig's nominal values: a sensor low-pass or a
     # stiffening contact is absorbed into ki and the damping so far that the calibrated base is a false valley
     diagnose_fit={"candidate_starts": 2, "max_nfev": 10},
-    # no undeclared DAQ chain by default: on 8-run logs of the independent generator (no chain) its 7 nuisance
-    # parameters took up rate stiffening (alpha 8 s/m: "nothing missing") and the accelerometer's own 100 Hz
-    # low-pass (a 2 ms delay, "unexplained"), which the same logs showed without it
+    # no undeclared DAQ chain by default: its delays per channel take up rate stiffening and the accelerometer's
+    # own low-pass on this rig's slow, harmonic-rich records (docs/diagnose.md)
     diagnose_chain=False,
     # discrepancy terms: penetration ~ 1.7e-5 m, hammer speed ~0.3 m/s; tool_viscous is left out: on l θ̇ it is
     # the calibratable free-swing damping zeta exactly
