@@ -99,6 +99,32 @@ def test_small_end_to_end_recovers_sensor_lowpass(tmp_path, monkeypatch):
     assert "rig.yaml" in (out / "report.md").read_text()
 
 
+def test_small_end_to_end_finds_two_effects_at_once(tmp_path):
+    """6 short runs with a shaker coil and a sensor low-pass, three candidates: the coil leads but leaves held-out nrms
+    far above pair_nrms, so the pair stage (on by default) fits it with each other candidate and selects the coil and
+    the low-pass, both near the synthetic truth.  The independent generator's 8-run drill log with a coil and guide
+    friction is the slow-marked ``test_two_effects_at_once_are_both_found``."""
+    import yaml
+
+    data = _synth(tmp_path, "pair", "--system", "indenter-metal", "--effect", "shaker_coil", "--effect",
+                  "sensor_lowpass", "--cycles", "8", "--frequencies", "60", "80", "100", "--seed", "4", "--quiet")
+    truth = json.loads((tmp_path / "pair.truth.json").read_text())["effects"]
+    rep, out = _diagnose(tmp_path, data, "--no-mlflow", "--effects", "shaker_coil", "sensor_lowpass", "guide_friction",
+                         "--set", "min_runs_holdout=6", "--set", "holdout_every=3", "--set", "n_starts=1",
+                         "--set", "candidate_starts=1", "--set", "grid=2", "--set", "profile_points=1",
+                         "--set", "profile_nfev=1")
+    assert rep["call"]["text"].startswith("one effect: unexplained"), rep["call"]["text"]
+    assert rep["pair_stage"]["tried"] and "shaker_coil improves on the base" in rep["pair_stage"]["reason"]
+    assert rep["verdict"] == "selected" and rep["selected_effects"] == ["shaker_coil", "sensor_lowpass"]
+    pair = rep["second_effect"]["candidates"][0]
+    assert pair["name"] == rep["selected"] and pair["adequate"] and pair["improves"]
+    assert set(truth) == {"tau", "beta", "fc"}                # pipeline/synthesis/workflow.py effect_defaults
+    for k, v in truth.items():
+        assert pair["params"][k] == pytest.approx(v, rel=0.02), (k, pair["params"][k])
+    rig = yaml.safe_load((out / "rig.yaml").read_text())
+    assert set(rig["effects"]) == {"shaker_coil", "sensor_lowpass"}
+
+
 # ----------------------------------------------------------------------------- slow matrix
 METAL = ["shaker_coil", "rate_stiffening", "guide_friction", "suspension_hardening", "sensor_lowpass"]
 SAND = METAL + ["tip_blunting"]
