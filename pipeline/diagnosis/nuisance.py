@@ -285,21 +285,27 @@ def _locate(ev, und: list[int], keys: tuple, values: dict, chi2_per_n: float, mo
     # the clock is applied at the model's instants and searched on a grid around the rotation's estimate (coarse,
     # then fine: the χ² left when the delays are profiled out at each clock is not smooth enough for a parabola)
     pts: dict[float, tuple] = {}
+    per_run: dict[float, list[list[_Item]]] = {}
     centre = float(x0[-1])
     for step, half in CLOCK_GRID:
         for e in centre + step * np.arange(-half, half + 1):
             e = round(float(np.clip(e, -1e6 * MAX_CLOCK, 1e6 * MAX_CLOCK)), 6)
             if e not in pts:
-                pts[e] = _at_clock(ev, und, values, keys, e)
+                pts[e], per_run[e] = _at_clock(ev, und, values, keys, e, per_run=True)
         centre = min(pts, key=lambda e: pts[e][2])
     eps = centre
     x, _, chi2, n = pts[eps]
     near = sorted(pts, key=lambda e: abs(e - eps))[:5]
     a = np.polyfit(near, [pts[e][2] for e in near], 2)[0]
     scale = max(1.0, chi2 / max(n - x.size - 1, 1))
-    # one sd: where χ² rises by the scale; at least half the fine grid's step (its resolution)
-    clock_sd = max(float(np.sqrt(scale / a)) if a > 0 else math.inf, 0.5 * CLOCK_GRID[-1][0])
-    est = replace(_estimate(ev, und, keys, pts[eps], eps, chi2_per_n, model), clock_sd_ppm=clock_sd)
+    # one sd: where χ² rises by the scale, or the runs' disagreement where larger; at least half the fine grid's
+    # step (its resolution)
+    clock_sd = max(float(np.sqrt(scale / a)) if a > 0 else math.inf, 0.5 * CLOCK_GRID[-1][0],
+                   jackknife_clock_sd(per_run, keys))
+    est = _estimate(ev, und, keys, pts[eps], eps, chi2_per_n, model)
+    jk = jackknife_delay_sd_us(per_run[eps], keys)
+    est = replace(est, clock_sd_ppm=clock_sd,
+                  delay_sd_s=tuple((k, max(v, 1e-6 * j)) for (k, v), j in zip(est.delay_sd_s, jk)))
     _set(ev, und, eps, Nuisance(est.delay_s, 0.0))
     return est
 
@@ -346,10 +352,59 @@ def _set(ev, und: list[int], eps_ppm: float | None, rotation: Nuisance | None) -
         ev.targets[i].nuisance = rotation
 
 
-def _at_clock(ev, und: list[int], values: dict, keys: tuple, eps_ppm: float | None):
+def _at_clock(ev, und: list[int], values: dict, keys: tuple, eps_ppm: float | None, per_run: bool = False):
     """``profile`` of the undeclared runs simulated at ``values``: with the clock ``eps_ppm`` applied at the instants
-    and the delays alone profiled, or (None) delays and clock as a rotation."""
+    and the delays alone profiled, or (None) delays and clock as a rotation; with each run's items (``per_run``)."""
     _set(ev, und, eps_ppm, None)
     row = ev.simulate([values], und)[0]
-    items = [it for i, r in zip(und, row) for it in profile_items(ev.targets[i], r, keys)]
-    return profile(items, len(keys), clock=eps_ppm is None, lowest_us=lowest_delays_us(keys))
+    per = [profile_items(ev.targets[i], r, keys) for i, r in zip(und, row)]
+    prof = profile([it for p in per for it in p], len(keys), clock=eps_ppm is None, lowest_us=lowest_delays_us(keys))
+    return (prof, per) if per_run else prof
+
+
+def jackknife_clock_sd(per_run: dict[float, list[list[_Item]]], keys: tuple) -> float:
+    """The jackknife sd [ppm] of the clock located at the instants, each run left out in turn (χ² with the delays
+    profiled, at the clocks of ``per_run``: clock [ppm] -> each run's profile items there).  The clock is told from
+    the delays by how the records' times differ between runs, so a phase error that differs between runs (a filter
+    the delays describe only in part) moves it by more than the χ² curvature says; the runs' disagreement shows it.
+    0 with fewer than three runs."""
+    grid = np.array(sorted(per_run))
+    runs = [j for j in range(len(per_run[grid[0]])) if per_run[grid[0]][j]]
+    if len(runs) < 3 or grid.size < 3:
+        return 0.0
+    low = lowest_delays_us(keys)
+    est = []
+    for r in runs:
+        chi2 = np.array([profile([it for j, p in enumerate(per_run[e]) if j != r for it in p], len(keys), clock=False,
+                                 lowest_us=low)[2] for e in grid])
+        est.append(_grid_minimum(grid, chi2))
+    est = np.array(est)
+    return float(np.sqrt((est.size - 1) / est.size * np.sum((est - est.mean()) ** 2)))
+
+
+def jackknife_delay_sd_us(per_run: list[list[_Item]], keys: tuple) -> np.ndarray:
+    """The jackknife sd [µs] of each channel's delay profiled at one clock, each run that measures the channel left
+    out in turn (``per_run``: each run's profile items; at a fixed clock a channel's delay depends on its own
+    pairs only): as for the clock, a phase error that differs between runs shows in their disagreement.  0 for a
+    channel of fewer than three runs."""
+    has = [{int(c) for it in items for c in it.sig} for items in per_run]
+    low = lowest_delays_us(keys)
+    out = np.zeros(len(keys))
+    for c in range(len(keys)):
+        runs = [r for r, h in enumerate(has) if c in h]
+        if len(runs) < 3:
+            continue
+        a = np.array([profile([it for j, p in enumerate(per_run) if j != r for it in p], len(keys), clock=False,
+                              lowest_us=low)[0][c] for r in runs])
+        out[c] = math.sqrt((a.size - 1) / a.size * float(np.sum((a - a.mean()) ** 2)))
+    return out
+
+
+def _grid_minimum(grid: np.ndarray, chi2: np.ndarray) -> float:
+    """Where ``chi2`` on the sorted ``grid`` is least: the vertex of the parabola through the best point and its two
+    neighbours, kept between them (the best point itself at an end of the grid)."""
+    k = int(np.argmin(chi2))
+    if k == 0 or k == grid.size - 1:
+        return float(grid[k])
+    a, b, _ = np.polyfit(grid[k - 1:k + 2], chi2[k - 1:k + 2], 2)
+    return float(np.clip(-b / (2.0 * a), grid[k - 1], grid[k + 1])) if a > 0 else float(grid[k])
