@@ -375,11 +375,9 @@ def jackknife_clock_sd(per_run: dict[float, list[list[_Item]]], keys: tuple) -> 
     low = lowest_delays_us(keys)
     est = []
     for r in runs:
-        chi2 = np.array([profile([it for j, p in enumerate(per_run[e]) if j != r for it in p], len(keys), clock=False,
-                                 lowest_us=low)[2] for e in grid])
+        chi2 = np.array([profile(_left_out(per_run[e], r), len(keys), clock=False, lowest_us=low)[2] for e in grid])
         est.append(_grid_minimum(grid, chi2))
-    est = np.array(est)
-    return float(np.sqrt((est.size - 1) / est.size * np.sum((est - est.mean()) ** 2)))
+    return _jackknife_sd(np.array(est))
 
 
 def jackknife_delay_sd_us(per_run: list[list[_Item]], keys: tuple) -> np.ndarray:
@@ -389,15 +387,25 @@ def jackknife_delay_sd_us(per_run: list[list[_Item]], keys: tuple) -> np.ndarray
     channel of fewer than three runs."""
     has = [{int(c) for it in items for c in it.sig} for items in per_run]
     low = lowest_delays_us(keys)
+    left = {r: profile(_left_out(per_run, r), len(keys), clock=False, lowest_us=low)[0]    # every delay, once per run
+            for r, h in enumerate(has) if h}
     out = np.zeros(len(keys))
     for c in range(len(keys)):
         runs = [r for r, h in enumerate(has) if c in h]
-        if len(runs) < 3:
-            continue
-        a = np.array([profile([it for j, p in enumerate(per_run) if j != r for it in p], len(keys), clock=False,
-                              lowest_us=low)[0][c] for r in runs])
-        out[c] = math.sqrt((a.size - 1) / a.size * float(np.sum((a - a.mean()) ** 2)))
+        if len(runs) >= 3:
+            out[c] = _jackknife_sd(np.array([left[r][c] for r in runs]))
     return out
+
+
+def _left_out(per_run: list[list[_Item]], r: int) -> list[_Item]:
+    """The profile items of every run but ``r``."""
+    return [it for j, items in enumerate(per_run) if j != r for it in items]
+
+
+def _jackknife_sd(estimates: np.ndarray) -> float:
+    """The jackknife sd of an estimate from its leave-one-out values."""
+    n = estimates.size
+    return float(np.sqrt((n - 1) / n * np.sum((estimates - estimates.mean()) ** 2)))
 
 
 def _grid_minimum(grid: np.ndarray, chi2: np.ndarray) -> float:
