@@ -62,9 +62,10 @@ run's DAQ chain, and the model's signals pass through it before they are compare
                  DAQ moved the time stamps back by it (0: left in the data)
   daq_clock_ppm  sample-clock error [ppm]: sample n was taken at (1 + ppm 1e-6) n / fs while t_s says n / fs
   (delay and clock: the model is sampled at the true instants).  Where a series run declares none of them, a
-  delay per channel and a clock error are estimated as nuisance parameters on the base model's calibration (the
-  chain profiled out of every base fit) and held fixed for every model judged (never a §6 effect); report.json
-  'recording' gives them with their sd.  Saturated samples (>= 3 identical values at a channel's extreme: flat tops) are
+  delay per channel and a clock error are estimated as nuisance parameters, profiled out of every model's fit
+  (never a §6 effect; setting estimate_chain); report.json 'recording' gives them as located at the final model's
+  fit, each sd at least the jackknife's over the runs (a filter makes the clock uncertain by tens of ppm:
+  docs/identification.md).  Saturated samples (>= 3 identical values at a channel's extreme: flat tops) are
   left out of the features with a note; a channel saturated in more than 5 % of its samples is not used, a run
   with no usable channel is skipped and named."""
 
