@@ -11,8 +11,8 @@ folder (``VIBRO_KERNEL_DIR``: neither reuses what the other compiled), CPU = use
 * ``aot compile``: ``sim.aot.build`` (what ``vibro compile MODEL`` does per kernel);
 * ``aot load``: ``sim.aot.load`` in a new process.
 
-``python -m bench.compile_cost [MODEL ...] [--kernel numerical|exact] [--only jit|aot]`` (default: drill, both
-kernels, both pairs) prints one row per kernel.  A kernel compiled first into an empty folder also compiles the
+``python -m bench.compile_cost [MODEL ...] [--kernel numerical|exact] [--only jit|aot] [--write-readme]`` (default:
+drill, both kernels, both pairs) prints one row per kernel (``--write-readme``: also into bench/README.md's table).  A kernel compiled first into an empty folder also compiles the
 functions it shares with the model's other kernels; a later kernel finds them cached.  Not a test: nothing asserts a
 timing.
 """
@@ -42,6 +42,8 @@ STEPS = {
 }
 """Step -> the code its fresh process runs (argv: model, exact module or '').  The two JIT steps run the same code:
 the first fills the empty cache, the second loads from it."""
+MARKERS = ("<!-- compile-cost:start -->", "<!-- compile-cost:end -->")
+"""Where ``--write-readme`` writes the table in bench/README.md."""
 
 
 def run_step(code: str, model: str, exact: str | None, kernel_dir: Path) -> dict:
@@ -106,11 +108,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--kernel", choices=("numerical", "exact"), help="only this kernel of each model")
     ap.add_argument("--only", choices=("jit", "aot"), help="only the JIT or the ahead-of-time pair of steps")
     ap.add_argument("--json", type=Path, help="also write the rows here")
+    ap.add_argument("--write-readme", action="store_true",
+                    help="also write the table between the compile-cost markers of bench/README.md")
     args = ap.parse_args(argv)
     rows = kernel_rows(args.models, args.kernel, args.only)
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
     print(table(rows))
+    if args.write_readme:
+        from bench import write_between_markers
+
+        done = write_between_markers(ROOT, ["bench/README.md"], MARKERS[0], MARKERS[1], table(rows))
+        print(f"written into {', '.join(done) or 'no file (markers missing)'}", file=sys.stderr)
     return 0
 
 

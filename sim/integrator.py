@@ -92,7 +92,7 @@ def _dense(r1, r2, r3, r4, r5, th, out):
     _dense_some(r1, r2, r3, r4, r5, th, out, range(out.shape[0]))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def _crossed(ga, gb):
     """A guard crossed upward between two samples (zero counts on one side only)."""
     return (ga < 0.0 and gb >= 0.0) or (ga <= 0.0 and gb > 0.0)
@@ -153,7 +153,7 @@ def two_indicator_guard(g, penetration, force_indicator, ph):
     g[0] = ind if ph == 0 else -ind
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def two_indicator_phase(penetration, force):
     """Phase after a switch of a two-indicator contact: 1 in contact, 0 free."""
     return 1 if (penetration >= 0.0 and force > 0.0) else 0

@@ -278,7 +278,7 @@ contact_extra = njit(inline="always")(_SITES["contact_extra"])
 tool_loss = njit(inline="always")(_SITES["tool_loss"])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def mode_force(ratio, fh, zeta, m_imp, xh, vh):
     """The hidden mode's pull on the impacting mass [N]: kh xh + ch vh with mh = ratio m_imp [kg], kh = mh (2π fh)²,
     ch = 2 ζ mh 2π fh (xh [m], vh [m/s] the hidden mass relative to the impacting one); exactly 0.0 while off."""
@@ -286,7 +286,7 @@ def mode_force(ratio, fh, zeta, m_imp, xh, vh):
     return ratio * m_imp * wh * (wh * xh + 2.0 * zeta * vh)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def mode_accel(ratio, m_imp, f, a_imp):
     """ẍh [m/s²] of the hidden mass relative to the impacting mass: −f / mh − a_imp (f the pull ``mode_force``,
     a_imp the impacting mass's acceleration [m/s²]); 0.0 while off, so the states stay at rest."""

@@ -54,13 +54,13 @@ N_GUARDS = 2
 GUARD_STATES = (IX1, IV1, IXT, IXB)     # the states the guards read (x1, v1, xt, xb): the only ones interpolated for them
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def _pr_at(pr, gamma, gap, xb):
     """Rock threshold [N], raised by tip blunting (MODELS.md §6 `tip_blunting`), from scalars."""
     return tip_blunted(pr, gamma, xb - gap)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def _pc_at(k1, alpha, c1, x1, v1, xb, dc):
     """Phase-II contact force expression [N] from scalars; rate_stiffening: K1 → K1 (1 + α max(ẋ1, 0)); the
     discrepancy contact terms (dc: the vocabulary's coefficients, sim.models.discrepancy) with δ = x1 − xb, δ̇ = ẋ1."""

@@ -166,7 +166,7 @@ def metal_bounded(t, y, z, ph, p, b):
 
 
 # ----------------------------------------------------------------------------- sandstone sample
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def _branch_k(k, gamma, xp, alpha, v1):
     """Branch stiffness k (1 + γ xp / 1 mm)(1 + α max(ẋ1, 0)): tip blunting (xp: the crater floor at the current
     impact's start) and rate stiffening, from scalars."""
@@ -203,7 +203,7 @@ def _sand_force(y, z, ph, p):
     return branch_force(_branch_k(k, gamma, xp, alpha, v1), depth, n)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def _xp_unloading_at(e, v1, xp, xf, kl, ku, nl, nu, gamma, alpha):
     """Crater floor [m] that keeps the loading branch through the current (depth, force) point, from scalars: e = x1 − G,
     v1 = ẋ1, the crater floor xp and unloading end point xf and the branches' parameters."""

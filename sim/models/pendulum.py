@@ -56,7 +56,7 @@ GUARD_STATES = (ITH, IOM)     # the states the guards read (θ, θ̇): the only 
 # evaluation and passed on
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def _force_at(ki, alpha, ci, d, dd, dc):
     """Spring–dashpot force expression ki (1 + α max(δ̇,0)) δ + ci δ̇ [N] (unclamped), from scalars, with the
     discrepancy contact terms (dc: the vocabulary's coefficients, sim.models.discrepancy)."""

@@ -57,7 +57,7 @@ def _hc_factor(y, p):
     return hunt_crossley_damping(p[LAM], y[IV2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def _force_at(ki, alpha, ni, lam, gap, x2, v2):
     """Hunt–Crossley force expression [N] with rate stiffening, from scalars (``sim.models.contact.hunt_crossley``)."""
     return hunt_crossley(rate_stiffened(ki, alpha, v2), ni, lam, x2 - gap, v2)
