@@ -89,48 +89,55 @@ def _locate(t, h, y, z, ph, p, r1, r2, r3, r4, r5, yd, gbuf, i, a, b, fa, fb, ev
 def _peak_on(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, a, b, which):
     """Max over θ in [a, b] of the contact force (which = OBS_FORCE) or of the deceleration
     (which = OBS_ACCEL: −accel) on the step's interpolant: Brent's method (parabolic steps with a golden
-    section fallback, Numerical Recipes §10.3) to 1e-5 of [a, b]."""
+    section fallback, Numerical Recipes §10.3) to 1e-5 of [a, b].  The first pass only evaluates the start
+    point: one call site of the inlined observation (each site is a copy of the model's equations to compile)."""
     cg = 0.3819660112501051
     tol1 = 1e-5 * (b - a)
     tol2 = 2.0 * tol1
     x = a + cg * (b - a)
     w = x
     v = x
-    fx = -_objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, x, which)
-    fw = fx
-    fv = fx
+    u = x
+    fx = 0.0
+    fw = 0.0
+    fv = 0.0
     d = 0.0
     e = 0.0
-    for _ in range(60):
-        m = 0.5 * (a + b)
-        if abs(x - m) <= tol2 - 0.5 * (b - a):
-            break
-        golden = True
-        if abs(e) > tol1:
-            r = (x - w) * (fx - fv)
-            q = (x - v) * (fx - fw)
-            pp = (x - v) * q - (x - w) * r
-            q = 2.0 * (q - r)
-            if q > 0.0:
-                pp = -pp
-            q = abs(q)
-            etemp = e
-            e = d
-            if abs(pp) < abs(0.5 * q * etemp) and pp > q * (a - x) and pp < q * (b - x):
-                d = pp / q
+    for it in range(61):
+        if it > 0:
+            m = 0.5 * (a + b)
+            if abs(x - m) <= tol2 - 0.5 * (b - a):
+                break
+            golden = True
+            if abs(e) > tol1:
+                r = (x - w) * (fx - fv)
+                q = (x - v) * (fx - fw)
+                pp = (x - v) * q - (x - w) * r
+                q = 2.0 * (q - r)
+                if q > 0.0:
+                    pp = -pp
+                q = abs(q)
+                etemp = e
+                e = d
+                if abs(pp) < abs(0.5 * q * etemp) and pp > q * (a - x) and pp < q * (b - x):
+                    d = pp / q
+                    u = x + d
+                    if u - a < tol2 or b - u < tol2:
+                        d = tol1 if m >= x else -tol1
+                    golden = False
+            if golden:
+                e = (a - x) if x >= m else (b - x)
+                d = cg * e
+            if abs(d) >= tol1:
                 u = x + d
-                if u - a < tol2 or b - u < tol2:
-                    d = tol1 if m >= x else -tol1
-                golden = False
-        if golden:
-            e = (a - x) if x >= m else (b - x)
-            d = cg * e
-        if abs(d) >= tol1:
-            u = x + d
-        else:
-            u = x + (tol1 if d > 0.0 else -tol1)
+            else:
+                u = x + (tol1 if d > 0.0 else -tol1)
         fu = -_objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, u, which)
-        if fu <= fx:
+        if it == 0:
+            fx = fu
+            fw = fu
+            fv = fu
+        elif fu <= fx:
             if u >= x:
                 a = x
             else:
@@ -195,24 +202,43 @@ def _may_reach(v0, vm, v1, run):
 
 @njit(cache=True, nogil=True, error_model=ERRORS)
 def _step_max(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th_ev, v0, vm, v1, which):
-    """The step's maximum where ``_may_reach`` (its docstring) says it can reach the running maximum."""
+    """The step's maximum where ``_may_reach`` (its docstring) says it can reach the running maximum.  The probes
+    and the search are each written once (one call site each of the inlined observation)."""
     best = max(v0, vm, v1)
     hm = 0.5 * th_ev
+    lo = 0.0               # the part [lo, hi] of the step searched when the probes allow it
+    hi = th_ev
+    n_probe = 0
+    ref = v0               # a probe above ref (plateau: different from ref) calls for the search
+    th_a = 0.0
     if v0 == vm and vm == v1:
         # three equal samples: a plateau, e.g. the drill's force Pr through phase III.  Brent's method would
         # spend ~25 observations finding its constant maximum on every step; two more samples confirm it
-        if (_objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, 0.5 * hm, which) == v0
-                and _objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, 1.5 * hm, which) == v0):
-            return best
-    if vm >= v0 and vm >= v1:
-        return max(best, _peak_on(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, 0.0, th_ev, which))
-    if v0 >= v1:
-        if _objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th_ev * 1e-4, which) > v0:
-            return max(best, _peak_on(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, 0.0, hm, which))
-        return best           # falling from the start: the start is the maximum (the step before saw it rise)
-    if _objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th_ev * (1.0 - 1e-4), which) > v1:
-        return max(best, _peak_on(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, hm, th_ev, which))
-    return best
+        n_probe = 2
+        th_a = 0.5 * hm
+    elif vm >= v0 and vm >= v1:
+        n_probe = 0
+    elif v0 >= v1:
+        n_probe = 1
+        th_a = th_ev * 1e-4
+        hi = hm
+    else:
+        n_probe = 1
+        th_a = th_ev * (1.0 - 1e-4)
+        ref = v1
+        lo = hm
+    search = n_probe == 0
+    for k in range(n_probe):
+        f = _objective(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, th_a if k == 0 else 1.5 * hm, which)
+        if n_probe == 2:
+            if f != ref:          # not a plateau after all
+                search = True
+                break
+        else:
+            search = f > ref      # rising just after the start, or falling just before the end
+    if not search:
+        return best           # a plateau, or the maximum at the start or the end (the step before or after has it)
+    return max(best, _peak_on(t, h, z, ph, p, r1, r2, r3, r4, r5, yd, obs, dyd, lo, hi, which))
 
 
 @njit(cache=True, nogil=True, error_model=ERRORS)

@@ -2,9 +2,10 @@
 
 Each takes and returns floats only, so a call costs no reference counting: each is compiled once (IEEE division, as
 the kernel) and LLVM inlines it into the kernels, rather than numba inlining its IR at every call site, which made
-each kernel's compile about 40 % longer for the same machine code (docs/architecture.md, "Where a contact law ...").  A stiffness passed in is the effective one, with the §6 terms already applied
-(``sim.models.terms``).  A contact that ends when its force expression falls to zero (two-indicator release,
-MODELS.md §1a) locates its switches with ``sim.integrator.two_indicator_guard`` / ``two_indicator_phase``.
+each kernel's compile about a third longer for the same machine code (docs/architecture.md, "Where a contact law
+goes").  A stiffness passed in is the effective one, with the §6 terms already applied (``sim.models.terms``).  A
+contact that ends when its force expression falls to zero (two-indicator release, MODELS.md §1a) locates its
+switches with ``sim.integrator.two_indicator_guard`` / ``two_indicator_phase``.
 """
 from __future__ import annotations
 
