@@ -81,7 +81,8 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
   profile_points [2]       best grid points at which the base parameters are refitted with the effect held
   profile_nfev [3]         iterations of that refit (0: start from the grid's best point as it is)
   candidate_starts [2 indenter, 1 others]  candidate fits start from the grid's best point at the calibrated base (1) and also
-                           at the default base parameters (2)
+                           at the default base parameters (2); with 1, the two leading candidates also start there
+                           when the leader has not reached the noise level
   max_nfev [15 indenter, 10 others]  least-squares iterations per start
   diff_step [0.01]         finite-difference step in log10 of a parameter (2.3 %); every fit ends with 6
                            iterations at 0.002 (0.46 %)
