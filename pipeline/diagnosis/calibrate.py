@@ -124,6 +124,7 @@ def fit_models(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, cands
     free = list(calibratable(ev.system))
     shared = ev.for_tasks(executor.task_threads)
     nominal = [nominal_values(ev, idx) for idx in folds]
+    nominal_base = [{p.name: d[p.name] for p in free} for d in nominal]     # the calibratable ones, per fold
     base_jobs = [FitJob(idx, free, {}, [warm["base"].values] if warm else random_starts(free, d, cfg.n_starts, rng),
                         cfg.max_nfev, cfg.diff_step, coarse=not warm) for idx, d in zip(folds, nominal)]
     outs = [{"base": b} for b in _fits(executor, ev, shared, base_jobs, ["base"] * len(base_jobs))]
@@ -134,7 +135,7 @@ def fit_models(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, cands
     else:   # grid of the effect at the calibrated base, and at the default base parameters (the base
         #     fit may have compensated the missing effect with a base parameter, e.g. pm for mu)
         items = [(f, eff, (folds[f], b, cands[eff], free, cfg)) for f, eff in keys
-                 for b in [outs[f]["base"].values, {p.name: nominal[f][p.name] for p in free}][:cfg.candidate_starts]]
+                 for b in [outs[f]["base"].values, nominal_base[f]][:cfg.candidate_starts]]
         found = _batch(executor, ev, shared, _candidate_start_task, [it for _, _, it in items],
                        [eff for _, eff, _ in items])
         starts = {key: [] for key in keys}
@@ -147,7 +148,7 @@ def fit_models(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, cands
         lines[f].append(f"  {eff}: chi2/n = {fr.chi2 / fr.n:.4g}")
     _refit_base(executor, ev, shared, folds, cfg, free, outs, lines)
     _refine_leader(executor, ev, shared, folds, cfg, cands, free, outs, lines)
-    if not warm and _restart_leaders(executor, ev, shared, folds, cfg, cands, free, nominal, outs, lines):
+    if not warm and _restart_leaders(executor, ev, shared, folds, cfg, cands, free, nominal_base, outs, lines):
         _refit_base(executor, ev, shared, folds, cfg, free, outs, lines)
     return list(zip(outs, lines))
 
@@ -157,7 +158,7 @@ RESTARTED_LEADERS = 2
 
 
 def _restart_leaders(executor: Executor, ev: Evaluator, shared: Evaluator, folds: list[list[int]],
-                     cfg: DiagnoseConfig, cands: dict, free: list[FreeParam], nominal: list[dict],
+                     cfg: DiagnoseConfig, cands: dict, free: list[FreeParam], nominal_base: list[dict],
                      outs: list[dict[str, FitResult]], lines: list[list[str]]) -> bool:
     """With one candidate start (``cfg.candidate_starts`` 1) and the leader, refined, still above the noise level: the
     ``RESTARTED_LEADERS`` leading candidates that beat the base are also fitted from the effect's grid at the rig's
@@ -168,16 +169,16 @@ def _restart_leaders(executor: Executor, ev: Evaluator, shared: Evaluator, folds
     truth, 50 N: 86).  Only the candidates that decide the verdict pay for it, and only when none of them fits."""
     if not cands or cfg.candidate_starts >= 2:
         return False
+    leaders = [_leader(out, cands) for out in outs]
     items = []
     for f, out in enumerate(outs):
-        ranked = sorted(cands, key=lambda c: out[c].chi2)
-        if out[ranked[0]].chi2 / out[ranked[0]].n <= cfg.explained_nrms ** 2:
+        if _at_noise(out[leaders[f]], cfg):
             continue
-        items += [(f, m, (folds[f], {p.name: nominal[f][p.name] for p in free}, cands[m], free, cfg))
-                  for m in ranked[:RESTARTED_LEADERS] if out[m].chi2 < out["base"].chi2]
+        items += [(f, m, (folds[f], nominal_base[f], cands[m], free, cfg))
+                  for m in sorted(cands, key=lambda c: out[c].chi2)[:RESTARTED_LEADERS]
+                  if out[m].chi2 < out["base"].chi2]
     if not items:
         return False
-    leaders = [min(cands, key=lambda c: out[c].chi2) for out in outs]
     found = _batch(executor, ev, shared, _candidate_start_task, [it for _, _, it in items], [m for _, m, _ in items])
     jobs = [FitJob(folds[f], free + list(cands[m]), {}, [start], cfg.max_nfev, cfg.diff_step, coarse=True)
             for (f, m, _), start in zip(items, found)]
@@ -185,7 +186,17 @@ def _restart_leaders(executor: Executor, ev: Evaluator, shared: Evaluator, folds
         if fr.chi2 < outs[f][m].chi2:
             outs[f][m] = _extended(outs[f][m], fr)
         lines[f].append(f"  {m} (from the nominal base): chi2/n = {fr.chi2 / fr.n:.4g}")
-    return any(min(cands, key=lambda c: out[c].chi2) != lead for out, lead in zip(outs, leaders))
+    return any(_leader(out, cands) != lead for out, lead in zip(outs, leaders))
+
+
+def _leader(out: dict[str, FitResult], cands: dict) -> str:
+    """The candidate of ``out`` (one fold's fits) with the lowest calibration chi2."""
+    return min(cands, key=lambda m: out[m].chi2)
+
+
+def _at_noise(fr: FitResult, cfg: DiagnoseConfig) -> bool:
+    """Whether a fit's calibration chi2/n is at the noise level (at most explained_nrms^2)."""
+    return fr.chi2 / fr.n <= cfg.explained_nrms ** 2
 
 
 def refit(ev: Evaluator, folds: list[list[int]], cfg: DiagnoseConfig, added: dict[str, list[FreeParam]],
@@ -232,9 +243,9 @@ def _refine_leader(executor: Executor, ev: Evaluator, shared: Evaluator, folds: 
         return
     todo = []
     for f, out in enumerate(outs):
-        lead = min(cands, key=lambda m: out[m].chi2)
+        lead = _leader(out, cands)
         fr = out[lead]
-        if fr.chi2 >= out["base"].chi2 or fr.chi2 / fr.n <= cfg.explained_nrms ** 2:
+        if fr.chi2 >= out["base"].chi2 or _at_noise(fr, cfg):
             continue
         todo.append((f, lead, FitJob(folds[f], free + list(cands[lead]), {}, [fr.values], cfg.refine_nfev,
                                      cfg.diff_step)))
