@@ -314,12 +314,10 @@ def simulate(model: str, preset: str | None = None, settings: Settings | dict | 
     if history and labels["status"] not in ("runaway", "failed"):
         import pandas as pd
 
-        hist = pd.DataFrame({"t_s": ht})
-        for i, name in enumerate(spec.states):
-            hist[name] = hy[:, i]
-        hist["phase"] = hp
-        for i, name in enumerate(("force_n", "accel_m_s2", "disp_m", "progression_m", "vel_m_s")):
-            hist[name] = ho[:, i]
+        cols = {"t_s": ht, **{name: hy[:, i] for i, name in enumerate(spec.states)}, "phase": hp,
+                **{name: ho[:, i] for i, name in enumerate(("force_n", "accel_m_s2", "disp_m", "progression_m",
+                                                            "vel_m_s"))}}
+        hist = pd.DataFrame(cols)       # one constructor: column-by-column insertion costs ~1 ms a run
     res = SimulationResult(model=spec.name, params=values, labels=labels, history=hist, settings=st,
                            final_state=(y, z, int(ph[0])), initial_state=start, history_times=chosen)
     if spec.postprocess is not None:
