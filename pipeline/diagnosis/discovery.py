@@ -45,6 +45,21 @@ MAX_SUPPORT = 2
 """At most this many terms in one proposal."""
 PREFIX = "discrepancy:"
 """Model names of proposals in the diagnosis' fits: ``discrepancy:`` + the terms joined by ``+``."""
+NUMBERS_PER_PARAM = 2
+"""A proposal is fitted only where every fold's calibration runs hold at least this many measured numbers per free
+parameter (calibratable + the proposal's): with fewer, a fit interpolates the data (a summary log of 4 runs of 2-3
+numbers leaves 7 per fold, under 8 for one term on 3 calibratables), and its held-out test is no evidence."""
+
+
+def calibration_numbers(ev: Evaluator, scheme: FoldScheme) -> int:
+    """Measured two-sided numbers (features that are not lower bounds) of the smallest fold's calibration runs."""
+    return min(sum(int((~ev.targets[i].lower_bound).sum()) for i in cal) for cal, _ in scheme.folds)
+
+
+def supported(cands: dict[str, tuple], n_numbers: int, n_calibratable: int) -> tuple[dict[str, tuple], list[str]]:
+    """(the candidates the data can support by NUMBERS_PER_PARAM, the names of the others)."""
+    ok = {m: ps for m, ps in cands.items() if n_numbers >= NUMBERS_PER_PARAM * (n_calibratable + len(ps))}
+    return ok, [m for m in cands if m not in ok]
 
 
 def term_candidates(system: str) -> dict[str, FreeParam]:
@@ -169,6 +184,8 @@ class Discovery:
     accepted: str | None
     leader: str | None
     checks: dict[str, Check]
+    too_few: tuple[str, ...] = ()     # proposals not fitted: more free parameters than the data support
+    n_numbers: int = 0                # measured numbers of the smallest fold's calibration runs
 
 
 def discover(ev: Evaluator, cfg: DiagnoseConfig, scheme: FoldScheme, calibrated: Judged, base_stats: ModelStats,
@@ -187,9 +204,18 @@ def discover(ev: Evaluator, cfg: DiagnoseConfig, scheme: FoldScheme, calibrated:
     cands = {proposal_name(s): tuple(terms[t] for t in s) for s in sets}
     starts = {proposal_name(s): _start(s, scr, terms) for s in sets}
     cands.update({proposal_name((n,)): ps for n, ps in structured.items()})   # from the grid of their parameters
+    n_numbers = calibration_numbers(ev, scheme)
+    cands, too_few = supported(cands, n_numbers, len(calibratable(ev.system)))
+    if too_few:
+        log(f"{ev.system}: not fitted (the calibration runs hold {n_numbers} numbers, fewer than "
+            f"{NUMBERS_PER_PARAM} per free parameter): {', '.join(too_few)}")
+    if not cands:
+        return Discovery(screening=scr, fits={}, err={}, stats={}, accepted=None, leader=None, checks={},
+                         too_few=tuple(too_few), n_numbers=n_numbers)
+    starts = {m: v for m, v in starts.items() if m in cands}
     # a structured candidate reshapes the response (a mode detuning a resonance): the base fit that absorbed it can be
     # far from the truth in every parameter, so its grid also starts at the rig's nominal values
-    nominal = [proposal_name((n,)) for n in structured]
+    nominal = [proposal_name((n,)) for n in structured if proposal_name((n,)) in cands]
 
     def fit_on(runs: list[list[int]], start: list[FitResult]) -> list[dict[str, FitResult]]:
         return fit_added(ev, runs, cfg, cands, start, executor, extra_starts=starts, nominal=nominal)
@@ -197,8 +223,8 @@ def discover(ev: Evaluator, cfg: DiagnoseConfig, scheme: FoldScheme, calibrated:
     j = judge(ev, scheme, fitter, cfg.rule(), against=base_stats)
     for m in j.stats:
         log(f"  {m}: held-out nrms {j.err[m].nrms:.4g} (base {math.sqrt(base_stats.chi2 / max(base_stats.n, 1)):.4g})")
-    return Discovery(screening=scr, fits=j.fits, err=j.err, stats=j.stats,
-                     accepted=j.verdict.selected, leader=j.verdict.leader, checks=j.verdict.checks)
+    return Discovery(screening=scr, fits=j.fits, err=j.err, stats=j.stats, accepted=j.verdict.selected,
+                     leader=j.verdict.leader, checks=j.verdict.checks, too_few=tuple(too_few), n_numbers=n_numbers)
 
 
 def spanned_effect(system: str, accepted: str, values: dict, effects: Collection[str]) -> tuple[str, dict] | None:
@@ -251,8 +277,14 @@ def report(d: Discovery, base_err: HeldOut, cal_names: list[str]):
         text = (f"no proposal brings the held-out error to the noise (best: {' + '.join(top.forms)}, nrms "
                 f"{base_err.nrms:.3g} → {top.nrms:.3g}); the missing term is not in the vocabulary "
                 f"of this model ({', '.join(dict.fromkeys([*scr.order, *(t for m in d.err for t in proposal_terms(m))]))})")
+    elif d.too_few:
+        text = (f"no proposal fitted: the calibration runs hold {d.n_numbers} measured numbers, fewer than "
+                f"{NUMBERS_PER_PARAM} per free parameter of any proposal; more runs or series records are needed "
+                f"to name the missing term")
     else:
         text = "no proposal"
+    if rows and d.too_few:
+        text += f" (not fitted, too few numbers: {', '.join(d.too_few)})"
     return Discrepancy(screening=screening, path_bic=tuple(scr.path_bic), proposals=tuple(rows[:3]),
                        base_by_run_nrms=base_err.by_run_nrms,
                        accepted=tuple(proposal_terms(d.accepted)) if d.accepted else None, text=text)

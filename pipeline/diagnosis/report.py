@@ -409,8 +409,10 @@ def _discrepancy_lines(disc: Discrepancy) -> list[str]:
               "Screening (non-negative sparse regression of the calibrated base's residual on each term's "
               "sensitivity, calibratable directions projected out): "
               + ", ".join(f"{s.term} (#{s.entered}, score {s.score:.2f}"
-                          + (", in the support)" if s.in_support else ")") for s in disc.screening) + ".",
-              "", "| rank | proposal | terms | coefficients (sd) | held-out error (noise floor) | held-out nrms | "
+                          + (", in the support)" if s.in_support else ")") for s in disc.screening) + ".", ""]
+    if not disc.proposals:
+        return lines
+    lines += ["| rank | proposal | terms | coefficients (sd) | held-out error (noise floor) | held-out nrms | "
               "ΔBIC | held-out Δχ² | adequate | improves |", "|---|---|---|---|---|---|---|---|---|---|"]
     for k, p_ in enumerate(disc.proposals, 1):
         co = ", ".join(f"{t} = {p_.coefficients[t]:.3g} ± {p_.coefficient_sd[t]:.2g}" for t in p_.coefficients)

@@ -164,3 +164,28 @@ def test_contact_rate_product_is_rate_stiffening_in_another_form():
     assert D.spanned_effect("pendulum", D.proposal_name(("contact_cubic",)), values, ["rate_stiffening"]) is None
     both = D.proposal_name(("contact_rate_product", "contact_cubic"))
     assert D.spanned_effect("pendulum", both, values, ["rate_stiffening"]) is None
+
+
+def test_a_proposal_needs_two_numbers_per_free_parameter():
+    """A summary log like the published seed-000 data (4 runs of 2-3 numbers, one a lower bound; leave-one-run-out)
+    leaves 6 two-sided numbers in the smallest fold: no proposal on 3 calibratables (4 parameters need 8) is fitted,
+    and the report says why instead of ranking fits that interpolate the data."""
+    from types import SimpleNamespace
+
+    from pipeline.diagnosis.heldout import HeldOut
+
+    lb = [np.array([True, False, False]), np.zeros(2, bool), np.zeros(2, bool), np.zeros(3, bool)]
+    ev = SimpleNamespace(targets=[SimpleNamespace(lower_bound=m) for m in lb])
+    loro = SimpleNamespace(folds=tuple(([j for j in range(4) if j != i], [i]) for i in range(4)))
+    assert D.calibration_numbers(ev, loro) == 6            # the fold without the 3-number two-sided run
+    cands = {"discrepancy:tool_viscous": ("c",), "discrepancy:load_path_mode": ("r", "f", "z")}
+    assert D.supported(cands, 6, 3) == ({}, list(cands))
+    assert D.supported(cands, 8, 3) == ({"discrepancy:tool_viscous": ("c",)}, ["discrepancy:load_path_mode"])
+    assert D.supported(cands, 12, 3) == (cands, [])
+    d = D.Discovery(screening=D.Screening([], [], {}, {}, []), fits={}, err={}, stats={}, accepted=None, leader=None,
+                    checks={}, too_few=tuple(cands), n_numbers=6)
+    base_err = HeldOut(nrms=4.2, chi2=50.0, n=3, by_run_nrms={"a": 4.2}, error=0.3, noise_floor=0.07,
+                       error_by_group={}, noise_by_group={})
+    rep = D.report(d, base_err, ["k1", "c1", "pm"])
+    assert rep.proposals == () and rep.accepted is None
+    assert "hold 6 measured numbers" in rep.text and "more runs or series records" in rep.text
