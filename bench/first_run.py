@@ -3,9 +3,9 @@
 ``python -m bench.first_run`` clones this repository's committed HEAD into a temporary folder and runs there:
 
 1. **install**: ``make install`` (the venv, pip's install of the pinned dependencies; no kernel is compiled);
-2. **compile**: the numba kernels the pipeline's models need (``params.yaml``'s sweep model and the systems of
-   ``measured/*/runs.csv``: :func:`pipeline.cli.compile.pipeline_models`), compiled into the clone's cache as the
-   pipeline's stages would on first use (``vibro compile --jit-only MODEL ...``), so this phase is measured apart
+2. **compile**: the numba kernels the pipeline's stages compile on first use (every kernel of ``params.yaml``'s
+   sweep model, the numerical integrator of each system of ``measured/*/runs.csv``:
+   :func:`pipeline.cli.compile.pipeline_kernels`), compiled into the clone's cache as the stages would (``vibro compile --jit-only MODEL ...``), so this phase is measured apart
    from the stages;
 3. **pipeline**: ``make run`` (the install is up to date, so: the dvc pipeline);
 4. **variant** (only when asked, after the pipeline): the README's variant, a dvc experiment with
@@ -41,9 +41,9 @@ def phase_command(phase: str, clone: Path) -> list[str]:
     if phase == "install":
         return ["make", "install"]
     if phase == "compile":
-        from pipeline.cli.compile import pipeline_models
+        from pipeline.cli.compile import pipeline_kernels
 
-        return [str(clone / "bin" / "vibro"), "compile", "--jit-only", *pipeline_models(clone)]
+        return [str(clone / "bin" / "vibro"), "compile", "--jit-only", *pipeline_kernels(clone)]
     if phase == "pipeline":
         return ["make", "run"]
     if phase == "variant":

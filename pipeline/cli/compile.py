@@ -11,26 +11,65 @@ from typing import Callable, Iterable, Iterator
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def pipeline_models(root: Path = ROOT) -> tuple[str, ...]:
-    """Models `make run`'s pipeline simulates, read from the repository (params.yaml ``sweep.model``, then the
-    ``system`` column of every measured/*/runs.csv it diagnoses): compiled first, so a pipeline started early
-    finds its kernels built.  Empty outside a checkout."""
-    import csv
-
+def _sweep_model(root: Path) -> list[str]:
+    """params.yaml's ``sweep.model`` (empty outside a checkout)."""
     import yaml
 
-    names: list[str] = []
     try:
-        names.append(str(yaml.safe_load((root / "params.yaml").read_text())["sweep"]["model"]))
+        return [str(yaml.safe_load((root / "params.yaml").read_text())["sweep"]["model"])]
     except (OSError, KeyError, TypeError, yaml.YAMLError):
-        pass
+        return []
+
+
+def _diagnosed_systems(root: Path) -> list[str]:
+    """The ``system`` column of every measured/*/runs.csv (the datasets the pipeline diagnoses)."""
+    import csv
+
+    names: list[str] = []
     for runs in sorted((root / "measured").glob("*/runs.csv")):
         try:
             with runs.open(newline="") as fh:
                 names += [row["system"] for row in csv.DictReader(fh) if row.get("system")]
         except (OSError, KeyError, csv.Error):
             continue
-    return tuple(dict.fromkeys(names))
+    return names
+
+
+def pipeline_models(root: Path = ROOT) -> tuple[str, ...]:
+    """Models `make run`'s pipeline simulates, read from the repository (params.yaml ``sweep.model``, then the
+    ``system`` column of every measured/*/runs.csv it diagnoses): compiled first, so a pipeline started early
+    finds its kernels built.  Empty outside a checkout."""
+    return tuple(dict.fromkeys(_sweep_model(root) + _diagnosed_systems(root)))
+
+
+def pipeline_kernels(root: Path = ROOT) -> tuple[str, ...]:
+    """The kernels `make run` compiles on first use, as ``vibro compile`` arguments: every kernel of the sweep model,
+    and the numerical integrator of each other diagnosed system (a diagnosis compares time histories, which only the
+    numerical integrator records: ``sim.api``'s exact propagators return none)."""
+    sweep = _sweep_model(root)
+    return tuple(sweep + [f"{m}:{NUMERICAL}" for m in dict.fromkeys(_diagnosed_systems(root)) if m not in sweep])
+
+
+NUMERICAL, EXACT = "numerical", "exact"
+"""``vibro compile MODEL:VARIANT``: only the numerical integrator, or only the exact propagator."""
+
+
+def parse_kernel(text: str, known: Iterable[str]) -> tuple[str, str | None]:
+    """(model, variant or None: all) of a ``MODEL[:numerical|:exact]`` argument; a clear error naming it."""
+    import difflib
+
+    from pipeline.core.errors import UserError
+
+    name, _, variant = text.partition(":")
+    known = list(known)
+    if name not in known:
+        close = difflib.get_close_matches(name, known, n=1, cutoff=0.5)
+        hint = f" (did you mean '{close[0]}'?)" if close else ""
+        raise UserError(f"unknown model '{name}'{hint}; known models: {', '.join(known)}")
+    if variant and variant not in (NUMERICAL, EXACT):
+        raise UserError(f"'{text}': the kernel after ':' is '{NUMERICAL}' or '{EXACT}', got '{variant}'")
+    return name, variant or None
+
 
 Job = tuple[str, "str | None", bool, bool]      # (model, exact propagator or None, fill the JIT cache, build the AOT module)
 Result = tuple[str, str, "str | None", "float | None"]   # (label, path, error or None, seconds or None: up to date)
@@ -56,10 +95,12 @@ def add_parser(sub) -> None:
         epilog="examples:\n"
                "  vibro compile                 # every model: a few minutes on 2 cores; it prints the time it took\n"
                "  vibro compile drill           # the drill's two kernels\n"
+               "  vibro compile indenter-metal:numerical   # only its numerical integrator (what a diagnosis uses)\n"
                "  vibro compile --workers 1\n"
                "  vibro compile --jit           # also fill numba's JIT cache (threads: sweeps, batches, diagnosis)\n"
                "  vibro compile --jit-only      # only numba's JIT cache, each kernel once (make test runs it)")
-    p.add_argument("models", nargs="*", metavar="MODEL", help="models to compile (default: all)")
+    p.add_argument("models", nargs="*", metavar="MODEL[:KERNEL]",
+                   help="models to compile (default: all); MODEL:numerical or MODEL:exact builds only that kernel")
     p.add_argument("--workers", type=int, default=None,
                    help="kernels compiled at once, one process each (default: the number of cores)")
     p.add_argument("--jit", action="store_true", help="also compile the GIL-free JIT kernels into numba's cache "
@@ -133,10 +174,11 @@ def run(args) -> int:
     from sim import aot, get_model, model_names
     from sim.registry import kernel_variants
 
-    names = args.models or list(model_names())
-    for n in names:
-        if n not in model_names():
-            raise UserError(f"unknown model '{n}'; known models: {', '.join(model_names())}")
+    wanted: dict[str, str | None] = {}       # model -> the one kernel asked for (None: all of its kernels)
+    for name, variant in (parse_kernel(t, model_names()) for t in args.models):
+        wanted[name] = variant if wanted.get(name, variant) == variant else None
+    wanted = wanted or dict.fromkeys(model_names())
+    names = list(wanted)
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
     current: list[Result] = []
@@ -145,6 +187,8 @@ def run(args) -> int:
     for n in pipeline_first(names):
         spec = get_model(n)
         for exact in kernel_variants(spec):
+            if wanted[n] is not None and (wanted[n] == EXACT) != (exact is not None):
+                continue
             if (spec.funcs, exact) in seen:
                 continue
             seen.add((spec.funcs, exact))
@@ -161,13 +205,17 @@ def run(args) -> int:
     for r in current:
         clock.emit(clock.line(r, len(todo), args.quiet))
     failed: list[Result] = []
+    n_current = len(current)        # ... and the jobs that found their kernel already built (seconds None)
     left = len(todo)
     for r in build_all(todo, workers):
         left -= 1
         clock.emit(clock.line(r, left, args.quiet))
         if r[2] is not None:
             failed.append(r)
-    clock.emit(clock.total(len(todo) - len(failed), len(current), len(failed)))
+        elif r[3] is None:
+            n_current += 1
+    n_built = len(todo) + len(current) - n_current - len(failed)
+    clock.emit(clock.total(n_built, n_current, len(failed)))
     if failed:
         label, _, err, _ = failed[0]
         raise UserError(f"ahead-of-time compilation of the {label} kernel failed ({err}); "

@@ -11,6 +11,7 @@ import yaml
 
 from pipeline.cli import compile as compile_cmd
 from pipeline.cli import main
+from pipeline.core.errors import UserError
 from sim import aot, model_names
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -133,3 +134,19 @@ def test_jit_argument_types_are_what_a_call_is_typed_as():
     c1, i1, c2 = np.zeros(3), np.zeros(1, dtype=np.int64), np.zeros((0, 4))
     call = (c1, c1, c1, i1, 0.01, c1, c1, np.empty(0), c2, np.zeros((0, 5)), np.empty(0, dtype=np.int64))
     assert compile_cmd.jit_argument_types() == tuple(typeof(a) for a in call)
+
+
+def test_a_first_run_compiles_the_sweep_models_kernels_and_the_diagnosed_systems_numerical_ones():
+    """bench.first_run's compile phase is what `make run` compiles on first use: the sweep model's two kernels, and
+    only the numerical integrator of an indenter (a diagnosis records histories; the exact propagator gives none)."""
+    kernels = compile_cmd.pipeline_kernels()
+    assert kernels[0] == compile_cmd.pipeline_models()[0] == "drill"
+    assert {"indenter-metal:numerical", "indenter-sandstone:numerical"} <= set(kernels)
+    assert compile_cmd.parse_kernel("rimd:exact", model_names()) == ("rimd", "exact")
+    assert compile_cmd.parse_kernel("rimd", model_names()) == ("rimd", None)
+
+
+@pytest.mark.parametrize("arg, says", [("drll", "did you mean 'drill'"), ("drill:fast", "'numerical' or 'exact'")])
+def test_a_wrong_kernel_argument_is_one_clear_line(arg, says):
+    with pytest.raises(UserError, match=says):
+        compile_cmd.parse_kernel(arg, model_names())
