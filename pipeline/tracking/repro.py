@@ -45,10 +45,10 @@ REPORT_REL = Path("results/report/report.html")
 METRICS_DIR = Path("metrics")
 TIMES_REL = Path(".vibro/stage-times.json")
 _RUNNING = re.compile(r"Running stage '([^']+)'")
-TYPICAL_S = {"sweep": 40.0, "train": 150.0, "optimise@rop": 40.0, "optimise@pareto": 50.0, "verify": 25.0,
-             "diagnose@seed000-published": 150.0, "report": 15.0,
+TYPICAL_S = {"sweep": 10.0, "train": 160.0, "optimise@rop": 15.0, "optimise@pareto": 15.0, "verify": 10.0,
+             "diagnose@seed000-published": 100.0, "report": 10.0,
              # the corrected chain (first-run ETA only; later runs use the measured times)
-             "diagnose@drill-rig": 300.0, "sweep_rig": 15.0, "train_rig": 100.0, "optimise_rig": 40.0, "compare": 20.0}
+             "diagnose@drill-rig": 45.0, "sweep_rig": 10.0, "train_rig": 30.0, "optimise_rig": 45.0, "compare": 5.0}
 """Stage wall times [s] on two idle cores with the default params.yaml (docs/pipeline.md "Measured run time"):
 the first run's ETA; later runs use the previous run's times (``.vibro/stage-times.json``)."""
 
