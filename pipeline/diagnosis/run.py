@@ -444,6 +444,24 @@ def _pairs(d: _Diagnosis) -> None:
     if pair_adequate or (v2.leader is not None and v.kind != SELECTED):   # an adequate single stays
         kind = SELECTED if pair_adequate else UNEXPLAINED
         d.v = replace(v, kind=kind, selected=v2.leader if kind == SELECTED else None, leader=v2.leader)
+    elif v2.leader is None and v.kind != SELECTED and v.leader in pairs.stats:
+        _leader_again(d, pairs.stats[v.leader])
+
+
+def _leader_again(d: _Diagnosis, stats: ModelStats) -> None:
+    """No pair improves on the leader, which the pair stage fitted again under the chain located at its own fit: the
+    leader is judged against the base again with those fits, its report row from the same numbers (a leader the
+    base's chain left at held-out nrms 6 may be at the noise under its own)."""
+    v = d.v
+    check = decide(d.stats["base"], [stats], d.cfg.rule()).checks[v.leader]
+    d.stats[v.leader] = stats
+    selected = check.improves and check.adequate
+    d.v = replace(v, kind=SELECTED if selected else v.kind, selected=v.leader if selected else v.selected,
+                  checks={**v.checks, v.leader: check})
+    d.first = d.v                                       # the one-effect call is this one
+    if selected:
+        d.log(f"{d.system}: {v.leader} fitted again under the chain located at its fit: held-out nrms "
+              f"{check.nrms:.3g}, adequate")
 
 
 def _discover(d: _Diagnosis) -> None:
