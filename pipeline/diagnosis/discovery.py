@@ -47,8 +47,9 @@ PREFIX = "discrepancy:"
 """Model names of proposals in the diagnosis' fits: ``discrepancy:`` + the terms joined by ``+``."""
 NUMBERS_PER_PARAM = 2
 """A proposal is fitted only where every fold's calibration runs hold at least this many measured numbers per free
-parameter (calibratable + the proposal's): with fewer, a fit interpolates the data (a summary log of 4 runs of 2-3
-numbers leaves 7 per fold, under 8 for one term on 3 calibratables), and its held-out test is no evidence."""
+parameter (calibratable + the proposal's): with fewer, a fit interpolates the data (the published seed-000 log, 4
+runs of 2-3 numbers, one a lower bound, leaves 6 per fold, under 8 for one term on 3 calibratables), and its held-out
+test is no evidence."""
 
 
 def calibration_numbers(ev: Evaluator, scheme: FoldScheme) -> int:
