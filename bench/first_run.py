@@ -5,8 +5,8 @@
 1. **install**: ``make install`` (the venv, pip's install of the pinned dependencies; no kernel is compiled);
 2. **compile**: the numba kernels the pipeline's stages compile on first use (every kernel of ``params.yaml``'s
    sweep model, the numerical integrator of each system of ``measured/*/runs.csv``:
-   :func:`pipeline.cli.compile.pipeline_kernels`), compiled into the clone's cache as the stages would (``vibro compile --jit-only MODEL ...``), so this phase is measured apart
-   from the stages;
+   :func:`pipeline.cli.compile.pipeline_kernels`), compiled into the clone's cache as the stages would (``vibro
+   compile --jit-only MODEL ...``), so this phase is measured apart from the stages;
 3. **pipeline**: ``make run`` (the install is up to date, so: the dvc pipeline);
 4. **variant** (only when asked, after the pipeline): the README's variant, a dvc experiment with
    ``optimise.seed=1`` under an MLflow parent run (``python -m pipeline.tracking.repro --exp -- -S optimise.seed=1``).

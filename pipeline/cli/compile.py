@@ -56,16 +56,13 @@ NUMERICAL, EXACT = "numerical", "exact"
 
 def parse_kernel(text: str, known: Iterable[str]) -> tuple[str, str | None]:
     """(model, variant or None: all) of a ``MODEL[:numerical|:exact]`` argument; a clear error naming it."""
-    import difflib
-
     from pipeline.core.errors import UserError
+    from vibrobase.errors import did_you_mean
 
     name, _, variant = text.partition(":")
     known = list(known)
     if name not in known:
-        close = difflib.get_close_matches(name, known, n=1, cutoff=0.5)
-        hint = f" (did you mean '{close[0]}'?)" if close else ""
-        raise UserError(f"unknown model '{name}'{hint}; known models: {', '.join(known)}")
+        raise UserError(f"unknown model '{name}'{did_you_mean(name, known)}; known models: {', '.join(known)}")
     if variant and variant not in (NUMERICAL, EXACT):
         raise UserError(f"'{text}': the kernel after ':' is '{NUMERICAL}' or '{EXACT}', got '{variant}'")
     return name, variant or None

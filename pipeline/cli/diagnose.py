@@ -48,10 +48,10 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
    none) and the hidden load-path mode (load_path_mode_ratio, _hz, _zeta: a hidden mass on a spring and damper
    at the impacting mass, fitted from a grid of its three parameters) are re-fitted through the simulator and judged
    on the held-out runs by the rule of step 4; a proposal is fitted only where every fold's calibration runs hold
-   at least 2 measured numbers per free parameter (a summary log of a few runs fits none, and says so).  report.json 'discrepancy' ranks them (terms in words and
-   symbols, coefficients with sd, held-out error against the floor); an accepted proposal goes into the rig
-   file as a 'discrepancy:' entry (term names and coefficients, never code) that every --rig command
-   simulates in the kernel.
+   at least 2 measured numbers per free parameter (a summary log of a few runs fits none, and says so).
+   report.json 'discrepancy' ranks them (terms in words and symbols, coefficients with sd, held-out error against
+   the floor); an accepted proposal goes into the rig file as a 'discrepancy:' entry (term names and
+   coefficients, never code) that every --rig command simulates in the kernel.
 The recording is a model of its own (docs/diagnose.md "The recording chain"): optional runs.csv columns declare a
 run's DAQ chain, and the model's signals pass through it before they are compared:
   daq_filter     anti-alias filter: butter:order:cutoff_hz, ellip:order:cutoff_hz[:ripple_db:stop_db] (analog
