@@ -112,6 +112,8 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
   estimate_chain [model]   estimate an undeclared DAQ chain (delay per channel, clock) as nuisance beside every
                            fit, never as an effect (default true; the pendulum's false); false: the records are
                            taken as the rig's signals unfiltered
+  fit_unreproducible [false]  true: also fit and judge on runs whose model response is chaotic (report
+                           'unreproducible'); false: they are left out of every fold, the split kept
   scheduler [null]         Dask scheduler (tcp://host:8786) or local:N that runs the fits; null = this process
                            (--threads simulation threads); not part of the report: the numbers are the same
 examples:
@@ -147,7 +149,7 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
-TEXT_DIAGNOSE_SETTINGS = ("estimate_chain",)
+TEXT_DIAGNOSE_SETTINGS = ("estimate_chain", "fit_unreproducible")
 """Settings whose ``--setting`` value is text (true/false), not a number."""
 
 
@@ -167,21 +169,28 @@ def load_config(path: str | None, sets: dict, effects: list[str] | None, threads
     return DiagnoseConfig(**typed_settings(values))
 
 
+def check_setting_names(names) -> None:
+    """UserError naming the first of ``names`` that is not a diagnose setting, with the closest one."""
+    from pipeline.diagnosis.run import DiagnoseConfig
+    from vibrobase.errors import did_you_mean
+
+    known = [f.name for f in fields(DiagnoseConfig)]
+    for k in names:
+        if k not in known:
+            raise UserError(f"diagnose setting '{k}' is unknown{did_you_mean(k, known)} (known: {', '.join(known)})")
+
+
 def typed_settings(values: dict) -> dict:
     """``values`` (setting -> value, numbers and true/false possibly as text) with every setting of its
     DiagnoseConfig type; UserError naming an unknown setting or a bad value."""
     from pipeline.diagnosis.config import FLOAT_BOUNDS, INT_BOUNDS, ZERO_ALLOWED
-    from pipeline.diagnosis.run import DiagnoseConfig
 
     values = dict(values)
-    known = {f.name: f for f in fields(DiagnoseConfig)}
-    for k in values:
-        if k not in known:
-            raise UserError(f"diagnose setting '{k}' is unknown (known: {', '.join(known)})")
+    check_setting_names(values)
     for k, v in list(values.items()):
-        if k == "estimate_chain" and isinstance(v, str):
+        if k in TEXT_DIAGNOSE_SETTINGS and isinstance(v, str):
             if v.strip().lower() not in ("true", "false"):
-                raise UserError(f"diagnose setting 'estimate_chain' must be true or false, got {v!r}")
+                raise UserError(f"diagnose setting '{k}' must be true or false, got {v!r}")
             values[k] = v.strip().lower() == "true"
         elif k in INT_BOUNDS and v is not None:
             lo, hi = INT_BOUNDS[k]
@@ -223,6 +232,7 @@ def run(args) -> int:
     from pipeline.diagnosis.workflow import diagnose
     from pipeline.diagnosis.outputs import write_outputs
 
+    check_setting_names(item.partition("=")[0].strip() for item in args.sets or [] if "=" in item)
     sets = parse_assignments(args.sets, "--setting", words=TEXT_DIAGNOSE_SETTINGS)
     cfg = load_config(args.params, sets, args.effects, check_workers(args.threads))
     scheduler = scheduler_of(args.params, args.scheduler)

@@ -56,8 +56,10 @@ def check_config(cfg) -> None:
         check_setting(name, getattr(cfg, name))
     if cfg.effects is not None and (not isinstance(cfg.effects, list) or not all(isinstance(e, str) for e in cfg.effects)):
         raise UserError(f"diagnose setting 'effects' must be a list of effect names, got {cfg.effects!r}")
-    if cfg.estimate_chain is not None and not isinstance(cfg.estimate_chain, bool):
-        raise UserError(f"diagnose setting 'estimate_chain' must be true or false, got {cfg.estimate_chain!r}")
+    for name in ("estimate_chain", "fit_unreproducible"):
+        value = getattr(cfg, name)
+        if value is not None and not isinstance(value, bool):
+            raise UserError(f"diagnose setting '{name}' must be true or false, got {value!r}")
     for name in ("sim_settings", "summary_sd"):
         if not isinstance(getattr(cfg, name), dict):
             raise UserError(f"diagnose setting '{name}' must be a mapping, got {getattr(cfg, name)!r}")
@@ -104,6 +106,8 @@ class DiagnoseConfig:
     n_threads: int | None = None
     estimate_chain: bool | None = None  # estimate an undeclared DAQ chain (delay per channel, clock) as nuisance
     #                                     beside every fit; None: the model's default (ModelSpec.diagnose_chain)
+    fit_unreproducible: bool = False    # fit and judge on runs whose model response is chaotic (unreproducible_runs);
+    #                                     false: they are left out of every fold (the split is kept)
 
     def __post_init__(self) -> None:
         check_config(self)

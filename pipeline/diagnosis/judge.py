@@ -99,6 +99,18 @@ def make_folds(targets: list[Target], cfg: DiagnoseConfig) -> FoldScheme:
     return LeaveOneRunOut(tuple(([j for j in range(n) if j != i], [i]) for i in range(n)))
 
 
+def without_runs(scheme: FoldScheme, runs: set[int]) -> FoldScheme:
+    """``scheme`` with ``runs`` left out of every fold's calibration and held-out runs (a fold that held out only
+    them is dropped), the split itself unchanged; ``scheme`` as it is when that would leave a fold with fewer than
+    two calibration runs or no fold at all."""
+    folds = tuple(([i for i in cal if i not in runs], [i for i in test if i not in runs])
+                  for cal, test in scheme.folds)
+    folds = tuple((cal, test) for cal, test in folds if test)
+    if not runs or not folds or any(len(cal) < 2 for cal, _ in folds):
+        return scheme
+    return replace(scheme, folds=folds)
+
+
 @dataclass(frozen=True)
 class Fitter:
     """How a stage fits its models: ``on_folds(calibration sets)`` -> fits per set, ``on_all()`` -> the fits on the

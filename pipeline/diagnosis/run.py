@@ -30,7 +30,8 @@ from pipeline.diagnosis.discovery import discover, proposal_terms, report as dis
 from pipeline.diagnosis.fit import FitResult
 from pipeline.diagnosis.nuisance import ChainEstimate, estimate_chain, locate_chain
 from pipeline.diagnosis.heldout import HeldOut, systematic_error  # noqa: F401  (systematic_error re-exported)
-from pipeline.diagnosis.judge import FoldScheme, Fitter, Holdout, Judged, judge, make_folds  # noqa: F401  (make_folds re-exported)
+from pipeline.diagnosis.judge import (FoldScheme, Fitter, Holdout, Judged, judge,  # noqa: F401  (make_folds
+                                      make_folds, without_runs)                  # re-exported)
 from pipeline.diagnosis import report_types as R
 from pipeline.diagnosis.report_types import PairStage, effects_of
 from pipeline.diagnosis.result import SystemDiagnosis
@@ -105,7 +106,8 @@ def unreproducible_runs(ev: Evaluator, cfg: DiagnoseConfig) -> dict[str, float]:
     hundredth of the tolerance, its features move by more than the noise (nrms > 1).  Such a response is chaotic
     or sits between coexisting orbits (the pendulum at 7.25 Hz, gap 1 mm); no trajectory of the model can be
     compared with the rig's cycle by cycle, and the fit may bend the parameters to hit one realisation: the report
-    names these runs so the user can leave them out.  Run id -> nrms of the difference."""
+    names these runs, and the folds leave them out (``judge.without_runs``; setting fit_unreproducible keeps
+    them).  Run id -> nrms of the difference."""
     idx = [i for i, t in enumerate(ev.targets) if t.kind == "series"]
     if not idx:
         return {}
@@ -360,14 +362,17 @@ def _calibrate(d: _Diagnosis) -> None:
     starting point) and on every fold's calibration runs."""
     system, targets, cfg, cands, log, progress = d.system, d.targets, d.cfg, d.cands, d.log, d.progress
     d.scheme = make_folds(targets, cfg)
+    if not cfg.fit_unreproducible:      # no trajectory of the model follows them: a fit would bend to one realisation
+        d.scheme = without_runs(d.scheme, {i for i, t in enumerate(targets) if t.run_id in d.unreproducible})
     rng = np.random.default_rng(cfg.seed)
 
     def n_fit_tasks(n_folds: int, warm_start: bool) -> int:
         return fit_tasks(n_folds, len(cands), cfg.n_starts, cfg.candidate_starts, warm_start)
 
     def fit_all() -> dict:      # the reported parameters: a fit on all runs (also the folds' starting point)
-        log(f"{system}: fit on all {len(targets)} runs (reported parameters)")
-        progress.stage(f"{system}: base + {len(cands)} candidates on all {len(targets)} runs", n_fit_tasks(1, False))
+        n = len(d.scheme.reported_runs)
+        log(f"{system}: fit on all {n} runs (reported parameters)")
+        progress.stage(f"{system}: base + {len(cands)} candidates on all {n} runs", n_fit_tasks(1, False))
         [(fits, lines)] = fit_models(d.ev, [d.scheme.reported_runs], cfg, cands, rng, d.executor)
         for line in lines:
             log(line)

@@ -20,8 +20,9 @@ SUMMARY_NOTE = ("summary data: the measurement sd is assumed (summary.csv '<feat
                 "assumption")
 UNREPRODUCIBLE_NOTE = ("run {run}: the model's response there is chaotic or multi-stable (solved again at a hundredth "
                        "of the tolerance, its features move by nrms {nrms:.3g}), so no trajectory of the model can be "
-                       "compared with the record cycle by cycle and the fit may bend parameters to match it; consider "
-                       "leaving it out of runs.csv")
+                       "compared with the record cycle by cycle and the fit may bend parameters to match it; {what}")
+LEFT_OUT = "left out of the fits and the held-out errors (setting fit_unreproducible: true keeps it)"
+KEPT = "kept in the fits (leaving it out would empty a fold); consider leaving it out of runs.csv"
 
 
 def diagnose(ds, cfg: DiagnoseConfig, log=print, progress=None, executor: Executor | None = None) -> DiagnoseResult:
@@ -68,7 +69,9 @@ def _diagnose(ds, cfg: DiagnoseConfig, log, progress, executor: Executor) -> Dia
             sim_runs = simulate_runs(diag)
         costs += [*diag.cost, *figs.rows()]
         notes = [SUMMARY_NOTE] if "summary" in diag.report.data else []
-        notes += [UNREPRODUCIBLE_NOTE.format(run=r, nrms=x) for r, x in diag.report.unreproducible.items()]
+        used = {r for fold in diag.report.split.folds for r in (*fold.calibration, *fold.held_out)}
+        notes += [UNREPRODUCIBLE_NOTE.format(run=r, nrms=x, what=KEPT if r in used else LEFT_OUT)
+                  for r, x in diag.report.unreproducible.items()]
         notes += skipped.get(system, []) + [n for t in tgs for n in t.notes]     # what the recording left out
         structure = residual_structure(diag, sim_runs.base, sim_runs.final)
         diag = replace(diag, report=replace(diag.report, residual_structure=structure, notes=tuple(notes)))

@@ -23,6 +23,7 @@ import pandas as pd
 from pipeline.core.errors import UserError
 from pipeline.datasets.measured import Dataset
 from sim.controls import CONTROLS
+from vibrobase.errors import did_you_mean
 
 
 def effect_defaults(system: str) -> dict[str, dict[str, float]]:
@@ -35,7 +36,8 @@ def rig_of(system: str):
     import sim
 
     if system not in sim.model_names():
-        raise UserError(f"--system {system}: unknown (known: {', '.join(sim.model_names())})")
+        raise UserError(f"--system {system}: unknown{did_you_mean(system, sim.model_names())} "
+                        f"(known: {', '.join(sim.model_names())})")
     rig = sim.get_model(system).synth
     if rig is None:
         known = ", ".join(n for n in sim.model_names() if sim.get_model(n).synth is not None)
@@ -334,7 +336,8 @@ def synthesize(cfg: SynthConfig, progress: bool = False) -> tuple[Dataset, dict]
 
     cfg = cfg.resolved()
     if cfg.outside is not None and cfg.outside not in OUTSIDE:
-        raise UserError(f"--outside {cfg.outside}: unknown (known: {', '.join(OUTSIDE)})")
+        raise UserError(f"--outside {cfg.outside}: unknown{did_you_mean(cfg.outside, OUTSIDE)} "
+                        f"(known: {', '.join(OUTSIDE)})")
     if cfg.outside == "contact_hertz" and "k1" not in sim.get_model(cfg.system).param_names:
         raise UserError(f"--outside contact_hertz replaces a linear contact stiffness k1, which {cfg.system} does not have")
     for s in cfg.signals:

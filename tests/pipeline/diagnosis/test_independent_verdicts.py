@@ -76,7 +76,9 @@ def test_verdict_on_an_independent_log(tmp_path, spec):
     # tests/independent/rigs.py): the report names it, and no other run of any log
     chaotic = {"pendu-07-7.25hz"} if spec.system == "pendulum" else set()
     assert set(rep["unreproducible"]) == chaotic
-    assert all(any(r in n for n in rep["notes"]) for r in chaotic)
+    assert all(any(r in n and "left out of the fits" in n for n in rep["notes"]) for r in chaotic)
+    used = {r for fold in rep["split"]["folds"] for r in (*fold["calibration"], *fold["held_out"])}
+    assert not used & chaotic and len(used) == rep["n_runs"] - len(chaotic)     # the split of the others is kept
 
 
 def test_a_log_from_outside_the_library_is_unexplained_by_every_single_effect(tmp_path):

@@ -12,7 +12,7 @@ import pytest
 from pipeline.diagnosis.config import DiagnoseConfig
 from pipeline.diagnosis.features import Target
 from pipeline.diagnosis.fit import FitResult
-from pipeline.diagnosis.judge import Fitter, Holdout, LeaveOneRunOut, judge, make_folds
+from pipeline.diagnosis.judge import Fitter, Holdout, LeaveOneRunOut, judge, make_folds, without_runs
 from pipeline.diagnosis.verdict import SELECTED
 
 
@@ -78,3 +78,20 @@ def test_held_out_errors_bic_and_verdict_are_the_folds_sums():
     assert j.stats["good"].chi2 == 0.0 and j.verdict.kind == SELECTED and j.verdict.selected == "good"
     against = judge(ev, loro, _fitter([]), rule, against=j.stats["good"], candidates=["base"])
     assert against.verdict.selected is None               # the base does not improve on 'good'
+
+
+def test_a_chaotic_run_leaves_every_fold_and_the_split_stays():
+    """``without_runs``: the run leaves calibration and held-out sets; a fold that held out only it goes; the split of
+    the other runs is the one ``make_folds`` chose (a chaotic run dropped from runs.csv would change it)."""
+    hold = make_folds(_targets(8), DiagnoseConfig())
+    (cal, test), = hold.folds
+    out = without_runs(hold, {cal[-1]})
+    assert isinstance(out, Holdout) and out.folds == ((cal[:-1], test),) and out.reported_runs == cal[:-1]
+    assert without_runs(hold, {test[0]}).folds == ((cal, test[1:]),)
+    loro = make_folds(_targets(4), DiagnoseConfig())
+    out = without_runs(loro, {2})
+    assert isinstance(out, LeaveOneRunOut) and out.folds == (([1, 3], [0]), ([0, 3], [1]), ([0, 1], [3]))
+    assert out.reported_runs == [0, 1, 3]
+    # nothing to leave out, or leaving it out would leave a fold with one calibration run: the scheme as it was
+    assert without_runs(loro, set()) is loro and without_runs(make_folds(_targets(3), DiagnoseConfig()), {0}).folds \
+        == make_folds(_targets(3), DiagnoseConfig()).folds

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from pathlib import Path
 
 import pytest
 
@@ -111,7 +112,7 @@ def _check_cost(rep: dict, md: str) -> None:
 
 @pytest.mark.parametrize("bad", [dict(n_starts=0), dict(grid=2.5), dict(candidate_starts=3), dict(explained_nrms=0.0),
                                  dict(seed=True), dict(systematic_tol=float("nan")), dict(effects="shaker_coil"),
-                                 dict(sim_settings=None)])
+                                 dict(sim_settings=None), dict(fit_unreproducible="yes")])
 def test_config_checks_itself(bad):
     with pytest.raises(UserError, match="diagnose setting"):
         DiagnoseConfig(**bad)
@@ -121,3 +122,23 @@ def test_config_accepts_its_bounds():
     cfg = DiagnoseConfig(model_floor=0.0, summary_floor=0.0, profile_nfev=0, record_window=0, explained_nrms=3,
                          n_threads=1, effects=["shaker_coil"])
     assert cfg.model_floor == 0.0 and cfg.explained_nrms == 3
+
+
+@pytest.mark.parametrize("item, msg", [
+    ("fit_unreproducable=true", "diagnose setting 'fit_unreproducable' is unknown (did you mean fit_unreproducible?)"),
+    ("fit_unreproducible=maybe", "diagnose setting 'fit_unreproducible' must be true or false, got 'maybe'")])
+def test_a_bad_setting_is_one_line_naming_it(tmp_path, capsys, item, msg):
+    from pipeline.cli import main
+
+    published = Path(__file__).resolve().parents[3] / "measured" / "seed000-published"
+    assert main(["diagnose", str(published), "--out", str(tmp_path / "d"), "--setting", item,
+                 "--no-mlflow"]) == 2
+    err = capsys.readouterr().err
+    assert msg in err and len(err.strip().splitlines()) == 1 and not (tmp_path / "d").exists()
+
+
+def test_true_and_false_as_text_are_the_settings_booleans():
+    from pipeline.cli.diagnose import typed_settings
+
+    assert typed_settings({"fit_unreproducible": "True", "estimate_chain": "false"}) == {
+        "fit_unreproducible": True, "estimate_chain": False}

@@ -28,3 +28,12 @@ def test_a_log_has_every_run_once_and_the_same_seed_gives_the_same_log():
 def test_an_effect_the_model_lacks_is_refused_by_name():
     with pytest.raises(UserError, match="tip_blunting"):
         resolve_effects("pendulum", {"tip_blunting": None})
+
+
+def test_a_mistyped_system_gets_the_closest_name(tmp_path, capsys):
+    from pipeline.cli import main
+
+    assert main(["synth", "--out", str(tmp_path / "s"), "--system", "pendulm"]) == 2
+    err = capsys.readouterr().err
+    assert "--system pendulm: unknown (did you mean pendulum?)" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "s").exists()
