@@ -61,7 +61,7 @@ def test_simulate_plot(tmp_path, capsys):
     (["simulate", "pendulum", "--setting", "method=exact"], "model 'pendulum' has no exact propagator"),
     (["compile", "nope"], "unknown model 'nope'"),
     (["diagnose", "no-such-dir", "--out", "/tmp/never-written", "--setting", "method=dopri5"],
-     "--setting method: 'dopri5' is not a number"),
+     "diagnose setting 'method' is unknown"),
 ])
 def test_bad_input_is_one_line_error(args, needle):
     p = run_cli(*args)
