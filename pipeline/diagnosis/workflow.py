@@ -22,7 +22,10 @@ UNREPRODUCIBLE_NOTE = ("run {run}: the model's response there is chaotic or mult
                        "of the tolerance, its features move by nrms {nrms:.3g}), so no trajectory of the model can be "
                        "compared with the record cycle by cycle and the fit may bend parameters to match it; {what}")
 LEFT_OUT = "left out of the fits and the held-out errors (setting fit_unreproducible: true keeps it)"
-KEPT = "kept in the fits (leaving it out would empty a fold); consider leaving it out of runs.csv"
+KEPT = {True: "kept in the fits (setting fit_unreproducible: true)",
+        False: "kept in the fits (leaving it out would leave a fold fewer than two calibration runs); consider "
+               "leaving it out of runs.csv"}
+"""Why an unreproducible run is still in the split: asked for, or ``judge.without_runs`` declined."""
 
 
 def diagnose(ds, cfg: DiagnoseConfig, log=print, progress=None, executor: Executor | None = None) -> DiagnoseResult:
@@ -70,7 +73,8 @@ def _diagnose(ds, cfg: DiagnoseConfig, log, progress, executor: Executor) -> Dia
         costs += [*diag.cost, *figs.rows()]
         notes = [SUMMARY_NOTE] if "summary" in diag.report.data else []
         used = {r for fold in diag.report.split.folds for r in (*fold.calibration, *fold.held_out)}
-        notes += [UNREPRODUCIBLE_NOTE.format(run=r, nrms=x, what=KEPT if r in used else LEFT_OUT)
+        notes += [UNREPRODUCIBLE_NOTE.format(run=r, nrms=x,
+                                             what=KEPT[cfg.fit_unreproducible] if r in used else LEFT_OUT)
                   for r, x in diag.report.unreproducible.items()]
         notes += skipped.get(system, []) + [n for t in tgs for n in t.notes]     # what the recording left out
         structure = residual_structure(diag, sim_runs.base, sim_runs.final)
