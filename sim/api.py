@@ -141,11 +141,26 @@ class SimulationResult:
     model: str
     params: dict[str, float]
     labels: dict
-    history: "pd.DataFrame | None" = None
+    columns: dict[str, np.ndarray] | None = None   # the history's columns (t_s [s], states, signals [SI]), or None
     settings: Settings = field(default_factory=Settings)
     final_state: tuple | None = None   # (y, z, phase) at the end: pass as initial_state to continue
     initial_state: tuple | None = None  # the state the run started from (None: rest, MODELS.md)
     history_times: np.ndarray | None = None   # the history's times from the window start, when chosen by the caller
+    _frame: "pd.DataFrame | None" = field(default=None, init=False, repr=False, compare=False)
+
+    @property
+    def history(self) -> "pd.DataFrame | None":
+        """The time history as a DataFrame (built from ``columns`` on first use; None without a history)."""
+        if self._frame is None and self.columns is not None:
+            import pandas as pd
+
+            self._frame = pd.DataFrame(self.columns)     # one constructor: column-by-column insertion costs ~1 ms
+        return self._frame
+
+    def set_column(self, name: str, values: np.ndarray) -> None:
+        """Add or replace a history column (the DataFrame is rebuilt on its next use)."""
+        self.columns[name] = np.asarray(values)
+        self._frame = None
 
     @property
     def status(self) -> str:
@@ -233,7 +248,9 @@ def _main_thread_aot(spec: ModelSpec, exact: str | None):
     return aot.load(spec.funcs, exact)
 
 
-def _check_state(spec: ModelSpec, state) -> tuple[np.ndarray, np.ndarray, int]:
+def _check_state(spec: ModelSpec, state, n_z: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """``state`` = (y, z, phase) checked against the model: ``n_z`` is the size of the kernel's discrete-state
+    array (``spec.initial``'s; at least 1, and the indenters share one of 2 whether they use it or not)."""
     try:
         y, z, ph = state
         y = np.array(y, dtype=np.float64)
@@ -243,9 +260,9 @@ def _check_state(spec: ModelSpec, state) -> tuple[np.ndarray, np.ndarray, int]:
         raise ParameterError("initial_state must be (y, z, phase) as returned in SimulationResult.final_state") from None
     if y.shape != (len(spec.states),) or not np.all(np.isfinite(y)):
         raise ParameterError(f"initial_state: y must hold {len(spec.states)} finite values ({', '.join(spec.states)})")
-    if z.shape != (max(len(spec.z_names), 1),) and z.shape != (len(spec.z_names),):
+    if z.shape != (n_z,) and z.shape != (len(spec.z_names),):
         raise ParameterError(f"initial_state: z must hold the discrete states ({', '.join(spec.z_names) or 'none'})")
-    return y, (z if z.size else np.zeros(1)), ph
+    return y, np.concatenate([z, np.zeros(n_z - z.size)]) if z.size < n_z else z, ph
 
 
 def _check_times(times, period: float, window: int) -> np.ndarray:
@@ -300,7 +317,7 @@ def simulate(model: str, preset: str | None = None, settings: Settings | dict | 
     ho = np.zeros((n, I.N_OBS))
     hp = np.zeros(n, dtype=np.int64)
     if initial_state is not None:
-        y0, z0, ph0 = _check_state(spec, initial_state)
+        y0, z0, ph0 = _check_state(spec, initial_state, z0.shape[0])
     start = None if initial_state is None else (y0.copy(), z0.copy(), int(ph0))
     y, z, ph = y0.copy(), z0.copy(), np.array([ph0], dtype=np.int64)
     exact = _exact_module(spec, values, st, history)
@@ -310,15 +327,12 @@ def simulate(model: str, preset: str | None = None, settings: Settings | dict | 
         run_one = kernels(spec.funcs, spec.n_bounded, exact)
     v = run_one(p, y, z, ph, period, s, atol, ht, hy, ho, hp)
     labels = _labels_from_vector(v, msg, spec, values)
-    hist = None
+    cols = None
     if history and labels["status"] not in ("runaway", "failed"):
-        import pandas as pd
-
         cols = {"t_s": ht, **{name: hy[:, i] for i, name in enumerate(spec.states)}, "phase": hp,
                 **{name: ho[:, i] for i, name in enumerate(("force_n", "accel_m_s2", "disp_m", "progression_m",
                                                             "vel_m_s"))}}
-        hist = pd.DataFrame(cols)       # one constructor: column-by-column insertion costs ~1 ms a run
-    res = SimulationResult(model=spec.name, params=values, labels=labels, history=hist, settings=st,
+    res = SimulationResult(model=spec.name, params=values, labels=labels, columns=cols, settings=st,
                            final_state=(y, z, int(ph[0])), initial_state=start, history_times=chosen)
     if spec.postprocess is not None:
         res = spec.postprocess(res)

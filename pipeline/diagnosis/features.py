@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -124,19 +125,21 @@ def _from_coef(a: np.ndarray, x: np.ndarray, coef: np.ndarray, drift: int = 1) -
 
 
 @functools.lru_cache(maxsize=16)
-def _cached_design(t_bytes: bytes, f: float, k_max: int) -> np.ndarray:
-    """``_design(t, f, k_max)`` of the time base ``t_bytes`` (float64, read-only): a fit builds the same model time
-    base thousands of times.  (The solve stays ``lstsq``: a pseudo-inverse, ~10x cheaper, moves the features by
-    1e-15 and that moves a summary log's calibration by a few per cent.)"""
+def _cached_design(t_bytes: bytes, f: float, k_max: int) -> tuple[np.ndarray, np.ndarray]:
+    """``_design(t, f, k_max)`` of the time base ``t_bytes`` (float64) and its pseudo-inverse, read-only: a fit
+    builds the same model time base thousands of times, and a product with the pseudo-inverse costs a tenth of a
+    ``lstsq`` (the coefficients agree to round-off, 1e-15 relative)."""
     a = _design(np.frombuffer(t_bytes, dtype=np.float64), f, k_max)
-    a.flags.writeable = False
-    return a
+    pinv = np.linalg.pinv(a)
+    a.flags.writeable = pinv.flags.writeable = False
+    return a, pinv
 
 
 def harmonic_fit(t: np.ndarray, x: np.ndarray, f: float, k_max: int) -> HarmonicFit:
     """Fit offset, drift and harmonics 1..k_max of ``f`` to samples (t [s], x) by linear least squares."""
-    a = _cached_design(np.ascontiguousarray(t, dtype=np.float64).tobytes(), float(f), int(k_max))
-    return _from_coef(a, x, np.linalg.lstsq(a, x, rcond=None)[0])[0]
+    a, pinv = _cached_design(np.ascontiguousarray(t, dtype=np.float64).tobytes(), float(f), int(k_max))
+    x = np.asarray(x, dtype=np.float64)
+    return _from_coef(a, x, pinv @ x)[0]
 
 
 NOISE_MIN_BINS = 32
@@ -325,6 +328,13 @@ class Target:
     def cycles(self) -> float:
         """Forcing cycles in the record."""
         return self.duration_s * self.frequency_hz
+
+    def needs_history(self, params: dict) -> bool:
+        """Whether the model's features of this run need its time history: a series, a record from rest, a spectral
+        ratio or a sensor low-pass (``params``' fc > 0) do; a steady-state summary run's labels do not, and run
+        on the model's exact propagator where it has one."""
+        return (self.kind == "series" or self.record_start_s is not None or "spectral_ratio" in self.names
+                or float(params.get("fc", 0.0) or 0.0) > 0.0)
 
 
 LOW_FRACTION = 0.2
@@ -607,18 +617,33 @@ def summary_target(tg: Target, srow: pd.Series, max_harmonic_hz: float, sd_defau
     return tg
 
 
-def model_record(tg: Target, h: pd.DataFrame) -> tuple[np.ndarray, pd.DataFrame]:
-    """The part of a simulated history that corresponds to the record, and its time base (``record_time``).
-    Series: the history was sampled at the record's own instants (``sampling_plan``), after a warm-up of the
-    sensor where one was needed: its last N rows.  Summary: a steady-state window as simulated (starts at forcing
-    phase 0); a run from rest cut to [record_start_s, record_start_s + duration_s]."""
-    t = h["t_s"].to_numpy()
+Columns = Mapping[str, np.ndarray]
+"""A simulated history as its columns (``SimulationResult.columns``: t_s, states, signals), one array each."""
+
+
+def history_columns(res) -> Columns | None:
+    """The history of a simulation result as arrays: its ``columns`` where it has them (no DataFrame is built),
+    else its ``history`` DataFrame's; None without a history."""
+    cols = getattr(res, "columns", None)
+    if cols is not None:
+        return cols
+    h = getattr(res, "history", None)
+    return None if h is None else {c: h[c].to_numpy() for c in h.columns}
+
+
+def model_record(tg: Target, h: Columns) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The part of a simulated history (its columns) that corresponds to the record, and its time base
+    (``record_time``).  Series: the history was sampled at the record's own instants (``sampling_plan``), after a
+    warm-up of the sensor where one was needed: its last N rows.  Summary: a steady-state window as simulated
+    (starts at forcing phase 0); a run from rest cut to [record_start_s, record_start_s + duration_s]."""
+    t = np.asarray(h["t_s"])
     if tg.t_rec is not None:
-        return record_time(tg, tg.t_rec), h.iloc[_record_rows(tg, h)]
+        rows = _record_rows(tg, h)
+        return record_time(tg, tg.t_rec), {c: np.asarray(v)[rows] for c, v in h.items()}
     if tg.record_start_s is None:
-        return t - t[0], h
+        return t - t[0], dict(h)
     m = (t >= tg.record_start_s - 1e-12) & (t < tg.record_start_s + tg.duration_s - 1e-12)
-    return t[m], h.loc[m]
+    return t[m], {c: np.asarray(v)[m] for c, v in h.items()}
 
 
 SENSOR_SUBSAMPLES = 8
@@ -653,33 +678,33 @@ def sampling_plan(tg: Target, frequency_hz: float, warmup_s: float = 0.0) -> tup
     return times, max(window, 2), t0
 
 
-def history_summary(name: str, t: np.ndarray, h: pd.DataFrame, f: float) -> float:
-    """Summary label over a cut history (runs from rest): MODELS.md §5 definitions."""
+def history_summary(name: str, t: np.ndarray, h: Columns | pd.DataFrame, f: float) -> float:
+    """Summary label over a cut history (runs from rest; its columns or a DataFrame): MODELS.md §5 definitions."""
     if name == "rop_m_s":
-        x = h["progression_m"].to_numpy()
+        x = np.asarray(h["progression_m"])
         return float(np.polyfit(t - t.mean(), x, 1)[0])
     if name == "peak_force_n":
-        return float(h["force_n"].max())
+        return float(np.max(h["force_n"]))
     if name == "peak_decel_g":
-        return float(max(-h["accel_m_s2"].min(), 0.0) / G)
+        return float(max(-np.min(h["accel_m_s2"]), 0.0) / G)
     if name == "impacts_per_cycle":
-        on = h["force_n"].to_numpy() > 0
+        on = np.asarray(h["force_n"]) > 0
         return float(np.count_nonzero(on[1:] & ~on[:-1]) / max((t[-1] - t[0]) * f, 1e-9))
     raise KeyError(name)
 
 
-def _record_rows(tg: Target, h: pd.DataFrame) -> np.ndarray:
+def _record_rows(tg: Target, h: Columns) -> np.ndarray:
     """Rows of a history sampled by ``sampling_plan`` at the record's instants: the last N on its grid (every
     SENSOR_SUBSAMPLES-th where it was sampled finer)."""
     n = tg.t_rec.size
-    t = h["t_s"].to_numpy()
+    t = np.asarray(h["t_s"])
     sub = max(int(round(1.0 / (tg.fs_hz * (t[1] - t[0])))), 1) if t.size > 1 else 1
-    return np.arange(len(h) - n * sub, len(h), sub)        # the grid runs sub - 1 points past the record's end
+    return np.arange(t.size - n * sub, t.size, sub)        # the grid runs sub - 1 points past the record's end
 
 
-def model_on_record(tg: Target, h: pd.DataFrame, sig: str) -> np.ndarray:
-    """A simulated signal at the measured record's own instants (``sampling_plan``)."""
-    return h[sig].to_numpy()[_record_rows(tg, h)]
+def model_on_record(tg: Target, h: Columns, sig: str) -> np.ndarray:
+    """A simulated signal (a history's columns) at the measured record's own instants (``sampling_plan``)."""
+    return np.asarray(h[sig])[_record_rows(tg, h)]
 
 
 DIVERGED = 1e100
@@ -694,9 +719,10 @@ def _diverged(x: dict[str, np.ndarray]) -> bool:
 
 def simulated_halves(tg: Target, res) -> np.ndarray | None:
     """The model's features of each half of a series record, (2, n) (None: no halves, no history, or diverged)."""
-    if not tg.halves or res.history is None:
+    h = history_columns(res)
+    if not tg.halves or h is None:
         return None
-    x = {sig: model_on_record(tg, res.history, sig) for sig in tg.signals}
+    x = {sig: model_on_record(tg, h, sig) for sig in tg.signals}
     if _diverged(x):
         return None
     return np.array([apply_gain(_features(tg.signals, _coefs(ops, x, sl), tg.record_start_s is not None), tg.pair_at,
@@ -706,7 +732,13 @@ def simulated_halves(tg: Target, res) -> np.ndarray | None:
 def simulated_features(tg: Target, res) -> np.ndarray | None:
     """The model's values of ``tg``'s features from a SimulationResult with history (None if the run has no
     history — it failed or ran away — or its signals diverged, :data:`DIVERGED`)."""
-    h = res.history
+    if tg.kind == "summary" and tg.record_start_s is None and "spectral_ratio" not in tg.names:
+        lab = res.labels
+        vals = [lab.get(name) for name in tg.names]    # steady-state labels: no history needed
+        if lab["status"] in ("runaway", "failed") or any(v is not None and not abs(v) < DIVERGED for v in vals):
+            return None
+        return np.array([0.0 if v is None else float(v) for v in vals])
+    h = history_columns(res)
     if h is None:
         return None
     f = tg.frequency_hz
@@ -716,14 +748,14 @@ def simulated_features(tg: Target, res) -> np.ndarray | None:
             return None
         m = _features(tg.signals, _coefs(tg.pinv, x), tg.record_start_s is not None)
         return apply_gain(m, tg.pair_at, instrument_gain(tg))
-    t, hr = model_record(tg, h)
-    if t.size < 4 or _diverged({"history": hr.drop(columns="t_s").to_numpy(dtype=float)}):
-        return None
     lab = res.labels
+    t, hr = model_record(tg, h)
+    if t.size < 4 or _diverged({c: np.asarray(v, dtype=float) for c, v in hr.items() if c != "t_s"}):
+        return None
     vals = []
     for name in tg.names:
         if name == "spectral_ratio":
-            vals.append(spectral_ratio(t, hr["accel_m_s2"].to_numpy(), f, tg.k_max, tg.ratio_ref_hz))
+            vals.append(spectral_ratio(t, hr["accel_m_s2"], f, tg.k_max, tg.ratio_ref_hz))
         elif tg.record_start_s is not None:
             vals.append(history_summary(name, t, hr, f))
         else:
@@ -743,6 +775,5 @@ def spectral_ratio(t: np.ndarray, accel: np.ndarray, f: float, k_max: int, ref_h
 
 def peak_velocity(res) -> float | None:
     """Largest velocity of the impacting mass in the window [m/s] (a proxy of impact velocity)."""
-    if res.history is None:
-        return None
-    return float(res.history["vel_m_s"].max())
+    h = history_columns(res)
+    return None if h is None else float(np.max(h["vel_m_s"]))

@@ -143,8 +143,9 @@ class Evaluator:
         out.cost = None
         return out
 
-    def simulate(self, param_sets: list[dict], idx: list[int]) -> list[list]:
-        """SimulationResults (with history) for every parameter set x run index."""
+    def simulate(self, param_sets: list[dict], idx: list[int], history: bool = False) -> list[list]:
+        """SimulationResults for every parameter set x run index, with a history where the run's features need one
+        (``Target.needs_history``) or ``history`` asks for it."""
         import sim
 
         jobs = [(j, i) for j in range(len(param_sets)) for i in idx]
@@ -157,7 +158,8 @@ class Evaluator:
                 if tg.kind == "series":
                     st, times = series_settings(tg, self.sim_settings, params)
                     return sim.simulate(self.system, settings=st, history_times=times, **params)
-                return sim.simulate(self.system, settings=self.settings[i], history=True, **params)
+                return sim.simulate(self.system, settings=self.settings[i],
+                                    history=history or tg.needs_history(params), **params)
             except sim.ParameterError as e:
                 raise UserError(f"run {tg.run_id}: {e}") from None
 

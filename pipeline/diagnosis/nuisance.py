@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import least_squares
 
-from pipeline.diagnosis.features import _coefs, _features, model_on_record
+from pipeline.diagnosis.features import _coefs, _features, history_columns, model_on_record
 from pipeline.diagnosis.instrument import Nuisance, channel, rotation
 
 MAX_DELAY_S = 2e-3
@@ -91,7 +91,7 @@ def _pairs(v: np.ndarray, at: np.ndarray) -> np.ndarray:
 def profile_items(tg, res, keys: tuple) -> list[_Item]:
     """The profile's items of one series run from its simulation ``res`` (the model's raw features, no chain): its
     two halves where it has them, else the whole record.  ``keys``: the delays' channels (``instrument.channel``)."""
-    h = res.history if res is not None else None
+    h = history_columns(res) if res is not None else None
     if h is None or not tg.pairs:
         return []
     sig = np.array([keys.index(channel(tg, s)) for s, _ in tg.pairs])

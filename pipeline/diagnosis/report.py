@@ -13,7 +13,7 @@ from scipy.stats import spearmanr  # noqa: E402
 
 from vibrobase.files import atomic_write_figure  # noqa: E402
 from pipeline.core.units import ENGINEERING, factor, label, set_label  # noqa: E402
-from pipeline.diagnosis.features import harmonic_fit, model_record, record_time  # noqa: E402
+from pipeline.diagnosis.features import harmonic_fit, history_columns, model_record, record_time  # noqa: E402
 from pipeline.diagnosis.report_types import (Candidate, Discrepancy, DiagnoseReport, ParamEstimate,  # noqa: E402
                                              Recording, ResidualStructure, RunResidual, SecondEffect,
                                              SystemReport)
@@ -212,10 +212,11 @@ def _signal_panels(ax_row, tg, df, sig: str, f: float, results: dict) -> None:
     kk = np.arange(1, tg.k_max + 1) * f
     ax_row[1].plot(kk, spec_m, "ko-", lw=2, label="measured")
     for name, res in results.items():
-        if res is None or res.history is None:
+        h = None if res is None else history_columns(res)
+        if h is None:
             continue
-        t, hr = model_record(tg, res.history)
-        c = harmonic_fit(t, hr[sig].to_numpy(), f, tg.k_max).c * ks
+        t, hr = model_record(tg, h)
+        c = harmonic_fit(t, hr[sig], f, tg.k_max).c * ks
         ax_row[0].plot(ph, (basis @ c).real, lw=1, label=name)
         ax_row[1].plot(kk, np.abs(c), ".-", lw=1, label=name)
     ax_row[0].set_xlabel("forcing phase [cycles]")

@@ -97,24 +97,24 @@ def sensor_lowpass(res):
         return res
     from sim.api import simulate
 
-    hist = res.history
+    hist = res.columns
     from_rest = res.labels.get("transient_cycles", 0) == 0 and res.initial_state is None
     if hist is None:
         settings = replace(res.settings, samples_per_cycle=max(res.settings.samples_per_cycle, 400))
         full = simulate(res.model, settings=settings, history=True, initial_state=res.initial_state,
                         **{**res.params, "fc": 0.0})
-        hist = full.history
-    t = hist["t_s"].to_numpy()
+        hist = full.columns
+    t = np.asarray(hist["t_s"])
     if t.size < 3:
         return res
     dt = float(t[1] - t[0])
     if not np.allclose(np.diff(t), dt, rtol=1e-6, atol=0.0):
         raise ValueError("sensor_lowpass needs a uniformly sampled history")
-    a = hist["accel_true_m_s2"].to_numpy() if "accel_true_m_s2" in hist else hist["accel_m_s2"].to_numpy()
+    a = np.asarray(hist["accel_true_m_s2"] if "accel_true_m_s2" in hist else hist["accel_m_s2"])
     periodic = not from_rest and res.history_times is None
-    filt = lowpass_rate(hist["vel_m_s"].to_numpy(), dt, float(fc), periodic)
+    filt = lowpass_rate(np.asarray(hist["vel_m_s"]), dt, float(fc), periodic)
     res.labels["peak_decel_g"] = float(max(-filt.min(), 0.0) / G)
-    if res.history is not None:
-        res.history["accel_true_m_s2"] = a
-        res.history["accel_m_s2"] = filt
+    if res.columns is not None:
+        res.set_column("accel_true_m_s2", a)
+        res.set_column("accel_m_s2", filt)
     return res

@@ -113,6 +113,33 @@ def test_history_and_continuation():
     assert r2.labels["transient_cycles"] <= 17
 
 
+@pytest.mark.parametrize("model", sim.model_names())
+def test_every_model_continues_from_its_own_final_state(model):
+    """``initial_state=final_state`` is accepted by every model (the indenters keep two discrete states whether the
+    sample uses them or not) and, from a settled state, reproduces the labels after a short transient."""
+    r = sim.simulate(model, settings=FAST)
+    r2 = sim.simulate(model, initial_state=r.final_state, settings={**FAST, "min_transient": 0})
+    assert r2.status == r.status
+    for k in ("peak_force_n", "impacts_per_cycle"):
+        assert r2.labels[k] == pytest.approx(r.labels[k], rel=1e-3), k
+    assert r2.labels["transient_cycles"] < r.labels["transient_cycles"] or r.labels["transient_cycles"] <= 2
+
+
+def test_history_columns_are_the_dataframe_and_a_set_column_replaces_it():
+    """``columns`` holds the history's arrays; ``history`` is the DataFrame built from them on first use, and
+    ``set_column`` (the sensor low-pass's way to write the measured acceleration) is seen by the next ``history``."""
+    r = sim.simulate("drill", history=True, settings={**FAST, "samples_per_cycle": 20})
+    assert r._frame is None                              # nothing built until asked
+    h = r.history
+    assert list(h.columns) == list(r.columns)
+    for col, v in r.columns.items():
+        np.testing.assert_array_equal(h[col].to_numpy(), v)
+    assert r.history is h                                # built once
+    r.set_column("accel_m_s2", np.zeros(len(h)))
+    assert (r.history["accel_m_s2"] == 0.0).all() and r.history is not h
+    assert sim.simulate("drill", settings=FAST).columns is None and sim.simulate("drill", settings=FAST).history is None
+
+
 def test_contact_switches_are_located_not_stepped_over():
     """In the history, the contact force is positive only in contact phases and the bit never sits
     inside the rock surface while out of contact (phase I: x1 < xt up to the event tolerance)."""

@@ -24,6 +24,47 @@ def test_progression_rate_and_spectral_ratio():
     assert spectral_ratio(t, a, f, 25, 80.0) == pytest.approx(1.81, rel=1e-9)
 
 
+def test_the_cached_pseudo_inverse_fits_as_lstsq_does():
+    """harmonic_fit solves with the time base's cached pseudo-inverse: the same coefficients as numpy's lstsq to
+    round-off, on an impact-like signal with drift (every harmonic up to 25 carries energy)."""
+    f, spc = 40.0, 2000
+    t = np.arange(spc * 2) / (f * spc)
+    x = np.maximum(np.sin(2 * np.pi * f * t) - 0.9, 0.0) ** 1.5 * 1e3 + 3.0 * t + 0.2
+    from pipeline.diagnosis.features import _design
+
+    a = _design(t, f, 25)
+    ref = np.linalg.lstsq(a, x, rcond=None)[0]
+    got = harmonic_fit(t, x, f, 25)
+    c_ref = ref[2::2] - 1j * ref[3::2]
+    assert np.max(np.abs(got.c - c_ref)) <= 1e-12 * np.max(np.abs(c_ref))
+    assert got.offset == pytest.approx(ref[0], rel=1e-12) and got.slope == pytest.approx(ref[1], rel=1e-10)
+
+
+def test_a_steady_summary_run_is_simulated_without_history_unless_its_features_need_one():
+    """A steady-state summary run's peak deceleration and impacts per cycle are the simulator's labels: it runs
+    without a history (on the indenter's exact propagator); a spectral ratio or a sensor low-pass needs one."""
+    from pipeline.diagnosis.features import simulated_features
+    from pipeline.diagnosis.model import Evaluator
+
+    ctrl = {"frequency_hz": 60.0, "amplitude_n": 440.0, "static_force_n": 198.9512, "gap_m": 1e-3}
+    labels = Target(run_id="a", system="indenter-metal", kind="summary", controls=ctrl,
+                    names=["peak_decel_g", "impacts_per_cycle"], y=np.array([30.0, 1.0]), sd=np.array([3.0, 0.5]),
+                    lower_bound=np.zeros(2, dtype=bool), duration_s=1 / 60.0, k_max=16)
+    spectral = Target(run_id="b", system="indenter-metal", kind="summary", controls=ctrl,
+                      names=["peak_decel_g", "spectral_ratio"], y=np.array([30.0, 0.5]), sd=np.array([3.0, 0.05]),
+                      lower_bound=np.zeros(2, dtype=bool), duration_s=1 / 60.0, k_max=16, ratio_ref_hz=60.0)
+    assert not labels.needs_history({}) and labels.needs_history({"fc": 500.0}) and spectral.needs_history({})
+    ev = Evaluator("indenter-metal", [labels, spectral], dict(DiagnoseConfig().sim_settings), 20000.0, 1)
+    (r_lab, r_spec), = ev.simulate([{}], [0, 1])
+    assert r_lab.columns is None and r_spec.columns is not None
+    m = simulated_features(labels, r_lab)
+    assert m.tolist() == [r_lab.labels["peak_decel_g"], r_lab.labels["impacts_per_cycle"]]
+    # the same run with a history (the numerical integrator) agrees to the integrator's tolerance
+    assert simulated_features(spectral, r_spec)[0] == pytest.approx(m[0], rel=1e-4)
+    (r_fc,), = ev.simulate([{"fc": 2000.0}], [0])
+    assert r_fc.columns is not None
+
+
 def _targets(n):
     return [Target(run_id=f"r{i}", system="indenter-metal", kind="series",
                    controls={"frequency_hz": 30.0 + 10 * (i % 8), "amplitude_n": 1.0,
