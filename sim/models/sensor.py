@@ -19,6 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from sim.jit import njit
 from sim.layout import G_ACCEL as G   # [m/s²] per g: the project's one value
 
 
@@ -46,31 +47,29 @@ def _discrete(fc: float, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     return phi, phi @ g1 + g0, g1
 
 
-def _response(phi: np.ndarray, b: np.ndarray, d: float, u: np.ndarray,
-              w0: np.ndarray, final: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
-    """Output y[0..N-1] (the rate state) for inputs u from state w0, and (``final``) the state w[N] (lfilter for
-    the forced part, the eigenvalues of Φ for the free part)."""
-    from scipy.signal import lfilter, ss2tf
+@njit(cache=True, nogil=True)
+def _state_space(phi: np.ndarray, b: np.ndarray, d: float, u: np.ndarray, w0: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """y[n] = w1[n] + d u[n] with w[n+1] = Φ w[n] + B u[n] from w[0] = ``w0``, written into ``y``; returns w[N]."""
+    p00, p01, p10, p11 = phi[0, 0], phi[0, 1], phi[1, 0], phi[1, 1]
+    b0, b1 = b[0], b[1]
+    s0, s1 = w0[0], w0[1]
+    for n in range(u.size):
+        un = u[n]
+        y[n] = s1 + d * un
+        s0, s1 = p00 * s0 + p01 * s1 + b0 * un, p10 * s0 + p11 * s1 + b1 * un
+    out = np.empty(2)
+    out[0] = s0
+    out[1] = s1
+    return out
 
-    n = u.size
-    c = np.array([[0.0, 1.0]])
-    num, den = ss2tf(phi, b[:, None], c, np.array([[d]]))
-    y = lfilter(num[0], den, u)
-    w_n = None
-    if final:    # forced state at N: the outputs w_k[N] of (C = e_k, D = 0), which see u[0..N-1] only
-        up = np.append(u, 0.0)
-        w_n = np.empty(2)
-        for k in (0, 1):
-            nk, dk = ss2tf(phi, b[:, None], np.eye(2)[k:k + 1], np.zeros((1, 1)))
-            w_n[k] = lfilter(nk[0], dk, up)[-1]
-    if np.any(w0):
-        lam, v = np.linalg.eig(phi)
-        coef = np.linalg.solve(v, w0.astype(complex))
-        powers = lam[None, :] ** np.arange(n + 1)[:, None]          # decays to 0, never overflows (|λ| < 1)
-        free = (powers * (v[1] * coef)[None, :]).sum(axis=1).real
-        y = y + free[:n]
-        if final:
-            w_n = w_n + (v @ (lam ** n * coef)).real
+
+def _response(phi: np.ndarray, b: np.ndarray, d: float, u: np.ndarray,
+              w0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Output y[0..N-1] (the rate state) for inputs u from state w0, and the state w[N] (the recursion itself,
+    compiled: a few ns a sample)."""
+    y = np.empty(u.size)
+    w_n = _state_space(np.ascontiguousarray(phi), np.ascontiguousarray(b), float(d),
+                       np.ascontiguousarray(u, dtype=np.float64), np.asarray(w0, dtype=np.float64), y)
     return y, w_n
 
 
@@ -83,7 +82,7 @@ def lowpass_rate(v: np.ndarray, dt: float, fc: float, periodic: bool) -> np.ndar
     d = float(g1[1])
     if not periodic:            # at rest: x[0] = 0, so w[0] = −Γ1 v[0]
         return _response(phi, b, d, v, -g1 * v[0])[0]
-    _, w_n = _response(phi, b, d, v, np.zeros(2), final=True)
+    _, w_n = _response(phi, b, d, v, np.zeros(2))
     w0 = np.linalg.solve(np.eye(2) - np.linalg.matrix_power(phi, v.size), w_n)
     return _response(phi, b, d, v, w0)[0]
 
