@@ -331,8 +331,7 @@ class Target:
 
     def needs_history(self, params: dict) -> bool:
         """Whether the model's features of this run need its time history: a series, a record from rest, a spectral
-        ratio or a sensor low-pass (``params``' fc > 0) do; a steady-state summary run's labels do not, and run
-        on the model's exact propagator where it has one."""
+        ratio or a sensor low-pass (``params``' fc > 0) do; a steady-state summary run's labels do not."""
         return (self.kind == "series" or self.record_start_s is not None or "spectral_ratio" in self.names
                 or float(params.get("fc", 0.0) or 0.0) > 0.0)
 

@@ -92,12 +92,15 @@ def run_settings(tg: Target, sim_settings: dict, fs_sim_hz: float, oversample: f
     samples per cycle, at most MAX_MODEL_SAMPLES in the window).  Steady state: the settings' window; from rest
     (``record_start_s``): no transient and a window from rest that covers [record_start_s, record_start_s +
     duration_s] (features.model_record cuts it).  Series runs are sampled at their record's instants instead
-    (``series_settings``)."""
+    (``series_settings``).  A run whose features are labels (``Target.needs_history``) is simulated without a
+    history but by the same numerical integrator (method dopri5 unless ``sim_settings`` names one): its labels
+    are those of the run with a history, and a pipeline that diagnoses summary data compiles no exact kernel."""
     f = tg.frequency_hz
     st = dict(sim_settings)
     if tg.record_start_s is not None:
         end = tg.record_start_s + max(tg.duration_s, 2.0 / f)
         st.update(min_transient=0, max_transient=0, window=max(int(math.ceil(end * f)) + 1, 2))
+    st.setdefault("method", "dopri5")    # the integrator of the runs with a history, for the runs without one too
     window = int(st.get("window", 2))
     st["samples_per_cycle"] = max(min(int(math.ceil(oversample * fs_sim_hz / f)), MAX_MODEL_SAMPLES // max(window, 1)),
                                   4 * tg.k_max + 8)
