@@ -311,7 +311,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help="seed 0 and the first noise model only")
     p.add_argument("--fresh", action="store_true", help="diagnose every case again (the logs are kept)")
     p.add_argument("--replay", action="store_true", help="recompute verdicts from stored statistics only")
-    p.add_argument("--no-doc", action="store_true", help="do not rewrite docs/identification.md")
+    p.add_argument("--no-doc", action="store_true",
+                   help="do not rewrite docs/identification.md nor bench/results/identification.json (a subset's "
+                        "rows are kept in bench/results/identification/rows.json)")
     p.add_argument("--setting", action="append", default=[], metavar="KEY=VALUE",
                    help="a diagnose setting for every case (repeatable), e.g. estimate_chain=false; a stored case is "
                         "reused only when it ran with the same settings")
@@ -362,8 +364,11 @@ def main(argv: list[str] | None = None) -> int:
                "by_expected": {e: [sum(r["correct"] for r in rows if r["expected"] == e),
                                    sum(1 for r in rows if r["expected"] == e)]
                                for e in ("nothing missing", "selected", "unexplained")}}
+    if a.no_doc:        # the committed summary stays the whole matrix's; this selection's rows are in rows.json
+        print(json.dumps(summary), file=sys.stderr)
+        return 0
     (RESULTS / "identification.json").write_text(json.dumps({"summary": summary, "rows": rows}, indent=1, default=float))
-    if not a.no_doc and DOC.exists():
+    if DOC.exists():
         from bench import write_block
 
         write_block(DOC, START, END, text)
