@@ -35,6 +35,7 @@ from pipeline.datasets.daq import DeclaredChain
 from pipeline.diagnosis.instrument import Nuisance, apply_gain, instrument_gain
 from sim.controls import CONTROLS as CONTROL_NAMES
 from sim.layout import G_ACCEL as G   # [m/s²] per g: the project's one value
+from vibrobase.statuses import BOUNDED_STATUSES
 
 HARMONIC_SIGNALS = ("accel_m_s2", "force_n", "disp_m")
 DEFAULT_SUMMARY_SD = {"peak_decel_g": ("rel", 0.05), "impacts_per_cycle": ("abs", 0.5), "rop_m_s": ("rel", 0.10),
@@ -330,10 +331,15 @@ class Target:
         return self.duration_s * self.frequency_hz
 
     def needs_history(self, params: dict) -> bool:
-        """Whether the model's features of this run need its time history: a series, a record from rest, a spectral
-        ratio or a sensor low-pass (``params``' fc > 0) do; a steady-state summary run's labels do not."""
-        return (self.kind == "series" or self.record_start_s is not None or "spectral_ratio" in self.names
-                or float(params.get("fc", 0.0) or 0.0) > 0.0)
+        """Whether simulating this run needs a time history: every run whose features are not labels
+        (``labels_only``), and a run with a sensor low-pass (``params``' fc > 0), which filters the history."""
+        return not labels_only(self) or float(params.get("fc", 0.0) or 0.0) > 0.0
+
+
+def labels_only(tg) -> bool:
+    """Whether a run's model features are the simulator's steady-state labels (a steady-state summary run without
+    a spectral ratio): no time history is needed to compute them."""
+    return tg.kind == "summary" and tg.record_start_s is None and "spectral_ratio" not in tg.names
 
 
 LOW_FRACTION = 0.2
@@ -731,12 +737,10 @@ def simulated_halves(tg: Target, res) -> np.ndarray | None:
 def simulated_features(tg: Target, res) -> np.ndarray | None:
     """The model's values of ``tg``'s features from a SimulationResult with history (None if the run has no
     history — it failed or ran away — or its signals diverged, :data:`DIVERGED`)."""
-    if tg.kind == "summary" and tg.record_start_s is None and "spectral_ratio" not in tg.names:
+    if labels_only(tg):
         lab = res.labels
-        vals = [lab.get(name) for name in tg.names]    # steady-state labels: no history needed
-        if lab["status"] in ("runaway", "failed") or any(v is not None and not abs(v) < DIVERGED for v in vals):
-            return None
-        return np.array([0.0 if v is None else float(v) for v in vals])
+        m = np.array([0.0 if lab.get(name) is None else float(lab[name]) for name in tg.names])
+        return None if lab["status"] not in BOUNDED_STATUSES or _diverged({"labels": m}) else m
     h = history_columns(res)
     if h is None:
         return None

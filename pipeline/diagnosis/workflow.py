@@ -40,18 +40,14 @@ def diagnose(ds, cfg: DiagnoseConfig, log=print, progress=None, executor: Execut
 
 
 def simulate_runs(diag: SystemDiagnosis) -> SimulatedRuns:
-    """Every run of ``diag``'s system simulated at the default, calibrated base and final parameters: the features
-    as the fits simulate them, and the peak velocity from a history (a run whose features need none is simulated
-    again with one)."""
+    """Every run of ``diag``'s system simulated at the default, calibrated base and final parameters, each with a
+    history (for the peak velocity; a run whose features are labels gets the labels the fits saw: the same
+    integrator, ``model.run_settings``)."""
     ev = diag.evaluator
     idx = list(range(len(ev.targets)))
     sets = [{}, diag.fits["base"].values, diag.fits[diag.final].values]
-    sims = ev.simulate(sets, idx)
-    bare = [i for i in idx if any(row[i].columns is None for row in sims)]
-    hist = dict(zip(bare, zip(*ev.simulate(sets, bare, history=True)))) if bare else {}
-    rows = [[SimulatedRun(i, ev.residual_of(i, r), r, simulated_features(ev.targets[i], r),
-                          peak_velocity(hist[i][j] if i in hist else r)) for i, r in zip(idx, row)]
-            for j, row in enumerate(sims)]
+    rows = [[SimulatedRun(i, ev.residual_of(i, r), r, simulated_features(ev.targets[i], r), peak_velocity(r))
+             for i, r in zip(idx, row)] for row in ev.simulate(sets, idx, history=True)]
     return SimulatedRuns(default=rows[0], base=rows[1], final=rows[2])
 
 
