@@ -14,7 +14,8 @@ written by the independent generator through a named chain of ``tests.independen
     python -m bench.identification_chain --cases control shaker_coil --chains off undeclared
 
 Rows are kept in bench/results/identification/rows_chain.json (an interrupted run resumes; ``--fresh`` starts
-over) and the tables go to docs/identification.md between its chain-table markers, with the machine's load.
+over) and each system's tables go to docs/identification.md between that system's chain-table markers, with the
+machine's load; the other systems' tables stay as they were.
 """
 from __future__ import annotations
 
@@ -28,10 +29,23 @@ from bench.identification import DOC, WORK, _fmt, log_name, pair_of, run_case, s
 CHAINS = {"off": None, "compensated": "butter8-comp", "uncompensated": "butter8", "undeclared": "butter8-undeclared",
           "saturated": "clip80"}
 """Column of the matrix -> the generator's named chain."""
+_INDENTER = ["control", "shaker_coil", "guide_friction", "sensor_lowpass", "pair:shaker_coil+guide_friction",
+             "outside:quadratic_damping"]
 CASES = {"drill": ["control", "shaker_coil", "guide_friction", "rate_stiffening", "pair:shaker_coil+guide_friction",
-                   "pair:rate_stiffening+suspension_hardening", "outside:quadratic_damping"]}
+                   "pair:rate_stiffening+suspension_hardening", "outside:quadratic_damping"],
+         "indenter-metal": _INDENTER, "indenter-sandstone": _INDENTER,
+         "pendulum": ["control", "rate_stiffening", "sensor_lowpass", "pair:rate_stiffening+sensor_lowpass",
+                      "outside:quadratic_damping"],
+         "rimd": ["control", "rate_stiffening", "suspension_hardening", "sensor_lowpass",
+                  "pair:suspension_hardening+sensor_lowpass", "outside:quadratic_damping"]}
 """The default cases per system: the control, §6 effects, two pairs and an outside kind."""
-START, END = "<!-- identification-chain:start -->", "<!-- identification-chain:end -->"
+
+
+def markers(system: str) -> tuple[str, str]:
+    """docs/identification.md's markers around one system's tables."""
+    return f"<!-- identification-chain:{system}:start -->", f"<!-- identification-chain:{system}:end -->"
+
+
 DELAY_TOL_US, CLOCK_TOL_PPM = 5.0, 5.0
 
 
@@ -111,13 +125,15 @@ def main(argv: list[str] | None = None) -> int:
                   f" nrms {_fmt(r['base_nrms'])} -> {_fmt(r['final_nrms'])}, {r['wall_time_s']:.0f} s)", flush=True)
         rows.append(done[name])
     load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
-    text = (table(rows) + f"\n\nLoad average when the tables were written (1, 5, 15 min): {load}; {len(rows)} logs, "
-                          f"noise '{a.noise}'.")
-    print(text)
-    if not a.no_doc:
-        from bench import write_block
+    for system in dict.fromkeys(r["system"] for r in rows):
+        mine = [r for r in rows if r["system"] == system]
+        text = (table(mine) + f"\n\nLoad average when the tables were written (1, 5, 15 min): {load}; {len(mine)} "
+                              f"logs, noise '{a.noise}'.")
+        print(text)
+        if not a.no_doc:
+            from bench import write_block
 
-        write_block(DOC, START, END, text)
+            write_block(DOC, *markers(system), text)
     kinds = sorted({r["expected"] for r in rows})
     print(json.dumps({"rows": len(rows), "right": sum(r["correct"] for r in rows),
                       "expected": {e: sum(r["expected"] == e for r in rows) for e in kinds}}), file=sys.stderr)

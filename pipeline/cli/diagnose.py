@@ -112,6 +112,10 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
   estimate_chain [model]   estimate an undeclared DAQ chain (delay per channel, clock) as nuisance beside every
                            fit, never as an effect (default true; the pendulum's false); false: the records are
                            taken as the rig's signals unfiltered
+  antialias [auto]         true: low-pass the model below each record's Nyquist frequency before sampling it, as a
+                           DAQ's anti-alias filter does the signal (an impact's content above it would fold onto
+                           the harmonics); auto (unset): where runs.csv declares a filter or the undeclared chain's
+                           delays show one (>= 0.5 sample); false: the records are point samples of the rig
   fit_unreproducible [false]  true: also fit and judge on runs whose model response is chaotic (report
                            'unreproducible'); false: they are left out of every fold, the split kept
   scheduler [null]         Dask scheduler (tcp://host:8786) or local:N that runs the fits; null = this process
@@ -149,7 +153,7 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
-TEXT_DIAGNOSE_SETTINGS = ("estimate_chain", "fit_unreproducible")
+TEXT_DIAGNOSE_SETTINGS = ("estimate_chain", "fit_unreproducible", "antialias")
 """Settings whose ``--setting`` value is text (true/false), not a number."""
 
 
@@ -188,7 +192,9 @@ def typed_settings(values: dict) -> dict:
     values = dict(values)
     check_setting_names(values)
     for k, v in list(values.items()):
-        if k in TEXT_DIAGNOSE_SETTINGS and isinstance(v, str):
+        if k == "antialias" and isinstance(v, str) and v.strip().lower() == "auto":
+            values[k] = None
+        elif k in TEXT_DIAGNOSE_SETTINGS and isinstance(v, str):
             if v.strip().lower() not in ("true", "false"):
                 raise UserError(f"diagnose setting '{k}' must be true or false, got {v!r}")
             values[k] = v.strip().lower() == "true"

@@ -56,7 +56,7 @@ def check_config(cfg) -> None:
         check_setting(name, getattr(cfg, name))
     if cfg.effects is not None and (not isinstance(cfg.effects, list) or not all(isinstance(e, str) for e in cfg.effects)):
         raise UserError(f"diagnose setting 'effects' must be a list of effect names, got {cfg.effects!r}")
-    for name in ("estimate_chain", "fit_unreproducible"):
+    for name in ("estimate_chain", "fit_unreproducible", "antialias"):
         value = getattr(cfg, name)
         if value is not None and not isinstance(value, bool):
             raise UserError(f"diagnose setting '{name}' must be true or false, got {value!r}")
@@ -106,6 +106,9 @@ class DiagnoseConfig:
     n_threads: int | None = None
     estimate_chain: bool | None = None  # estimate an undeclared DAQ chain (delay per channel, clock) as nuisance
     #                                     beside every fit; None: the model's default (ModelSpec.diagnose_chain)
+    antialias: bool | None = None       # low-pass the model below each record's Nyquist before sampling it, as a
+    #                                     DAQ's anti-alias filter did the signal; None: where runs.csv declares a
+    #                                     filter, or the undeclared chain's delays show one (nuisance.FILTER_SAMPLES)
     fit_unreproducible: bool = False    # fit and judge on runs whose model response is chaotic (unreproducible_runs);
     #                                     false: they are left out of every fold (the split is kept)
 

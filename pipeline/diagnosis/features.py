@@ -304,6 +304,7 @@ class Target:
     chain: DeclaredChain | None = None             # the DAQ chain runs.csv declares (None: undeclared)
     nuisance: Nuisance | None = None               # an undeclared chain's delays (nuisance.estimate_chain)
     timing: DeclaredChain | None = None            # ... and its clock, applied at the model's instants
+    antialias: bool = False                        # the record passed an anti-alias filter: so does the model
     pairs: tuple = ()                              # (signal, k) of every harmonic feature pair, in feature order
     pair_at: np.ndarray | None = None              # index of each pair's real part in the features
     pair_kw: np.ndarray | None = None              # each pair's angular frequency k Ω [rad/s]
@@ -656,22 +657,70 @@ SENSOR_SUBSAMPLES = 8
 velocity linear between samples (sim.models.sensor), so a contact's kink wants a finer grid than the record's."""
 
 
+ANTIALIAS_TAPS = 8
+"""Length of the model's anti-alias filter in record samples (``antialias_taps``)."""
+ANTIALIAS_CUTOFF = 0.5
+"""Its cut-off as a fraction of the record's sampling rate."""
+
+
+@functools.lru_cache(maxsize=4)
+def antialias_taps(sub: int = SENSOR_SUBSAMPLES) -> np.ndarray:
+    """A linear-phase low-pass (Kaiser-windowed sinc, β = 8: 80 dB stop band) on a grid ``sub`` times finer than the
+    record's, unit gain at DC: flat to 3e-4 (below the features' model floor) up to 0.18 fs, 74 dB down above
+    0.82 fs of the record's rate.  Content
+    folds onto a harmonic kf only from within kf of a multiple of fs, so a record whose harmonics stay below 0.18 fs
+    (``check_resolution``'s bound is fs/2) sees from the model what a DAQ's anti-alias filter lets through.  Applied
+    centred it turns no phase: the filter's delay and pass-band response are the chain's (declared, or estimated as
+    delays)."""
+    from scipy.signal import firwin
+
+    taps = firwin(ANTIALIAS_TAPS * sub + 1, 2.0 * ANTIALIAS_CUTOFF / sub, window=("kaiser", 8.0))
+    return taps / taps.sum()
+
+
+def antialias_compensation(tg: Target) -> np.ndarray | None:
+    """1 / the model's anti-alias filter's gain at each of ``tg``'s harmonic pairs (None without the filter): its
+    pass band droops above 0.18 fs, and a record's harmonics may reach fs/2; the filter stays transparent there."""
+    if not tg.antialias or tg.pair_kw is None:
+        return None
+    from scipy.signal import freqz
+
+    g = np.abs(freqz(antialias_taps(), worN=tg.pair_kw / (tg.fs_hz * SENSOR_SUBSAMPLES))[1])
+    return 1.0 / np.maximum(g, 1e-3)
+
+
+def antialias_pad(tg: Target) -> int:
+    """Model samples the anti-alias filter needs either side of the record (fine grid; 0 without it)."""
+    return ANTIALIAS_TAPS * SENSOR_SUBSAMPLES // 2 if tg.antialias else 0
+
+
+ORBIT_CYCLES = 4
+"""A steady-state record's model starts a multiple of this many forcing periods into the settled window when it
+needs samples before the record: a period-2 (or period-4) orbit one forcing period on is the other half of its
+orbit (the pendulum at 5.5 Hz: the displacement differs by more than its amplitude), not the record's."""
+
+
 def sampling_plan(tg: Target, frequency_hz: float, warmup_s: float = 0.0) -> tuple[np.ndarray, int, float]:
     """Where to sample the model of a series run: (times from the start of the simulated window [s], window cycles,
     first record time [s] in that window).  The times are the record's own instants — a steady-state record
-    starts at forcing phase 0 of the window (after whole warm-up cycles), a record from rest at record_start_s
-    of a window that starts at rest — and, for ``warmup_s`` > 0 (a sensor's dynamics to settle), the same uniform
-    grid SENSOR_SUBSAMPLES times finer, extended backwards over that long (from rest: back to t = 0)."""
+    starts at forcing phase 0 of the window (after a multiple of ORBIT_CYCLES cycles where samples before it are
+    needed), a record from rest at record_start_s of a window that starts at rest — and, for ``warmup_s`` > 0 (a
+    sensor's dynamics to settle), the same uniform grid SENSOR_SUBSAMPLES times finer, extended backwards over that
+    long (from rest: back to t = 0).  A record that passed an anti-alias filter (``Target.antialias``) is sampled
+    on the finer grid too, extended by the filter's half length either side (``model_on_record`` filters it)."""
     period = 1.0 / frequency_hz
-    sub = SENSOR_SUBSAMPLES if warmup_s > 0 else 1
+    pad = antialias_pad(tg)
+    sub = SENSOR_SUBSAMPLES if warmup_s > 0 or pad else 1
     dt = 1.0 / (tg.fs_hz * sub)
+    lead_s = max(warmup_s, pad * dt * 1.01)
     if tg.record_start_s is None:
-        t0 = math.ceil(warmup_s / period - 1e-9) * period if warmup_s > 0 else 0.0
+        whole = ORBIT_CYCLES * period
+        t0 = math.ceil(lead_s / whole - 1e-9) * whole if lead_s > 0 else 0.0
     else:
         t0 = tg.record_start_s
-    n_pre = int(math.floor(min(warmup_s, t0) / dt + 1e-9)) if warmup_s > 0 else 0
-    times = t0 + np.arange(-n_pre, tg.t_rec.size * sub) * dt
-    end = t0 + tg.duration_s
+    n_pre = int(math.floor(min(lead_s, t0) / dt + 1e-9)) if lead_s > 0 else 0
+    times = t0 + np.arange(-n_pre, tg.t_rec.size * sub + pad) * dt
+    end = max(t0 + tg.duration_s, float(times[-1]) + dt)
     chain = tg.chain or tg.timing
     # a declared (or estimated) delay and clock: the plant at the true instants (a null chain changes nothing)
     if chain is not None and (chain.delay_s or chain.clock_ppm):
@@ -700,16 +749,32 @@ def history_summary(name: str, t: np.ndarray, h: Columns | pd.DataFrame, f: floa
 
 def _record_rows(tg: Target, h: Columns) -> np.ndarray:
     """Rows of a history sampled by ``sampling_plan`` at the record's instants: the last N on its grid (every
-    SENSOR_SUBSAMPLES-th where it was sampled finer)."""
+    SENSOR_SUBSAMPLES-th where it was sampled finer), before the anti-alias filter's padding."""
     n = tg.t_rec.size
     t = np.asarray(h["t_s"])
     sub = max(int(round(1.0 / (tg.fs_hz * (t[1] - t[0])))), 1) if t.size > 1 else 1
-    return np.arange(t.size - n * sub, t.size, sub)        # the grid runs sub - 1 points past the record's end
+    end = t.size - antialias_pad(tg)
+    return np.arange(end - n * sub, end, sub)        # the grid runs sub - 1 points past the record's end
 
 
 def model_on_record(tg: Target, h: Columns, sig: str) -> np.ndarray:
-    """A simulated signal (a history's columns) at the measured record's own instants (``sampling_plan``)."""
-    return np.asarray(h[sig])[_record_rows(tg, h)]
+    """A simulated signal (a history's columns) at the measured record's own instants (``sampling_plan``); through
+    the anti-alias filter (``antialias_taps``, centred on each instant) where the record passed one.  Before a
+    record from rest the model holds its rest value."""
+    x = np.asarray(h[sig], dtype=float)
+    rows = _record_rows(tg, h)
+    if not tg.antialias:
+        return x[rows]
+    from scipy.signal import upfirdn
+
+    taps = antialias_taps()
+    half, sub = taps.size // 2, (int(rows[1] - rows[0]) if rows.size > 1 else 1)
+    first = int(rows[0]) - half
+    if first < 0:                       # before a record from rest: the rest state
+        x, rows, first = np.concatenate([np.full(-first, x[0]), x]), rows - first, 0
+    seg = x[first:int(rows[-1]) + half + 1]
+    # polyphase, out[n] = sum_j taps[j] seg[n sub - j]: instant k (seg index half + k sub) is n = k + 2 half / sub
+    return upfirdn(taps, seg, 1, sub)[2 * half // sub:][:rows.size]
 
 
 DIVERGED = 1e100
@@ -722,6 +787,13 @@ def _diverged(x: dict[str, np.ndarray]) -> bool:
     return any(v.size and not (np.all(np.isfinite(v)) and float(np.max(np.abs(v))) < DIVERGED) for v in x.values())
 
 
+def _model_gain(tg: Target, part: int = 0) -> np.ndarray | None:
+    """What the model's harmonic pairs are multiplied by: the recording chain's gain (``instrument_gain``; ``part``
+    0 the record, 1 and 2 its halves) and the inverse of the model's anti-alias filter's pass band."""
+    comp, g = antialias_compensation(tg), instrument_gain(tg, part)
+    return g if comp is None else comp if g is None else comp * g
+
+
 def simulated_halves(tg: Target, res) -> np.ndarray | None:
     """The model's features of each half of a series record, (2, n) (None: no halves, no history, or diverged)."""
     h = history_columns(res)
@@ -731,7 +803,7 @@ def simulated_halves(tg: Target, res) -> np.ndarray | None:
     if _diverged(x):
         return None
     return np.array([apply_gain(_features(tg.signals, _coefs(ops, x, sl), tg.record_start_s is not None), tg.pair_at,
-                                instrument_gain(tg, j + 1)) for j, (sl, ops) in enumerate(tg.halves)])
+                                _model_gain(tg, j + 1)) for j, (sl, ops) in enumerate(tg.halves)])
 
 
 def simulated_features(tg: Target, res) -> np.ndarray | None:
@@ -750,7 +822,7 @@ def simulated_features(tg: Target, res) -> np.ndarray | None:
         if _diverged(x):
             return None
         m = _features(tg.signals, _coefs(tg.pinv, x), tg.record_start_s is not None)
-        return apply_gain(m, tg.pair_at, instrument_gain(tg))
+        return apply_gain(m, tg.pair_at, _model_gain(tg))
     lab = res.labels
     t, hr = model_record(tg, h)
     if t.size < 4 or _diverged({c: np.asarray(v, dtype=float) for c, v in hr.items() if c != "t_s"}):

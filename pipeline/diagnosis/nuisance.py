@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import least_squares
 
-from pipeline.diagnosis.features import _coefs, _features, history_columns, model_on_record
+from pipeline.diagnosis.features import _coefs, _features, antialias_compensation, history_columns, model_on_record
 from pipeline.diagnosis.instrument import Nuisance, channel, rotation
 
 MAX_DELAY_S = 2e-3
@@ -103,9 +103,10 @@ def profile_items(tg, res, keys: tuple) -> list[_Item]:
     else:
         parts = [(_features(tg.signals, _coefs(tg.pinv, x), from_rest), tg.y, 1.0, tg.spans[0])]
     at = tg.pair_at
+    comp = antialias_compensation(tg)
     out = []
     for m, y, inflate, (tbar, span) in parts:
-        out.append(_Item(_pairs(m, at), _pairs(y, at), inflate * tg.sd[at], inflate * tg.sd[at + 1], tg.pair_kw,
+        out.append(_Item(_pairs(m, at) * (1.0 if comp is None else comp), _pairs(y, at), inflate * tg.sd[at], inflate * tg.sd[at + 1], tg.pair_kw,
                          sig, tbar, span))
     return out
 
@@ -211,7 +212,31 @@ def _profiled_chain(ev, row: list, idx: list[int]) -> tuple[Nuisance | None, tup
         return None, None
     prof = profile(items, len(sig_names), lowest_us=lowest_delays_us(sig_names))
     x = prof[0]
-    return Nuisance(tuple((key, 1e-6 * v) for key, v in zip(sig_names, x[:-1])), 1e-6 * x[-1]), prof
+    seen = {int(c) for it in items for c in it.sig}
+    delays = delays_at_unseen_rates(x[:-1], sig_names, seen)
+    return Nuisance(tuple((key, 1e-6 * v) for key, v in zip(sig_names, delays)), 1e-6 * x[-1]), prof
+
+
+def delays_at_unseen_rates(delays_us: np.ndarray, keys: tuple, seen: set[int]) -> np.ndarray:
+    """``delays_us`` with each channel (signal, sampling rate) that no profiled record measured filled in from the
+    measured ones: the anti-alias filter follows the rate (cut-off a fixed fraction of fs), so a delay is the same
+    number of samples at every rate.  The same signal at the nearest measured rate, else the median over the
+    measured signals (one front end per DAQ), in samples; 0 when nothing is measured.  A held-out run recorded at
+    a rate no calibration run has would otherwise be read with no delay at all."""
+    out = np.array(delays_us, dtype=float, copy=True)
+    samples = {j: delays_us[j] * keys[j][1] for j in seen}          # [µs Hz] = 1e-6 samples
+    if not samples:
+        return out
+    for j, (sig, fs) in enumerate(keys):
+        if j in seen:
+            continue
+        same = [i for i in samples if keys[i][0] == sig]
+        if same:
+            near = min(same, key=lambda i: abs(math.log(keys[i][1] / fs)))
+            out[j] = samples[near] / fs
+        else:
+            out[j] = float(np.median(list(samples.values()))) / fs
+    return out
 
 
 def profiled_residuals(ev, sims: list[list], idx: list[int], low_only: bool) -> list[np.ndarray]:
@@ -266,9 +291,30 @@ def estimate_chain(ev, cfg, executor, log=print, exclude: set[str] = frozenset()
                  cfg.diff_step, coarse=True)
     [fr] = _fits(executor, ev, pev.for_tasks(executor.task_threads), [job])
     est = _locate(ev, und, sig_names, fr.values, fr.chi2 / max(fr.n, 1), "base")
+    if cfg.antialias is None and shows_a_filter(est) and not any(ev.targets[i].antialias for i in und):
+        # the records passed an anti-alias filter: the model's content above their Nyquist frequency, which the
+        # filter removed from the data, would fold onto the harmonics; the base is fitted again with it removed
+        log(f"{ev.system}: the undeclared chain's delays show an anti-alias filter ({est.text()}): the model is "
+            f"low-passed before it is sampled, and the chain estimated again")
+        for i in und:
+            ev.targets[i].antialias = True
+        job = FitJob(idx, free, {}, [fr.values], cfg.max_nfev, cfg.diff_step, coarse=True)
+        [fr] = _fits(executor, ev, pev.for_tasks(executor.task_threads), [job])
+        est = _locate(ev, und, sig_names, fr.values, fr.chi2 / max(fr.n, 1), "base")
     ev.profile_runs, ev.profile_signals = frozenset(und), sig_names
     log(f"{ev.system}: {est.text()}")
     return est
+
+
+FILTER_SAMPLES = 0.5
+"""An undeclared chain whose channels' median delay is at least this many sample intervals has an anti-alias
+filter (an 8th-order Butterworth at 0.45 fs delays by 1.8, a 4th-order at 0.4 fs by 1.1; a plain sampler by 0)."""
+
+
+def shows_a_filter(est: ChainEstimate) -> bool:
+    """Whether the estimated delays say the records passed an anti-alias filter (``FILTER_SAMPLES``)."""
+    samples = [v * fs for (_, fs), v in est.delay_s]
+    return bool(samples) and float(np.median(samples)) >= FILTER_SAMPLES
 
 
 def _locate(ev, und: list[int], keys: tuple, values: dict, chi2_per_n: float, model: str) -> ChainEstimate:

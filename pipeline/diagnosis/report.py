@@ -475,4 +475,8 @@ def _recording_lines(rec: Recording | None) -> list[str]:
                    "through it before the comparison.")
     if rec.estimated:
         out.append("Recording: " + rec.estimated.text + ".")
+    if rec.antialiased:
+        out.append(f"Anti-alias filter: the model was low-passed below each record's Nyquist frequency before it was "
+                   f"sampled, as the DAQ's filter did the signal, on {len(rec.antialiased)} run(s): "
+                   f"{', '.join(rec.antialiased)}.")
     return out + ([""] if out else [])

@@ -452,6 +452,9 @@ class Recording(_Record):
     """The undeclared chain estimated (None: none)."""
     clipped: Mapping[str, Mapping[str, float]] = _f()
     """Fraction of samples left out per run and channel [-]."""
+    antialiased: tuple[str, ...] | None = _f(_opt(_seq()), omit=True, default=None)
+    """Runs whose model was low-passed below the record's Nyquist frequency before it was sampled, as the DAQ's
+    anti-alias filter (declared, or shown by the estimated delays) did the signal (None: none)."""
 
 
 @dataclass(frozen=True)

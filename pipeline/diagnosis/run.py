@@ -69,6 +69,8 @@ def build_targets(ds, cfg: DiagnoseConfig, skipped: dict[str, list[str]] | None 
             try:
                 tg = series_target(tg, ds.series[row["run_id"]], mh, model_floor=cfg.model_floor,
                                    max_cycles=cfg.record_window)
+                declared = tg.chain is not None and tg.chain.filter is not None
+                tg.antialias = declared if cfg.antialias is None else cfg.antialias
             except UnusableRecord as e:
                 if skipped is None:
                     raise
@@ -217,7 +219,8 @@ def recording_report(targets: list[Target], chain: ChainEstimate | None) -> R.Re
                                           t.chain.clock_ppm)
                 for t in targets if t.chain is not None}
     return R.Recording(declared=declared, estimated=chain.to_record() if chain is not None else None,
-                       clipped={t.run_id: dict(t.clipped) for t in targets if t.clipped})
+                       clipped={t.run_id: dict(t.clipped) for t in targets if t.clipped},
+                       antialiased=tuple(t.run_id for t in targets if t.antialias) or None)
 
 
 @dataclass(frozen=True)

@@ -149,6 +149,61 @@ def test_a_declared_null_chain_samples_the_model_as_no_chain():
     assert np.array_equal(before[0], after[0]) and before[1:] == after[1:]
 
 
+def test_a_delay_at_a_rate_no_calibration_run_has_is_the_same_number_of_samples():
+    """A held-out run recorded at 5 kHz, the calibration runs at 10 kHz: the anti-alias filter follows the rate, so
+    its delay there is the 10 kHz delay in samples (twice the seconds); a signal measured at no rate takes the
+    median over the others'; measured channels keep their own."""
+    from pipeline.diagnosis.nuisance import delays_at_unseen_rates
+
+    keys = (("accel_m_s2", 1e4), ("force_n", 1e4), ("accel_m_s2", 5e3), ("disp_m", 5e3), ("force_n", 2.5e4))
+    out = delays_at_unseen_rates(np.array([180.0, 150.0, 0.0, 0.0, 0.0]), keys, {0, 1})
+    assert out[:2].tolist() == [180.0, 150.0]
+    assert out[2] == pytest.approx(360.0) and out[4] == pytest.approx(60.0)     # accel's and force's own, in samples
+    assert out[3] == pytest.approx(np.median([1.8, 1.5]) * 1e6 / 5e3)           # disp: the measured channels' median
+    assert delays_at_unseen_rates(np.zeros(2), keys[:2], set()).tolist() == [0.0, 0.0]
+
+
+def test_the_models_anti_alias_filter_passes_the_harmonics_and_stops_above_nyquist():
+    from scipy.signal import freqz
+
+    from pipeline.diagnosis.features import SENSOR_SUBSAMPLES, antialias_taps
+
+    taps = antialias_taps()
+    f = np.array([0.0, 0.05, 0.1, 0.18, 0.82, 0.9, 1.5, 3.9]) / SENSOR_SUBSAMPLES     # cycles per fine sample
+    g = np.abs(freqz(taps, worN=2 * np.pi * f)[1])                                     # fractions of the record's fs
+    assert np.allclose(g[:4], 1.0, atol=3e-4) and np.all(g[4:] < 2e-4)    # fractions of the record's fs: content
+    #                                                                   within 0.18 fs of k fs would fold onto harmonics
+    assert np.allclose(taps, taps[::-1])                                               # linear phase, centred: none
+
+
+def test_an_anti_aliased_record_is_compared_with_the_model_low_passed_before_sampling():
+    """A record whose signal holds content above its Nyquist frequency, taken through an anti-alias filter: the
+    model sampled point by point folds that content onto the harmonics (an impact's spike, sampled at slightly
+    other instants by a clock error, moved the pendulum's features by nrms 1.4-8.9); low-passed before it is
+    sampled (``Target.antialias``) its features are the record's."""
+    from pipeline.diagnosis.features import SENSOR_SUBSAMPLES, antialias_pad
+
+    f0, fs = 37.0, 2000.0    # the tone at fs + 3 f0 folds onto harmonic 3
+    t = np.arange(int(20.2 / f0 * fs)) / fs
+
+    def sig(tt, with_alias=True):     # harmonics 1-3 and 16 (0.3 fs: the filter's droop), a tone above Nyquist
+        x = sum(np.cos(2 * np.pi * k * f0 * tt + k) / k for k in (1, 2, 3, 16))
+        return x + (0.5 * np.cos(2 * np.pi * (fs + 3 * f0) * tt) if with_alias else 0.0)
+
+    tg = Target(run_id="r1", system="indenter-metal", kind="", controls={"frequency_hz": f0}, duration_s=t.size / fs)
+    tg = series_target(tg, pd.DataFrame({"t_s": t, "accel_m_s2": sig(t, False)}), 16 * f0)
+    point = simulated_features(tg, _fake_result(t, {"accel_m_s2": sig(t)}))
+    tg.antialias = True
+    times, _, t0 = sampling_plan(tg, f0, 0.0)
+    pad = antialias_pad(tg)
+    dt = 1.0 / (fs * SENSOR_SUBSAMPLES)
+    assert pad > 0 and np.allclose(np.diff(times), dt)
+    assert t0 - times[0] >= pad * dt * (1 - 1e-9) and times[-1] - (t0 + tg.t_rec[-1]) >= pad * dt * (1 - 1e-9)
+    filtered = simulated_features(tg, _fake_result(times - t0, {"accel_m_s2": sig(times - t0)}))
+    z_point, z_aa = (np.abs(m - tg.y).max() / np.abs(tg.y).max() for m in (point, filtered))
+    assert z_point > 0.1 and z_aa < 1e-4
+
+
 def test_saturated_samples_are_left_out_of_the_features():
     rng = np.random.default_rng(0)
     t = np.arange(int(20.4 / F * FS)) / FS
