@@ -1,4 +1,5 @@
-"""The drill's cases of the identification matrix through the DAQ chain (``bench.identification_chain``), slow.
+"""The drill's and the pendulum's cases of the identification matrix through the DAQ chain
+(``bench.identification_chain``), slow.
 
 Each case is an 8-run log of the independent generator (rig noise, seed 0) recorded through a named chain and
 diagnosed at the defaults (an undeclared chain with ``estimate_chain``).  The cases the diagnosis gets wrong today
@@ -13,28 +14,49 @@ from bench import identification_chain as chain
 
 RIGHT = [("control", "compensated"), ("control", "uncompensated"), ("control", "saturated"),
          ("shaker_coil", "compensated"), ("shaker_coil", "uncompensated"), ("shaker_coil", "saturated"),
-         ("guide_friction", "compensated"), ("guide_friction", "uncompensated"),
-         ("rate_stiffening", "compensated"),
-         ("sensor_lowpass", "undeclared"),
+         ("guide_friction", "compensated"), ("guide_friction", "uncompensated"), ("guide_friction", "saturated"),
+         ("rate_stiffening", "compensated"), ("rate_stiffening", "uncompensated"),
+         ("sensor_lowpass", "undeclared"), ("control", "undeclared"), ("shaker_coil", "undeclared"),
+         ("guide_friction", "undeclared"), ("rate_stiffening", "undeclared"),
          ("pair:shaker_coil+guide_friction", "compensated"), ("pair:shaker_coil+guide_friction", "uncompensated"),
          ("pair:shaker_coil+guide_friction", "saturated")]
-WRONG = {("guide_friction", "saturated"): "the impacts' samples are left out and friction is not found",
-         ("rate_stiffening", "uncompensated"): "a second effect (tip_blunting) is added",
-         ("rate_stiffening", "saturated"): "a second effect (guide_friction) is added",
-         # the verdicts below are right; the clock is located with the parameters held at a fit the rotation biased
-         ("control", "undeclared"): "nothing missing, but the clock comes out 8.7 ppm from the truth",
-         ("shaker_coil", "undeclared"): "selected, but the clock comes out 7.6 ppm from the truth",
-         ("guide_friction", "undeclared"): "selected, but the clock comes out 6.0 ppm from the truth",
-         ("rate_stiffening", "undeclared"): "selected, but alpha comes out 5.8 % from the truth",
-         ("pair:shaker_coil+guide_friction", "undeclared"): "both named, but the clock comes out 8.7 ppm off"}
+WRONG = {("rate_stiffening", "saturated"): "a second effect (guide_friction) is added",
+         # the verdict is right; the clock just misses its 5 ppm target
+         ("pair:shaker_coil+guide_friction", "undeclared"): "both named, but the clock comes out 5.5 ppm off"}
+
+
+PENDULUM_RIGHT = [(case, c) for case in ("control", "sensor_lowpass") for c in chain.CHAINS if c != "undeclared"]
+"""The pendulum's control and its accelerometer's low-pass: right in every column since the model is low-passed
+before sampling where the record was (the undeclared control was 'unexplained' at held-out nrms 4.96 before, the
+saturated low-pass at 51)."""
+_DISP = "the verdict is right, but the displacement's delay comes out ~140 µs short of the filter's"
+PENDULUM_WRONG = {("control", "undeclared"): _DISP, ("sensor_lowpass", "undeclared"): _DISP,
+                  ("rate_stiffening", "uncompensated"): "nothing missing: the split holds out both 3.5 Hz runs, "
+                                                        "where alpha shows (so in the lab-grade log too)",
+                  ("pair:rate_stiffening+sensor_lowpass", "undeclared"): "unexplained: the low-pass alone leaves "
+                                                                         "nrms 2.37, rate stiffening does not pay on "
+                                                                         "the calibration runs (the same split)"}
+
+
+def _params(right: list, wrong: dict) -> list:
+    return [*right, *(pytest.param(*k, marks=pytest.mark.xfail(strict=True, reason=v)) for k, v in wrong.items())]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("case, column", [*RIGHT, *(pytest.param(*k, marks=pytest.mark.xfail(strict=True, reason=v))
-                                                   for k, v in WRONG.items())], ids=lambda x: str(x))
+@pytest.mark.parametrize("case, column", _params(RIGHT, WRONG), ids=lambda x: str(x))
 def test_a_drill_case_through_the_chain(tmp_path, monkeypatch, case, column):
+    _check(tmp_path, monkeypatch, "drill", case, column)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case, column", _params(PENDULUM_RIGHT, PENDULUM_WRONG), ids=lambda x: str(x))
+def test_a_pendulum_case_through_the_chain(tmp_path, monkeypatch, case, column):
+    _check(tmp_path, monkeypatch, "pendulum", case, column)
+
+
+def _check(tmp_path, monkeypatch, system: str, case: str, column: str) -> None:
     monkeypatch.setattr(ident, "WORK", tmp_path)
-    r = ident.run_case("drill", case, "rig", 0, 2, chain.settings_of(column), 8, chain.CHAINS[column])
+    r = ident.run_case(system, case, "rig", 0, 2, chain.settings_of(column), 8, chain.CHAINS[column])
     assert r["correct"], (r["verdict"], r["selected"], r["leader"])
     if column == "undeclared":          # the estimated chain against the generator's truth
         assert r["delay_error_us"] <= chain.DELAY_TOL_US and r["clock_error_ppm"] <= chain.CLOCK_TOL_PPM
