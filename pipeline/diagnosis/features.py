@@ -665,13 +665,12 @@ ANTIALIAS_CUTOFF = 0.5
 
 @functools.lru_cache(maxsize=4)
 def antialias_taps(sub: int = SENSOR_SUBSAMPLES) -> np.ndarray:
-    """A linear-phase low-pass (Kaiser-windowed sinc, β = 8: 80 dB stop band) on a grid ``sub`` times finer than the
-    record's, unit gain at DC: flat to 3e-4 (below the features' model floor) up to 0.18 fs, 74 dB down above
-    0.82 fs of the record's rate.  Content
-    folds onto a harmonic kf only from within kf of a multiple of fs, so a record whose harmonics stay below 0.18 fs
-    (``check_resolution``'s bound is fs/2) sees from the model what a DAQ's anti-alias filter lets through.  Applied
-    centred it turns no phase: the filter's delay and pass-band response are the chain's (declared, or estimated as
-    delays)."""
+    """A linear-phase low-pass (Kaiser-windowed sinc, β = 8) on a grid ``sub`` times finer than the record's, unit
+    gain at DC: flat to 3e-4 (below the features' model floor) up to 0.18 fs, 74 dB down above 0.82 fs of the
+    record's rate.  Content folds onto a harmonic kf only from within kf of a multiple of fs, so the model keeps what
+    a DAQ's anti-alias filter lets through; harmonics above 0.18 fs (``check_resolution``'s bound is fs/2) have the
+    droop divided out (``antialias_compensation``).  Applied centred it turns no phase: the filter's delay and
+    pass-band response are the chain's (declared, or estimated as delays)."""
     from scipy.signal import firwin
 
     taps = firwin(ANTIALIAS_TAPS * sub + 1, 2.0 * ANTIALIAS_CUTOFF / sub, window=("kaiser", 8.0))
@@ -683,10 +682,18 @@ def antialias_compensation(tg: Target) -> np.ndarray | None:
     pass band droops above 0.18 fs, and a record's harmonics may reach fs/2; the filter stays transparent there."""
     if not tg.antialias or tg.pair_kw is None:
         return None
+    return _inverse_gain(tuple((tg.pair_kw / (tg.fs_hz * SENSOR_SUBSAMPLES)).tolist()))
+
+
+@functools.lru_cache(maxsize=256)
+def _inverse_gain(w: tuple[float, ...]) -> np.ndarray:
+    """1 / |gain| of ``antialias_taps`` at the angular frequencies ``w`` [rad per fine sample]: a record's harmonics
+    are fixed, so each record's is computed once, not once per simulation."""
     from scipy.signal import freqz
 
-    g = np.abs(freqz(antialias_taps(), worN=tg.pair_kw / (tg.fs_hz * SENSOR_SUBSAMPLES))[1])
-    return 1.0 / np.maximum(g, 1e-3)
+    out = 1.0 / np.maximum(np.abs(freqz(antialias_taps(), worN=np.array(w))[1]), 1e-3)
+    out.flags.writeable = False
+    return out
 
 
 def antialias_pad(tg: Target) -> int:
