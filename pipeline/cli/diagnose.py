@@ -196,7 +196,8 @@ def typed_settings(values: dict) -> dict:
             values[k] = None
         elif k in TEXT_DIAGNOSE_SETTINGS and isinstance(v, str):
             if v.strip().lower() not in ("true", "false"):
-                raise UserError(f"diagnose setting '{k}' must be true or false, got {v!r}")
+                words = "true, false or auto" if k == "antialias" else "true or false"
+                raise UserError(f"diagnose setting '{k}' must be {words}, got {v!r}")
             values[k] = v.strip().lower() == "true"
         elif k in INT_BOUNDS and v is not None:
             lo, hi = INT_BOUNDS[k]

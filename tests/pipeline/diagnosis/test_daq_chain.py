@@ -149,6 +149,15 @@ def test_a_declared_null_chain_samples_the_model_as_no_chain():
     assert np.array_equal(before[0], after[0]) and before[1:] == after[1:]
 
 
+def test_the_antialias_setting_takes_true_false_or_auto_and_names_them_otherwise():
+    from pipeline.cli.diagnose import typed_settings
+
+    assert typed_settings({"antialias": "auto"})["antialias"] is None
+    assert typed_settings({"antialias": "TRUE"})["antialias"] is True
+    with pytest.raises(UserError, match="'antialias' must be true, false or auto, got 'maybe'"):
+        typed_settings({"antialias": "maybe"})
+
+
 def test_a_delay_at_a_rate_no_calibration_run_has_is_the_same_number_of_samples():
     """A held-out run recorded at 5 kHz, the calibration runs at 10 kHz: the anti-alias filter follows the rate, so
     its delay there is the 10 kHz delay in samples (twice the seconds); a signal measured at no rate takes the
