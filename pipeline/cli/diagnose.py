@@ -115,7 +115,8 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
   antialias [auto]         true: low-pass the model below each record's Nyquist frequency before sampling it, as a
                            DAQ's anti-alias filter does the signal (an impact's content above it would fold onto
                            the harmonics); auto (unset): where runs.csv declares a filter or the undeclared chain's
-                           delays show one (>= 0.5 sample); false: the records are point samples of the rig
+                           delays show one (>= 0.5 sample, and in proportion to the sample interval where a
+                           channel has two rates); false: the records are point samples of the rig
   fit_unreproducible [false]  true: also fit and judge on runs whose model response is chaotic (report
                            'unreproducible'); false: they are left out of every fold, the split kept
   scheduler [null]         Dask scheduler (tcp://host:8786) or local:N that runs the fits; null = this process

@@ -101,6 +101,7 @@ def test_commands_log_the_same_runs_models_and_artifacts_to_a_server_as_to_sqlit
     assert not (tmp_path / "shared" / "mlartifacts").exists() and not (tmp_path / "shared" / "mlflow.db").exists()
 
 
+@pytest.mark.slow     # a server, dvc and the driver: 40-90 s; a server in the default suite: test_pipeline.py
 def test_the_pipeline_driver_logs_its_parent_and_stage_runs_to_the_server(mlflow_server, tmp_path):
     from tests.pipeline.tracking.test_pipeline import _TOY_DVC, _TOY_STAGE, DVC
 

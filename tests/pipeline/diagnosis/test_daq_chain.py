@@ -172,6 +172,34 @@ def test_a_delay_at_a_rate_no_calibration_run_has_is_the_same_number_of_samples(
     assert delays_at_unseen_rates(np.zeros(2), keys[:2], set()).tolist() == [0.0, 0.0]
 
 
+def _estimate(delays_us: dict) -> object:
+    from pipeline.diagnosis.nuisance import ChainEstimate
+
+    d = tuple(((s, fs), 1e-6 * v) for (s, fs), v in delays_us.items())
+    return ChainEstimate(runs=("r",), delay_s=d, delay_sd_s=tuple((k, 1e-7) for k, _ in d), clock_ppm=0.0,
+                         clock_sd_ppm=1.0, base_chi2_per_n=1.0)
+
+
+def test_a_filter_is_shown_by_delays_that_scale_with_the_sample_interval():
+    """The base fits' delays (report.json of the chain bench): the drill through an undeclared 8th-order Butterworth
+    at 0.45 fs, 71 µs at 25.6 kHz and 35.7 µs at 51.2 kHz (1.8 samples at both, s = 1); the drill's lab-grade
+    shaker-coil log, no filter, its base lacking the coil's lag, 98-100 µs and 83-86 µs (2.5 and 4.3 samples: fixed
+    in time, s ~ 0.2): no filter.  With one rate only, the number of samples decides."""
+    from pipeline.diagnosis.nuisance import delay_scaling, shows_a_filter
+
+    filt = _estimate({("accel_m_s2", 25600.0): 71.0, ("force_n", 25600.0): 71.2, ("accel_m_s2", 51200.0): 35.7,
+                      ("force_n", 51200.0): 35.5})
+    lag = _estimate({("accel_m_s2", 25600.0): 98.0, ("force_n", 25600.0): 100.0, ("accel_m_s2", 51200.0): 83.1,
+                     ("force_n", 51200.0): 85.8})
+    assert delay_scaling(filt) == pytest.approx(1.0, abs=0.01) and shows_a_filter(filt)
+    assert delay_scaling(lag) == pytest.approx(0.21, abs=0.03) and not shows_a_filter(lag)
+    one_rate = _estimate({("accel_m_s2", 25600.0): 98.0, ("force_n", 25600.0): 100.0})
+    assert delay_scaling(one_rate) is None and shows_a_filter(one_rate)
+    assert not shows_a_filter(_estimate({("accel_m_s2", 25600.0): 10.0, ("accel_m_s2", 51200.0): 5.0}))  # 0.26 sample
+    negative = _estimate({("accel_m_s2", 25600.0): 98.0, ("accel_m_s2", 51200.0): -20.0})
+    assert delay_scaling(negative) == 0.0 and not shows_a_filter(negative)
+
+
 def test_the_models_anti_alias_filter_passes_the_harmonics_and_stops_above_nyquist():
     from scipy.signal import freqz
 

@@ -1,8 +1,8 @@
 """Verdicts on rig logs this project did not make: the independent generator (tests/independent: scipy reference,
 samples at the DAQ's instants, a rig's noise) writes the log, ``vibro diagnose`` judges it at its defaults.
 
-Every kind of verdict runs by default on short drill logs: a control, one effect, and a log from outside the library
-with the pair stage and discovery switched off.  The slow subset runs the outside log at the defaults (pairs and
+Every kind of verdict runs by default on short drill logs: one effect here, a log from outside the library with the
+pair stage and discovery switched off, and a control through an undeclared DAQ chain (test_daq_chain.py).  The slow subset runs the outside log at the defaults (pairs and
 proposals), two effects at once, the pendulum's and the other systems' short logs, and every kind of verdict on every
 system at both noise models of the identification matrix (``python -m bench.identification`` runs the whole
 matrix)."""
@@ -52,13 +52,13 @@ def _check(rep: dict, truth: dict, spec: LogSpec) -> None:
     assert rep["call"]["text"] and rep["heldout_n"] > 0
 
 
-# by default the drill's control and one effect (about 40 s of CPU each, bench/results/identification.json); the
-# pendulum's log (its chaotic run) and the indenters' and the RIMD's short logs cost 2-6 times that and run with the
-# slow subset
-FAST = [LogSpec("drill", effect="shaker_coil", noise="rig", seed=0, n_runs=8),
-        LogSpec("drill", noise="rig", seed=1, n_runs=8)]
+# by default the drill with one effect (about 50 s of CPU, docs/diagnose.md's cost table); a drill control is judged
+# by default through an undeclared DAQ chain (test_daq_chain.py); the lab-grade control, the pendulum's log (its
+# chaotic run) and the indenters' and the RIMD's short logs cost 1-6 times that and run with the slow subset
+FAST = [LogSpec("drill", effect="shaker_coil", noise="rig", seed=0, n_runs=8)]
 OUTSIDE = LogSpec("drill", outside="quadratic_damping", noise="rig", seed=1, n_runs=8)
-SLOW_SHORT = [OUTSIDE, LogSpec("pendulum", effect="sensor_lowpass", noise="white2", seed=0, n_runs=8),
+SLOW_SHORT = [LogSpec("drill", noise="rig", seed=1, n_runs=8), OUTSIDE,
+              LogSpec("pendulum", effect="sensor_lowpass", noise="white2", seed=0, n_runs=8),
               LogSpec("indenter-metal", noise="white2", seed=1, n_runs=8),
               LogSpec("indenter-sandstone", effect="tip_blunting", noise="rig", seed=0, n_runs=8),
               LogSpec("rimd", outside="quadratic_damping", noise="rig", seed=1, n_runs=8)]
