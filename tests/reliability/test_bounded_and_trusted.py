@@ -89,12 +89,14 @@ def test_honest_tree_bundle_loads_and_predicts(tree_bundle):
     assert out["regime"].iloc[0] in ("progressing", "no_progress")
 
 
-@pytest.mark.parametrize("damage, words", [
-    (_break_tree, "left child 10000000"),
-    (_break_predictor, "right child 10000000"),
-    (_break_feature, "feature 99"),
+@pytest.mark.parametrize("damage, words, child", [
+    (_break_tree, "left child 10000000", True),
+    (_break_predictor, "right child 10000000", False),
+    (_break_feature, "feature 99", False),
 ])
-def test_crafted_tree_bundle_is_one_line_exit_2_never_a_signal(tree_bundle, tmp_path, damage, words):
+def test_crafted_tree_bundle_is_one_line_exit_2_never_a_signal(tree_bundle, tmp_path, capsys, damage, words, child):
+    """In a child process for one damage (a signal would show as a negative return code); the others in this
+    process, through the same command and check."""
     import skops.io as sio
 
     from surrogate import load_bundle
@@ -107,9 +109,14 @@ def test_crafted_tree_bundle_is_one_line_exit_2_never_a_signal(tree_bundle, tmp_
     damage(b)
     (d / "bundle.skops").write_bytes(sio.dumps(b))
     _rehash(d)                                              # a valid manifest: only the node check stands
-    r = _vibro("optimise", "--surrogate", str(d), "--out", str(tmp_path / "o"), "--no-mlflow", "--quiet",
-               "--storage", f"sqlite:///{tmp_path / 'o.db'}", "--n-trials", "8")
-    _one_line_exit_2(r.returncode, r.stderr, "bundle.skops", "malformed", words)
+    args = ("optimise", "--surrogate", str(d), "--out", str(tmp_path / "o"), "--no-mlflow", "--quiet",
+            "--storage", f"sqlite:///{tmp_path / 'o.db'}", "--n-trials", "8")
+    if child:
+        r = _vibro(*args)
+        _one_line_exit_2(r.returncode, r.stderr, "bundle.skops", "malformed", words)
+    else:
+        rc = main(list(args))
+        _one_line_exit_2(rc, capsys.readouterr().err, "bundle.skops", "malformed", words)
     assert not (tmp_path / "o").exists()
 
 
