@@ -11,6 +11,10 @@
 4. **variant** (only when asked, after the pipeline): the README's variant, a dvc experiment with
    ``optimise.seed=1`` under an MLflow parent run (``python -m pipeline.tracking.repro --exp -- -S optimise.seed=1``).
 
+``--phases install,test-kernels,test`` measures ``make test`` on a fresh clone instead, in the parts it runs: the
+install, every kernel compiled into numba's cache (``make kernels-jit``: ``vibro compile --jit-only``, 2 processes)
+and the default suite (``make test``, its kernels now up to date).
+
 CPU = user + sys of every process a phase ran (``resource.getrusage(RUSAGE_CHILDREN)`` before and after: make,
 pip, dvc and the stages are all waited-for descendants); load = the 1-minute load average before and after the phase
 (on a shared machine the wall time follows the load, the CPU seconds much less).  ``--phases install,compile``
@@ -46,9 +50,13 @@ def phase_command(phase: str, clone: Path) -> list[str]:
         return [str(clone / "bin" / "vibro"), "compile", "--jit-only", *pipeline_kernels(clone)]
     if phase == "pipeline":
         return ["make", "run"]
+    if phase == "test-kernels":
+        return ["make", "kernels-jit"]
+    if phase == "test":
+        return ["make", "test"]
     if phase == "variant":
         return [str(clone / ".venv" / "bin" / "python"), "-m", "pipeline.tracking.repro", "--exp", "--", *VARIANT]
-    raise ValueError(f"unknown phase {phase!r}; phases: {', '.join(PHASES)}, variant")
+    raise ValueError(f"unknown phase {phase!r}; phases: {', '.join(PHASES)}, variant, test-kernels, test")
 
 
 def _env(clone: Path) -> dict[str, str]:

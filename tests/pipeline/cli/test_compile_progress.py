@@ -150,3 +150,17 @@ def test_a_first_run_compiles_the_sweep_models_kernels_and_the_diagnosed_systems
 def test_a_wrong_kernel_argument_is_one_clear_line(arg, says):
     with pytest.raises(UserError, match=says):
         compile_cmd.parse_kernel(arg, model_names())
+
+
+def test_the_first_run_bench_measures_make_test_in_the_parts_it_runs():
+    """``python -m bench.first_run --phases install,test-kernels,test``: the kernels phase is the Makefile's target
+    that ``make test`` runs first, so the test phase after it runs the suite alone."""
+    from bench.first_run import phase_command
+
+    root = Path(__file__).resolve().parents[3]
+    assert phase_command("test-kernels", root) == ["make", "kernels-jit"]
+    assert phase_command("test", root) == ["make", "test"]
+    makefile = (root / "Makefile").read_text()
+    assert "\nkernels-jit: install\n" in makefile and "\ntest: kernels-jit\n" in makefile
+    with pytest.raises(ValueError, match="test-kernels, test"):
+        phase_command("tests", root)
