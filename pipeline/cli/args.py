@@ -24,7 +24,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from typing import Callable, Mapping
+from typing import Callable, Collection, Mapping
 
 from pipeline.core.errors import UserError
 from pipeline.core.numbers import MAX_THREADS, MAX_TRIALS, number  # noqa: F401 - the one number parser, re-exported
@@ -82,7 +82,7 @@ def count(lo: int = 1, hi: int = MAX_POINTS) -> Callable[[str], int]:
     return arg_type(integer=True, lo=lo, hi=hi)
 
 
-def parse_assignments(items: list[str] | None, what: str = "--set", words: tuple[str, ...] = ()) -> dict[str, float]:
+def parse_assignments(items: list[str] | None, what: str = "--set", words: Collection[str] = ()) -> dict[str, float]:
     """Parse ``["k1=1e7", "gap_m=0.001"]`` into finite floats (the names in ``words`` keep their text); a clear
     error names the bad item."""
     out: dict[str, float] = {}

@@ -154,8 +154,10 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
-TEXT_DIAGNOSE_SETTINGS = ("estimate_chain", "fit_unreproducible", "antialias")
-"""Settings whose ``--setting`` value is text (true/false), not a number."""
+_BOOL_WORDS = {"true": True, "false": False}
+TEXT_DIAGNOSE_SETTINGS: dict[str, dict[str, bool | None]] = {
+    "estimate_chain": _BOOL_WORDS, "fit_unreproducible": _BOOL_WORDS, "antialias": {**_BOOL_WORDS, "auto": None}}
+"""Settings whose ``--setting`` value is text, not a number: the words each takes and their values (auto: unset)."""
 
 
 def load_config(path: str | None, sets: dict, effects: list[str] | None, threads: int | None):
@@ -193,13 +195,12 @@ def typed_settings(values: dict) -> dict:
     values = dict(values)
     check_setting_names(values)
     for k, v in list(values.items()):
-        if k == "antialias" and isinstance(v, str) and v.strip().lower() == "auto":
-            values[k] = None
-        elif k in TEXT_DIAGNOSE_SETTINGS and isinstance(v, str):
-            if v.strip().lower() not in ("true", "false"):
-                words = "true, false or auto" if k == "antialias" else "true or false"
-                raise UserError(f"diagnose setting '{k}' must be {words}, got {v!r}")
-            values[k] = v.strip().lower() == "true"
+        if k in TEXT_DIAGNOSE_SETTINGS and isinstance(v, str):
+            words = TEXT_DIAGNOSE_SETTINGS[k]
+            if v.strip().lower() not in words:
+                *head, last = words
+                raise UserError(f"diagnose setting '{k}' must be {', '.join(head)} or {last}, got {v!r}")
+            values[k] = words[v.strip().lower()]
         elif k in INT_BOUNDS and v is not None:
             lo, hi = INT_BOUNDS[k]
             hi = A.MAX_THREADS if k == "n_threads" else hi
