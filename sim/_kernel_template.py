@@ -1,14 +1,15 @@
 """Template of the per-model kernel: pasted by sim.compiled after binding the model's functions.
 
 Not imported directly.  The generated module defines, before this text, the model's
-numba functions as globals ``rhs, guards, on_event, observe, bounded``, the counts ``N_BOUNDED``
-and ``N_GUARDS``, the tuple ``GUARD_STATES``, the index ``IW`` of the excitation work in the state and ``IMODE`` of
-the hidden mode's mass ratio in the parameters (see the model interface in sim.integrator).  Binding them as globals,
-rather than passing them as arguments, is what lets numba cache the compiled kernel
-on disk and release the GIL.
+numba functions as globals ``rhs, guards, on_event, observe, bounded`` (``rhs`` and ``guards`` inlined where the
+step calls them; ``rhs_once`` and ``guards_once``, the same functions called once per cycle or switch), the
+counts ``N_BOUNDED`` and ``N_GUARDS``, the tuple ``GUARD_STATES``, the index ``IW`` of the excitation work in the
+state and ``IMODE`` of the hidden mode's mass ratio in the parameters (see the model interface in sim.integrator).
+Binding them as globals, rather than passing them as arguments, is what lets numba cache the compiled kernel on disk
+and release the GIL.
 """
-# ruff: noqa: F821  (rhs, guards, on_event, observe, bounded, N_BOUNDED, N_GUARDS, GUARD_STATES, IW, IMODE: bound by
-# sim.compiled)
+# ruff: noqa: F821  (rhs, guards, rhs_once, guards_once, on_event, observe, bounded, N_BOUNDED, N_GUARDS,
+# GUARD_STATES, IW, IMODE: bound by sim.compiled)
 import numpy as np
 
 from sim.integrator import *  # noqa: F401,F403  constants and helpers
@@ -292,8 +293,8 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
             strobe[cyc, j] = bvec[j]
             bmin[cyc, j] = bvec[j]
             bmax[cyc, j] = bvec[j]
-        rhs(t, y, z, ph, p, k1)
-        guards(t, y, z, ph, p, g0)
+        rhs_once(t, y, z, ph, p, k1)
+        guards_once(t, y, z, ph, p, g0)
         steps_this_cycle = 0
         fresh = True   # the current step starts at a cycle start or a switch
         while t < t_end:
@@ -311,8 +312,8 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                     t, ph = exact_free(p, y, z, ph, t, t_end, period, s, atol, record, acc, bmin, bmax, cyc,
                                        counters, gk)
                     if t_end - t > 1e-12 * period:   # the numerical steps take over from here (at the cycle end:
-                        rhs(t, y, z, ph, p, k1)         # the next cycle's start does this)
-                        guards(t, y, z, ph, p, g0)
+                        rhs_once(t, y, z, ph, p, k1)    # the next cycle's start does this)
+                        guards_once(t, y, z, ph, p, g0)
                     f_prev = -np.inf
                     d_prev = -np.inf
                     fresh = True
@@ -401,9 +402,9 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
             if k_ev >= 0:
                 # refine every guard that crossed in [th_lo, th_hi]; take the earliest root
                 _dense_some(r1, r2, r3, r4, r5, th_lo, yd, GUARD_STATES)
-                guards(t + th_lo * h, yd, z, ph, p, g0)
+                guards_once(t + th_lo * h, yd, z, ph, p, g0)
                 _dense_some(r1, r2, r3, r4, r5, th_hi, yd, GUARD_STATES)
-                guards(t + th_hi * h, yd, z, ph, p, gm)
+                guards_once(t + th_hi * h, yd, z, ph, p, gm)
                 th_ev = th_hi
                 best_k = -1
                 for i in range(ng):
@@ -495,8 +496,8 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
                     # the state just after the switch (force may jump, e.g. the damper at onset)
                     observe(t, y, z, ph, p, obs, dyd)
                     track_maxima(acc, obs, ph > 0)
-                rhs(t, y, z, ph, p, k1)
-                guards(t, y, z, ph, p, g0)
+                rhs_once(t, y, z, ph, p, k1)
+                guards_once(t, y, z, ph, p, g0)
                 f_prev = -np.inf
                 d_prev = -np.inf
                 # the step that ended on a switch was accurate; restart with a modest step
