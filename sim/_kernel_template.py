@@ -20,10 +20,7 @@ from sim.kernel import N_ACC, _rel_close, settled_period
 # so its own functions are numba's dispatchers directly
 from numba import njit  # noqa: E402
 
-# IEEE division (x/0 -> inf or nan, caught by the step's finiteness check) instead of Python's ZeroDivisionError:
-# the same quotients without a zero test and exception exit per division, which would split the step loop into
-# blocks that numba's reference-count pruning cannot see across (an incref/decref pair per array and block per step)
-ERRORS = "numpy"
+# ERRORS (sim.integrator, star-imported above): every kernel function divides the IEEE way
 
 # Hook of a hybrid exact propagator (sim/exact/rimd.py, sim/exact/indenter.py; bound by sim.compiled in place of these
 # three): where ``exact_ok`` says so (the RIMD: in free flight; the indenter: while its seal friction is constant),

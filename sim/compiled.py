@@ -30,19 +30,21 @@ from sim.cachedir import jit_cache_dir as _jit_cache_dir
 _numba.config.CACHE_DIR = str(_jit_cache_dir())   # before the first cache=True decorator below
 from {mod} import N_GUARDS, GUARD_STATES, IW, IMODE, {rhs} as _rhs, {guards} as _guards, {on_event} as _on_event, {observe} as _observe, {bounded} as _bounded
 from sim.compiled import inline_calls as _inline_calls
+from sim.integrator import ERRORS as _ERRORS
 # rhs and guards re-jitted for inlining into the integration step: a call across a compiled-function boundary costs
 # a reference-count increment and decrement per array argument (NRT_incref/NRT_decref), several per step.  Inlined
 # only there: numba inlines a copy per call site, and each copy of a model's rhs costs seconds of compile time, so the
 # calls made once per cycle or per switch (rhs_once, guards_once) and the rarer model functions stay calls (same
-# arithmetic, the same labels bit for bit); observe and on_event inline the rhs they call (one copy each)
+# arithmetic and error model as the kernel's, the same labels bit for bit); observe and on_event inline the rhs they
+# call (one copy each)
 rhs = _njit(inline="always")(_rhs.py_func)
 guards = _njit(inline="always")(_guards.py_func)
-rhs_once = _njit(_rhs.py_func)
-guards_once = _njit(_guards.py_func)
-bounded = _njit(_bounded.py_func)
+rhs_once = _njit(error_model=_ERRORS)(_rhs.py_func)
+guards_once = _njit(error_model=_ERRORS)(_guards.py_func)
+bounded = _njit(error_model=_ERRORS)(_bounded.py_func)
 _own = {{"{rhs}": rhs, "{guards}": guards, "{bounded}": bounded}}
-on_event = _njit(_inline_calls(_on_event.py_func, _own))
-observe = _njit(_inline_calls(_observe.py_func, _own))
+on_event = _njit(error_model=_ERRORS)(_inline_calls(_on_event.py_func, _own))
+observe = _njit(error_model=_ERRORS)(_inline_calls(_observe.py_func, _own))
 N_BOUNDED = {n_bounded}
 """
 

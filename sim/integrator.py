@@ -76,6 +76,12 @@ def dopri5_tableau() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 from sim.layout import *  # noqa: F401,F403  (layouts re-exported for the kernel template)
 from sim.layout import MAX_PERIOD
 
+# The kernels' error model: IEEE division (x/0 -> inf or nan, caught by the step's finiteness check) instead of
+# Python's ZeroDivisionError: the same quotients without a zero test and exception exit per division, which would
+# split the step loop into blocks that numba's reference-count pruning cannot see across (an incref/decref pair per
+# array and block per step).  The kernel template's functions and the model functions sim.compiled binds as calls.
+ERRORS = "numpy"
+
 
 @njit(cache=True, inline="always")
 def _dense_some(r1, r2, r3, r4, r5, th, out, idx):

@@ -111,3 +111,17 @@ def test_silent_with_the_real_cache():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=dict(os.environ), timeout=600)
     assert out.returncode == 0, out.stderr
     assert "compiling" not in out.stderr
+
+
+def test_the_model_functions_the_kernel_calls_divide_the_ieee_way():
+    """The model functions the kernel calls rather than inlines (sim/compiled.py's header) have the kernel's error
+    model: x/0 is inf there as in the inlined step (caught by the finiteness check), never a ZeroDivisionError
+    raised out of a GIL-free kernel."""
+    from sim.compiled import kernels
+    from sim.integrator import ERRORS
+
+    spec = sim.get_model("drill")
+    kernels(spec.funcs, spec.n_bounded)
+    module = sys.modules[kernel_path(spec.funcs).stem]
+    for name in ("rhs_once", "guards_once", "bounded", "on_event", "observe"):
+        assert getattr(module, name).targetoptions.get("error_model") == ERRORS, name
