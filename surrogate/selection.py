@@ -25,6 +25,7 @@ class RegSelection:
     scores: dict[str, float] = field(default_factory=dict)   # candidate -> CV RMSE, transformed units (selects)
     scores_original: dict[str, float] = field(default_factory=dict)   # candidate -> CV RMSE, original units
     errors: dict[str, str] = field(default_factory=dict)     # candidate -> why it was skipped
+    fitted: object | None = None  # the winner fitted on every row, when selecting it already did (a warm start)
 
 
 @dataclass
@@ -43,9 +44,10 @@ def _predict(est, X, want_std: bool):
 
 
 def _cv_regressor(name: str, X: np.ndarray, z: np.ndarray, tr: np.ndarray, te: np.ndarray, seed: int,
-                  max_gp_points: int):
-    """One fold of one regressor candidate: (held-out predictions, GP std or None), or why it failed."""
-    est = candidates.regressor(name, seed, max_gp_points)
+                  max_gp_points: int, params: dict | None = None):
+    """One fold of one regressor candidate (``params`` set on it: a warm start): (held-out predictions, GP std
+    or None), or why it failed."""
+    est = candidates.regressor(name, seed, max_gp_points).set_params(**(params or {}))
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -92,17 +94,49 @@ def release_workers() -> None:
         ex.shutdown(wait=True)
 
 
+def _fit_all_rows(name: str, X: np.ndarray, z: np.ndarray, seed: int, max_gp_points: int):
+    """Candidate ``name`` fitted on every row, or why it failed."""
+    try:
+        return fit_regressor(name, X, z, seed, max_gp_points)
+    except (ValueError, np.linalg.LinAlgError) as e:
+        return f"{type(e).__name__}: {e}"
+
+
+def _warm_startable(name: str, max_gp_points: int) -> bool:
+    """Whether candidate ``name`` can start its folds' fits from a fit on every row (``warm_params``)."""
+    return hasattr(candidates.regressor(name, 0, max_gp_points), "warm_params")
+
+
+def _cv_results(names: list[str], X, z, splits: list, seed: int, max_gp_points: int, n_jobs: int | None):
+    """Every candidate's fold results in ``jobs`` order, and the fits on every row made for warm starts.
+
+    A candidate with ``warm_params`` (the GP) is fitted on every row first, beside the other candidates' folds;
+    its folds then start from that fit (its final model when it wins, so nothing is fitted twice)."""
+    warm = [n for n in names if _warm_startable(n, max_gp_points)]
+    jobs = [(name, tr, te) for name in names for tr, te in splits]
+    first = ([delayed(_fit_all_rows)(n, X, z, seed, max_gp_points) for n in warm]
+             + [delayed(_cv_regressor)(n, X, z, tr, te, seed, max_gp_points) for n, tr, te in jobs if n not in warm])
+    done = parallel(n_jobs)(first)
+    full = dict(zip(warm, done[:len(warm)]))
+    cold = iter(done[len(warm):])
+    started = [n for n in warm if not isinstance(full[n], str)]
+    then = parallel(n_jobs)(delayed(_cv_regressor)(n, X, z, tr, te, seed, max_gp_points, full[n].warm_params())
+                            for n, tr, te in jobs if n in started) if started else []
+    then = iter(then)
+    results = [(full[n] if isinstance(full[n], str) else next(then)) if n in warm else next(cold)
+               for n, _, _ in jobs]
+    return jobs, results, {n: f for n, f in full.items() if not isinstance(f, str)}
+
+
 def select_regressor(names: list[str], X: np.ndarray, z: np.ndarray, tf: TargetTransform, folds: int, seed: int,
                      max_gp_points: int, n_jobs: int | None = 1) -> RegSelection:
     """CV every candidate on (X, z=transformed target); pick the lowest RMSE in transformed units (the
     models' own loss: for log targets original-unit RMSE is ruled by a few points of the heavy tail).
-    The candidates' folds run in ``n_jobs`` processes."""
+    The candidates' folds run in ``n_jobs`` processes; a GP's folds start from its fit on every row."""
     kf = KFold(n_splits=min(folds, len(z)), shuffle=True, random_state=seed)
     splits = list(kf.split(X))
     y = tf.inverse(z)
-    jobs = [(name, tr, te) for name in names for tr, te in splits]
-    results = parallel(n_jobs)(delayed(_cv_regressor)(name, X, z, tr, te, seed, max_gp_points)
-                               for name, tr, te in jobs)
+    jobs, results, full = _cv_results(names, X, z, splits, seed, max_gp_points, n_jobs)
     best = None
     scores, scores_orig, errors, oofs = {}, {}, {}, {}
     for name in names:
@@ -126,7 +160,7 @@ def select_regressor(names: list[str], X: np.ndarray, z: np.ndarray, tf: TargetT
             best = name
     if best is None:
         raise ValueError(f"no regressor candidate could be fitted: {errors}")
-    return RegSelection(best, oofs[best][0], oofs[best][1], scores, scores_orig, errors)
+    return RegSelection(best, oofs[best][0], oofs[best][1], scores, scores_orig, errors, full.get(best))
 
 
 def _cv_classifier(name: str, X: np.ndarray, labels: np.ndarray, tr: np.ndarray, te: np.ndarray, seed: int):

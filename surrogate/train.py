@@ -97,7 +97,8 @@ def _fit_target(t: str, Xs: np.ndarray, y: np.ndarray, cfg: TrainConfig, progres
     tf, how = choose_transform(t, Xs, y, cfg)
     z = tf.forward(y)
     sel = selection.select_regressor(cfg.regressors, Xs, z, tf, cfg.cv_folds, cfg.seed, cfg.max_gp_points, cfg.workers)
-    est = selection.fit_regressor(sel.name, Xs, z, cfg.seed, cfg.max_gp_points)
+    est = sel.fitted if sel.fitted is not None else selection.fit_regressor(sel.name, Xs, z, cfg.seed,
+                                                                            cfg.max_gp_points)
     iv = ConformalInterval.calibrate(z, sel.oof, sel.oof_std, cfg.interval)
     info = {"model": sel.name, "transform": tf.kind, "transform_choice": how, "cv_rmse_transformed": sel.scores,
             "cv_rmse": sel.scores_original, "cv_skipped": sel.errors,
@@ -178,7 +179,9 @@ def refit_same(bundle: Bundle, df: pd.DataFrame, cfg: TrainConfig) -> Bundle:
 
 
 def _curve_point(bundle: Bundle, train: pd.DataFrame, test: pd.DataFrame, cfg: TrainConfig, n: int) -> dict:
-    b = refit_same(bundle, train.iloc[:n], cfg)
+    """Held-out scores of the bundle's model types refitted on the first ``n`` training rows (on all of them:
+    the bundle itself, which is that refit)."""
+    b = bundle if n == len(train) else refit_same(bundle, train.iloc[:n], cfg)
     ev = evaluate(b, test)
     row = {"n_train": n, "accuracy": ev["classification"]["accuracy"]}
     for t, m in ev["targets"].items():
@@ -192,11 +195,13 @@ def learning_curve(bundle: Bundle, train: pd.DataFrame, test: pd.DataFrame, cfg:
     """Held-out error of the selected model types against the number of training simulations.
 
     Subsets are prefixes of the training split in point order (a Sobol design's prefix stays space-filling);
-    the sizes are fitted in ``cfg.workers`` processes."""
-    sizes = sorted({min(len(train), max(MIN_POINTS * 2, int(round(f * len(train))))) for f in cfg.learning_curve})
+    the sizes are fitted in ``cfg.workers`` processes, largest first (the costliest start first)."""
+    sizes = sorted({min(len(train), max(MIN_POINTS * 2, int(round(f * len(train))))) for f in cfg.learning_curve},
+                   reverse=True)
     jobs = (delayed(_curve_point)(bundle, train, test, cfg, n) for n in sizes)
-    return list(tqdm(selection.parallel(cfg.workers, return_as="generator")(jobs), total=len(sizes),
+    rows = list(tqdm(selection.parallel(cfg.workers, return_as="generator")(jobs), total=len(sizes),
                      desc="learning curve", disable=not progress, leave=False))
+    return rows[::-1]
 
 
 def needed(curve: list[dict], key: str, goal: float) -> int | None:

@@ -136,6 +136,48 @@ def test_selection_keeps_every_candidate_score_and_picks_the_lowest():
     assert np.sqrt(np.mean((sel.oof - z) ** 2)) == pytest.approx(sel.scores[sel.name])
 
 
+def test_a_gp_is_fitted_once_on_every_row_and_its_folds_start_from_that_fit():
+    """The GP's CV folds start their hyperparameter search where the fit on every row ended, and that fit is
+    the winner's final model: the same estimator fit_regressor makes, not a second fit."""
+    from sklearn.model_selection import KFold
+
+    from surrogate import selection
+    from surrogate.candidates import SubsampledGP
+    from surrogate.features import TargetTransform
+
+    df = synthetic(160, seed=5)
+    X = df[list(RANGES)].to_numpy() / np.array([400.0, 3000.0])
+    z = df["peak_force_n"].to_numpy() / 1000.0
+    sel = selection.select_regressor(["gp", "krr"], X, z, TargetTransform("identity"), 3, 0, 100)
+    assert sel.name == "gp" and sel.fitted is not None
+    again = selection.fit_regressor("gp", X, z, 0, 100)
+    np.testing.assert_array_equal(sel.fitted.predict(X), again.predict(X))
+    theta = sel.fitted.warm_params()["theta0"]
+    fold = SubsampledGP(max_points=100, seed=0, theta0=theta).fit(X[:120], z[:120])
+    np.testing.assert_array_equal(fold.gp_.kernel.theta, theta)   # where the search started
+    assert fold.gp_.n_restarts_optimizer == 0
+    cold = np.empty_like(z)    # the folds fitted from the kernel's defaults, as before warm starts
+    for tr, te in KFold(3, shuffle=True, random_state=0).split(X):
+        cold[te] = selection._cv_regressor("gp", X, z, tr, te, 0, 100)[0]
+    warm_rmse, cold_rmse = (float(np.sqrt(np.mean((o - z) ** 2))) for o in (sel.oof, cold))
+    assert warm_rmse == pytest.approx(sel.scores["gp"])
+    assert warm_rmse == pytest.approx(cold_rmse, rel=0.1), (warm_rmse, cold_rmse)
+
+
+def test_the_learning_curve_reuses_the_bundle_at_the_full_size():
+    """The last size of the curve is the training split itself: its row is the bundle's own held-out score."""
+    from surrogate.train import evaluate, learning_curve, split_frame
+    from surrogate.config import TrainConfig
+
+    df = synthetic(200, seed=6)
+    cfg = TrainConfig.from_dict({**FAST, "learning_curve": [0.5, 1.0]})
+    b = train_bundle(df, list(RANGES), RANGES, "drill", None, cfg)
+    train, test = split_frame(df.sort_values("point_id").reset_index(drop=True), cfg)
+    curve = learning_curve(b, train, test, cfg)
+    assert [r["n_train"] for r in curve] == sorted(r["n_train"] for r in curve) and curve[-1]["n_train"] == len(train)
+    assert curve[-1]["rop_m_s_r2"] == evaluate(b, test)["targets"]["rop_m_s"]["r2"]
+
+
 def test_result_does_not_depend_on_the_number_of_fitting_processes():
     """CV folds and learning-curve sizes fitted in 2 processes give the very bundle and report of 1 process."""
     from surrogate.selection import select_classifier
