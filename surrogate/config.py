@@ -46,7 +46,7 @@ class TrainConfig:
     workers: int | None = None  # processes fitting CV folds and learning-curve sizes at once (None: all cores);
     #                             the result does not depend on it
     interval: float = 0.9
-    learning_curve: list[float] = field(default_factory=lambda: [0.1, 0.2, 0.35, 0.5, 0.75, 1.0])
+    learning_curve: list[float] = field(default_factory=lambda: [0.1, 0.2, 0.35, 0.5, 1.0])   # 1.0: the bundle itself
     goals: dict[str, float] = field(default_factory=lambda: {"rop_m_s_r2": 0.95, "peak_force_n_r2": 0.97,
                                                              "accuracy": 0.97, "coverage_low": 0.85,
                                                              "coverage_high": 0.95})

@@ -33,7 +33,7 @@ rows checked before training (one bad row refuses the dataset, exit 2 naming the
 params.yaml section 'train' (all optional; flags override): test_fraction 0.2, cv_folds 5, seed 0,
   targets [rop_m_s, peak_force_n, impacts_per_cycle, specific_energy_j_m], regressors [gp, gbt, mlp] (also krr),
   classifiers [gbt, mlp, trees], transforms {target: auto|log|identity}, domains {target: progressing|settled|all},
-  max_gp_points 600, workers null (all cores), threads 1 (BLAS per process), interval 0.9, learning_curve [0.1, 0.2, 0.35, 0.5, 0.75, 1.0],
+  max_gp_points 600, workers null (all cores), threads 1 (BLAS per process), interval 0.9, learning_curve [0.1, 0.2, 0.35, 0.5, 1.0],
   goals {rop_m_s_r2 0.95, peak_force_n_r2 0.97, accuracy 0.97, coverage_low 0.85, coverage_high 0.95},
   adaptive {enabled false, initial 128, batch 64, budget 768, pool 4096, boundary_weight 0.5, ensemble 5}"""
 
