@@ -10,7 +10,7 @@ known point: the scan's, or a search's where one beat it (where two limits meet 
 than the scan's fine grid).
 Writes bench/results/search.json and prints the markdown table of docs/optimise.md ("Which search").
 
-Run: ``python -m bench.bench_search [--budget 200] [--seeds 0 1 2] [--cases lab coil-corner ...]``.
+Run: ``python -m bench.bench_search [--budget 200] [--seeds 0 1 2] [--cases lab coil-corner ...] [--merge]``.
 CMA-ES needs the ``cmaes`` package; it ignores optuna's constraints, so it is run on the cases without limits only.
 """
 from __future__ import annotations
@@ -55,6 +55,21 @@ CASES = {
     "two-peaks": Case("lab, f from 25 Hz: a low-frequency peak beside the 265 Hz one",
                       space={**LAB, "frequency_hz": (25.0, 450.0)}),
 }
+
+
+def _rig_cases() -> dict:
+    """The drill's corrected rigs: the lab preset with one §6 effect at the strength the independent generator's
+    logs carry (``sim.models.drill.EFFECT_VISIBLE``, the values of tests/independent/rigs.py), searched under the
+    pipeline's limits (18 W, 4 g) as ``make run`` searches its corrected rig.  The accelerometer's low-pass is left
+    out: it changes what is measured, not the rig's ROP."""
+    from sim.models.drill import EFFECT_VISIBLE
+
+    return {f"rig-{name.replace('_', '-')}": Case(f"lab rig with {name} {values}, 18 W and 4 g", fixed=dict(values),
+                                                   limits=LIMITS)
+            for name, values in EFFECT_VISIBLE.items() if name != "sensor_lowpass"}
+
+
+CASES.update(_rig_cases())
 """Name -> case; every sampler runs on every case."""
 
 
@@ -188,6 +203,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="coarse reference grid per axis (default 36 10 10)")
     ap.add_argument("--refine", type=int, default=9, help="fine grid points per axis around each peak (default 9)")
     ap.add_argument("--results", default=None, help="directory for search.json and the scan caches")
+    ap.add_argument("--merge", action="store_true", help="keep the other cases of an existing search.json (same budget) "
+                                                          "and print the table of all of them")
     args = ap.parse_args(argv)
     res = Path(args.results) if args.results else RESULTS
     res.mkdir(parents=True, exist_ok=True)
@@ -231,6 +248,9 @@ def main(argv: list[str] | None = None) -> int:
             v["ratio_mean"] = float(np.mean([r["ratio"] for r in v["runs"]]))
         out["cases"][cname] = row
     out["seconds"] = round(time.time() - t0, 1)
+    if args.merge:
+        out = merged(res / "search.json", out)
+        names = list(dict.fromkeys(n for row in out["cases"].values() for n in row["samplers"]))
     from vibrobase.jsonable import dump_json
 
     tmp = res / ".search.json.tmp"
@@ -238,6 +258,23 @@ def main(argv: list[str] | None = None) -> int:
     tmp.replace(res / "search.json")
     print(markdown(out, names))
     return 0
+
+
+def merged(path: Path, new: dict) -> dict:
+    """``new``'s cases over those of the search.json at ``path`` (kept in its order, new cases appended); the
+    per-case seeds stay with each case, the run's seconds add up.  A file of another budget is refused."""
+    if not path.exists():
+        return new
+    old = json.loads(path.read_text())
+    if old.get("budget") != new["budget"]:
+        raise SystemExit(f"bench_search --merge: {path} has budget {old.get('budget')}, this run {new['budget']}")
+    for row in old["cases"].values():
+        row.setdefault("seeds", old.get("seeds"))
+    for row in new["cases"].values():
+        row["seeds"] = new["seeds"]
+    cases = {**old["cases"], **new["cases"]}
+    return {**new, "seeds": sorted({s for row in cases.values() for s in row["seeds"]}), "cases": cases,
+            "seconds": round(old.get("seconds", 0) + new["seconds"], 1)}
 
 
 def markdown(out: dict, names: list[str]) -> str:
