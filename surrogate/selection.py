@@ -25,7 +25,7 @@ class RegSelection:
     scores: dict[str, float] = field(default_factory=dict)   # candidate -> CV RMSE, transformed units (selects)
     scores_original: dict[str, float] = field(default_factory=dict)   # candidate -> CV RMSE, original units
     errors: dict[str, str] = field(default_factory=dict)     # candidate -> why it was skipped
-    fitted: object | None = None  # the winner fitted on every row, when selecting it already did (a warm start)
+    fitted: object | None = None  # the winner fitted on every row, when the selection already did (beside the folds)
 
 
 @dataclass
@@ -45,7 +45,7 @@ def _predict(est, X, want_std: bool):
 
 def _cv_regressor(name: str, X: np.ndarray, z: np.ndarray, tr: np.ndarray, te: np.ndarray, seed: int,
                   max_gp_points: int, params: dict | None = None):
-    """One fold of one regressor candidate (``params`` set on it: a warm start): (held-out predictions, GP std
+    """One fold of one regressor candidate (``params`` set on it: its ``cv_params``): (held-out predictions, GP std
     or None), or why it failed."""
     est = candidates.regressor(name, seed, max_gp_points).set_params(**(params or {}))
     try:
@@ -102,37 +102,32 @@ def _fit_all_rows(name: str, X: np.ndarray, z: np.ndarray, seed: int, max_gp_poi
         return f"{type(e).__name__}: {e}"
 
 
-def _warm_startable(name: str, max_gp_points: int) -> bool:
-    """Whether candidate ``name`` can start its folds' fits from a fit on every row (``warm_params``)."""
-    return hasattr(candidates.regressor(name, 0, max_gp_points), "warm_params")
+def _fold_params(name: str, max_gp_points: int) -> dict | None:
+    """Candidate ``name``'s settings for CV folds (``cv_params``: a cheaper search than its final fit), or None."""
+    est = candidates.regressor(name, 0, max_gp_points)
+    return est.cv_params() if hasattr(est, "cv_params") else None
 
 
 def _cv_results(names: list[str], X, z, splits: list, seed: int, max_gp_points: int, n_jobs: int | None):
-    """Every candidate's fold results in ``jobs`` order, and the fits on every row made for warm starts.
+    """Every candidate's fold results in ``jobs`` order, and the fits on every row made beside them.
 
-    A candidate with ``warm_params`` (the GP) is fitted on every row first, beside the other candidates' folds;
-    its folds then start from that fit (its final model when it wins, so nothing is fitted twice)."""
-    warm = [n for n in names if _warm_startable(n, max_gp_points)]
+    A candidate whose folds run with cheaper settings than its final fit (``cv_params``: the GP) has that final fit
+    made in the same batch as the folds, which balances the processes; it is the final model when it wins."""
+    cheap = {n: _fold_params(n, max_gp_points) for n in names}
+    early = [n for n in names if cheap[n] is not None]
     jobs = [(name, tr, te) for name in names for tr, te in splits]
-    first = ([delayed(_fit_all_rows)(n, X, z, seed, max_gp_points) for n in warm]
-             + [delayed(_cv_regressor)(n, X, z, tr, te, seed, max_gp_points) for n, tr, te in jobs if n not in warm])
-    done = parallel(n_jobs)(first)
-    full = dict(zip(warm, done[:len(warm)]))
-    cold = iter(done[len(warm):])
-    started = [n for n in warm if not isinstance(full[n], str)]
-    then = parallel(n_jobs)(delayed(_cv_regressor)(n, X, z, tr, te, seed, max_gp_points, full[n].warm_params())
-                            for n, tr, te in jobs if n in started) if started else []
-    then = iter(then)
-    results = [(full[n] if isinstance(full[n], str) else next(then)) if n in warm else next(cold)
-               for n, _, _ in jobs]
-    return jobs, results, {n: f for n, f in full.items() if not isinstance(f, str)}
+    done = parallel(n_jobs)([delayed(_fit_all_rows)(n, X, z, seed, max_gp_points) for n in early]
+                            + [delayed(_cv_regressor)(n, X, z, tr, te, seed, max_gp_points, cheap[n])
+                               for n, tr, te in jobs])
+    full = {n: f for n, f in zip(early, done[:len(early)]) if not isinstance(f, str)}
+    return jobs, done[len(early):], full
 
 
 def select_regressor(names: list[str], X: np.ndarray, z: np.ndarray, tf: TargetTransform, folds: int, seed: int,
                      max_gp_points: int, n_jobs: int | None = 1) -> RegSelection:
     """CV every candidate on (X, z=transformed target); pick the lowest RMSE in transformed units (the
     models' own loss: for log targets original-unit RMSE is ruled by a few points of the heavy tail).
-    The candidates' folds run in ``n_jobs`` processes; a GP's folds start from its fit on every row."""
+    The candidates' folds run in ``n_jobs`` processes; a GP's folds search without its random restart."""
     kf = KFold(n_splits=min(folds, len(z)), shuffle=True, random_state=seed)
     splits = list(kf.split(X))
     y = tf.inverse(z)
