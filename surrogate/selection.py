@@ -108,13 +108,15 @@ def _fold_params(name: str, max_gp_points: int) -> dict | None:
     return est.cv_params() if hasattr(est, "cv_params") else None
 
 
-def _cv_results(names: list[str], X, z, splits: list, seed: int, max_gp_points: int, n_jobs: int | None):
+def _cv_results(names: list[str], X, z, splits: list, seed: int, max_gp_points: int, n_jobs: int | None,
+                final: bool):
     """Every candidate's fold results in ``jobs`` order, and the fits on every row made beside them.
 
-    A candidate whose folds run with cheaper settings than its final fit (``cv_params``: the GP) has that final fit
-    made in the same batch as the folds, which balances the processes; it is the final model when it wins."""
+    With ``final``, a candidate whose folds run with cheaper settings than its final fit (``cv_params``: the GP) has
+    that final fit made in the same batch as the folds, which balances the processes; it is the final model when it
+    wins."""
     cheap = {n: _fold_params(n, max_gp_points) for n in names}
-    early = [n for n in names if cheap[n] is not None]
+    early = [n for n in names if final and cheap[n] is not None]
     jobs = [(name, tr, te) for name in names for tr, te in splits]
     done = parallel(n_jobs)([delayed(_fit_all_rows)(n, X, z, seed, max_gp_points) for n in early]
                             + [delayed(_cv_regressor)(n, X, z, tr, te, seed, max_gp_points, cheap[n])
@@ -124,14 +126,15 @@ def _cv_results(names: list[str], X, z, splits: list, seed: int, max_gp_points: 
 
 
 def select_regressor(names: list[str], X: np.ndarray, z: np.ndarray, tf: TargetTransform, folds: int, seed: int,
-                     max_gp_points: int, n_jobs: int | None = 1) -> RegSelection:
+                     max_gp_points: int, n_jobs: int | None = 1, final: bool = True) -> RegSelection:
     """CV every candidate on (X, z=transformed target); pick the lowest RMSE in transformed units (the
     models' own loss: for log targets original-unit RMSE is ruled by a few points of the heavy tail).
-    The candidates' folds run in ``n_jobs`` processes; a GP's folds search without its random restart."""
+    The candidates' folds run in ``n_jobs`` processes; a GP's folds search without its random restart.
+    ``final`` False: only the scores are wanted (no final model is fitted beside the folds)."""
     kf = KFold(n_splits=min(folds, len(z)), shuffle=True, random_state=seed)
     splits = list(kf.split(X))
     y = tf.inverse(z)
-    jobs, results, full = _cv_results(names, X, z, splits, seed, max_gp_points, n_jobs)
+    jobs, results, full = _cv_results(names, X, z, splits, seed, max_gp_points, n_jobs, final)
     best = None
     scores, scores_orig, errors, oofs = {}, {}, {}, {}
     for name in names:

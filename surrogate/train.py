@@ -73,7 +73,7 @@ def choose_transform(t: str, Xs: np.ndarray, y: np.ndarray, cfg: TrainConfig) ->
     for kind in ("log", "identity"):
         tf = TargetTransform(kind)
         sel = selection.select_regressor([name], Xs, tf.forward(y), tf, cfg.cv_folds, cfg.seed, cfg.max_gp_points,
-                                         cfg.workers)
+                                         cfg.workers, final=False)
         rmse[kind] = sel.scores_original[name]
     chosen = min(rmse, key=rmse.get)
     how.update({"cv_candidate": name, "cv_rmse": rmse, "chosen": chosen})

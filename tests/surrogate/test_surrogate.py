@@ -151,6 +151,8 @@ def test_a_gp_is_fitted_once_on_every_row_and_its_folds_search_without_the_resta
     z = df["peak_force_n"].to_numpy() / 1000.0
     sel = selection.select_regressor(["gp", "krr"], X, z, TargetTransform("identity"), 3, 0, 100)
     assert sel.name == "gp" and sel.fitted is not None and sel.fitted.restarts == 1
+    scores_only = selection.select_regressor(["gp", "krr"], X, z, TargetTransform("identity"), 3, 0, 100, final=False)
+    assert scores_only.fitted is None and scores_only.scores == sel.scores
     again = selection.fit_regressor("gp", X, z, 0, 100)
     np.testing.assert_array_equal(sel.fitted.predict(X), again.predict(X))
     folds = np.empty_like(z)
@@ -160,16 +162,22 @@ def test_a_gp_is_fitted_once_on_every_row_and_its_folds_search_without_the_resta
     assert float(np.sqrt(np.mean((sel.oof - z) ** 2))) == pytest.approx(sel.scores["gp"])
 
 
-def test_the_learning_curve_reuses_the_bundle_at_the_full_size():
-    """The last size of the curve is the training split itself: its row is the bundle's own held-out score."""
-    from surrogate.train import evaluate, learning_curve, split_frame
+def test_the_learning_curve_reuses_the_bundle_at_the_full_size(monkeypatch):
+    """The last size of the curve is the training split itself: its row is the bundle's own held-out score, not a
+    refit (one process, so the refits are seen)."""
+    from surrogate import train as T
     from surrogate.config import TrainConfig
+    from surrogate.train import evaluate, learning_curve, split_frame
 
     df = synthetic(200, seed=6)
-    cfg = TrainConfig.from_dict({**FAST, "learning_curve": [0.5, 1.0]})
+    cfg = TrainConfig.from_dict({**FAST, "learning_curve": [0.5, 1.0], "workers": 1})
     b = train_bundle(df, list(RANGES), RANGES, "drill", None, cfg)
     train, test = split_frame(df.sort_values("point_id").reset_index(drop=True), cfg)
+    refitted = []
+    refit = T.refit_same
+    monkeypatch.setattr(T, "refit_same", lambda bundle, frame, c: refitted.append(len(frame)) or refit(bundle, frame, c))
     curve = learning_curve(b, train, test, cfg)
+    assert refitted == [round(0.5 * len(train))]
     assert [r["n_train"] for r in curve] == sorted(r["n_train"] for r in curve) and curve[-1]["n_train"] == len(train)
     assert curve[-1]["rop_m_s_r2"] == evaluate(b, test)["targets"]["rop_m_s"]["r2"]
 
