@@ -12,6 +12,8 @@ import pytest
 
 from bench import bench_precision as bp
 
+pytestmark = pytest.mark.xdist_group("test_bench_quick")   # one test worker builds the module's fixture
+
 
 @pytest.fixture(scope="module")
 def quick_result(tmp_path_factory):

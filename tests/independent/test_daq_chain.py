@@ -15,6 +15,8 @@ from tests.independent import daq as D
 from tests.independent.generator import LogSpec, _run, generate, true_parameters
 from tests.independent.rigs import RIGS
 
+pytestmark = pytest.mark.xdist_group("independent-test_daq_chain")   # one test worker builds the module's fixture
+
 FS = 25600.0
 
 

@@ -14,6 +14,8 @@ from tests.independent import noise as N
 from tests.independent.generator import LogSpec, generate
 from tests.independent.rigs import RIGS
 
+pytestmark = pytest.mark.xdist_group("test_generator")   # one test worker builds the module's fixture
+
 HERE = Path(__file__).resolve().parent
 INDEPENDENT = [*HERE.glob("*.py"), HERE.parent / "reference_solutions.py"]
 

@@ -16,6 +16,7 @@ from tests.independent.generator import RTOL, LogSpec, _run, generate
 from tests.independent.outside import OUTSIDE, model_for
 from tests.independent.rigs import OUTSIDE_KIND, RIGS
 
+pytestmark = pytest.mark.xdist_group("independent-physics")   # one test worker computes the base runs (``_base``)
 DEFAULT = {"drill": (270.0, 1500.0), "indenter-metal": (60.0, 1.0), "indenter-sandstone": (60.0, 1.0),
            "pendulum": (3.75, 0.0), "rimd": (8.0, 1.0)}
 """Each rig's default point (the model's default operating point, or the grid's nearest): (frequency, level)."""
@@ -209,8 +210,11 @@ def test_drill_contact_rate_follows_the_contact_law(outside):
 
 
 # ----------------------------------------------------------------------------- logs
-@pytest.mark.parametrize("system,outside", [("indenter-metal", "contact_power"), ("drill", "load_path_mode"),
-                                            ("pendulum", "load_path_mode"), ("rimd", "contact_power")])
+# the writer is the same for every system: the drill's log by default, the others with the slow subset
+@pytest.mark.parametrize("system,outside", [pytest.param("indenter-metal", "contact_power", marks=pytest.mark.slow),
+                                            ("drill", "load_path_mode"),
+                                            pytest.param("pendulum", "load_path_mode", marks=pytest.mark.slow),
+                                            pytest.param("rimd", "contact_power", marks=pytest.mark.slow)])
 def test_outside_log_is_a_valid_section7_dataset(tmp_path, monkeypatch, system, outside):
     from pipeline.datasets.measured import load_dataset
 

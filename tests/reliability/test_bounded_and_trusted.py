@@ -13,6 +13,8 @@ import pytest
 
 from pipeline.cli import main
 
+pytestmark = pytest.mark.xdist_group("test_bounded_and_trusted")   # one test worker builds the module's fixture
+
 ROOT = Path(__file__).resolve().parents[2]
 ALIAS_BOMB = "a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(
     f"{c}: &{c} [*{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}]\n" for p, c in zip("abcdefgh", "bcdefghi"))

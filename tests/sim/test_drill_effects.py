@@ -19,6 +19,8 @@ import sim
 from sim.models import drill
 from tests.reference_solutions import reference_run
 
+pytestmark = pytest.mark.xdist_group("test_drill_effects")   # one test worker builds the module's fixture
+
 TRANSIENT, WINDOW = 240, 16
 REL = 1e-2                      # tests/sim/test_validation.py
 VISIBLE = 3 * REL               # an effect "clearly visible": ROP or peak deceleration moves > 3x the tolerance

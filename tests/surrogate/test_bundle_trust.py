@@ -16,6 +16,8 @@ from surrogate.errors import BundleError
 
 from tests.surrogate.test_surrogate import FAST, RANGES, synthetic
 
+pytestmark = pytest.mark.xdist_group("test_bundle_trust")   # one test worker builds the module's fixture
+
 
 
 class Payload:

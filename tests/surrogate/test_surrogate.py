@@ -18,6 +18,8 @@ from surrogate.data import infer_inputs, regime_of
 from surrogate.errors import BundleError, ConfigError, DataError
 from surrogate.intervals import ConformalInterval
 
+pytestmark = pytest.mark.xdist_group("test_surrogate")   # one test worker builds the module's fixture
+
 FAST = {"regressors": ["krr"], "classifiers": ["trees"], "cv_folds": 3, "learning_curve": [0.5, 1.0]}
 RANGES = {"frequency_hz": (10.0, 400.0), "amplitude_n": (0.0, 3000.0)}
 

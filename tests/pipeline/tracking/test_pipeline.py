@@ -261,6 +261,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+@pytest.mark.slow      # starts a server, like tests/scale/test_mlflow_server.py
 def test_mlflow_server_on_loopback_lists_the_runs(tmp_path: Path):
     env = _env(tmp_path, "vibro-server-test")
     code = ("from pipeline import tracking\n"
