@@ -16,7 +16,7 @@ from tests.independent import kinds as K
 from tests.independent.generator import RTOL, LogSpec, _run, generate
 from tests.independent.outside import OUTSIDE, model_for
 from tests.independent.rigs import OUTSIDE_KIND, RIGS
-from tests.independent.test_outside_physics import DEFAULT, NUMERIC, WINDOW, _base, _params, _transient
+from tests.independent.test_outside_physics import DEFAULT, NUMERIC, WINDOW, _base, _mark, _params, _transient
 
 PAIRS = [(k, s) for k, systems in K.KINDS_SYSTEMS.items() for s in systems]
 pytestmark = pytest.mark.xdist_group("independent-physics")   # one test worker computes the base runs (``_base``)
@@ -55,10 +55,6 @@ LOG_CASE = {"contact_exponent": "pendulum", "unloading_hysteresis": "indenter-me
 """One system per kind in the default suite (its log, off and on); the kinds are frozen, so the other pairs run
 with the ``slow`` subset."""
 OTHER_PAIRS = {p for p in PAIRS if LOG_CASE[p[0]] != p[1]}
-
-
-def _mark(pairs, slow):
-    return [pytest.param(*p, marks=pytest.mark.slow) if p in slow else p for p in pairs]
 
 
 def _with(kind: str, system: str, spc: int = 0, **override) -> dict:
