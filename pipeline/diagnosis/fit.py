@@ -69,33 +69,46 @@ class StartFit:
 
 
 class _Problem:
-    """Residual and forward-difference Jacobian of a job for ``least_squares``, residuals cached by x."""
+    """Residual and forward-difference Jacobian of a job for ``least_squares``.  Every point simulated is kept with
+    its whole residual; the coarse stage reads the low-harmonic part of it (``features.low_harmonics``), so the full
+    stage, which starts where the coarse one ended, finds its first residual and Jacobian (and a replayed trial step)
+    already simulated."""
 
     def __init__(self, ev: Evaluator, job: FitJob, step: float):
         self.ev, self.job, self.step = ev, job, step
         self.names = [p.name for p in job.free]
         self.hi = np.array([p.bounds[1] for p in job.free])
-        self.cache: dict[bytes, np.ndarray] = {}
+        self.cache: dict[bytes, np.ndarray] = {}      # x [log10] -> the whole residual there
         self.low = False           # compare the low harmonics only (the coarse stage)
+        self.low_mask = np.concatenate([ev.targets[i].low for i in job.idx]) if job.idx else np.ones(0, bool)
         self.nfev = 0
 
     def params(self, x: np.ndarray) -> dict:
         return {**self.job.fixed, **{n: 10.0 ** v for n, v in zip(self.names, x)}}
 
+    def whole(self, xs: list[np.ndarray]) -> list[np.ndarray]:
+        """The whole residual at each of ``xs``, the points not yet simulated simulated in one parallel batch."""
+        new: dict[bytes, np.ndarray] = {}
+        for x in xs:
+            if x.tobytes() not in self.cache:
+                new.setdefault(x.tobytes(), x)
+        if new:
+            rs = self.ev.residuals([self.params(x) for x in new.values()], self.job.idx)
+            self.cache.update(zip(new, rs))
+            self.nfev += len(new)
+        return [self.cache[x.tobytes()] for x in xs]
+
+    def _part(self, r: np.ndarray) -> np.ndarray:
+        return r[self.low_mask] if self.low else r
+
     def fun(self, x: np.ndarray) -> np.ndarray:
-        key = x.tobytes() + (b"low" if self.low else b"")
-        if key not in self.cache:
-            self.cache[key] = self.ev.residuals([self.params(x)], self.job.idx, low_only=self.low)[0]
-            self.nfev += 1
-        return self.cache[key]
+        return self._part(self.whole([x])[0])
 
     def jac(self, x: np.ndarray) -> np.ndarray:
         """Columns simulated in one parallel batch; a step goes inwards at an upper bound."""
-        f0 = self.fun(x)
         steps = [self.step if x[j] + self.step <= self.hi[j] else -self.step for j in range(x.size)]
         xs = [x + np.eye(x.size)[j] * steps[j] for j in range(x.size)]
-        rs = self.ev.residuals([self.params(xj) for xj in xs], self.job.idx, low_only=self.low)
-        self.nfev += x.size
+        f0, *rs = (self._part(r) for r in self.whole([x] + xs))
         return np.column_stack([(r - f0) / h for r, h in zip(rs, steps)])
 
     def solve(self, x0: np.ndarray, max_nfev: int, xtol: float, ftol: float):
@@ -132,7 +145,7 @@ def finish_fit(ev: Evaluator, job: FitJob, starts: list[StartFit]) -> FitResult:
     nfev = sum(s.nfev for s in starts)
     if job.polish and POLISH_NFEV > 0:
         pb = _Problem(ev, job, POLISH_STEP)
-        pb.cache[x.tobytes()] = fun          # the polish starts where the best start ended
+        pb.cache[x.tobytes()] = fun          # the polish starts where the best start ended (a whole residual)
         sol = pb.solve(x, POLISH_NFEV, 1e-6, 1e-7)
         nfev += pb.nfev
         if float(2.0 * sol.cost) < chi2:

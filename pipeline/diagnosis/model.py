@@ -191,17 +191,14 @@ class Evaluator:
             r[tg.lower_bound] = np.minimum(r[tg.lower_bound], 0.0)
         return r
 
-    def residuals(self, param_sets: list[dict], idx: list[int], low_only: bool = False) -> list[np.ndarray]:
-        """Concatenated normalised residual over runs ``idx`` for each parameter set (``low_only``: the features of
-        the low harmonics only, ``features.low_harmonics``)."""
+    def residuals(self, param_sets: list[dict], idx: list[int]) -> list[np.ndarray]:
+        """Concatenated normalised residual over runs ``idx`` for each parameter set (a coarse fit reads the part of
+        the low harmonics, ``features.low_harmonics``)."""
         sims = self.simulate(param_sets, idx)
         if self.profile_runs:
             from pipeline.diagnosis.nuisance import profiled_residuals
 
-            return profiled_residuals(self, sims, idx, low_only)
-        if low_only:
-            return [np.concatenate([self.residual_of(i, r)[self.targets[i].low] for i, r in zip(idx, row)])
-                    for row in sims]
+            return profiled_residuals(self, sims, idx)
         return [np.concatenate([self.residual_of(i, r) for i, r in zip(idx, row)]) for row in sims]
 
     def held_out(self, param_sets: list[dict], idx: list[int], chains: list | None = None

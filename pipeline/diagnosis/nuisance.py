@@ -239,18 +239,14 @@ def delays_at_unseen_rates(delays_us: np.ndarray, keys: tuple, seen: set[int]) -
     return out
 
 
-def profiled_residuals(ev, sims: list[list], idx: list[int], low_only: bool) -> list[np.ndarray]:
+def profiled_residuals(ev, sims: list[list], idx: list[int]) -> list[np.ndarray]:
     """``Evaluator.residuals`` with the chain of ``ev.profile_runs`` profiled out of every parameter set's
     residual (the chain that fits that set's simulations best, ``profile``, in place of the targets' own)."""
     out = []
     for row in sims:
         nuis = _profiled_chain(ev, row, idx)[0]
-        parts = []
-        for i, r in zip(idx, row):
-            tg = ev.targets[i]
-            ri = ev.residual_for(with_chain(tg, nuis) if i in ev.profile_runs else tg, r)
-            parts.append(ri[tg.low] if low_only else ri)
-        out.append(np.concatenate(parts))
+        out.append(np.concatenate([ev.residual_for(with_chain(ev.targets[i], nuis) if i in ev.profile_runs
+                                                   else ev.targets[i], r) for i, r in zip(idx, row)]))
     return out
 
 
