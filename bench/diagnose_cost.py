@@ -27,7 +27,7 @@ OUT = Path(__file__).resolve().parent / "results" / "diagnose_cost.json"
 DOC = ROOT / "docs" / "diagnose.md"
 MARKERS = ("<!-- diagnose-cost:start -->", "<!-- diagnose-cost:end -->")
 LOGS = ("drill:control", "drill:shaker_coil", "indenter-metal:guide_friction", "drill:outside:quadratic_damping",
-        "drill:control@16")
+        "drill:control@16", "drill:shaker_coil@16")
 """system:case[@runs] of the identification matrix (bench.identification.cases)."""
 N_RUNS = 8
 """Runs of a log that names none (the matrix's logs)."""
