@@ -9,7 +9,6 @@ from __future__ import annotations
 import copy
 import math
 import os
-from collections import OrderedDict
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -76,11 +75,6 @@ def candidates(system: str) -> dict[str, tuple[FreeParam, ...]]:
     return {eff: tuple(bounds[p] for p in ps) for eff, ps in spec.effects.items()}
 
 
-RESIDUAL_MEMO = 4096
-"""Per-run residuals an evaluator remembers, the least recently used dropped first: the leave-one-run-out folds,
-started at one fit, simulate the runs they share at the same points (a run's residual is a pure function of its
-``Evaluator._memo_key``)."""
-
 MAX_MODEL_SAMPLES = 500_000
 """Cap on the samples of one summary run's model history (memory; the integrator steps on its own, the history is
 only output)."""
@@ -141,15 +135,12 @@ class Evaluator:
         self.cost = None        # a cost.CostRecorder told of every batch of fit tasks (None: none)
         self.profile_runs: frozenset = frozenset()     # runs whose undeclared DAQ chain is profiled out (nuisance)
         self.profile_signals: tuple[str, ...] = ()
-        self.memo: OrderedDict[tuple, np.ndarray] = OrderedDict()   # (run, parameters, ...) -> residual; shared by
-        #                                                               the copies of ``for_tasks``
         warm(system)
 
     def for_tasks(self, n_threads: int | None = None) -> Evaluator:
         """A copy with its own simulation count (0) for a task run elsewhere, on ``n_threads`` threads (None: this
-        one's); it simulates exactly as this one does, and shares its memo (a cluster's copy starts an empty one)."""
+        one's); it simulates exactly as this one does."""
         out = copy.copy(self)
-        out.memo = self.memo
         out.n_threads = n_threads or self.n_threads
         out.n_sims = 0
         out.cost = None
@@ -158,17 +149,14 @@ class Evaluator:
     def simulate(self, param_sets: list[dict], idx: list[int], history: bool = False) -> list[list]:
         """SimulationResults for every parameter set x run index, with a history where the run's features need one
         (``Target.needs_history``) or ``history`` asks for it."""
-        res = self.simulate_pairs([(ps, i) for ps in param_sets for i in idx], history)
-        return [res[j * len(idx):(j + 1) * len(idx)] for j in range(len(param_sets))]
-
-    def simulate_pairs(self, pairs: list[tuple[dict, int]], history: bool = False) -> list:
-        """SimulationResults of (parameter set, run index) pairs, in parallel on the evaluator's threads."""
         import sim
 
-        def one(pair):
-            ps, i = pair
+        jobs = [(j, i) for j in range(len(param_sets)) for i in idx]
+
+        def one(job):
+            j, i = job
             tg = self.targets[i]
-            params = {**tg.known, **tg.controls, **ps}
+            params = {**tg.known, **tg.controls, **param_sets[j]}
             try:
                 if tg.kind == "series":
                     st, times = series_settings(tg, self.sim_settings, params)
@@ -178,13 +166,16 @@ class Evaluator:
             except sim.ParameterError as e:
                 raise UserError(f"run {tg.run_id}: {e}") from None
 
-        if self.n_threads == 1 or len(pairs) == 1:
-            res = [one(p) for p in pairs]
+        if self.n_threads == 1 or len(jobs) == 1:
+            res = [one(j) for j in jobs]
         else:
             with ThreadPoolExecutor(max_workers=self.n_threads) as pool:
-                res = list(pool.map(one, pairs))
-        self.n_sims += len(pairs)
-        return res
+                res = list(pool.map(one, jobs))
+        self.n_sims += len(jobs)
+        out = [[None] * len(idx) for _ in param_sets]
+        for (j, i), r in zip(jobs, res):
+            out[j][idx.index(i)] = r
+        return out
 
     def residual_of(self, i: int, res) -> np.ndarray:
         return self.residual_for(self.targets[i], res)
@@ -202,38 +193,13 @@ class Evaluator:
 
     def residuals(self, param_sets: list[dict], idx: list[int]) -> list[np.ndarray]:
         """Concatenated normalised residual over runs ``idx`` for each parameter set (a coarse fit reads the part of
-        the low harmonics, ``features.low_harmonics``).  A run's residual at a parameter set is simulated once while
-        the evaluator remembers it (``RESIDUAL_MEMO``); with a profiled chain the runs depend on each other, and
-        every one is simulated."""
+        the low harmonics, ``features.low_harmonics``)."""
+        sims = self.simulate(param_sets, idx)
         if self.profile_runs:
             from pipeline.diagnosis.nuisance import profiled_residuals
 
-            return profiled_residuals(self, self.simulate(param_sets, idx), idx)
-        keys = [[self._memo_key(i, ps) for i in idx] for ps in param_sets]
-        todo: dict[tuple, tuple[dict, int]] = {}
-        for ps, row in zip(param_sets, keys):
-            for i, k in zip(idx, row):
-                if k not in self.memo and k not in todo:
-                    todo[k] = (ps, i)
-        for k, r in zip(todo, self.simulate_pairs(list(todo.values()))):
-            self.memo[k] = self.residual_of(todo[k][1], r)
-        out = [np.concatenate([self.memo[k] for k in row]) for row in keys]
-        for row in keys:
-            for k in row:
-                self.memo.move_to_end(k)
-        while len(self.memo) > RESIDUAL_MEMO:
-            self.memo.popitem(last=False)
-        return out
-
-    def _memo_key(self, i: int, params: dict) -> tuple:
-        """What a run's residual depends on besides the evaluator's fixed settings and targets: the run, the
-        parameter set, and the target's anti-alias filter and clock, which the DAQ chain's estimate sets."""
-        tg = self.targets[i]
-        return i, tuple(sorted(params.items())), tg.antialias, tg.timing
-
-    def __getstate__(self) -> dict:
-        """Pickled (a cluster's task) without the memo."""
-        return {**self.__dict__, "memo": OrderedDict()}
+            return profiled_residuals(self, sims, idx)
+        return [np.concatenate([self.residual_of(i, r) for i, r in zip(idx, row)]) for row in sims]
 
     def held_out(self, param_sets: list[dict], idx: list[int], chains: list | None = None
                  ) -> list[tuple[list[np.ndarray], list]]:
