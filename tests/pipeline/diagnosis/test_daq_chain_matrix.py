@@ -1,4 +1,4 @@
-"""The drill's and the pendulum's cases of the identification matrix through the DAQ chain
+"""The drill's, the pendulum's and the metal indenter's cases of the identification matrix through the DAQ chain
 (``bench.identification_chain``), slow.
 
 Each case is an 8-run log of the independent generator (rig noise, seed 0) recorded through a named chain and
@@ -38,6 +38,13 @@ PENDULUM_WRONG = {("control", "undeclared"): _DISP, ("sensor_lowpass", "undeclar
                                                                          "the calibration runs (the same split)"}
 
 
+INDENTER_RIGHT = [(case, c) for case in ("control", "guide_friction", "outside:quadratic_damping") for c in chain.CHAINS
+                  if (case, c) != ("guide_friction", "undeclared")]
+"""The metal indenter's control, guide friction and an outside kind in every column (docs/identification.md)."""
+INDENTER_WRONG = {("guide_friction", "undeclared"): "the shaker coil is added: its lag takes up the filter's phase "
+                                                    "dispersion, which a delay per channel does not hold"}
+
+
 def _params(right: list, wrong: dict) -> list:
     return [*right, *(pytest.param(*k, marks=pytest.mark.xfail(strict=True, reason=v)) for k, v in wrong.items())]
 
@@ -52,6 +59,12 @@ def test_a_drill_case_through_the_chain(tmp_path, monkeypatch, case, column):
 @pytest.mark.parametrize("case, column", _params(PENDULUM_RIGHT, PENDULUM_WRONG), ids=lambda x: str(x))
 def test_a_pendulum_case_through_the_chain(tmp_path, monkeypatch, case, column):
     _check(tmp_path, monkeypatch, "pendulum", case, column)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case, column", _params(INDENTER_RIGHT, INDENTER_WRONG), ids=lambda x: str(x))
+def test_a_metal_indenter_case_through_the_chain(tmp_path, monkeypatch, case, column):
+    _check(tmp_path, monkeypatch, "indenter-metal", case, column)
 
 
 def _check(tmp_path, monkeypatch, system: str, case: str, column: str) -> None:
