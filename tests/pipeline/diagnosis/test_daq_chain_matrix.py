@@ -38,11 +38,11 @@ PENDULUM_WRONG = {("control", "undeclared"): _DISP, ("sensor_lowpass", "undeclar
                                                                          "the calibration runs (the same split)"}
 
 
-INDENTER_RIGHT = [(case, c) for case in ("control", "guide_friction", "outside:quadratic_damping") for c in chain.CHAINS
-                  if (case, c) != ("guide_friction", "undeclared")]
-"""The metal indenter's control, guide friction and an outside kind in every column (docs/identification.md)."""
 INDENTER_WRONG = {("guide_friction", "undeclared"): "the shaker coil is added: its lag takes up the filter's phase "
                                                     "dispersion, which a delay per channel does not hold"}
+INDENTER_RIGHT = [(case, c) for case in ("control", "guide_friction", "outside:quadratic_damping") for c in chain.CHAINS
+                  if (case, c) not in INDENTER_WRONG]
+"""The metal indenter's control, guide friction and an outside kind in every other column (docs/identification.md)."""
 
 
 def _params(right: list, wrong: dict) -> list:
