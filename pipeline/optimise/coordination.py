@@ -119,6 +119,11 @@ class StudyGuard:
         workers), so a resumed study proposes what the uninterrupted one did."""
         return n_done
 
+    @staticmethod
+    def pending_retries(trials: list) -> int:
+        """Failed trials whose retry is about to be queued: none (no heartbeat on a locked storage)."""
+        return 0
+
     def settle(self, study, trials: list, n_trials: int) -> list:
         """The trials to evaluate: all of them (they were counted and asked under the lock)."""
         return trials

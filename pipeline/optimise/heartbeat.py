@@ -9,11 +9,14 @@ The workers may run on several machines, so no file lock spans them.  What keeps
   trials beyond ``n_trials`` (marked FAIL with user attribute SURPLUS_ATTR) before evaluating them.  The last
   to store its trials sees all the others, so at most ``n_trials`` live trials remain (argued in docs/scale.md);
 - a worker with nothing left to ask waits while other workers' trials run, and stops only when ``n_trials``
-  are COMPLETE: a lost worker's trial is then re-run by whoever is still alive.
+  are COMPLETE: a lost worker's trial is then re-run by whoever is still alive.  Such a worker takes only the
+  queued retries (never a new point), and between a stale trial's FAIL and its retry's appearance (two storage
+  writes by the worker that failed it) the trial still counts as live, so no worker asks a new point in its place.
 """
 from __future__ import annotations
 
 import contextlib
+import datetime
 import os
 import random
 import threading
@@ -26,6 +29,11 @@ TS = optuna.trial.TrialState
 LIVE = (TS.COMPLETE, TS.RUNNING, TS.WAITING)
 SURPLUS_ATTR = "vibro_surplus"
 """User attribute of a trial withdrawn (FAIL) because other workers had already asked the study's last trials."""
+INTERRUPTED_ATTR = "vibro_interrupted"
+"""User attribute of a trial its own worker marked FAIL when interrupted (never retried by the heartbeat)."""
+PENDING_RETRY_S = 60.0
+"""A stale trial failed this recently whose retry is not stored yet counts as live; a worker that died between the
+two writes holds the others back at most this long [s]."""
 MAX_REASKS = 8
 """Times a worker asks again for a trial whose point an earlier trial holds."""
 MAX_GRACE_STRETCH = 10
@@ -111,6 +119,41 @@ class HeartbeatGuard:
                 study.tell(trial, state=TS.FAIL)
         return trial
 
+    def ask_queued(self, study, distributions: dict):
+        """A queued retry taken from the study (beaten from then on), or None when none is left: a worker with
+        nothing left to ask never creates a new point where another worker took the last retry first."""
+        trial_id = study._pop_waiting_trial_id()
+        if trial_id is None:
+            return None
+        study._storage.record_heartbeat(trial_id)
+        with self._mutex:
+            self._held.add(trial_id)
+        self._start(study)
+        trial = optuna.Trial(study, trial_id)
+        for name, dist in distributions.items():
+            trial._suggest(name, dist)      # the queued parameters, as study.ask sets them
+        return trial
+
+    @staticmethod
+    def pending_retries(trials: list) -> int:
+        """Stale trials failed in the last PENDING_RETRY_S whose retry is not stored yet (the failing worker writes
+        FAIL first, then the WAITING retry): counted as live so that nobody asks a new point in their place."""
+        from pipeline.optimise.storages import MAX_RETRY
+
+        retried = {t.system_attrs.get("failed_trial") for t in trials}
+        now = datetime.datetime.now()
+        n = 0
+        for t in trials:
+            if t.state != TS.FAIL or t.number in retried or t.datetime_complete is None:
+                continue
+            if t.user_attrs.get(SURPLUS_ATTR) or t.user_attrs.get(INTERRUPTED_ATTR):
+                continue
+            if len(t.system_attrs.get("retry_history", [])) >= MAX_RETRY:
+                continue        # out of retries: none will come
+            if 0.0 <= (now - t.datetime_complete).total_seconds() <= PENDING_RETRY_S:
+                n += 1
+        return n
+
     def _duplicated(self, study, trial, wait_s: float = 5.0) -> bool:
         """True when a live trial numbered below ``trial`` holds its point; an earlier trial still without
         parameters (asked at this moment elsewhere) is waited for, at most ``wait_s``."""
@@ -128,7 +171,8 @@ class HeartbeatGuard:
     def settle(self, study, trials: list, n_trials: int) -> list:
         """Withdraw this worker's trials beyond ``n_trials`` live ones (another worker asked at the same moment);
         returns the trials to evaluate."""
-        excess = len(study.get_trials(deepcopy=False, states=LIVE)) - n_trials
+        every = study.get_trials(deepcopy=False)
+        excess = sum(t.state in LIVE for t in every) + self.pending_retries(every) - n_trials
         if excess <= 0 or not trials:
             return trials
         keep, drop = trials[:max(len(trials) - excess, 0)], trials[max(len(trials) - excess, 0):]

@@ -173,11 +173,13 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
             try:
                 with guard.lock():
                     guard.fail_stale(study)
-                    states = [t.state for t in study.get_trials(deepcopy=False)]
+                    every = study.get_trials(deepcopy=False)
+                    states = [t.state for t in every]
                     done, waiting = states.count(TS.COMPLETE), states.count(TS.WAITING)
-                    live = done + waiting + states.count(TS.RUNNING)
+                    live = done + waiting + states.count(TS.RUNNING) + guard.pending_retries(every)
                     k = min(batch_size - live % batch_size, n_trials - live)
-                    if k <= 0 and guard.waits:
+                    queued_only = k <= 0 and guard.waits
+                    if queued_only:
                         if done >= n_trials:
                             break
                         k = min(waiting, batch_size)     # queued retries; else the rest runs elsewhere
@@ -189,7 +191,10 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
                     if sampler_factory is not None:
                         study.sampler = sampler_factory(guard.sampler_key(live))
                     for _ in range(k):
-                        trials.append(guard.ask(study, dists))
+                        trial = guard.ask_queued(study, dists) if queued_only else guard.ask(study, dists)
+                        if trial is None:
+                            break
+                        trials.append(trial)
                 trials = guard.settle(study, trials, n_trials)
                 if not trials:
                     continue
@@ -198,18 +203,29 @@ def run_study(study, evaluate: Callable[[pd.DataFrame], pd.DataFrame], space: Sp
                     out = evaluate(X)
                     ran += _tell_batch(study, trials, out, constraints, objectives, bar)
             except BaseException:
-                for t in trials:
-                    try:
-                        study.tell(t, state=TS.FAIL)
-                    except Exception:  # noqa: BLE001 - already told
-                        pass
-                with guard.lock():      # an interrupt inside study.ask leaves a trial no list holds
-                    guard.fail_orphans(study)
+                _fail_interrupted(study, trials, guard)
                 raise
     finally:
         bar.close()
         guard.close()
     return ran
+
+
+def _fail_interrupted(study, trials: list, guard) -> None:
+    """The trials in flight marked FAIL (as interrupted: the heartbeat never retries them) and the guard told to
+    stop beating, so a trial asked but not yet listed goes stale and is re-run by another worker."""
+    import optuna
+
+    from pipeline.optimise.heartbeat import INTERRUPTED_ATTR
+
+    for t in trials:
+        try:
+            t.set_user_attr(INTERRUPTED_ATTR, True)
+            study.tell(t, state=optuna.trial.TrialState.FAIL)
+        except Exception:  # noqa: BLE001 - already told
+            pass
+    with guard.lock():      # an interrupt inside study.ask leaves a trial no list holds
+        guard.fail_orphans(study)
 
 
 def _tell_batch(study, trials: list, out: pd.DataFrame, constraints: Constraints,

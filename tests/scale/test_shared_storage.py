@@ -177,6 +177,52 @@ def test_a_trial_repeating_an_earlier_live_point_is_withdrawn_and_asked_again(tm
     assert withdrawn.state == TS.FAIL and withdrawn.user_attrs.get(SURPLUS_ATTR)
 
 
+def test_a_worker_waiting_for_retries_never_asks_a_new_point(tmp_path):
+    """The last queued retry taken by another worker first: ask_queued returns None and stores nothing, where
+    study.ask would have created a new trial that one of the two workers then withdraws (maybe the retry)."""
+    from pipeline.optimise.heartbeat import HeartbeatGuard
+
+    url = f"journal://{tmp_path / 's.log'}"
+    study = optuna.create_study(storage=open_storage(url, 1), study_name="s")
+    dist = {"x": optuna.distributions.FloatDistribution(0, 1)}
+    study.enqueue_trial({"x": 0.25})
+    guard = HeartbeatGuard(poll_s=0.01)
+    try:
+        taken, none_left = guard.ask_queued(study, dist), guard.ask_queued(study, dist)
+    finally:
+        guard.close()
+    assert taken.params == {"x": 0.25} and none_left is None
+    assert [t.state for t in study.get_trials(deepcopy=False)] == [TS.RUNNING]
+
+
+def test_a_stale_trial_counts_as_live_until_its_retry_is_stored(tmp_path):
+    """fail_stale_trials writes FAIL, then the retry: in between a counting worker must not see a free slot.  A
+    withdrawn or interrupted trial, one out of retries and one failed long ago are not pending."""
+    from pipeline.optimise.heartbeat import INTERRUPTED_ATTR, PENDING_RETRY_S, HeartbeatGuard
+    from pipeline.optimise.storages import MAX_RETRY
+
+    url = f"journal://{tmp_path / 's.log'}"
+    storage = open_storage(url, 1)
+    study = optuna.create_study(storage=storage, study_name="s")
+    dist = {"x": optuna.distributions.FloatDistribution(0, 1)}
+    stale, surplus, interrupted = study.ask(dist), study.ask(dist), study.ask(dist)
+    storage.set_trial_state_values(stale._trial_id, TS.FAIL)        # the first of the failing worker's writes
+    surplus.set_user_attr(SURPLUS_ATTR, True)
+    study.tell(surplus, state=TS.FAIL)
+    interrupted.set_user_attr(INTERRUPTED_ATTR, True)
+    study.tell(interrupted, state=TS.FAIL)
+    trials = study.get_trials(deepcopy=False)
+    assert HeartbeatGuard.pending_retries(trials) == 1
+    RETRY(max_retry=MAX_RETRY)(study, trials[0])                     # the second write
+    assert HeartbeatGuard.pending_retries(study.get_trials(deepcopy=False)) == 0
+    exhausted = study.get_trials(deepcopy=True)[0]
+    exhausted.system_attrs["retry_history"] = list(range(MAX_RETRY))
+    assert HeartbeatGuard.pending_retries([exhausted]) == 0
+    old = study.get_trials(deepcopy=True)[0]
+    old.datetime_complete -= __import__("datetime").timedelta(seconds=PENDING_RETRY_S + 1)
+    assert HeartbeatGuard.pending_retries([old]) == 0
+
+
 def test_journal_heartbeat_fails_a_silent_trial_and_queues_it_again(tmp_path):
     url = f"journal://{tmp_path / 's.log'}"
     storage = open_storage(url, 1)
