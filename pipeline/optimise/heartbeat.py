@@ -107,10 +107,7 @@ class HeartbeatGuard:
                 warnings.filterwarnings("ignore",
                                         message="Heartbeat of storage is supposed to be used with Study.optimize")
                 trial = study.ask(distributions)
-            study._storage.record_heartbeat(trial._trial_id)
-            with self._mutex:
-                self._held.add(trial._trial_id)
-            self._start(study)
+            self._hold(study, trial._trial_id)
             if not self._duplicated(study, trial):
                 return trial
             self._release([trial])
@@ -125,14 +122,18 @@ class HeartbeatGuard:
         trial_id = study._pop_waiting_trial_id()
         if trial_id is None:
             return None
-        study._storage.record_heartbeat(trial_id)
-        with self._mutex:
-            self._held.add(trial_id)
-        self._start(study)
+        self._hold(study, trial_id)
         trial = optuna.Trial(study, trial_id)
         for name, dist in distributions.items():
             trial._suggest(name, dist)      # the queued parameters, as study.ask sets them
         return trial
+
+    def _hold(self, study, trial_id: int) -> None:
+        """A trial this worker now holds: its first heartbeat recorded at once, beaten from then on."""
+        study._storage.record_heartbeat(trial_id)
+        with self._mutex:
+            self._held.add(trial_id)
+        self._start(study)
 
     @staticmethod
     def pending_retries(trials: list) -> int:

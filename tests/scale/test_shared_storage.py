@@ -3,6 +3,7 @@ independently as on several machines: exactly --n-trials complete trials, none d
 SIGKILL mid-trial has its trials failed by the heartbeat and re-run, and the study still ends with --n-trials."""
 from __future__ import annotations
 
+import datetime
 import os
 import signal
 import subprocess
@@ -219,7 +220,7 @@ def test_a_stale_trial_counts_as_live_until_its_retry_is_stored(tmp_path):
     exhausted.system_attrs["retry_history"] = list(range(MAX_RETRY))
     assert HeartbeatGuard.pending_retries([exhausted]) == 0
     old = study.get_trials(deepcopy=True)[0]
-    old.datetime_complete -= __import__("datetime").timedelta(seconds=PENDING_RETRY_S + 1)
+    old.datetime_complete -= datetime.timedelta(seconds=PENDING_RETRY_S + 1)
     assert HeartbeatGuard.pending_retries([old]) == 0
 
 

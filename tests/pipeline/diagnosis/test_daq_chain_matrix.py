@@ -57,38 +57,22 @@ SANDSTONE_RIGHT = [("control", c) for c in chain.CHAINS if c != "undeclared"]
 """The sandstone indenter's control in every column."""
 
 
-def _params(right: list, wrong: dict) -> list:
-    return [*right, *(pytest.param(*k, marks=pytest.mark.xfail(strict=True, reason=v)) for k, v in wrong.items())]
+def _params(system: str, right: list, wrong: dict) -> list:
+    return [*((system, *k) for k in right),
+            *(pytest.param(system, *k, marks=pytest.mark.xfail(strict=True, reason=v)) for k, v in wrong.items())]
+
+
+SYSTEMS = {"drill": (RIGHT, WRONG), "pendulum": (PENDULUM_RIGHT, PENDULUM_WRONG),
+           "indenter-metal": (INDENTER_RIGHT, INDENTER_WRONG), "rimd": (RIMD_RIGHT, RIMD_WRONG),
+           "indenter-sandstone": (SANDSTONE_RIGHT, SANDSTONE_WRONG)}
+"""Per system: the cases right today, and the wrong ones with their reason."""
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("case, column", _params(RIGHT, WRONG), ids=lambda x: str(x))
-def test_a_drill_case_through_the_chain(tmp_path, monkeypatch, case, column):
-    _check(tmp_path, monkeypatch, "drill", case, column)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("case, column", _params(PENDULUM_RIGHT, PENDULUM_WRONG), ids=lambda x: str(x))
-def test_a_pendulum_case_through_the_chain(tmp_path, monkeypatch, case, column):
-    _check(tmp_path, monkeypatch, "pendulum", case, column)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("case, column", _params(INDENTER_RIGHT, INDENTER_WRONG), ids=lambda x: str(x))
-def test_a_metal_indenter_case_through_the_chain(tmp_path, monkeypatch, case, column):
-    _check(tmp_path, monkeypatch, "indenter-metal", case, column)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("case, column", _params(RIMD_RIGHT, RIMD_WRONG), ids=lambda x: str(x))
-def test_a_rimd_case_through_the_chain(tmp_path, monkeypatch, case, column):
-    _check(tmp_path, monkeypatch, "rimd", case, column)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("case, column", _params(SANDSTONE_RIGHT, SANDSTONE_WRONG), ids=lambda x: str(x))
-def test_a_sandstone_indenter_case_through_the_chain(tmp_path, monkeypatch, case, column):
-    _check(tmp_path, monkeypatch, "indenter-sandstone", case, column)
+@pytest.mark.parametrize("system, case, column", [p for system, (right, wrong) in SYSTEMS.items()
+                                                  for p in _params(system, right, wrong)], ids=lambda x: str(x))
+def test_a_case_through_the_chain(tmp_path, monkeypatch, system, case, column):
+    _check(tmp_path, monkeypatch, system, case, column)
 
 
 def _check(tmp_path, monkeypatch, system: str, case: str, column: str) -> None:
