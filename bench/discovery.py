@@ -100,6 +100,7 @@ def run_case(system: str, case: str, noise: str, seed: int, threads: int, n_runs
                           "improves": p.improves} for p in props],
            "screening": [{"term": s.term, "entered": s.entered, "score": s.score, "in_support": s.in_support}
                          for s in (disc.screening if disc else ())],
+           "empirical": None if r.empirical is None else r.empirical.to_json(),
            "n_simulations": r.n_simulations, "wall_time_s": round(wall, 1), "cpu_time_s": round(cpu, 1)}
     if case.startswith("outside:"):
         kind = OUTSIDE_KIND[case.split(":", 1)[1]]
@@ -137,6 +138,19 @@ def _kind_in_vocabulary(r: dict) -> bool:
     return OUTSIDE_KIND[r["case"].split(":", 1)[1]] in {t.kind for t in CANDIDATES.values()}
 
 
+def _empirical_cell(r: dict) -> str:
+    """The empirical ROP correction's held-out ROP error before → after, and whether it was adopted."""
+    if "empirical" not in r:
+        return "not measured"
+    e = r["empirical"]
+    if e is None:
+        return "—"
+    if e["heldout_rop_error_before"] is None:
+        return "not tried: " + e["text"].split("(", 1)[-1].rstrip(")")
+    return (f"{100 * e['heldout_rop_error_before']:.3g} % → {100 * e['heldout_rop_error_after']:.3g} % "
+            f"({'adopted' if e['adopted'] else 'not adopted'})")
+
+
 def table(rows: list[dict]) -> str:
     """Summary per kind of case and noise model, then every log."""
     lines = ["| cases | noise | right | top proposal within 2× the noise | names the right kind | wrong proposal adopted |",
@@ -162,15 +176,21 @@ def table(rows: list[dict]) -> str:
                  f"{sum(r.get('right_kind', False) for r in covered)}/{len(covered)} | "
                  f"{sum(wrong_adoption(r) for r in covered)}/{len(covered)} |")
     lines.append(f"| **pairs of §6 effects, both selected** | | **{sum(r['correct'] for r in pairs)}/{len(pairs)}** | | | |")
+    tried = [r for r in rows if (r.get("empirical") or {}).get("heldout_rop_error_before") is not None]
+    if tried:
+        lines.append(f"| **empirical ROP correction** (logs left unexplained, held-out ROP measured) | | adopted "
+                     f"{sum(r['empirical']['adopted'] for r in tried)}/{len(tried)}, halves the held-out ROP error "
+                     f"{sum(r['empirical']['halved'] for r in tried)}/{len(tried)} | | | |")
     lines += ["", "| log | verdict | selected / accepted proposal | top proposal (kind): held-out nrms | nrms base → final | "
-              "noise floor | diagnosis wall (CPU) |", "|---|---|---|---|---|---|---|"]
+              "empirical ROP correction: held-out ROP error | noise floor | diagnosis wall (CPU) |",
+              "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         ok = "✓" if r["correct"] else "✗"
         top = r["proposals"][0] if r["proposals"] else None
         tp = (f"{' + '.join(top['terms'])} ({', '.join(top['kinds'])}): {_fmt(top['nrms'])}" if top else "—")
         sel = r["selected"] or ("proposal " + " + ".join(r["accepted"]) if r["accepted"] else "—")
         lines.append(f"| {r['name']} {ok} | {r['verdict']} | {sel} | {tp} | {_fmt(r['base_nrms'])} → "
-                     f"{_fmt(r['final_nrms'])} | {_fmt(r['noise_floor'])} | {r['wall_time_s']:.0f} s ({r['cpu_time_s']:.0f} s) |")
+                     f"{_fmt(r['final_nrms'])} | {_empirical_cell(r)} | {_fmt(r['noise_floor'])} | {r['wall_time_s']:.0f} s ({r['cpu_time_s']:.0f} s) |")
     return "\n".join(lines)
 
 

@@ -14,12 +14,14 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Iterator, Mapping
 
-from sim.models.param import ParameterError
+from sim.empirical import EmpiricalCorrection
+from sim.models.param import ParameterError, check_known_keys
 from vibrobase.errors import did_you_mean
 from sim.models.discrepancy import PARAM_OF as DISCREPANCY_PARAMS
 from sim.registry import get_model, model_names
 
-RIG_KEYS = ("model", "preset", "parameters", "effects", "discrepancy", "uncertainty", "model_error", "source")
+RIG_KEYS = ("model", "preset", "parameters", "effects", "discrepancy", "uncertainty", "model_error",
+            "empirical_correction", "source")
 """Keys of a rig mapping; ``model`` is required, the others optional."""
 MODEL_ERROR_KEYS = ("rop_rel", "noise_floor_rel", "basis")
 """Keys of a rig's ``model_error`` mapping; ``rop_rel`` is required."""
@@ -34,14 +36,6 @@ def _nonnegative(v: Any, what: str) -> float:
     if not ok:
         raise ParameterError(f"rig: {what} must be a finite number >= 0, got {v!r}")
     return float(v)
-
-
-def _known_keys(data: Mapping, known: tuple[str, ...], what: str) -> None:
-    """ParameterError naming the first key of ``data`` not in ``known`` (with a did-you-mean)."""
-    for key in data:
-        if key not in known:
-            raise ParameterError(f"rig: unknown {what} '{key}'{did_you_mean(key, known)}; "
-                                 f"known: {', '.join(known)}")
 
 
 @dataclass(frozen=True)
@@ -79,7 +73,7 @@ class ModelError:
         """Validated model error from a rig file's ``model_error`` mapping (keys :data:`MODEL_ERROR_KEYS`)."""
         if not isinstance(data, Mapping):
             raise ParameterError(f"rig: 'model_error' must be a mapping ({', '.join(MODEL_ERROR_KEYS)}), got {data!r}")
-        _known_keys(data, MODEL_ERROR_KEYS, "model_error key")
+        check_known_keys(data, MODEL_ERROR_KEYS, "model_error key")
         if "rop_rel" not in data:
             raise ParameterError("rig: model_error needs rop_rel (relative sd of the model's ROP)")
         basis = data.get("basis")
@@ -96,6 +90,8 @@ class Rig:
     term, or one of the hidden mode's three) -> value, an adopted proposal of the diagnosis (names and numbers only, never an expression).
     ``uncertainty``: parameter (or effect parameter) name -> standard deviation of its fitted value [same unit].
     ``model_error``: what the fitted model still gets wrong about ROP (:class:`ModelError`), None when not given.
+    ``empirical``: a correction of the model's ROP fitted to the measurements where no physics explained them
+    (:class:`sim.empirical.EmpiricalCorrection`, rig-file key ``empirical_correction``), None when not given.
     The constructor validates every name and value against the model's ``ModelSpec`` and raises ``ParameterError``
     naming the culprit.
     """
@@ -108,8 +104,11 @@ class Rig:
     source: str = ""
     discrepancy: Mapping[str, float] = field(default_factory=dict)
     model_error: ModelError | None = None
+    empirical: EmpiricalCorrection | None = None
 
     def __post_init__(self) -> None:
+        if self.empirical is not None and not isinstance(self.empirical, EmpiricalCorrection):
+            raise ParameterError(f"rig: empirical must be an EmpiricalCorrection, got {type(self.empirical).__name__}")
         if self.model_error is not None and not isinstance(self.model_error, ModelError):
             raise ParameterError(f"rig: model_error must be a ModelError, got {type(self.model_error).__name__}")
         if self.model not in model_names():
@@ -207,7 +206,7 @@ class Rig:
             else:
                 effects.setdefault(eff, {})[name] = float(v)
         return Rig(self.model, self.preset, params, effects, dict(self.uncertainty), self.source, terms,
-                   self.model_error)
+                   self.model_error, self.empirical)
 
     def to_mapping(self) -> dict[str, Any]:
         """Plain mapping in the rig-file layout (inverse of :meth:`from_mapping`)."""
@@ -223,6 +222,8 @@ class Rig:
             out["uncertainty"] = {k: float(v) for k, v in self.uncertainty.items()}
         if self.model_error is not None:
             out["model_error"] = self.model_error.to_mapping()
+        if self.empirical is not None:
+            out["empirical_correction"] = self.empirical.to_mapping()
         if self.source:
             out["source"] = self.source
         return out
@@ -232,7 +233,7 @@ class Rig:
         """Validated rig from a rig-file mapping (keys :data:`RIG_KEYS`)."""
         if not isinstance(data, Mapping):
             raise ParameterError(f"rig: expected a mapping with keys {', '.join(RIG_KEYS)}, got {type(data).__name__}")
-        _known_keys(data, RIG_KEYS, "key")
+        check_known_keys(data, RIG_KEYS, "key")
         if "model" not in data:
             raise ParameterError("rig: missing key 'model'")
         for key in ("parameters", "effects", "discrepancy", "uncertainty"):
@@ -241,7 +242,9 @@ class Rig:
         preset = data.get("preset")
         source = data.get("source") or ""
         error = None if data.get("model_error") is None else ModelError.from_mapping(data["model_error"])
+        emp = data.get("empirical_correction")
+        emp = None if emp is None else EmpiricalCorrection.from_mapping(emp)
         return cls(model=str(data["model"]), preset=None if preset is None else str(preset),
                    parameters=dict(data.get("parameters") or {}), effects=dict(data.get("effects") or {}),
                    uncertainty=dict(data.get("uncertainty") or {}), source=str(source),
-                   discrepancy=dict(data.get("discrepancy") or {}), model_error=error)
+                   discrepancy=dict(data.get("discrepancy") or {}), model_error=error, empirical=emp)

@@ -51,7 +51,12 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
    at least 2 measured numbers per free parameter (a summary log of a few runs fits none, and says so).
    report.json 'discrepancy' ranks them (terms in words and symbols, coefficients with sd, held-out error against
    the floor); an accepted proposal goes into the rig file as a 'discrepancy:' entry (term names and
-   coefficients, never code) that every --rig command simulates in the kernel.
+   coefficients, never code) that every --rig command simulates in the kernel;
+8. when nothing (no effect, no proposal) explains the residual, the last resort: a Gaussian process of the
+   relative ROP discrepancy over the controls the runs vary, fitted on the calibration runs and scored on the
+   held-out ones (report.json 'empirical'); when it cuts the held-out ROP error by empirical_gain it is refitted
+   on all runs and written to the rig file as 'empirical_correction' ("empirical correction, physics unknown"),
+   which optimise --simulator --rig and compare apply to the simulated ROP, its sd in the spread.
 The recording is a model of its own (docs/diagnose.md "The recording chain"): optional runs.csv columns declare a
 run's DAQ chain, and the model's signals pass through it before they are compared:
   daq_filter     anti-alias filter: butter:order:cutoff_hz, ellip:order:cutoff_hz[:ripple_db:stop_db] (analog
@@ -99,6 +104,8 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
                            both); 1: one effect only
   pair_nrms [2]            the pair stage's trigger (1: also look for a weaker second effect within explained_nrms)
   max_proposals [3]        unexplained: re-fit at most this many discrepancy proposals (0: no discovery)
+  empirical_gain [0.2]     still unexplained: an empirical ROP correction is adopted when it cuts the held-out
+                           ROP error by this fraction (1: never)
   model_floor [0.001]      feature sd floor: this x the signal's RMS harmonic amplitude, in quadrature with
                            the noise (what two correct simulations and a rig's sampling may differ by)
   summary_floor [0.01]     summary feature sd floor: this x the value
@@ -372,6 +379,8 @@ def summary_lines(report: DiagnoseReport) -> list[str]:
             floor = err.get("noise_floor_rel")
             lines.append(f"  model error in the rig file: held-out ROP error {100 * err['rop_rel']:.3g} % (rms, "
                          f"relative" + ("" if floor is None else f"; noise floor {100 * floor:.3g} %") + ")")
+        if r.empirical is not None:
+            lines.append(f"  {r.empirical.text}")
     return lines
 
 

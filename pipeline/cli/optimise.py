@@ -230,6 +230,8 @@ def config_and_rig(args):
         from pipeline.core.rigfile import read_exciter
 
         base["exciter"] = read_exciter(rig_path)
+        if rig.empirical is not None:
+            base["rop_correction"] = rig.empirical.to_mapping()
         base["model"], base["preset"] = rig.model, rig.preset
         base["fixed"] = {**rig.overrides(), **(base.get("fixed") or {})}
         args.model = args.preset = None

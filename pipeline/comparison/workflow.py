@@ -38,10 +38,17 @@ def model_rig(optimise_report: Mapping):
 
 
 def _rop(rig, point: Mapping[str, float], settings: Mapping | None) -> tuple[float, str, dict]:
-    """(ROP [m/s], status, the label row: point, labels and status) of ``point`` simulated on ``rig``."""
+    """(ROP [m/s], status, the label row: point, labels and status) of ``point`` simulated on ``rig``; a rig's
+    empirical ROP correction (``sim.empirical``) applied where the point progresses, the model's own ROP kept in the
+    row as ``rop_model_m_s``."""
     r = rig.simulate(**dict(point), settings=dict(settings or {}))
     rop = float(r.labels["rop_m_s"]) if r.status in SETTLED_STATUSES and r.labels.get("rop_m_s") is not None else 0.0
-    return rop, str(r.status), {**dict(point), **dict(r.labels), "status": str(r.status)}
+    row = {**dict(point), **dict(r.labels), "status": str(r.status)}
+    if rig.empirical is not None and rop > 0:
+        fixed, _ = rig.empirical.correct(rop, {n: [rig.resolve(**dict(point))[n]] for n in rig.empirical.inputs})
+        row["rop_model_m_s"], rop = rop, max(float(fixed[0]), 0.0)
+        row["rop_m_s"] = rop
+    return rop, str(r.status), row
 
 
 def broken_limits(optimise_report: Mapping, row: Mapping) -> dict[str, dict]:

@@ -31,7 +31,8 @@ from vibrobase.files import atomic_write_text
 HEADER = """\
 # vibro rig file (README.md "Rig files"): the model, its preset, parameter values overriding the preset [SI],
 # the MODELS.md §6 effects that are on with their parameters, standard deviations of fitted values, the model's
-# remaining relative ROP error (model_error), and the source.
+# remaining relative ROP error (model_error), an empirical ROP correction where no physics explained the data
+# (empirical_correction: "physics unknown", applied by optimise --simulator and compare), and the source.
 # Use it with --rig FILE in every command that simulates (simulate, sweep, map, optimise, verify, train --adaptive).
 """
 

@@ -136,7 +136,9 @@ def spread_words(spread: Mapping) -> str:
         return (f"parameter spread ±{a * k:.3g} {unit}, 5-95 %; model error not given (the rig file has no "
                 f"model_error), so no combined spread")
     e = 100 * spread["model_error_rel"]
-    return (f"parameter spread ±{a * k:.3g}, model error ±{b * k:.3g} (held-out rms {e:.3g} %), "
+    what = ("sd of the empirical ROP correction, physics unknown" if spread.get("empirical_correction")
+            else "held-out rms")
+    return (f"parameter spread ±{a * k:.3g}, model error ±{b * k:.3g} ({what} {e:.3g} %), "
             f"combined ±{c * k:.3g} {unit}, 5-95 %")
 
 

@@ -19,7 +19,7 @@ INT_BOUNDS: dict[str, tuple[int, int | None]] = {
 FLOAT_BOUNDS: dict[str, float] = {
     "max_harmonic_hz": 1e6, "diff_step": 1.0, "bic_margin": 1e12, "explained_nrms": 1e6, "fs_sim_hz": 1e7,
     "test_margin": 1e12, "systematic_tol": 1.0, "nrms_ratio": 1.0, "model_floor": 1.0, "summary_floor": 1.0,
-    "systematic_nrms_cap": 1e6, "pair_nrms": 1e6}
+    "systematic_nrms_cap": 1e6, "pair_nrms": 1e6, "empirical_gain": 1.0}
 """Real settings: the high; the low is 0, excluded except for the floors (:data:`ZERO_ALLOWED`)."""
 
 ZERO_ALLOWED = ("model_floor", "summary_floor")
@@ -93,6 +93,8 @@ class DiagnoseConfig:
     #                                     each other effect (1: one effect only)
     pair_nrms: float = 2.0              # ... the pair stage's trigger (1: also look for a weaker effect within explained_nrms)
     max_proposals: int = 3              # unexplained: fit at most this many discrepancy proposals (0: no discovery)
+    empirical_gain: float = 0.2         # unexplained: an empirical ROP correction is adopted when it cuts the held-out
+    #                                     ROP error by this fraction (1: never adopted; pipeline.diagnosis.empirical)
     model_floor: float = 1e-3           # feature sd floor: this x the signal's RMS harmonic amplitude (model error)
     summary_floor: float = 0.01         # summary feature sd floor: this x the value
     effects: list[str] | None = None    # restrict the candidates (default: every §6 effect of the system)

@@ -336,6 +336,10 @@ def _system_lines(rep: SystemReport) -> list[str]:
         lines += _second_effect_lines(second)
     if rep.discrepancy:
         lines += _discrepancy_lines(rep.discrepancy)
+    if rep.empirical:
+        lines += [f"**Last resort**: {rep.empirical.text}. It corrects ROP only, over "
+                  f"{', '.join(rep.empirical.inputs) or 'the operating point'}; it is not physics, and the rig's "
+                  f"dynamics are unchanged.", ""]
     if rep.indistinguishable:
         lines += [f"Indistinguishable on these data from {_name(rep.leader if not second else second.first)} "
                   f"(BIC within the margin): {', '.join(_name(m) for m in rep.indistinguishable)}.", ""]

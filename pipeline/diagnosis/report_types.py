@@ -391,6 +391,29 @@ class ProposalAsEffect(_Record):
 
 
 @dataclass(frozen=True)
+class EmpiricalReport(_Record):
+    """The last resort where nothing explained the residual: an empirical correction of ROP
+    (``pipeline.diagnosis.empirical``), never physics."""
+
+    label: str
+    """'empirical correction, physics unknown'."""
+    adopted: bool
+    """It cut the held-out ROP error enough and is carried in the corrected rig."""
+    inputs: tuple[str, ...] = _f(_seq())
+    """The controls it varies over."""
+    heldout_rop_error_before: float | None = None
+    """Held-out rms relative ROP error of the final model [1] (None: no held-out ROP)."""
+    heldout_rop_error_after: float | None = None
+    """... with the correction fitted on the calibration runs [1]."""
+    heldout_runs: int = 0
+    """Held-out runs with a measured ROP."""
+    halved: bool = False
+    """It halved that error."""
+    text: str = ""
+    """In a sentence: what it did, or why it was not adopted."""
+
+
+@dataclass(frozen=True)
 class DeclaredChain(_Record):
     """The DAQ chain a run declares."""
 
@@ -596,6 +619,8 @@ class SystemReport:
     """The DAQ chains and saturated samples."""
     n_simulations: int
     """Simulations run for the system."""
+    empirical: EmpiricalReport | None = None
+    """The empirical correction's trial (None: not tried, the residual was explained)."""
     residual_structure: ResidualStructure | None = None
     """The base residual's structure (added once the runs are simulated)."""
     notes: tuple[str, ...] = ()
@@ -616,7 +641,7 @@ class SystemReport:
     @classmethod
     def from_json(cls, d: Mapping) -> SystemReport:
         opt = {"second_effect": SecondEffect, "discrepancy": Discrepancy, "proposal_as_effect": ProposalAsEffect,
-               "residual_structure": ResidualStructure, "rig": RigInfo}
+               "residual_structure": ResidualStructure, "rig": RigInfo, "empirical": EmpiricalReport}
         eff = EFFECTS[0]
         return cls(
             system=d["system"], n_runs=d["n_runs"], unreproducible=d["unreproducible"], data=tuple(d["data"]),
@@ -660,7 +685,9 @@ class SystemReport:
             "discrepancy": rec(self.discrepancy),
             "proposal_adopted": None if self.proposal_adopted is None else list(self.proposal_adopted),
             "proposal_as_effect": rec(self.proposal_as_effect), "recording": self.recording.to_json(),
-            "n_simulations": self.n_simulations, "residual_structure": rec(self.residual_structure),
+            "n_simulations": self.n_simulations,
+            **({} if self.empirical is None else {"empirical": self.empirical.to_json()}),   # absent: not tried
+            "residual_structure": rec(self.residual_structure),
             "notes": list(self.notes), "rig": rec(self.rig), "figures": list(self.figures)}
 
 

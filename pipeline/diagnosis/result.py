@@ -9,6 +9,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
     import sim
+    from sim.empirical import EmpiricalCorrection
     from pipeline.diagnosis.cost import DiagnosisCost, StageCost
     from pipeline.diagnosis.features import Target
     from pipeline.diagnosis.fit import FitResult
@@ -25,7 +26,8 @@ class SystemDiagnosis:
     fits: the reported fits by model name ('base' and every candidate effect);
     held_out: indices into the targets of the held-out runs, fold after fold;
     final: the final model's name, the selected effect or 'base';
-    cost: the cost of each stage of the system's diagnosis (``pipeline.diagnosis.cost``).
+    cost: the cost of each stage of the system's diagnosis (``pipeline.diagnosis.cost``);
+    empirical: the adopted empirical correction of ROP (``sim.empirical``; None: none adopted).
     """
 
     report: SystemReport
@@ -34,6 +36,7 @@ class SystemDiagnosis:
     held_out: list[int]
     final: str
     cost: tuple[StageCost, ...] = ()
+    empirical: EmpiricalCorrection | None = None
 
     @property
     def system(self) -> str:

@@ -15,6 +15,9 @@ Content (README.md "Closing the loop"):
 - ``model_error``: what the final model still gets wrong about ROP: its held-out rms ROP error relative to the
   measured ROP (``error_by_group['final']['rop_m_s']``, noise-weighted; it holds the measurement noise too, so it is
   an upper estimate), with the same for pure noise beside it; absent when no held-out run measured ROP.
+- ``empirical_correction``: where nothing explained the residual, a Gaussian-process correction of ROP over the
+  operating point that cut the held-out ROP error (``pipeline.diagnosis.empirical``; "empirical correction, physics
+  unknown"), applied by the optimiser to the simulated ROP;
 - ``source``: the dataset, the verdict and, for an unexplained residual, the held-out error against the
   noise floor — the model is then known to be wrong by that much.
 """
@@ -109,9 +112,11 @@ def corrected_rig(diag: SystemDiagnosis, presets: list[str | None], dataset: str
         else:
             verdict += ("; parameters that may have absorbed the missing physics: " + names if names else
                         "; the calibrated parameters may have absorbed part of the missing physics")
+        if diag.empirical is not None:
+            verdict += f"; ROP corrected by an {diag.empirical.basis}"
     source = f"vibro diagnose {dataset} ({system}): {verdict}"
     rig = sim.Rig(model=system, preset=preset, parameters=params, effects=effects, uncertainty=uncertainty,
-                  source=source, discrepancy=terms, model_error=rop_model_error(diag))
+                  source=source, discrepancy=terms, model_error=rop_model_error(diag), empirical=diag.empirical)
     info = RigInfo(explained=bool(rep.explained), selected=rep.selected, source=source, discrepancy=terms or None,
                    verdict=rep.verdict, absorbed=absorbed, model_error=float(final_err.error),
                    noise_floor=float(rep.noise_floor), nrms=float(final_err.nrms),

@@ -26,6 +26,7 @@ from pipeline.diagnosis.features import (CONTROL_NAMES, Target, UnusableRecord, 
                                          summary_target)
 from pipeline.core.executors import Executor, InlineExecutor
 from pipeline.diagnosis.calibrate import fit_added, fit_additions, fit_models, refit
+from pipeline.diagnosis.empirical import EmpiricalStage, rop_runs, try_correction
 from pipeline.diagnosis.discovery import discover, proposal_terms, report as discovery_report, spanned_effect
 from pipeline.diagnosis.fit import FitResult
 from pipeline.diagnosis.nuisance import ChainEstimate, estimate_chain, locate_chain
@@ -35,6 +36,7 @@ from pipeline.diagnosis.judge import (FoldScheme, Fitter, Holdout, Judged, judge
 from pipeline.diagnosis import report_types as R
 from pipeline.diagnosis.report_types import PairStage, effects_of
 from pipeline.diagnosis.result import SystemDiagnosis
+from sim.empirical import LABEL
 from pipeline.diagnosis.verdict import (SELECTED, UNEXPLAINED, ModelStats, Verdict, VerdictRule, closeness, decide,
                                         indistinguishable)
 from pipeline.diagnosis.model import (Evaluator, calibratable, candidates, default_fit_settings,
@@ -311,6 +313,7 @@ class _Diagnosis:
     named: AsEffect | None = None
     named_selected: bool = False
     call: R.Call | None = None
+    empirical: EmpiricalStage | None = None
 
 
 def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log=print,
@@ -330,6 +333,9 @@ def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log
     if d.chain is not None:
         with d.cost.stage("DAQ chain at the final model"):
             d.chain = locate_chain(d.ev, d.chain, d.final, d.final_fits[d.final].values, d.log)
+    if not d.v.explained and not (d.found is not None and d.found.accepted):
+        with d.cost.stage("empirical correction"):
+            _empirical(d)
     d.ev.cost = None
     return _assemble(d)
 
@@ -487,6 +493,26 @@ def _discover(d: _Diagnosis) -> None:
         d.named = _as_effect(d.ev, d.cfg, d.scheme, d.found, d.cands, d.stats, d.executor, d.log)
 
 
+def _empirical(d: _Diagnosis) -> None:
+    """Nothing brought the residual to the noise: try an empirical correction of ROP over the operating point,
+    judged on the folds' held-out runs (with leave-one-run-out folds the final model's reported fit has seen the
+    held-out run, so its error before the correction is an in-sample one)."""
+    idx = list(range(len(d.targets)))
+    [(res, _)] = d.ev.held_out([d.final_fits[d.final].values], idx)
+    d.empirical = try_correction(rop_runs(d.targets, res), d.scheme.folds, d.cfg.seed, d.cfg.empirical_gain)
+    d.log(f"{d.system}: {LABEL}: {'adopted, ' if d.empirical.adopted else 'not adopted, '}{d.empirical.reason}")
+
+
+def _empirical_report(st: EmpiricalStage | None) -> R.EmpiricalReport | None:
+    if st is None:
+        return None
+    inputs = st.correction.inputs if st.correction is not None else ()
+    return R.EmpiricalReport(label=LABEL, adopted=st.adopted, inputs=tuple(inputs),
+                             heldout_rop_error_before=st.before, heldout_rop_error_after=st.after,
+                             heldout_runs=st.n_held_out, halved=st.halved,
+                             text=f"{LABEL}: {'adopted' if st.adopted else 'not adopted'} ({st.reason})")
+
+
 def _make_call(d: _Diagnosis) -> None:
     """report.json ``call``: how close the call is, for one effect, two, and the proposal read as an effect (which
     replaces the verdict when it is adequate)."""
@@ -555,6 +581,8 @@ def _assemble(d: _Diagnosis) -> SystemDiagnosis:
                           and not d.named_selected else None),
         proposal_as_effect=(R.ProposalAsEffect(named.effect, named.start, named.params, d.named_selected, named.text)
                             if named is not None else None),
-        recording=recording_report(targets, d.chain), n_simulations=d.ev.n_sims)
+        recording=recording_report(targets, d.chain), n_simulations=d.ev.n_sims,
+        empirical=_empirical_report(d.empirical))
+    correction = d.empirical.correction if d.empirical is not None and d.empirical.adopted else None
     return SystemDiagnosis(report=report, evaluator=d.ev, fits=final_fits, held_out=d.effects.held_out, final=final,
-                           cost=d.cost.rows())
+                           cost=d.cost.rows(), empirical=correction)

@@ -49,7 +49,8 @@ class OptimiseConfig:
     max_decel_g [g]: the exciter's power rating and the bit's deceleration limit (None = unconstrained).
     margin: a fraction kept below every limit (0.05), or {label: fraction} (``{power_w: 0.05}``); the study judges a
     surrogate's prediction by the upper end of its interval (constraints.Constraints.margins).  exciter: the rig
-    file's shaker envelope (pipeline/optimise/envelope.py), honoured as constraints.  limit_map: also simulate and
+    file's shaker envelope (pipeline/optimise/envelope.py), honoured as constraints.  rop_correction: the rig file's
+    ``empirical_correction`` (sim.empirical), applied to the simulated ROP (simulator studies).  limit_map: also simulate and
     draw maps of ROP around the recommendation with the limits' contours (pipeline/optimise/limitmap.py).
     sampler: None picks DEFAULT_SAMPLER by objective.  ranges: {name: [low, high]} — default: the surrogate's training ranges / the model's published space
     (ModelSpec.search_spaces).  n_trials: total complete trials of the study (a resumed study runs only the
@@ -86,6 +87,7 @@ class OptimiseConfig:
     allow_not_settled: bool = False
     margin: float | dict | None = None
     exciter: dict | None = None
+    rop_correction: dict | None = None
     limit_map: bool = False
     n_verify: int = 10
     rel_tol: float = 0.10

@@ -49,6 +49,34 @@ class SimulatorEvaluator:
         return out
 
 
+class RopCorrected:
+    """The labels of ``inner`` (a ``SimulatorEvaluator``) with a rig's empirical ROP correction applied
+    (``sim.empirical``: "empirical correction, physics unknown"): ``rop_m_s`` corrected where the point progresses
+    (never below 0; a point that does not progress stays at 0), the model's own in ``rop_model_m_s`` and the
+    correction's sd in ``rop_correction_sd_m_s`` [m/s].  Everything else is ``inner``'s."""
+
+    def __init__(self, inner: SimulatorEvaluator, correction):
+        self.inner, self.correction = inner, correction
+
+    def __getattr__(self, name):          # calls, resolved, model, ...: the simulator's
+        if name == "inner":
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+    def __call__(self, X: pd.DataFrame) -> pd.DataFrame:
+        out = self.inner(X).reset_index(drop=True)
+        table = X.reset_index(drop=True)
+        ctl = {n: (table[n] if n in table.columns else pd.Series(self.inner.resolved[n], index=table.index)).to_numpy(float)
+               for n in self.correction.inputs}
+        rop = out["rop_m_s"].astype(float).fillna(0.0).to_numpy()
+        fixed, sd = self.correction.correct(rop, ctl)
+        moving = rop > 0
+        out["rop_model_m_s"] = out["rop_m_s"]
+        out["rop_m_s"] = np.where(moving, np.maximum(fixed, 0.0), out["rop_m_s"].to_numpy())
+        out["rop_correction_sd_m_s"] = np.where(moving, sd, 0.0)
+        return out
+
+
 class SurrogateEvaluator:
     """Labels predicted by a surrogate bundle (contract: ``Bundle.predict`` → p_progress, regime, T, T_lo, T_hi).
 

@@ -11,7 +11,9 @@ every sample; a run that ends in any status but ``ok`` counts as zero ROP and as
 
 What the fitted model still gets wrong (``Rig.model_error``: the diagnosis's held-out rms ROP error relative to the
 measured ROP) is added in quadrature, as 5-95 % half-widths around the nominal ROP (docs/optimise.md):
-a = (p95 − p5) / 2, b = z · e · ROP, c = √(a² + b²), z = 1.645 (the 95 % point of a normal).
+a = (p95 − p5) / 2, b = z · e · ROP, c = √(a² + b²), z = 1.645 (the 95 % point of a normal).  A rig with an
+empirical ROP correction (``Rig.empirical``, "physics unknown") has it applied to every sample's ROP, and e is then
+the correction's predictive sd at the point relative to the corrected ROP.
 """
 from __future__ import annotations
 
@@ -59,6 +61,7 @@ class RopSpread:
     model_error_half_width_m_s: float | None = None   # b = Z_90 e ROP
     combined_half_width_m_s: float | None = None      # c = sqrt(a² + b²)
     model_error_basis: str = ""                       # where e comes from, in words
+    empirical_correction: bool = False                # ROP corrected by the rig's empirical correction; e is its sd
 
     def to_dict(self) -> dict:
         """Plain mapping (report.json / metrics)."""
@@ -68,7 +71,8 @@ class RopSpread:
                 "sampled": list(self.sampled), "statuses": dict(self.statuses),
                 "parameter_half_width_m_s": self.parameter_half_width_m_s, "model_error_rel": self.model_error_rel,
                 "model_error_half_width_m_s": self.model_error_half_width_m_s,
-                "combined_half_width_m_s": self.combined_half_width_m_s, "model_error_basis": self.model_error_basis}
+                "combined_half_width_m_s": self.combined_half_width_m_s, "model_error_basis": self.model_error_basis,
+                "empirical_correction": self.empirical_correction}
 
 
 def fit_bounds(model: str) -> dict[str, tuple[float, float]]:
@@ -116,14 +120,27 @@ def rop_spread(rig, point: Mapping[str, float], n_samples: int = 32, seed: int =
     df = sim.simulate_batch(rig.model, table, preset=rig.preset, settings=dict(settings or {}), n_threads=n_threads)
     ok = df["status"].isin(list(SETTLED_STATUSES)).to_numpy()
     rop = np.where(ok, df["rop_m_s"].astype(float).fillna(0.0).to_numpy(), 0.0)
+    rel, basis = (None, "") if rig.model_error is None else (rig.model_error.rop_rel, rig.model_error.basis)
+    if rig.empirical is not None:
+        rop, rel, basis = _corrected(rig.empirical, rop, base)
     rs = rop[1:]
     counts = df["status"].iloc[1:].value_counts().to_dict()
     p5, p95 = float(np.percentile(rs, 5)), float(np.percentile(rs, 95))
-    err = rig.model_error
-    a, b, c = combined_half_widths(p5, p95, float(rop[0]), None if err is None else err.rop_rel)
+    a, b, c = combined_half_widths(p5, p95, float(rop[0]), rel)
     return RopSpread(nominal_rop_m_s=float(rop[0]), median_rop_m_s=float(np.median(rs)), p5_rop_m_s=p5,
                      p95_rop_m_s=p95, fraction_progressing=float(np.mean(ok[1:] & (rs > 0))), n_samples=int(n_samples),
                      sampled=tuple(samples[0]) if samples else (), statuses={str(k): int(v) for k, v in counts.items()},
-                     parameter_half_width_m_s=a, model_error_rel=None if err is None else err.rop_rel,
-                     model_error_half_width_m_s=b, combined_half_width_m_s=c,
-                     model_error_basis="" if err is None else err.basis)
+                     parameter_half_width_m_s=a, model_error_rel=rel, model_error_half_width_m_s=b,
+                     combined_half_width_m_s=c, model_error_basis=basis,
+                     empirical_correction=rig.empirical is not None)
+
+
+def _corrected(correction, rop: np.ndarray, point: Mapping[str, float]) -> tuple[np.ndarray, float | None, str]:
+    """ROP with the rig's empirical correction applied where it progresses (never below 0), the correction's sd at
+    the point relative to the corrected nominal ROP (its model error: the scatter it could not follow included),
+    and where that comes from."""
+    ctl = {n: np.full(rop.size, float(point[n])) for n in correction.inputs}
+    fixed, sd = correction.correct(rop, ctl)
+    out = np.where(rop > 0, np.maximum(fixed, 0.0), rop)
+    rel = float(sd[0] / out[0]) if out[0] > 0 else None
+    return out, rel, f"{correction.basis}; its predictive sd at the point"

@@ -15,7 +15,7 @@ import sim
 from pipeline.core.errors import UserError
 from pipeline.optimise.config import OptimiseConfig
 from pipeline.optimise.constraints import UPPER_LIMITS, Constraints
-from pipeline.optimise.evaluators import SimulatorEvaluator, SurrogateEvaluator
+from pipeline.optimise.evaluators import RopCorrected, SimulatorEvaluator, SurrogateEvaluator
 from pipeline.optimise import samplers
 from pipeline.optimise.samplers import SamplerFactory
 from pipeline.optimise.space import Space, default_space, space_from_mapping
@@ -107,6 +107,9 @@ def _envelope(cfg: OptimiseConfig, space: Space):
 def surrogate_strategies(cfg: OptimiseConfig, bundle, sampler: SamplerFactory) -> Strategies:
     """A study on ``bundle`` (its model, preset, fixed values and training ranges, narrowed by ``cfg``), verified by
     the simulator under the bundle's conditions."""
+    if cfg.rop_correction:
+        raise UserError("an empirical ROP correction (a rig file's empirical_correction) needs --simulator: the "
+                        "surrogate learnt the model's ROP without it")
     fixed = {**bundle.fixed, **cfg.fixed}     # the sweep's conditions, overridden by the user's
     full = Space({n: (float(bundle.ranges[n][0]), float(bundle.ranges[n][1])) for n in bundle.inputs})
     space = space_from_mapping(cfg.ranges) if cfg.ranges else full
@@ -149,6 +152,10 @@ def simulator_strategies(cfg: OptimiseConfig, sampler: SamplerFactory) -> Strate
     env = _envelope(cfg, space)
     simulator = SimulatorEvaluator(problem.model, problem.preset, problem.fixed, settings=cfg.settings,
                                    n_threads=cfg.n_threads, history_labels=env is not None and env.needs_history)
+    if cfg.rop_correction:          # the rig's empirical ROP correction: the study and its verification both see it
+        from sim.empirical import EmpiricalCorrection
+
+        simulator = RopCorrected(simulator, EmpiricalCorrection.from_mapping(cfg.rop_correction))
     return Strategies(problem, sampler, simulator, run_direct, simulator)
 
 

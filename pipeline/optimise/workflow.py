@@ -203,7 +203,8 @@ def signature(cfg: OptimiseConfig, strategies: Strategies, cons: Constraints) ->
     return {"mode": cfg.mode, "model": p.model, "preset": p.preset, "fixed": p.fixed, "space": p.space.to_dict(),
             "constraints": cons.to_dict(), "objective": cfg.objective,
             "objectives": [f"{d[:3]}:{n}" for n, d in cfg.objective_list()], "sampler": cfg.sampler, "seed": cfg.seed,
-            "surrogate_fingerprint": strategies.fingerprint, "settings": cfg.settings}
+            "surrogate_fingerprint": strategies.fingerprint, "settings": cfg.settings,
+            **({"rop_correction": cfg.rop_correction} if cfg.rop_correction else {})}
 
 
 def plan_optimise(cfg: OptimiseConfig, strategies: Strategies) -> OptimisePlan:

@@ -6,11 +6,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from vibrobase.errors import InputError
+from vibrobase.errors import InputError, did_you_mean
 
 
 class ParameterError(InputError):
     """Bad parameter name or value (message names the parameter); public as ``sim.ParameterError``."""
+
+
+def check_known_keys(data, known: tuple[str, ...], what: str) -> None:
+    """ParameterError naming the first key of the mapping ``data`` not in ``known`` (with a did-you-mean); ``what``
+    says what a key is, e.g. "key" or "model_error key" of a rig."""
+    for key in data:
+        if key not in known:
+            raise ParameterError(f"rig: unknown {what} '{key}'{did_you_mean(key, known)}; known: {', '.join(known)}")
 
 
 @dataclass(frozen=True)

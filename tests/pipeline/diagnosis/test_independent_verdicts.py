@@ -50,6 +50,20 @@ def _check(rep: dict, truth: dict, spec: LogSpec) -> None:
     # with an effect, the issue's target is the effect's parameters (above); the base parameters trade off against
     # them (pendulum behind a 100 Hz low-pass: fc +0.6 % with ki +6 %) and are reported in the matrix, not asserted
     assert rep["call"]["text"] and rep["heldout_n"] > 0
+    _check_empirical(rep)
+
+
+def _check_empirical(rep: dict) -> None:
+    """The last resort is tried exactly where nothing explained the residual; adopted only where it cut the held-out
+    ROP error by the default 20 %, and then carried in the rig file, named as what it is."""
+    emp = rep.get("empirical")
+    if rep["explained"] or rep["proposal_adopted"]:
+        assert emp is None and "ROP corrected by an empirical" not in rep["rig"]["source"]
+        return
+    assert emp is not None and emp["label"] == "empirical correction, physics unknown"
+    before, after = emp["heldout_rop_error_before"], emp["heldout_rop_error_after"]
+    assert emp["adopted"] == (before is not None and after <= 0.8 * before), emp
+    assert emp["adopted"] == ("ROP corrected by an empirical correction, physics unknown" in rep["rig"]["source"])
 
 
 # by default the drill with one effect (about 50 s of CPU, docs/diagnose.md's cost table); a drill control is judged
@@ -91,6 +105,8 @@ def test_a_log_from_outside_the_library_is_unexplained_by_every_single_effect(tm
     assert {c["effect"] for c in rep["candidates"]} == set(RIGS["drill"].effects)
     assert not any(c["adequate"] for c in rep["candidates"]) and not rep["pair_stage"]["tried"]
     assert rep["discrepancy"] is None and rep["proposal_adopted"] is None
+    _check_empirical(rep)      # quadratic damping on the drill: tried on the held-out runs' ROP, never called physics
+    assert rep["empirical"]["heldout_rop_error_before"] > 0 and rep["empirical"]["heldout_runs"] == 2
 
 
 def _slow_cases() -> list[LogSpec]:

@@ -16,15 +16,21 @@ model_error: {rop_rel: 0.04, noise_floor_rel: 0.01, basis: "held-out ROP of 3 ru
 SPACE = ["--vary", "frequency_hz=200:350", "--vary", "amplitude_n=2000:2700", "--vary", "static_force_n=1500:1800"]
 
 
-def test_optimise_on_a_rig_states_the_spread_from_one_field(tmp_path, monkeypatch, capsys):
+def _optimise_on(rig_text: str, tmp_path, monkeypatch, n_trials: int) -> dict:
+    """report.json of ``vibro optimise --simulator --rig`` on a rig file of ``rig_text`` over SPACE."""
     monkeypatch.setenv("VIBRO_HOME", str(tmp_path))
     rig = tmp_path / "rig.yaml"
-    rig.write_text(RIG)
+    rig.write_text(rig_text)
     out = tmp_path / "o"
-    rc = cli_main(["optimise", "--simulator", "--rig", str(rig), *SPACE, "--n-trials", "24", "--n-verify", "2",
-                   "--storage", f"sqlite:///{tmp_path / 'optuna.db'}", "--out", str(out), "--no-mlflow", "--quiet"])
+    rc = cli_main(["optimise", "--simulator", "--rig", str(rig), *SPACE, "--n-trials", str(n_trials), "--n-verify",
+                   "2", "--storage", f"sqlite:///{tmp_path / 'optuna.db'}", "--out", str(out), "--no-mlflow", "--quiet"])
     assert rc == 0
-    rep = json.loads((out / "report.json").read_text())
+    return json.loads((out / "report.json").read_text())
+
+
+def test_optimise_on_a_rig_states_the_spread_from_one_field(tmp_path, monkeypatch, capsys):
+    rep = _optimise_on(RIG, tmp_path, monkeypatch, 24)
+    out = tmp_path / "o"
     s, rec = rep["spread"], rep["recommendation"]
     assert list(rep).index("spread") == list(rep).index("outcome") + 1
     # the nominal is the recommended point re-simulated on the same rig: the verified ROP, to the simulator's rounding
@@ -50,3 +56,42 @@ def test_optimise_without_a_rig_has_no_spread(tmp_path, monkeypatch):
                    "--no-mlflow", "--quiet"])
     assert rc == 0
     assert "spread" not in json.loads((out / "report.json").read_text())
+
+
+# the same rig with an empirical ROP correction: +20 % at 1500 N, +5 % at 1800 N, over 200-350 Hz
+EMPIRICAL = RIG + """empirical_correction:
+  label: empirical correction, physics unknown
+  target: rop_m_s
+  inputs: [frequency_hz, static_force_n]
+  lower: [200.0, 1500.0]
+  upper: [350.0, 1800.0]
+  points: [[200.0, 1500.0], [275.0, 1500.0], [350.0, 1500.0], [200.0, 1800.0], [275.0, 1800.0], [350.0, 1800.0]]
+  values: [0.2, 0.2, 0.2, 0.05, 0.05, 0.05]
+  mean: 0.125
+  length_scales: [1.0, 1.0]
+  signal_sd: 0.1
+  noise_sd: 0.01
+  floor_m_s: 1.0e-4
+  basis: "test correction"
+"""
+
+
+def test_optimise_on_a_rig_with_an_empirical_correction_recommends_by_the_corrected_rop(tmp_path, monkeypatch,
+                                                                                         capsys):
+    """The study and its verification see the corrected ROP; the model's own is beside it; the spread's model error
+    is the correction's sd at the point, said to be an empirical correction."""
+    import sim
+    from sim.empirical import EmpiricalCorrection
+
+    rep = _optimise_on(EMPIRICAL, tmp_path, monkeypatch, 16)
+    rec, s = rep["recommendation"], rep["spread"]
+    rig = sim.Rig.from_mapping(__import__("yaml").safe_load(EMPIRICAL))
+    point = rec["params"]
+    model_rop = float(rig.simulate(**point).labels["rop_m_s"])
+    corr: EmpiricalCorrection = rig.empirical
+    fixed, sd = corr.correct(model_rop, {n: [point[n]] for n in corr.inputs})
+    assert model_rop > 0 and math.isclose(rec["rop_m_s_sim"], float(fixed[0]), rel_tol=1e-9)
+    assert rec["rop_m_s_sim"] > model_rop * 1.04              # the correction is +5 % to +20 % over the space
+    assert math.isclose(s["nominal_rop_m_s"], rec["rop_m_s_sim"], rel_tol=1e-9)
+    assert s["empirical_correction"] and math.isclose(s["model_error_rel"], float(sd[0]) / float(fixed[0]))
+    assert "sd of the empirical ROP correction, physics unknown" in capsys.readouterr().out
