@@ -15,6 +15,8 @@ on a tensor grid of the box (``--grid`` frequencies x 3 levels of each other var
 bench/results/close_loop_outside.json and the table between docs/discovery.md's ``close-loop-outside`` markers.
 
     python -m bench.close_loop_outside --logs drill-outside-rate_strength-rig-s0-n8 drill-outside-drive_mode-rig-s0-n8
+
+Rows are kept in the results file and reused (``--fresh`` runs them again).
 """
 from __future__ import annotations
 
@@ -120,7 +122,7 @@ def table(rows: list[dict]) -> str:
         cells = []
         for m in MODELS:
             x = r[m]
-            p = ", ".join(f"{v:.4g}" for k, v in x["point"].items() if k in r["box"])
+            p = ", ".join(f"{k} {v:.4g}" for k, v in x["point"].items() if k in r["box"])
             cells.append(f"{1e3 * x['true_rop_m_s']:.3g} mm/s ({100 * x['ratio']:.1f} %) at {p}")
         lines.append(f"| {r['name']} | {'yes' if r['empirical_adopted'] else 'no'} | "
                      f"{1e3 * r['true_best_rop_m_s']:.3g} | " + " | ".join(cells) + " |")
@@ -135,10 +137,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--settle-s", type=float, default=0.5)
     p.add_argument("--window", type=int, default=30)
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--fresh", action="store_true", help="run the logs already in the results again")
     p.add_argument("--no-doc", action="store_true")
     a = p.parse_args(argv)
     done = {r["name"]: r for r in json.loads(OUT.read_text())["rows"]} if OUT.exists() else {}
     for name in a.logs:
+        if name in done and not a.fresh:
+            continue
         done[name] = run_case(name, a.grid, a.trials, a.settle_s, a.window, a.workers)
         r = done[name]
         print(f"{name}: " + ", ".join(f"{m} {100 * r[m]['ratio']:.1f} %" for m in MODELS), flush=True)
