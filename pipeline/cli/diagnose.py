@@ -399,4 +399,9 @@ def _flat_metrics(report: DiagnoseReport) -> dict:
                     f"{tag}.base_error": e.base.error, f"{tag}.final_error": e.final.error,
                     f"{tag}.default_nrms": e.default.nrms, f"{tag}.base_nrms": e.base.nrms,
                     f"{tag}.final_nrms": e.final.nrms, f"{tag}.explained": 1.0 if rep.explained else 0.0})
+        emp = rep.empirical
+        if emp is not None and emp.heldout_rop_error_before is not None:      # the last resort was tried
+            out.update({f"{tag}.empirical_adopted": 1.0 if emp.adopted else 0.0,
+                        f"{tag}.empirical_heldout_rop_error_before": emp.heldout_rop_error_before,
+                        f"{tag}.empirical_heldout_rop_error_after": emp.heldout_rop_error_after})
     return out

@@ -72,3 +72,21 @@ def test_the_model_rop_is_read_back_from_the_residual():
     r = rop_runs(tgs, [np.array([0.5, -3.0]), np.array([0.2])])
     assert r.idx == [0] and r.measured.tolist() == [2e-3]
     assert r.model[0] == pytest.approx(2e-3 - 3.0 * 1e-5)
+
+
+def test_mlflow_gets_the_trial_from_the_report():
+    """The numbers MLflow logs are the report's fields (a diagnosis of rate-dependent strength on the drill, whose
+    correction was adopted: tests/pipeline/diagnosis/data/report_empirical.json)."""
+    import json
+    from pathlib import Path
+
+    from pipeline.cli.diagnose import _flat_metrics
+    from pipeline.diagnosis.report_types import DiagnoseReport
+
+    path = Path(__file__).parent / "data" / "report_empirical.json"
+    rep = DiagnoseReport.from_json(json.loads(path.read_text()), str(path))
+    emp = rep.systems[0].empirical
+    m = _flat_metrics(rep)
+    assert emp.adopted and emp.halved and m["drill.empirical_adopted"] == 1.0
+    assert m["drill.empirical_heldout_rop_error_before"] == emp.heldout_rop_error_before
+    assert m["drill.empirical_heldout_rop_error_after"] == emp.heldout_rop_error_after < emp.heldout_rop_error_before
