@@ -27,7 +27,8 @@ from pipeline.diagnosis.features import (CONTROL_NAMES, Target, UnusableRecord, 
 from pipeline.core.executors import Executor, InlineExecutor
 from pipeline.diagnosis.calibrate import fit_added, fit_additions, fit_models, refit
 from pipeline.diagnosis.empirical import EmpiricalStage, rop_runs, try_correction
-from pipeline.diagnosis.discovery import discover, proposal_terms, report as discovery_report, spanned_effect
+from pipeline.diagnosis.discovery import (NUMBERS_PER_PARAM, calibration_numbers, discover, proposal_terms,
+                                          report as discovery_report, spanned_effect, supported)
 from pipeline.diagnosis.fit import FitResult
 from pipeline.diagnosis.nuisance import ChainEstimate, estimate_chain, locate_chain
 from pipeline.diagnosis.heldout import HeldOut, systematic_error  # noqa: F401  (systematic_error re-exported)
@@ -314,6 +315,7 @@ class _Diagnosis:
     named_selected: bool = False
     call: R.Call | None = None
     empirical: EmpiricalStage | None = None
+    notes: list[str] = field(default_factory=list)
 
 
 def diagnose_system(system: str, targets: list[Target], cfg: DiagnoseConfig, log=print,
@@ -373,6 +375,8 @@ def _calibrate(d: _Diagnosis) -> None:
     d.scheme = make_folds(targets, cfg)
     if not cfg.fit_unreproducible:      # no trajectory of the model follows them: a fit would bend to one realisation
         d.scheme = without_runs(d.scheme, {i for i, t in enumerate(targets) if t.run_id in d.unreproducible})
+    _drop_unsupported(d)
+    cands = d.cands
     rng = np.random.default_rng(cfg.seed)
 
     def n_fit_tasks(n_folds: int, warm_start: bool) -> int:
@@ -396,6 +400,21 @@ def _calibrate(d: _Diagnosis) -> None:
         for line in lines:
             log(line)
     d.fold_fits = [fits for fits, _ in fold_fits]
+
+
+def _drop_unsupported(d: _Diagnosis) -> None:
+    """Leave out the effects the data cannot judge: as for a proposal (``discovery.NUMBERS_PER_PARAM``), an effect
+    is fitted only where every fold's calibration runs hold 2 measured numbers per free parameter (calibratable +
+    the effect's); with fewer a fit interpolates its runs and the held-out test is no evidence.  The published
+    seed-000 log (4 runs of 2-3 summary numbers per indenter) leaves 6 numbers per fold, 8 needed for a
+    one-parameter effect on 3 calibratables: its base is fitted and judged, no effect is, and the report says why."""
+    n_numbers = calibration_numbers(d.ev, d.scheme)
+    d.cands, dropped = supported(d.cands, n_numbers, len(calibratable(d.system)))
+    if dropped:
+        d.notes.append(f"not fitted, too few numbers to judge them (the smallest fold's calibration runs hold "
+                       f"{n_numbers} measured numbers, {NUMBERS_PER_PARAM} per free parameter needed): "
+                       f"{', '.join(dropped)}")
+        d.log(f"{d.system}: {d.notes[-1]}")
 
 
 def _leader_relocated(d: _Diagnosis, lead: str) -> tuple[list[dict], dict] | None:
@@ -510,7 +529,11 @@ def _empirical_report(st: EmpiricalStage | None) -> R.EmpiricalReport | None:
     return R.EmpiricalReport(label=LABEL, adopted=st.adopted, inputs=tuple(inputs),
                              heldout_rop_error_before=st.before, heldout_rop_error_after=st.after,
                              heldout_runs=st.n_held_out, halved=st.halved,
-                             text=f"{LABEL}: {'adopted' if st.adopted else 'not adopted'} ({st.reason})")
+                             text=f"{LABEL}: {_trial_word(st)} ({st.reason})")
+
+
+def _trial_word(st: EmpiricalStage) -> str:
+    return "adopted" if st.adopted else ("not adopted" if st.before is not None else "not tried")
 
 
 def _make_call(d: _Diagnosis) -> None:
@@ -581,7 +604,7 @@ def _assemble(d: _Diagnosis) -> SystemDiagnosis:
                           and not d.named_selected else None),
         proposal_as_effect=(R.ProposalAsEffect(named.effect, named.start, named.params, d.named_selected, named.text)
                             if named is not None else None),
-        recording=recording_report(targets, d.chain), n_simulations=d.ev.n_sims,
+        recording=recording_report(targets, d.chain), n_simulations=d.ev.n_sims, notes=tuple(d.notes),
         empirical=_empirical_report(d.empirical))
     correction = d.empirical.correction if d.empirical is not None and d.empirical.adopted else None
     return SystemDiagnosis(report=report, evaluator=d.ev, fits=final_fits, held_out=d.effects.held_out, final=final,

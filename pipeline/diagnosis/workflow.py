@@ -74,6 +74,7 @@ def _diagnose(ds, cfg: DiagnoseConfig, log, progress, executor: Executor) -> Dia
             sim_runs = simulate_runs(diag)
         costs += [*diag.cost, *figs.rows()]
         notes = [SUMMARY_NOTE] if "summary" in diag.report.data else []
+        notes += diag.report.notes          # what the diagnosis itself left out
         used = {r for fold in diag.report.split.folds for r in (*fold.calibration, *fold.held_out)}
         notes += [UNREPRODUCIBLE_NOTE.format(run=r, nrms=x,
                                              what=KEPT[cfg.fit_unreproducible] if r in used else LEFT_OUT)
