@@ -7,7 +7,7 @@ optimiser applies it to the simulated ROP.  Here it is only evaluated (numpy), f
 
     d(x)  = μ + k(x, X) (K + σn² I)⁻¹ (d_X − μ),   var(x) = σf² + σn² − k(x, X) (K + σn² I)⁻¹ k(X, x)
     k(a, b) = σf² exp(−½ Σ_j ((a_j − b_j) / ℓ_j)²) on inputs scaled to [0, 1] over the measured runs' range
-    ROP_corrected = ROP_model + d(x) · max(|ROP_model|, floor)
+    ROP_corrected = max(ROP_model + d(x) · max(ROP_model, floor), 0)   where ROP_model > 0 (else unchanged)
 
 with d_X the measured relative discrepancies (measured − model) / max(|model|, floor) at the runs X.  σn holds the
 scatter the correction cannot follow (the measurement noise and what varies faster than the runs resolve).
@@ -110,13 +110,16 @@ class EmpiricalCorrection:
         return self.mean + k @ alpha, np.sqrt(np.maximum(var, 0.0))
 
     def correct(self, rop_m_s: Any, controls: Mapping[str, Any]):
-        """(corrected ROP, its sd) [m/s] arrays of model ROP ``rop_m_s`` [m/s] at operating points ``controls``."""
+        """(corrected ROP, its sd) arrays [m/s] of model ROP ``rop_m_s`` [m/s] at operating points ``controls``: a
+        point that progresses gets ROP + d · max(ROP, floor), never below 0; one that does not stays as it is (sd 0):
+        a correction of how fast the bit goes, not of whether it goes."""
         import numpy as np
 
         rop = np.atleast_1d(np.asarray(rop_m_s, float))
         mu, sd = self.relative(controls)
         scale = np.maximum(np.abs(rop), self.floor_m_s)
-        return rop + mu * scale, sd * scale
+        moving = rop > 0
+        return np.where(moving, np.maximum(rop + mu * scale, 0.0), rop), np.where(moving, sd * scale, 0.0)
 
     def to_mapping(self) -> dict[str, Any]:
         """Plain mapping in the rig-file layout."""

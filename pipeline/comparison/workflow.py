@@ -46,7 +46,7 @@ def _rop(rig, point: Mapping[str, float], settings: Mapping | None) -> tuple[flo
     row = {**dict(point), **dict(r.labels), "status": str(r.status)}
     if rig.empirical is not None and rop > 0:
         fixed, _ = rig.empirical.correct(rop, {n: [rig.resolve(**dict(point))[n]] for n in rig.empirical.inputs})
-        row["rop_model_m_s"], rop = rop, max(float(fixed[0]), 0.0)
+        row["rop_model_m_s"], rop = rop, float(fixed[0])
         row["rop_m_s"] = rop
     return rop, str(r.status), row
 

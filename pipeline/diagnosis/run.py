@@ -371,7 +371,7 @@ def _prepare(system: str, targets: list[Target], cfg: DiagnoseConfig, log, progr
 def _calibrate(d: _Diagnosis) -> None:
     """Base + every candidate fitted on all runs (leave-one-out only: the reported parameters and the folds'
     starting point) and on every fold's calibration runs."""
-    system, targets, cfg, cands, log, progress = d.system, d.targets, d.cfg, d.cands, d.log, d.progress
+    system, targets, cfg, log, progress = d.system, d.targets, d.cfg, d.log, d.progress
     d.scheme = make_folds(targets, cfg)
     if not cfg.fit_unreproducible:      # no trajectory of the model follows them: a fit would bend to one realisation
         d.scheme = without_runs(d.scheme, {i for i, t in enumerate(targets) if t.run_id in d.unreproducible})
@@ -519,7 +519,7 @@ def _empirical(d: _Diagnosis) -> None:
     idx = list(range(len(d.targets)))
     [(res, _)] = d.ev.held_out([d.final_fits[d.final].values], idx)
     d.empirical = try_correction(rop_runs(d.targets, res), d.scheme.folds, d.cfg.seed, d.cfg.empirical_gain)
-    d.log(f"{d.system}: {LABEL}: {'adopted, ' if d.empirical.adopted else 'not adopted, '}{d.empirical.reason}")
+    d.log(f"{d.system}: {LABEL}: {_trial_word(d.empirical)}, {d.empirical.reason}")
 
 
 def _empirical_report(st: EmpiricalStage | None) -> R.EmpiricalReport | None:

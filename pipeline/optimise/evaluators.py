@@ -70,10 +70,9 @@ class RopCorrected:
                for n in self.correction.inputs}
         rop = out["rop_m_s"].astype(float).fillna(0.0).to_numpy()
         fixed, sd = self.correction.correct(rop, ctl)
-        moving = rop > 0
         out["rop_model_m_s"] = out["rop_m_s"]
-        out["rop_m_s"] = np.where(moving, np.maximum(fixed, 0.0), out["rop_m_s"].to_numpy())
-        out["rop_correction_sd_m_s"] = np.where(moving, sd, 0.0)
+        out["rop_m_s"] = np.where(rop > 0, fixed, out["rop_m_s"].to_numpy())    # a missing ROP stays missing
+        out["rop_correction_sd_m_s"] = sd
         return out
 
 

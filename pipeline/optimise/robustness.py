@@ -139,8 +139,6 @@ def _corrected(correction, rop: np.ndarray, point: Mapping[str, float]) -> tuple
     """ROP with the rig's empirical correction applied where it progresses (never below 0), the correction's sd at
     the point relative to the corrected nominal ROP (its model error: the scatter it could not follow included),
     and where that comes from."""
-    ctl = {n: np.full(rop.size, float(point[n])) for n in correction.inputs}
-    fixed, sd = correction.correct(rop, ctl)
-    out = np.where(rop > 0, np.maximum(fixed, 0.0), rop)
+    out, sd = correction.correct(rop, {n: np.full(rop.size, float(point[n])) for n in correction.inputs})
     rel = float(sd[0] / out[0]) if out[0] > 0 else None
     return out, rel, f"{correction.basis}; its predictive sd at the point"

@@ -85,3 +85,9 @@ def test_a_bad_entry_is_one_line_naming_it(change, culprit):
 def test_a_missing_input_is_named():
     with pytest.raises(ParameterError, match="needs static_force_n"):
         correction().relative({"frequency_hz": [200.0]})
+
+
+def test_a_point_that_does_not_progress_stays_so_and_rop_never_turns_negative():
+    c = correction(values=tuple(-3.0 for _ in VALUES), mean=-3.0, noise_sd=0.0)    # a -300 % discrepancy
+    fixed, sd = c.correct([0.0, 2e-3], {"frequency_hz": [230.0, 230.0], "static_force_n": [900.0, 900.0]})
+    assert fixed.tolist() == [0.0, 0.0] and sd[0] == 0.0 and sd[1] >= 0.0

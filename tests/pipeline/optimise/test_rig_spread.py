@@ -95,3 +95,29 @@ def test_optimise_on_a_rig_with_an_empirical_correction_recommends_by_the_correc
     assert math.isclose(s["nominal_rop_m_s"], rec["rop_m_s_sim"], rel_tol=1e-9)
     assert s["empirical_correction"] and math.isclose(s["model_error_rel"], float(sd[0]) / float(fixed[0]))
     assert "sd of the empirical ROP correction, physics unknown" in capsys.readouterr().out
+
+
+def test_the_corrected_evaluator_keeps_the_models_rop_beside_and_what_does_not_progress():
+    """RopCorrected on a stand-in simulator: the progressing row's ROP is corrected (here +20 %), the other keeps its
+    0 and gets no sd; a control the table does not hold (static force) is the simulator's resolved value."""
+    import numpy as np
+    import pandas as pd
+    import yaml
+
+    from pipeline.optimise.evaluators import RopCorrected
+    from sim.empirical import EmpiricalCorrection
+
+    class Inner:
+        resolved = {"static_force_n": 1500.0}
+        calls = 7
+
+        def __call__(self, X):
+            return pd.DataFrame({"rop_m_s": [2e-3, 0.0], "status": ["ok", "ok"]})
+
+    corr = EmpiricalCorrection.from_mapping(yaml.safe_load(EMPIRICAL)["empirical_correction"])
+    ev = RopCorrected(Inner(), corr)
+    out = ev(pd.DataFrame({"frequency_hz": [275.0, 275.0]}))
+    mu, _ = corr.relative({"frequency_hz": [275.0], "static_force_n": [1500.0]})
+    assert math.isclose(out["rop_m_s"].iloc[0], 2e-3 * (1 + mu[0]), rel_tol=1e-12) and 0.15 < mu[0] < 0.25
+    assert out["rop_m_s"].iloc[1] == 0.0 and out["rop_correction_sd_m_s"].iloc[1] == 0.0
+    assert np.array_equal(out["rop_model_m_s"], [2e-3, 0.0]) and ev.calls == 7
