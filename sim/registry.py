@@ -45,12 +45,11 @@ def kernel_variants(spec: ModelSpec) -> tuple[str | None, ...]:
 
 
 def warm(name: str) -> None:
-    """Load/compile ``name``'s kernel in the calling thread before worker threads use it
-    (sim.compiled.kernels is not thread-safe on its first call)."""
-    from sim.compile_notice import announce_compile
+    """Load ``name``'s kernels in the calling thread before worker threads use them (sim.compiled.kernels is not
+    thread-safe on its first call).  numba compiles a kernel at its first run, and ``sim.api`` says so then: a notice
+    here would also name a variant the caller may never run."""
     from sim.compiled import kernels
 
     spec = get_model(name)
     for exact in kernel_variants(spec):
-        announce_compile(spec, exact)
         kernels(spec.funcs, spec.n_bounded, exact)
