@@ -52,7 +52,7 @@ def true_rop(args) -> float:
     return max(float(out.get("rop_m_s") or 0.0), 0.0)
 
 
-def box(runs: pd.DataFrame, system: str) -> tuple[dict, dict]:
+def box(runs: pd.DataFrame) -> tuple[dict, dict]:
     """(varied control -> (low, high), fixed control -> value) of a log's runs."""
     from sim.controls import CONTROLS
 
@@ -90,7 +90,7 @@ def run_case(name: str, grid: int, trials: int, settle_s: float, window: int, wo
     truth = json.loads((WORK / "logs" / f"{name}.truth.json").read_text())
     system, outside = truth["system"], truth["outside"]
     runs = pd.read_csv(WORK / "logs" / name / "runs.csv")
-    varied, fixed = box(runs, system)
+    varied, fixed = box(runs)
     corrected = yaml.safe_load((WORK / "diagnoses" / name / "rig.yaml").read_text())
     calibrated = {k: v for k, v in corrected.items() if k != "empirical_correction"}
     lab = {"model": corrected["model"], **({"preset": corrected["preset"]} if corrected.get("preset") else {})}

@@ -109,6 +109,15 @@ class EmpiricalCorrection:
         var = self.signal_sd ** 2 + self.noise_sd ** 2 - (v ** 2).sum(0)
         return self.mean + k @ alpha, np.sqrt(np.maximum(var, 0.0))
 
+    @staticmethod
+    def discrepancy(measured_m_s: Any, model_m_s: Any, floor_m_s: float):
+        """The relative discrepancy d = (measured − model) / max(|model|, floor) [1] a correction is fitted to (the
+        inverse of ``correct``); arrays of ROP [m/s]."""
+        import numpy as np
+
+        model = np.asarray(model_m_s, float)
+        return (np.asarray(measured_m_s, float) - model) / np.maximum(np.abs(model), floor_m_s)
+
     def correct(self, rop_m_s: Any, controls: Mapping[str, Any]):
         """(corrected ROP, its sd) arrays [m/s] of model ROP ``rop_m_s`` [m/s] at operating points ``controls``: a
         point that progresses gets ROP + d · max(ROP, floor), never below 0; one that does not stays as it is (sd 0):

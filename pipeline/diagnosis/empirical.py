@@ -85,7 +85,7 @@ def fit_correction(controls: list[dict], measured: np.ndarray, model: np.ndarray
 
     x = np.array([[float(c[n]) for n in inputs] for c in controls])
     xs = (x - np.array(lower)) / (np.array(upper) - np.array(lower))
-    d = (measured - model) / np.maximum(np.abs(model), floor)
+    d = EmpiricalCorrection.discrepancy(measured, model, floor)
     mean = float(d.mean())
     kernel = (ConstantKernel(1e-3, (1e-8, 10.0)) * RBF(np.full(len(inputs), 0.5), (0.05, 20.0))
               + WhiteKernel(1e-4, (1e-10, 1.0)))

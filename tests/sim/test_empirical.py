@@ -91,3 +91,11 @@ def test_a_point_that_does_not_progress_stays_so_and_rop_never_turns_negative():
     c = correction(values=tuple(-3.0 for _ in VALUES), mean=-3.0, noise_sd=0.0)    # a -300 % discrepancy
     fixed, sd = c.correct([0.0, 2e-3], {"frequency_hz": [230.0, 230.0], "static_force_n": [900.0, 900.0]})
     assert fixed.tolist() == [0.0, 0.0] and sd[0] == 0.0 and sd[1] >= 0.0
+
+
+def test_correct_inverts_the_discrepancy_it_is_fitted_to():
+    """A correction that predicts a run's own discrepancy exactly (no noise) gives back the measured ROP there."""
+    c = correction(noise_sd=0.0, values=tuple(EmpiricalCorrection.discrepancy(
+        [2.2e-3] * 8, [2e-3] * 8, 1e-4).tolist()), mean=0.1)
+    fixed, _ = c.correct([2e-3], {"frequency_hz": [230.0], "static_force_n": [900.0]})
+    assert fixed[0] == pytest.approx(2.2e-3, rel=1e-9)

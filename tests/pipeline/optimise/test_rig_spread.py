@@ -80,12 +80,14 @@ def test_optimise_on_a_rig_with_an_empirical_correction_recommends_by_the_correc
                                                                                          capsys):
     """The study and its verification see the corrected ROP; the model's own is beside it; the spread's model error
     is the correction's sd at the point, said to be an empirical correction."""
+    import yaml
+
     import sim
     from sim.empirical import EmpiricalCorrection
 
     rep = _optimise_on(EMPIRICAL, tmp_path, monkeypatch, 16)
     rec, s = rep["recommendation"], rep["spread"]
-    rig = sim.Rig.from_mapping(__import__("yaml").safe_load(EMPIRICAL))
+    rig = sim.Rig.from_mapping(yaml.safe_load(EMPIRICAL))
     point = rec["params"]
     model_rop = float(rig.simulate(**point).labels["rop_m_s"])
     corr: EmpiricalCorrection = rig.empirical
