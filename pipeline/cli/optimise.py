@@ -30,7 +30,9 @@ what it writes under --out:
   error at the verified points, wrong count, recommendation; the extra simulations) and report.md say how.
   how sure: with --rig (a corrected rig from vibro diagnose), the recommendation is re-simulated over 32 samples
   of the rig's fitted parameters; its ROP spread, with the rig's model_error added, goes to report.json 'spread',
-  report.md and the last lines printed (as vibro compare states it).
+  report.md and the last lines printed (as vibro compare states it).  A rig whose diagnosis left the data
+  unexplained may carry an 'empirical_correction' of ROP ("physics unknown", docs/diagnose.md): --simulator
+  studies apply it to every simulated ROP (the model's own in rop_model_m_s) and take its sd as the model error.
   fallback: a surrogate still wrong after the infill rounds never recommends: a study of --fallback-trials trials
   straight on the simulator (same model, rig, space and limits, started from the verified points) does, and
   report.json 'fallback' and report.md say so.
