@@ -22,6 +22,7 @@ from optuna.storages._heartbeat import BaseHeartbeat
 from optuna.storages.journal import JournalFileBackend
 
 from pipeline.core.errors import UserError
+from pipeline.optimise.journal_lock import LinkAgeLock
 
 JOURNAL_SCHEME = "journal://"
 DEFAULT_HEARTBEAT_S = 10
@@ -109,7 +110,8 @@ def _open_journal(url: str, path: str, hb: dict):
     if not parent.is_dir():
         raise UserError(f"--storage '{url}': folder {parent} does not exist")
     try:
-        return JournalHeartbeatStorage(JournalFileBackend(path), hb["heartbeat_interval"], hb["grace_period"],
+        backend = JournalFileBackend(path, LinkAgeLock(path))
+        return JournalHeartbeatStorage(backend, hb["heartbeat_interval"], hb["grace_period"],
                                        hb["heartbeat_stale_trial_callback"])
     except OSError as e:
         raise UserError(f"--storage '{url}': {e.strerror or e}") from None
