@@ -202,8 +202,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--n-runs", type=int, default=8, help="the first N runs spread over each rig's grid")
-    p.add_argument("--fresh", action="store_true", help="diagnose every case again (the logs are kept)")
-    p.add_argument("--no-doc", action="store_true", help="do not rewrite docs/discovery.md")
+    p.add_argument("--fresh", action="store_true",
+                   help="diagnose the selected cases again (their logs and the other cases' stored rows are kept)")
+    p.add_argument("--no-doc", action="store_true",
+                   help="do not rewrite docs/discovery.md nor bench/results/discovery*.json (the rows are stored)")
     p.add_argument("--tables-only", action="store_true", help="write the tables from the stored rows, diagnose nothing")
     p.add_argument("--block", metavar="NAME",
                    help="write the tables between docs/discovery.md's discovery-NAME markers instead (a subset, e.g. "
@@ -211,11 +213,14 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     WORK.mkdir(parents=True, exist_ok=True)
     done_file = WORK / "rows.json"
-    done = {r["name"]: r for r in json.loads(done_file.read_text())} if done_file.exists() and not a.fresh else {}
+    done = {r["name"]: r for r in json.loads(done_file.read_text())} if done_file.exists() else {}
     per = {s: [c for c in cases(s) if a.cases is None or c in a.cases or (c.startswith("pair:") and "pair" in a.cases)]
            for s in a.systems}
     todo = [(s, per[s][k], n) for n in a.noise for k in range(max(map(len, per.values()), default=0))
             for s in a.systems if k < len(per[s])]
+    if a.fresh:
+        for s, c, n in todo:
+            done.pop(row_name(s, c, n, a.seed, a.n_runs), None)
     rows = []
     for k, (s, c, n) in enumerate(todo, 1):
         name = row_name(s, c, n, a.seed, a.n_runs)
@@ -236,8 +241,9 @@ def main(argv: list[str] | None = None) -> int:
     text = table(rows)
     print(text)
     summary = {"rows": len(rows), "right": sum(r["correct"] for r in rows)}
-    out = RESULTS / (f"discovery-{a.block}.json" if a.block else "discovery.json")
-    out.write_text(json.dumps({"summary": summary, "rows": rows}, indent=1, default=float))
+    if not a.no_doc:
+        out = RESULTS / (f"discovery-{a.block}.json" if a.block else "discovery.json")
+        out.write_text(json.dumps({"summary": summary, "rows": rows}, indent=1, default=float))
     if not a.no_doc and DOC.exists() and a.block:
         from bench import write_block
 
