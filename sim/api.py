@@ -15,6 +15,7 @@ from sim.compile_notice import announce_compile
 from vibrobase.errors import did_you_mean
 from sim.invariants import violation
 from sim.models.base import ModelSpec, ParameterError
+from sim.models.discrepancy import any_on
 from sim.registry import get_model
 from vibrobase.statuses import BOUNDED_STATUSES
 
@@ -216,7 +217,7 @@ def _exact_module(spec: ModelSpec, values: dict, st: Settings, history: bool) ->
 
     mod = importlib.import_module(spec.exact)
     # a discrepancy term changes a phase the propagator takes as linear: those runs are numerical
-    ok = mod.exact_applies(values, spec.effects) and not any(float(values.get(t, 0.0) or 0.0) for t in spec.discrepancy)
+    ok = mod.exact_applies(values, spec.effects) and not any_on(values, spec.discrepancy)
     if st.method == "exact":
         if not ok:
             when = getattr(mod, "APPLIES_WHEN", None)    # a condition beyond the effects, stated by the module

@@ -45,8 +45,11 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
    δ₊ δ̇ in the contact force; tool_viscous, tool_quadratic_drag: −c v, −c v|v| on the impacting mass) are
    screened by a non-negative sparse regression of the calibrated base's residual on their sensitivities
    (scikit-learn lars_path, BIC), then up to max_proposals sets (every single term when the screening selects
-   none) and the hidden load-path mode (load_path_mode_ratio, _hz, _zeta: a hidden mass on a spring and damper
-   at the impacting mass, fitted from a grid of its three parameters) are re-fitted through the simulator and judged
+   none) and the structured candidates, each fitted from a grid of its parameters: the hidden load-path mode
+   (load_path_mode_ratio, _hz, _zeta: a hidden mass on a spring and damper at the impacting mass), the contact
+   exponent (pendulum, metal indenter; contact_exponent_shift s: k δ → k δ_r (δ₊/δ_r)^(1+s)), the rock's rate
+   strength (drill; rock_rate_strength η: Pr → Pr (1 + η ẋb)) and a loss in the impacting mass's suspension
+   (drill, indenters, RIMD; link_power_loss_n c, _exponent p: c (|v|/v_r)^p sgn v) are re-fitted and judged
    on the held-out runs by the rule of step 4; a proposal is fitted only where every fold's calibration runs hold
    at least 2 measured numbers per free parameter (a summary log of a few runs fits none, and says so).
    report.json 'discrepancy' ranks them (terms in words and symbols, coefficients with sd, held-out error against

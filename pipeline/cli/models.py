@@ -25,7 +25,7 @@ def _g(v) -> str:
 def describe(name: str, full: bool) -> list[str]:
     """Lines describing model ``name`` (``full``: presets' values, effects' bounds, calibratable, search spaces)."""
     from sim import get_model
-    from sim.models.discrepancy import PARAM_OF as DISCREPANCY_PARAMS
+    from sim.models.discrepancy import COMPANION, PARAM_OF as DISCREPANCY_PARAMS
 
     spec = get_model(name)
     lines = [f"{spec.name}: {spec.description}"]
@@ -37,7 +37,8 @@ def describe(name: str, full: bool) -> list[str]:
     head = f"    {'parameter':<16} {'default':>10} " + "".join(f"{p:>14} " for p in presets) + f"{'unit':<8} meaning"
     lines.append(head)
     for prm in spec.params:
-        if prm.name in DISCREPANCY_PARAMS and prm.name not in spec.discrepancy:
+        if (prm.name in DISCREPANCY_PARAMS or prm.name in COMPANION) and \
+                COMPANION.get(prm.name, prm.name) not in spec.discrepancy:
             continue            # a term this model does not offer: its parameter must stay 0, so it is not listed
         cells = "".join(f"{_g(spec.presets[p][prm.name]) if prm.name in spec.presets[p] else '':>14} "
                         for p in presets)

@@ -13,9 +13,15 @@ declarations at import (``site_source``: a Horner form in the site's first varia
 coefficients of the whole block once (``terms_at(p, first)``, ``first`` from ``vocabulary_at``): a new term is one
 line here, its reference in tests/reference_solutions.py and its visible strengths.
 
-One *structured* candidate sits beside the terms: ``load_path_mode``, a hidden mass on a spring and damper at the
+Four *structured* candidates sit beside the terms.  ``load_path_mode`` is a hidden mass on a spring and damper at the
 impacting mass (an extra mode in the load path), three parameters (``MODE_PARAMS``: mass ratio, frequency, damping
-ratio) and two more states (``MODE_STATES``, after the model's own; off while the ratio is 0).  Not in the
+ratio) and two more states (``MODE_STATES``, after the model's own; off while the ratio is 0).  The second,
+``contact_exponent``, makes the elastic part of a linear contact law a free power of the penetration (one parameter,
+the exponent's shift, ``EXPONENT_SHIFT``; its reference penetration ``EXPONENT_REF`` is the model's, not fitted), on
+the models whose contact's elastic part is linear (``exponent_params``, ``shaped``).  The third, ``rock_rate_strength``,
+raises a failing rock's threshold with its failure rate (the drill's slider; ``strength_params``); the fourth,
+``link_power_loss``, a loss in the impacting mass's suspension with a free power of the relative velocity
+(``link_params``, ``link_loss``).  Not in the
 vocabulary: a first-order lag on the forcing (where a model has ``shaker_coil``, its τ is that lag); a cubic spring
 is §6 ``suspension_hardening``.
 """
@@ -139,11 +145,58 @@ STRUCTURED: dict[str, Structured] = {MODE: Structured(
     "an extra mode in the load path: a hidden mass on a spring and damper at the impacting mass")}
 """The structured candidates (discovery fits each as one proposal, beside the screened terms)."""
 
+EXPONENT = "contact_exponent"
+EXPONENT_SHIFT = "contact_exponent_shift"
+"""The contact law's exponent above the linear law's, s = n − 1 [-] (0 = off): Hertz's sphere 0.5, a cone 1."""
+EXPONENT_REF = "contact_exponent_ref_m"
+"""The penetration δ_r [m] at which the shaped law has the linear law's force: a model parameter, never fitted (the
+calibrated stiffness absorbs it: k δ_r^−s δ₊^(1+s) is the family whatever δ_r), set near the model's typical
+penetration so that the calibrated stiffness stays inside its fit bounds."""
+EXPONENT_MAX_SHIFT = 10.0
+"""Largest exponent shift accepted: far beyond the fit bounds, below typos."""
+STRUCTURED[EXPONENT] = Structured(
+    EXPONENT, (EXPONENT_SHIFT,), ("-",), CONTACT, "F_c: k δ → k δ_r (δ₊/δ_r)^(1+s)", "contact",
+    "a contact law that is a free power of the penetration (Hertz-like: a rounded tip or a curved cap)")
+
+STRENGTH = "rock_rate_strength"
+"""The rock's dynamic strength increase η [s/m] (0 = off): its failure threshold Pr → Pr (1 + η ẋb) while it fails
+at the rate ẋb."""
+STRENGTH_MAX = 1e4
+"""Largest η accepted [s/m]: far beyond the fit bounds, below typos."""
+STRUCTURED[STRENGTH] = Structured(
+    STRENGTH, (STRENGTH,), ("s/m",), CONTACT, "P_r → P_r (1 + η ẋ_b): ẋ_b = (P_c − P_r) / (C_1 + η P_r)", "contact",
+    "a rock whose failure threshold rises with the rate of failure (dynamic strength increase)")
+
+LINK = "link_power_loss"
+LINK_PARAMS = ("link_power_loss_n", "link_power_loss_exponent")
+"""The loss force at the reference relative velocity c [N] (0 = off) and its exponent p [-] (1 = viscous)."""
+LINK_REF = "link_power_loss_ref_m_s"
+"""The reference relative velocity v_r [m/s] of the link loss: a model parameter near the link's rms velocity, never
+fitted (c and p then trade off little)."""
+LINK_MAX_EXPONENT = 10.0
+"""Largest exponent accepted: far beyond the fit bounds, below typos."""
+STRUCTURED[LINK] = Structured(
+    LINK, LINK_PARAMS, ("N", "-"), TOOL, "F_link += c (|v|/v_r)^p sgn v", "velocity_loss",
+    "a loss in the impacting mass's suspension that grows as a power of the relative velocity (an elastomer or "
+    "squeeze-film loss)")
+
+COMPANION: dict[str, str] = {EXPONENT_REF: EXPONENT_SHIFT, LINK_REF: LINK_PARAMS[0]}
+"""Parameters that shape a candidate without being fitted -> the candidate's parameter they belong to."""
+
 CANDIDATES: dict[str, Term | Structured] = {**TERMS, **STRUCTURED}
 """Every candidate of the vocabulary by name."""
 
 PARAM_OF: dict[str, str] = {p: c.name for c in CANDIDATES.values() for p in c.params}
 """Every discrepancy parameter -> the candidate it belongs to."""
+
+SWITCH: dict[str, str] = {p: c.params[0] for c in CANDIDATES.values() for p in c.params}
+"""Every discrepancy parameter -> the one that switches its candidate on (a term's own; a structured candidate's
+first: the others, e.g. the link loss's exponent, shape it and may sit at any value while it is off)."""
+
+
+def any_on(values: Mapping[str, float], names: Sequence[str]) -> bool:
+    """Whether any candidate of the discrepancy parameters ``names`` is switched on in ``values``."""
+    return any(float(values.get(SWITCH[n], 0.0) or 0.0) for n in names)
 
 
 @dataclass(frozen=True)
@@ -187,6 +240,12 @@ def mode_bounds(hz_lo: float, hz_hi: float) -> dict[str, FitBound]:
             "load_path_mode_zeta": FitBound("load_path_mode_zeta", 0.005, 0.5, "-", grid=2)}
 
 
+def exponent_bounds() -> dict[str, FitBound]:
+    """Fit bounds of the contact exponent's shift: n from 1.03 to 3 (Hertz's sphere 1.5, a cone 2), fitted in log10
+    from a start grid of 3."""
+    return {EXPONENT_SHIFT: FitBound(EXPONENT_SHIFT, 0.03, 2.0, "-", grid=3)}
+
+
 def discrepancy_params(acts_on: Mapping[str, str]) -> tuple[Param, ...]:
     """Every term's parameter in vocabulary order, then the hidden mode's, 0 (off) by default and ≥ 0;
     ``acts_on[site]`` says what δ, δ̇ and v are in this model.  A model lists the parameters it has in
@@ -204,6 +263,49 @@ def discrepancy_params(acts_on: Mapping[str, str]) -> tuple[Param, ...]:
         out.append(Param(name, 0.0, unit, f"discrepancy {MODE} ({mode.words}, {acts_on.get(TOOL, '')}): its {w}",
                          nonnegative=True, most=hi))
     return tuple(out)
+
+
+def exponent_params(ref_m: float, acts_on: str) -> tuple[Param, ...]:
+    """The contact-exponent candidate's parameters of a model whose contact's elastic part is linear in the
+    penetration (``acts_on``: what k and δ are there): the shift, 0 (off) by default, and its reference penetration
+    ``ref_m`` [m]."""
+    return (Param(EXPONENT_SHIFT, 0.0, "-", f"discrepancy {EXPONENT} ({acts_on}): the exponent n − 1 of "
+                  f"{STRUCTURED[EXPONENT].form}; 0 = off", nonnegative=True, most=EXPONENT_MAX_SHIFT),
+            Param(EXPONENT_REF, ref_m, "m", f"discrepancy {EXPONENT}: the penetration δ_r at which the shaped "
+                  "law has the linear law's force (not fitted: the calibrated stiffness absorbs it)", positive=True))
+
+
+def strength_params(acts_on: str) -> tuple[Param, ...]:
+    """The rock rate-strength candidate's parameter of a model with a failing rock (``acts_on``: its threshold and
+    failure rate), 0 (off) by default."""
+    return (Param(STRENGTH, 0.0, "s/m", f"discrepancy {STRENGTH} ({acts_on}): "
+                  f"{STRUCTURED[STRENGTH].form}; 0 = off", nonnegative=True, most=STRENGTH_MAX),)
+
+
+def strength_bounds(lo: float, hi: float) -> dict[str, FitBound]:
+    """Fit bounds [s/m] of the rock's rate strength η (a model's own, for its rock's damping and threshold), fitted
+    in log10 from a start grid of 3."""
+    return {STRENGTH: FitBound(STRENGTH, lo, hi, "s/m", grid=3)}
+
+
+def link_params(ref_m_s: float, acts_on: str) -> tuple[Param, ...]:
+    """The link-loss candidate's parameters of a model whose impacting mass hangs on a suspension (``acts_on``: which
+    link, v its relative velocity): the force, 0 (off) by default, the exponent and its reference velocity
+    ``ref_m_s`` [m/s]."""
+    form = STRUCTURED[LINK].form
+    return (Param(LINK_PARAMS[0], 0.0, "N", f"discrepancy {LINK} ({acts_on}): the force c of {form} at v = v_r; "
+                  "0 = off", nonnegative=True),
+            Param(LINK_PARAMS[1], 1.0, "-", f"discrepancy {LINK}: the exponent p of {form} (1 = viscous, 0 = "
+                  "dry friction with a hard sign, slow to integrate)", nonnegative=True, most=LINK_MAX_EXPONENT),
+            Param(LINK_REF, ref_m_s, "m/s", f"discrepancy {LINK}: the reference relative velocity v_r (not fitted)",
+                  positive=True))
+
+
+def link_bounds(force_lo: float, force_hi: float) -> dict[str, FitBound]:
+    """Fit bounds of the link loss: its force at v_r [N] (a model's own, for its link's forces) and an exponent
+    from 1 (viscous) to 4, each fitted in log10 from a start grid of 3."""
+    return {LINK_PARAMS[0]: FitBound(LINK_PARAMS[0], force_lo, force_hi, "N", grid=3),
+            LINK_PARAMS[1]: FitBound(LINK_PARAMS[1], 1.0, 4.0, "-", grid=3)}
 
 
 def vocabulary_at(params: Sequence[Param]) -> int:
@@ -276,6 +378,25 @@ _SITES = site_functions(TERMS)
 terms_at = njit(inline="always")(_SITES["terms_at"])
 contact_extra = njit(inline="always")(_SITES["contact_extra"])
 tool_loss = njit(inline="always")(_SITES["tool_loss"])
+
+
+@njit(cache=True, error_model="numpy")
+def shaped(d, s, dref):
+    """The contact-exponent candidate's penetration [m] in a contact's elastic part: δ (δ/δ_r)^s for δ > 0, else δ
+    (the release indicator keeps its sign), exactly δ while s = 0 (d, dref [m], s [-])."""
+    if s == 0.0 or d <= 0.0:
+        return d
+    return d * (d / dref) ** s
+
+
+@njit(cache=True, error_model="numpy")
+def link_loss(c, pw, vref, dv):
+    """The link loss [N] opposing the relative velocity dv [m/s]: c (|dv|/v_r)^p sgn dv (c [N], p [-], v_r [m/s]);
+    exactly 0.0 while c = 0."""
+    if c == 0.0 or dv == 0.0:
+        return 0.0
+    f = c * (abs(dv) / vref) ** pw
+    return f if dv > 0.0 else -f
 
 
 @njit(cache=True, error_model="numpy")

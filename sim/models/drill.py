@@ -24,7 +24,9 @@ is exactly the base model's):
 
 Discrepancy terms (sim.models.discrepancy; off at 0): contact_quadratic, contact_cubic join Pc with δ = x1 − xb
 (so the guards, the phase check and the slider law see them); tool_viscous, tool_quadratic_drag act on M1 (v = ẋ1);
-load_path_mode hangs its hidden mass on M1.
+load_path_mode hangs its hidden mass on M1; rock_rate_strength η raises the failing rock's threshold with its
+failure rate in phase III: ẋb = (Pc − Pr)/(C1 + η Pr), the bit feels Pr (1 + η ẋb) (the switching surfaces are
+unchanged: ẋb = 0 where Pc = Pr); link_power_loss adds c (|v|/v_r)^p sgn v to the bit-exciter link (v = ẋ1 − ẋ2).
 """
 from __future__ import annotations
 
@@ -34,8 +36,9 @@ import numpy as np
 from sim.jit import interpreted, njit  # numba is imported on first use (sim/jit.py)
 
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
-from sim.models.discrepancy import (MODE_PARAMS, MODE_STATES, contact_extra, discrepancy_params, mode_accel,
-                                    mode_bounds, mode_force, terms_at, tool_loss, vocabulary_at)
+from sim.models.discrepancy import (LINK_PARAMS, LINK_REF, MODE_PARAMS, MODE_STATES, STRENGTH, contact_extra,
+                                    discrepancy_params, link_bounds, link_loss, link_params, mode_accel, mode_bounds,
+                                    mode_force, strength_bounds, strength_params, terms_at, tool_loss, vocabulary_at)
 from sim.models.effects import effect_params
 from sim.models.param import index_of
 from sim.models.contact import kelvin_voigt, rock_slider_rate, rock_surface_rate
@@ -107,10 +110,12 @@ def _rhs_at(t, y, ph, p, dy):
         pc = _pc_at(k1, alpha, c1, x1, v1, xb, dc)
         dxt = v1
         dxb = 0.0
-    else:
-        pc = _pr_at(pr, gamma, gap, xb)
+    else:                    # the rock fails: the bit feels Pr (1 + η ẋb), Pr itself while η = 0
+        pr_x = _pr_at(pr, gamma, gap, xb)
+        eta_pr = p[ISTRENGTH] * pr_x
         dxt = v1
-        dxb = rock_slider_rate(_pc_at(k1, alpha, c1, x1, v1, xb, dc), pc, c1)
+        dxb = rock_slider_rate(_pc_at(k1, alpha, c1, x1, v1, xb, dc), pr_x, c1 + eta_pr)
+        pc = pr_x + eta_pr * dxb
     d12 = x1 - x2
     # bit-exciter link: damper, (hardening) spring, guide friction; each effect term is exactly 0 when off (the
     # friction's tanh, a libm call per stage, is then not evaluated).  The friction keeps libm's tanh: the exp form of
@@ -118,6 +123,7 @@ def _rhs_at(t, y, ph, p, dy):
     s12 = c2 * (v1 - v2) + hardened_spring(k2, d12, kappa)
     if mu != 0.0:
         s12 += mu * math.tanh((v1 - v2) / veps)
+    s12 += link_loss(p[ILINK], p[ILINK_EXP], p[ILINK_REF], v1 - v2)
     s23 = c3 * (v2 - v3) + k3 * (x2 - x3)
     dy[IX1] = v1
     a1 = (fh - s12 - pc - tool_loss(dc, v1) + fm) / m1
@@ -257,9 +263,13 @@ PARAMS = (
                              "suspension_hardening": "the bit-exciter spring K2, φ = x1 − x2",
                              "sensor_lowpass": "the bit's recorded acceleration"}),
     *discrepancy_params({"contact": "in Pc of phase II, δ = x1 − xb, δ̇ = ẋ1", "tool": "on M1, v = ẋ1"}),
+    *strength_params("the slider's threshold Pr in phase III, ẋb its rate"),
+    *link_params(0.01, "the bit-exciter link, v = ẋ1 − ẋ2"),
 )
 DISC = vocabulary_at(PARAMS)   # the discrepancy terms' coefficients from here on (terms_at)
 IMODE = index_of(PARAMS, *MODE_PARAMS)[0]   # then its frequency and damping ratio
+(ISTRENGTH,) = index_of(PARAMS, STRENGTH)
+ILINK, ILINK_EXP, ILINK_REF = index_of(PARAMS, *LINK_PARAMS, LINK_REF)
 GAMMA, TAU, BETA, ALPHA, MU, KAPPA, FC = index_of(PARAMS, "gamma", "tau", "beta", "alpha", "mu", "kappa", "fc")
 NP = len(PARAMS)
 
@@ -393,9 +403,13 @@ SPEC = ModelSpec(
     # the δ δ̇ term takes Pc to 0 while K1 δ + C1 ẋ1 > 0 leaves the surface relaxing (phase I's base law) into the bit,
     # and the onset guard x1 − xt fires at once (event storms at some strengths); the independent reference treats
     # that overlap with two more events — the kernel's phase I would need the same before the term can be offered
-    discrepancy=("contact_quadratic", "contact_cubic", "tool_viscous", "tool_quadratic_drag", *MODE_PARAMS),
-    # the hidden mode from below the lab forcing (100-450 Hz) to above the lab contact mode (~500 Hz) x 10
-    discrepancy_bounds={**mode_bounds(100.0, 5000.0),
+    discrepancy=("contact_quadratic", "contact_cubic", "tool_viscous", "tool_quadratic_drag", *MODE_PARAMS, STRENGTH,
+                 *LINK_PARAMS),
+    # the hidden mode from below the lab forcing (100-450 Hz) to above the lab contact mode (~500 Hz) x 10; the
+    # rock's rate strength: the lab rock fails at ẋb ~ 0.013 m/s through C1 + η Pr, so η 1-1000 s/m is η Pr / C1
+    # from 0.75 % to 7.5x
+    # the link loss at the lab link's rms velocity 0.01 m/s, where its damping C2 carries ~500 N: 2-700 N
+    discrepancy_bounds={**mode_bounds(100.0, 5000.0), **strength_bounds(1.0, 1000.0), **link_bounds(2.0, 700.0),
                         "contact_quadratic": FitBound("contact_quadratic", 2e12, 2e15, "N/m^2"),
                         "contact_cubic": FitBound("contact_cubic", 5e17, 5e20, "N/m^3"),
                         "tool_viscous": FitBound("tool_viscous", 300.0, 3e4, "N s/m"),

@@ -20,7 +20,8 @@ The pendulum does not progress (observed progression 0).
 
 Effects (MODELS.md §6): ``rate_stiffening`` α [s/m] (0 = off); ``sensor_lowpass`` fc [Hz] on the recorded
 acceleration (``sim.models.sensor``).
-Discrepancy terms (sim.models.discrepancy; off at 0): the contact terms join Fi (and its indicator);
+Discrepancy terms (sim.models.discrepancy; off at 0): the contact terms join Fi (and its indicator), as does
+contact_exponent's shift of the elastic part's δ;
 tool_quadratic_drag is a tangential force −c (l θ̇)|l θ̇| on the hammer, θ̈ −= c l θ̇|θ̇| / m; load_path_mode's
 hidden mass pulls tangentially at the hammer, θ̈ += f / (m l), and shares the hammer's tangential acceleration
 l θ̈ − A0 Ω² sin Ωt cos θ + g sin θ (the cart's and gravity's tangential parts, which act on it as on the hammer).
@@ -34,8 +35,9 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
-from sim.models.discrepancy import (MODE_PARAMS, MODE_STATES, contact_extra, discrepancy_params, mode_accel,
-                                    mode_bounds, mode_force, terms_at, tool_loss, vocabulary_at)
+from sim.models.discrepancy import (EXPONENT_REF, EXPONENT_SHIFT, MODE_PARAMS, MODE_STATES, contact_extra,
+                                    discrepancy_params, exponent_bounds, exponent_params, mode_accel, mode_bounds, mode_force,
+                                    shaped, terms_at, tool_loss, vocabulary_at)
 from sim.models.effects import effect_params
 from sim.models.param import index_of
 from sim.models.contact import kelvin_voigt, released_force
@@ -57,10 +59,11 @@ GUARD_STATES = (ITH, IOM)     # the states the guards read (θ, θ̇): the only 
 
 
 @njit(cache=True, error_model="numpy")
-def _force_at(ki, alpha, ci, d, dd, dc):
+def _force_at(ki, alpha, ci, d, dd, dc, s, dref):
     """Spring–dashpot force expression ki (1 + α max(δ̇,0)) δ + ci δ̇ [N] (unclamped), from scalars, with the
-    discrepancy contact terms (dc: the vocabulary's coefficients, sim.models.discrepancy)."""
-    return kelvin_voigt(rate_stiffened(ki, alpha, dd), ci, d, dd) + contact_extra(dc, d, dd)
+    discrepancy contact terms (dc: the vocabulary's coefficients) and the contact exponent's shift s on the elastic
+    part's δ (reference penetration dref [m]; sim.models.discrepancy)."""
+    return kelvin_voigt(rate_stiffened(ki, alpha, dd), ci, shaped(d, s, dref), dd) + contact_extra(dc, d, dd)
 
 
 @njit(cache=True, inline="always")
@@ -73,7 +76,7 @@ def _delta(y, p, s, c):
 def _force_expr(y, p, s, c):
     """``_force_at`` of the state (s, c = sin θ, cos θ)."""
     d, dd = _delta(y, p, s, c)
-    return _force_at(p[KI], p[ALPHA], p[CI], d, dd, terms_at(p, DISC))
+    return _force_at(p[KI], p[ALPHA], p[CI], d, dd, terms_at(p, DISC), p[IEXP], p[IEXP_REF])
 
 
 @njit(cache=True, inline="always")
@@ -114,6 +117,7 @@ def guards(t, y, z, ph, p, g):
     om_ = y[IOM]
     lenp, gap, ki, ci, alpha = p[LEN], p[GAP], p[KI], p[CI], p[ALPHA]     # read before the branches (``_rhs_at``)
     dc = terms_at(p, DISC)
+    sh, dref = p[IEXP], p[IEXP_REF]
     if ph == 0 and th > -math.pi and lenp * th < gap:
         # free flight, certainly short of the stop: for θ ∈ (−π, 0) sin θ < 0, and for θ ≥ 0 sin θ ≤ θ, so
         # δ = l sin θ − gap < 0 and the guard min(δ, ·) is negative.  l θ − gap [m] is then returned instead of the
@@ -126,7 +130,7 @@ def guards(t, y, z, ph, p, g):
     else:
         s, c = math.sin(th), math.cos(th)
         d = lenp * s - gap
-        ind = _force_at(ki, alpha, ci, d, lenp * om_ * c, dc) / ki
+        ind = _force_at(ki, alpha, ci, d, lenp * om_ * c, dc, sh, dref) / ki
     two_indicator_guard(g, d, ind, ph)
 
 
@@ -189,10 +193,12 @@ PARAMS = (
                              "sensor_lowpass": "the hammer's recorded acceleration"}),
     *discrepancy_params({"contact": "in the load cell's expression, δ = l sin θ − gap, δ̇ = l θ̇ cos θ",
                          "tool": "tangential on the hammer, v = l θ̇"}),
+    *exponent_params(1.7e-5, "the load cell's ki δ, δ = l sin θ − gap"),
 )
 (ALPHA,) = index_of(PARAMS, "alpha")
 DISC = vocabulary_at(PARAMS)   # the discrepancy terms' coefficients from here on (terms_at)
 IMODE = index_of(PARAMS, *MODE_PARAMS)[0]   # then its frequency and damping ratio
+IEXP, IEXP_REF = index_of(PARAMS, EXPONENT_SHIFT, EXPONENT_REF)   # the contact exponent's shift and δ_r
 
 STATES = ("theta", "theta_dot", "work", *MODE_STATES)
 BOUNDED = ("theta", "theta_dot")
@@ -250,10 +256,11 @@ SPEC = ModelSpec(
     diagnose_chain=False,
     # discrepancy terms: penetration ~ 1.7e-5 m, hammer speed ~0.3 m/s; tool_viscous is left out: on l θ̇ it is
     # the calibratable free-swing damping zeta exactly
-    discrepancy=("contact_quadratic", "contact_cubic", "contact_rate_product", "tool_quadratic_drag", *MODE_PARAMS),
+    discrepancy=("contact_quadratic", "contact_cubic", "contact_rate_product", "tool_quadratic_drag", *MODE_PARAMS,
+                 EXPONENT_SHIFT),
     # (bounds measured at the default point: each probe strength moves the peak force by ~3-8 %)
     # the hidden mode from below the cart forcing (2.5-7.5 Hz) to well above the swing's harmonics
-    discrepancy_bounds={**mode_bounds(2.0, 200.0),
+    discrepancy_bounds={**mode_bounds(2.0, 200.0), **exponent_bounds(),
                         "contact_quadratic": FitBound("contact_quadratic", 1e10, 5e12, "N/m^2"),
                         "contact_cubic": FitBound("contact_cubic", 1e15, 3e17, "N/m^3"),
                         "contact_rate_product": FitBound("contact_rate_product", 3e6, 3e9, "N s/m^2"),

@@ -82,3 +82,14 @@ def test_models_lists_parameters(capsys):
     assert main(["models", "drill"]) == 0
     out = capsys.readouterr().out
     assert "seed-003" in out and "Pr" in out and "tip_blunting" in out
+
+
+def test_models_lists_a_candidates_parameters_only_where_the_model_offers_it(capsys):
+    """The contact exponent and its reference penetration on the pendulum; neither on the sandstone, whose contact
+    has its own exponents."""
+    assert main(["models", "pendulum"]) == 0
+    out = capsys.readouterr().out
+    assert "contact_exponent_shift" in out and "contact_exponent_ref_m" in out
+    assert main(["models", "indenter-sandstone"]) == 0
+    out = capsys.readouterr().out
+    assert "contact_exponent" not in out and "load_path_mode_hz" in out

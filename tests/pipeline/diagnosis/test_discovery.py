@@ -93,14 +93,18 @@ def test_proposal_names_round_trip():
 @pytest.mark.parametrize("system", ["drill", "indenter-metal", "indenter-sandstone", "pendulum", "rimd"])
 def test_the_hidden_mode_is_a_structured_candidate_of_every_model(system):
     """The hidden load-path mode is fitted as a proposal of its own (three parameters, with bounds), never screened
-    as a regression column."""
-    from sim.models.discrepancy import MODE, MODE_PARAMS
+    as a regression column; so are the contact exponent where the contact's elastic part is linear, the rock's
+    rate strength where a rock fails and the link loss where the impacting mass hangs on a suspension."""
+    from sim.models.discrepancy import EXPONENT, EXPONENT_SHIFT, LINK, LINK_PARAMS, MODE, MODE_PARAMS, STRENGTH
 
     structured = D.structured_candidates(system)
-    assert list(structured) == [MODE]
+    own = {"indenter-metal": [EXPONENT, LINK], "indenter-sandstone": [LINK], "pendulum": [EXPONENT],
+           "drill": [STRENGTH, LINK], "rimd": [LINK]}[system]
+    assert list(structured) == [MODE, *own]
     assert tuple(b.name for b in structured[MODE]) == MODE_PARAMS
-    assert all(0.0 < 10 ** b.bounds[0] < 10 ** b.bounds[1] for b in structured[MODE])
-    assert not set(MODE_PARAMS) & set(D.term_candidates(system))
+    for name in structured:
+        assert all(0.0 < 10 ** b.bounds[0] < 10 ** b.bounds[1] for b in structured[name])
+    assert not (set(MODE_PARAMS) | {EXPONENT_SHIFT, STRENGTH, *LINK_PARAMS}) & set(D.term_candidates(system))
 
 
 def test_a_structured_proposal_reports_its_parameters():
