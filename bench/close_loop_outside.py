@@ -5,9 +5,11 @@ operating point that maximises ROP over the log's own box (the controls its runs
 others at the log's values) is recommended by ``vibro optimise --simulator`` (its defaults) on three models:
 
 - ``lab``: the model the lab started from (the rig's preset, nothing fitted);
-- ``calibrated``: the diagnosis's corrected rig without its empirical correction (calibrated parameters);
-- ``corrected``: the corrected rig as written, with its empirical ROP correction when the diagnosis adopted one
-  ("empirical correction, physics unknown": ``pipeline.diagnosis.empirical``).
+- ``calibrated``: the diagnosis's corrected rig without its correction (the calibrated parameters, no adopted
+  discrepancy term, no empirical correction);
+- ``corrected``: the corrected rig as written, with the correction the diagnosis adopted: a structured discrepancy
+  term (``sim.models.discrepancy``) or an empirical ROP correction ("empirical correction, physics unknown":
+  ``pipeline.diagnosis.empirical``).
 
 Each recommendation is then run on the *true* rig (``tests.independent``: the scipy reference with the outside
 physics, from rest, ROP over ``--window`` cycles after ``--settle-s``), and compared with the true rig's best point
@@ -84,6 +86,13 @@ def recommend(rig_mapping: dict, varied: dict, fixed: dict, work: Path, trials: 
     return {"point": {**fixed, **rec["params"]}, "model_rop_m_s": rec["rop_m_s_sim"]}
 
 
+def correction_of(rig: dict) -> str:
+    """What a corrected rig mapping corrects with: its discrepancy terms, "empirical", or "none"."""
+    if rig.get("discrepancy"):
+        return "discrepancy: " + ", ".join(rig["discrepancy"])
+    return "empirical" if "empirical_correction" in rig else "none"
+
+
 def run_case(name: str, grid: int, trials: int, settle_s: float, window: int, workers: int) -> dict:
     import yaml
 
@@ -92,7 +101,7 @@ def run_case(name: str, grid: int, trials: int, settle_s: float, window: int, wo
     runs = pd.read_csv(WORK / "logs" / name / "runs.csv")
     varied, fixed = box(runs)
     corrected = yaml.safe_load((WORK / "diagnoses" / name / "rig.yaml").read_text())
-    calibrated = {k: v for k, v in corrected.items() if k != "empirical_correction"}
+    calibrated = {k: v for k, v in corrected.items() if k not in ("empirical_correction", "discrepancy")}
     lab = {"model": corrected["model"], **({"preset": corrected["preset"]} if corrected.get("preset") else {})}
     work = ROOT / "bench" / "results" / "close_loop_outside" / name
     recs = {m: recommend(r, varied, fixed, work / m, trials) for m, r in zip(MODELS, (lab, calibrated, corrected))}
@@ -106,7 +115,8 @@ def run_case(name: str, grid: int, trials: int, settle_s: float, window: int, wo
     scan = rops[:len(points)]
     best = int(np.argmax(scan))
     row = {"name": name, "system": system, "outside": outside, "box": varied, "fixed": fixed,
-           "empirical_adopted": "empirical_correction" in corrected, "grid": grid, "settle_s": settle_s,
+           "empirical_adopted": "empirical_correction" in corrected, "correction": correction_of(corrected),
+           "grid": grid, "settle_s": settle_s,
            "window_cycles": window, "true_best_rop_m_s": scan[best], "true_best_point": points[best],
            "reference_s": round(time.time() - t0, 1)}
     for m, r in zip(MODELS, rops[len(points):]):
@@ -115,7 +125,7 @@ def run_case(name: str, grid: int, trials: int, settle_s: float, window: int, wo
 
 
 def table(rows: list[dict]) -> str:
-    head = ("| log | empirical correction adopted | true rig's best on the grid [mm/s] | lab model's point | "
+    head = ("| log | correction adopted | true rig's best on the grid [mm/s] | lab model's point | "
             "calibrated model's point | corrected model's point |")
     lines = [head, "|---|---|---|---|---|---|"]
     for r in rows:
@@ -124,7 +134,8 @@ def table(rows: list[dict]) -> str:
             x = r[m]
             p = ", ".join(f"{k} {v:.4g}" for k, v in x["point"].items() if k in r["box"])
             cells.append(f"{1e3 * x['true_rop_m_s']:.3g} mm/s ({100 * x['ratio']:.1f} %) at {p}")
-        lines.append(f"| {r['name']} | {'yes' if r['empirical_adopted'] else 'no'} | "
+        word = r.get("correction") or ("empirical" if r["empirical_adopted"] else "none")
+        lines.append(f"| {r['name']} | {word} | "
                      f"{1e3 * r['true_best_rop_m_s']:.3g} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
