@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -104,6 +105,7 @@ def run_case(name: str, grid: int, trials: int, settle_s: float, window: int, wo
     calibrated = {k: v for k, v in corrected.items() if k not in ("empirical_correction", "discrepancy")}
     lab = {"model": corrected["model"], **({"preset": corrected["preset"]} if corrected.get("preset") else {})}
     work = ROOT / "bench" / "results" / "close_loop_outside" / name
+    shutil.rmtree(work, ignore_errors=True)       # a study from an earlier run would be resumed, not redone
     recs = {m: recommend(r, varied, fixed, work / m, trials) for m, r in zip(MODELS, (lab, calibrated, corrected))}
     axes = [np.linspace(lo, hi, grid if n == "frequency_hz" else 3) for n, (lo, hi) in varied.items()]
     points = [{**fixed, **dict(zip(varied, v))} for v in np.array(np.meshgrid(*axes, indexing="ij")).reshape(
