@@ -16,18 +16,17 @@ import uuid
 
 from optuna.storages.journal import JournalFileSymlinkLock
 
-LOCK_SUFFIX = ".lock"
 RENAME_SUFFIX = ".rename"
 
 
 class LinkAgeLock(JournalFileSymlinkLock):
-    """optuna's symbolic-link lock ``<journal>.lock``, broken after ``grace_period_s`` [s] without a new link."""
+    """optuna's symbolic-link lock ``<journal>.lock`` (its paths and its ``release``), broken after
+    ``grace_period_s`` [s] without a new link."""
 
     def __init__(self, journal_path: str, grace_period_s: float = 30.0) -> None:
         if grace_period_s <= 0:
             raise ValueError("grace_period_s must be positive")
-        self._target = journal_path
-        self._lock_file = journal_path + LOCK_SUFFIX
+        super().__init__(journal_path, grace_period=None)     # optuna's own ageing stays off
         self.grace_period_s = grace_period_s
 
     def acquire(self) -> bool:
@@ -35,7 +34,7 @@ class LinkAgeLock(JournalFileSymlinkLock):
         sleep_s, seen, seen_since = 0.001, None, time.monotonic()
         while True:
             try:
-                os.symlink(self._target, self._lock_file)
+                os.symlink(self._lock_target_file, self._lock_file)
                 return True
             except OSError as err:
                 if err.errno != errno.EEXIST:
@@ -52,15 +51,6 @@ class LinkAgeLock(JournalFileSymlinkLock):
                 continue
             time.sleep(sleep_s)
             sleep_s = min(2 * sleep_s, 1.0)
-
-    def release(self) -> None:
-        """Remove the link; RuntimeError if this process no longer holds it."""
-        moved = self._lock_file + str(uuid.uuid4()) + RENAME_SUFFIX
-        try:
-            os.rename(self._lock_file, moved)
-        except OSError:
-            raise RuntimeError("Error: did not possess lock") from None
-        os.unlink(moved)
 
     def _break(self, identity: tuple) -> None:
         """Remove the stale link, unless it was replaced since it was judged stale."""
