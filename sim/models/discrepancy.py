@@ -18,11 +18,10 @@ impacting mass (an extra mode in the load path), three parameters (``MODE_PARAMS
 ratio) and two more states (``MODE_STATES``, after the model's own; off while the ratio is 0).  The second,
 ``contact_exponent``, makes the elastic part of a linear contact law a free power of the penetration (one parameter,
 the exponent's shift, ``EXPONENT_SHIFT``; its reference penetration ``EXPONENT_REF`` is the model's, not fitted), on
-the models whose contact's elastic part is linear (``exponent_params``, ``shaped``).  The third, ``rock_rate_strength``,
-raises a failing rock's threshold with its failure rate (the drill's slider; ``strength_params``); the fourth,
-``link_power_loss``, a loss in the impacting mass's suspension with a free power of the relative velocity
-(``link_params``, ``link_loss``).  Not in the
-vocabulary: a first-order lag on the forcing (where a model has ``shaker_coil``, its τ is that lag); a cubic spring
+the models whose contact's elastic part is linear (``exponent_params``, ``shaped``).  The third,
+``rock_rate_strength``, raises a failing rock's threshold with its failure rate (the drill's slider;
+``strength_params``); the fourth, ``link_power_loss``, a loss in the impacting mass's suspension with a free power
+of the relative velocity (``link_params``, ``link_loss``).  Not in the vocabulary: a first-order lag on the forcing (where a model has ``shaker_coil``, its τ is that lag); a cubic spring
 is §6 ``suspension_hardening``.
 """
 from __future__ import annotations
@@ -164,7 +163,8 @@ at the rate ẋb."""
 STRENGTH_MAX = 1e4
 """Largest η accepted [s/m]: far beyond the fit bounds, below typos."""
 STRUCTURED[STRENGTH] = Structured(
-    STRENGTH, (STRENGTH,), ("s/m",), CONTACT, "P_r → P_r (1 + η ẋ_b): ẋ_b = (P_c − P_r) / (C_1 + η P_r)", "contact",
+    STRENGTH, (STRENGTH,), ("s/m",), CONTACT, "P_r → P_r (1 + η ẋ_b): ẋ_b = (P_c − P_r) / (C_1 + η P_r)",
+    "contact",
     "a rock whose failure threshold rises with the rate of failure (dynamic strength increase)")
 
 LINK = "link_power_loss"

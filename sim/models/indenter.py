@@ -16,8 +16,9 @@ Effects (MODELS.md §6; all off at their default 0):
   sensor_lowpass (fc [Hz]: applied to the recorded acceleration, ``sim.models.sensor``).
 
 Discrepancy terms (sim.models.discrepancy; off at 0): the metal's Kelvin–Voigt expression gains the contact terms
-(δ = x1 − G, δ̇ = ẋ1, also in its force indicator) and contact_exponent's shift on its elastic part's δ; both samples take the tool terms on m1 (v = ẋ1) and the
-load_path_mode's hidden mass on m1 and link_power_loss c (|v|/v_r)^p sgn v in the armature's flexure (v = ẋ1 − ẋ2).
+(δ = x1 − G, δ̇ = ẋ1, also in its force indicator) and contact_exponent's shift on its elastic part's δ; both
+samples take the tool terms on m1 (v = ẋ1), the load_path_mode's hidden mass on m1 and link_power_loss
+c (|v|/v_r)^p sgn v in the armature's flexure (v = ẋ1 − ẋ2).
 """
 from __future__ import annotations
 

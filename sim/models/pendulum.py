@@ -36,8 +36,8 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
 from sim.models.discrepancy import (EXPONENT_REF, EXPONENT_SHIFT, MODE_PARAMS, MODE_STATES, contact_extra,
-                                    discrepancy_params, exponent_bounds, exponent_params, mode_accel, mode_bounds, mode_force,
-                                    shaped, terms_at, tool_loss, vocabulary_at)
+                                    discrepancy_params, exponent_bounds, exponent_params, mode_accel, mode_bounds,
+                                    mode_force, shaped, terms_at, tool_loss, vocabulary_at)
 from sim.models.effects import effect_params
 from sim.models.param import index_of
 from sim.models.contact import kelvin_voigt, released_force

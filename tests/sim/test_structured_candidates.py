@@ -4,8 +4,8 @@ of the same physics (tests/independent/kinds.py: the scipy reference with event 
 
 - ``contact_exponent`` (indenter-metal, pendulum): the elastic part of a linear contact law k δ becomes
   k δ_r (δ₊/δ_r)^(1+s); the generator's ``contact_exponent`` with nc = 1 + s, delta_r = δ_r;
-- ``rock_rate_strength`` (drill): the failing rock's threshold Pr → Pr (1 + η ẋb); the generator's ``rate_strength``
-  with eta_r = η;
+- ``rock_rate_strength`` (drill): the failing rock's threshold Pr → Pr (1 + η ẋb); the generator's
+  ``rate_strength`` with eta_r = η;
 - ``link_power_loss`` (drill, indenters, RIMD): a loss c (|v|/v_r)^p sgn v in the impacting mass's suspension; the
   generator's ``power_damping`` cp |v|^pd sgn v with c = cp v_r^pd, p = pd.
 
