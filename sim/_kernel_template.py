@@ -4,12 +4,12 @@ Not imported directly.  The generated module defines, before this text, the mode
 numba functions as globals ``rhs, guards, on_event, observe, bounded`` (``rhs`` and ``guards`` inlined where the
 step calls them; ``rhs_once`` and ``guards_once``, the same functions called once per cycle or switch), the
 counts ``N_BOUNDED`` and ``N_GUARDS``, the tuple ``GUARD_STATES``, the index ``IW`` of the excitation work in the
-state and ``IMODE`` of the hidden mode's mass ratio in the parameters (see the model interface in sim.integrator).
+state and ``HIDDEN_SWITCHES``, the parameters that switch on a mode in the hidden states (mass ratios) (see the model interface in sim.integrator).
 Binding them as globals, rather than passing them as arguments, is what lets numba cache the compiled kernel on disk
 and release the GIL.
 """
 # ruff: noqa: F821  (rhs, guards, rhs_once, guards_once, on_event, observe, bounded, N_BOUNDED, N_GUARDS,
-# GUARD_STATES, IW, IMODE: bound by sim.compiled)
+# GUARD_STATES, IW, HIDDEN_SWITCHES: bound by sim.compiled)
 import numpy as np
 
 from sim.integrator import *  # noqa: F401,F403  constants and helpers
@@ -258,9 +258,13 @@ def integrate_cycles(p, y, z, ph_arr, t0, period, n_cycles, s,
     Returns the end time.
     """
     ny = y.shape[0]
-    # the RMS error counts the hidden mode's two states (the last two) only while the mode is on: off, they stay 0
-    # and the norm is the base model's, bit for bit
-    n_err = ny if p[IMODE] != 0.0 else ny - 2
+    # the RMS error counts the hidden mode's two states (the last two) only while a mode that uses them is on: off,
+    # they stay 0 and the norm is the base model's, bit for bit
+    hidden = False
+    for i in HIDDEN_SWITCHES:
+        if p[i] != 0.0:
+            hidden = True
+    n_err = ny if hidden else ny - 2
     ng = N_GUARDS
     rtol = s[S_RTOL]
     # views of the run's workspace (allocated once per run_point, not per call)

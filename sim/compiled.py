@@ -28,7 +28,7 @@ import numba as _numba
 from numba import njit as _njit
 from sim.cachedir import jit_cache_dir as _jit_cache_dir
 _numba.config.CACHE_DIR = str(_jit_cache_dir())   # before the first cache=True decorator below
-from {mod} import N_GUARDS, GUARD_STATES, IW, IMODE, {rhs} as _rhs, {guards} as _guards, {on_event} as _on_event, {observe} as _observe, {bounded} as _bounded
+from {mod} import N_GUARDS, GUARD_STATES, IW, HIDDEN_SWITCHES, {rhs} as _rhs, {guards} as _guards, {on_event} as _on_event, {observe} as _observe, {bounded} as _bounded
 from sim.compiled import inline_calls as _inline_calls
 from sim.integrator import ERRORS as _ERRORS
 # rhs and guards re-jitted for inlining into the integration step: a call across a compiled-function boundary costs

@@ -81,6 +81,8 @@ non-zero term that does not apply is an error)
   - rimd: Fi = max(0, HC + extras) in contact, HC the Hunt-Crossley expression, d = x2 - gap, d' = x2'; the
     contact indicators stay d >= 0 and 1 + lambda_i x2' > 0 (so Fi may be 0 inside contact when cp x2' < 0).
   - indenter-sandstone: none (a non-zero contact term is an error).
+* ``contact_drift_m_s`` a [m/s] (indenter-metal, pendulum; ``DRIFT``): the struck surface at gap + a t, so
+  d = x - gap - a t and d' = x' - a wherever d and d' appear (the force, both indicators and their rates).
 * tool terms, a force on the impacting mass: ``tool_viscous`` cv [N s/m] -cv v, ``tool_quadratic_drag`` cd
   [N s^2/m^2] -cd v |v|: drill M1 (v = x1'), indenter m1 (v = x1', both samples), rimd hammer m2 (v = x2');
   pendulum: tangential on the hammer, v = l th' (relative to the cart): th'' += -(cv th' + cd l th' |th'|) / m.
@@ -162,6 +164,13 @@ DISCREPANCY = {
     "pendulum": DISCREPANCY_PARAMS,
     "rimd": DISCREPANCY_PARAMS,
 }
+
+
+DRIFT = "contact_drift_m_s"
+DRIFT_MODELS = ("indenter-metal", "pendulum")
+"""A contact whose position moves at a steady rate a [m/s] from t = 0 (>= 0, off at 0): the struck surface at
+gap + a t (t the absolute time: the cycle's start ``t_cycle0`` + the cycle's time), so d = x - (gap + a t) and
+d' = x' - a everywhere d and d' appear (force, both indicators, their rates)."""
 
 
 def _req(params: dict, names, model: str) -> dict:
@@ -260,6 +269,10 @@ class _Model:
         self.tv, self.td = p["tool_viscous"], p["tool_quadratic_drag"]
         self.dcon = bool(self.dq or self.dc or self.dp)
         self.dtool = bool(self.tv or self.td)
+        self.t_cycle0 = 0.0
+        self.t_now = 0.0        # the cycle's time of the last rhs call (the force helpers' signatures carry no t)
+        own = (DRIFT,) if self.name in DRIFT_MODELS else ()
+        self.drift = _switched_params(params, self.name, (DRIFT,), own, "discrepancy candidate").get(DRIFT, 0.0)
 
     def _init_sensor(self):
         """sensor_lowpass: z'' + sqrt(2) wc z' + wc^2 z = wc^2 a(t), two states after W (call once scales is set)."""
@@ -687,38 +700,45 @@ class _IndenterMetal(_TwoIndicatorModel, _IndenterBase):
         self.t_kv = self.p["c1"] / self.p["k1"]
         self.bscales = np.array([1, self.Om, 1, self.Om])
 
+    def _pen(self, t, x1, v1):
+        """Penetration and its rate of the (drifting) face G + a t."""
+        return x1 - self.G - self.drift * (self.t_cycle0 + t), v1 - self.drift
+
     def _Fr(self, y):
         p = self.p
-        F = p["k1"] * (1.0 + self.alpha * max(y[1], 0.0)) * (y[0] - self.G) + p["c1"] * y[1]
+        d, dd = self._pen(self.t_now, y[0], y[1])
+        F = p["k1"] * (1.0 + self.alpha * max(dd, 0.0)) * d + p["c1"] * dd
         if self.dcon:
-            F += _extra(y[0] - self.G, y[1], self.dq, self.dc, self.dp)
+            F += _extra(d, dd, self.dq, self.dc, self.dp)
         return max(0.0, F)
 
     def rhs(self, t, y, br, disc):
+        self.t_now = t
         return self._body(t, y, self._Fr(y) if br == 1 else 0.0)
 
     def indicators(self, t, y):
-        d = y[0] - self.G
-        g1, g2 = _stiffened_indicators(d, y[1], self.alpha, self.t_kv)
+        d, dd = self._pen(t, y[0], y[1])
+        g1, g2 = _stiffened_indicators(d, dd, self.alpha, self.t_kv)
         if self.dcon:
-            g2 = g2 + _extra_vec(d, y[1], self.dq, self.dc, self.dp) / self.p["k1"]
+            g2 = g2 + _extra_vec(d, dd, self.dq, self.dc, self.dp) / self.p["k1"]
         return g1, g2
 
     def rates(self, t, y):
         a1 = self._body(t, y, 0.0)[1]
-        d = y[0] - self.G
-        r1, r2 = _stiffened_rates(d, y[1], a1, self.alpha, self.t_kv)
+        d, dd = self._pen(t, y[0], y[1])
+        r1, r2 = _stiffened_rates(d, dd, a1, self.alpha, self.t_kv)
         if self.dcon:
-            r2 += _extra_rate(d, y[1], a1, self.dq, self.dc, self.dp) / self.p["k1"]
+            r2 += _extra_rate(d, dd, a1, self.dq, self.dc, self.dp) / self.p["k1"]
         return r1, r2
 
     def force(self, t, Y, br, disc):
         if br == 0:
             return np.zeros_like(t)
         p = self.p
-        F = p["k1"] * (1.0 + self.alpha * np.maximum(Y[1], 0.0)) * (Y[0] - self.G) + p["c1"] * Y[1]
+        d, dd = self._pen(t, Y[0], Y[1])
+        F = p["k1"] * (1.0 + self.alpha * np.maximum(dd, 0.0)) * d + p["c1"] * dd
         if self.dcon:
-            F = F + _extra_vec(Y[0] - self.G, Y[1], self.dq, self.dc, self.dp)
+            F = F + _extra_vec(d, dd, self.dq, self.dc, self.dp)
         return np.maximum(F, 0.0)
 
     def accel(self, t, Y, br, disc):
@@ -896,8 +916,8 @@ class _Pendulum(_TwoIndicatorModel):
 
     def _Fi(self, th, om):
         p = self.p
-        d = self.l * math.sin(th) - self.gap
-        dd = self.l * om * math.cos(th)
+        d = self.l * math.sin(th) - self.gap - self.drift * (self.t_cycle0 + self.t_now)
+        dd = self.l * om * math.cos(th) - self.drift
         F = p["ki"] * (1.0 + self.alpha * max(dd, 0.0)) * d + p["ci"] * dd
         if self.dcon:
             F += _extra(d, dd, self.dq, self.dc, self.dp)
@@ -905,6 +925,7 @@ class _Pendulum(_TwoIndicatorModel):
 
     def rhs(self, t, y, br, disc):
         th, om = y[0], y[1]
+        self.t_now = t
         Fi = self._Fi(th, om) if br == 1 else 0.0
         W = self.m * self.l * self.A0 * self.Om ** 2 * math.sin(self.Om * t) * math.cos(th) * om
         return [om, self._thdd(t, th, om, Fi), W]
@@ -916,7 +937,8 @@ class _Pendulum(_TwoIndicatorModel):
 
     def indicators(self, t, y):
         th, om = y[0], y[1]
-        d, dd = self.l * np.sin(th) - self.gap, self.l * om * np.cos(th)
+        d = self.l * np.sin(th) - self.gap - self.drift * (self.t_cycle0 + t)
+        dd = self.l * om * np.cos(th) - self.drift
         g1, g2 = _stiffened_indicators(d, dd, self.alpha, self.t_kv)
         if self.dcon:
             g2 = g2 + _extra_vec(d, dd, self.dq, self.dc, self.dp) / self.p["ki"]
@@ -924,10 +946,10 @@ class _Pendulum(_TwoIndicatorModel):
 
     def rates(self, t, y):
         th, om = y[0], y[1]
-        dd = self.l * om * math.cos(th)
+        dd = self.l * om * math.cos(th) - self.drift
         thdd = self._thdd(t, th, om, 0.0)
         ddd = self.l * (thdd * math.cos(th) - om * om * math.sin(th))
-        d = self.l * math.sin(th) - self.gap
+        d = self.l * math.sin(th) - self.gap - self.drift * (self.t_cycle0 + t)
         r1, r2 = _stiffened_rates(d, dd, ddd, self.alpha, self.t_kv)
         if self.dcon:
             r2 += _extra_rate(d, dd, ddd, self.dq, self.dc, self.dp) / self.p["ki"]
@@ -937,8 +959,8 @@ class _Pendulum(_TwoIndicatorModel):
         if br == 0:
             return np.zeros_like(t)
         p = self.p
-        dd = self.l * Y[1] * np.cos(Y[0])
-        d = self.l * np.sin(Y[0]) - self.gap
+        dd = self.l * Y[1] * np.cos(Y[0]) - self.drift
+        d = self.l * np.sin(Y[0]) - self.gap - self.drift * (self.t_cycle0 + t)
         F = p["ki"] * (1.0 + self.alpha * np.maximum(dd, 0.0)) * d + p["ci"] * dd
         if self.dcon:
             F = F + _extra_vec(d, dd, self.dq, self.dc, self.dp)
@@ -1299,6 +1321,7 @@ def _integrate(fun, t0, y0, t1, events, method, rtol, atol, max_step, T, n_sub=N
 # =====================================================================================================
 def _run_cycle(m, y, disc, kwin, phase, rec, t_cycle0, solver_kw, max_events_per_cycle):
     T = m.T
+    m.t_cycle0 = t_cycle0      # the models see the cycle's time; a drifting contact reads the absolute one
     tiny = 1e-13 * T
     tau = 0.0
     n_ev = 0

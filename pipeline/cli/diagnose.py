@@ -49,7 +49,11 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
    (load_path_mode_ratio, _hz, _zeta: a hidden mass on a spring and damper at the impacting mass), the contact
    exponent (pendulum, metal indenter; contact_exponent_shift s: k δ → k δ_r (δ₊/δ_r)^(1+s)), the rock's rate
    strength (drill; rock_rate_strength η: Pr → Pr (1 + η ẋb)) and a loss in the impacting mass's suspension
-   (drill, indenters, RIMD; link_power_loss_n c, _exponent p: c (|v|/v_r)^p sgn v) are re-fitted and judged
+   (drill, indenters, RIMD; link_power_loss_n c, _exponent p: c (|v|/v_r)^p sgn v), a contact that drifts
+   through a run (pendulum, metal indenter; contact_drift_m_s a: x_c = G + a t) and dry friction at a support
+   (pendulum pivot, RIMD clamp, indenter carriages; support_friction_n μ: μ tanh(v/v_ε)), the stop on a
+   compliant mount (RIMD, metal indenter; stop_mode_ratio, _hz, _zeta) and a mode in the drive (RIMD beam,
+   drill exciter; drive_mode_ratio, _hz, _zeta) are re-fitted and judged
    on the held-out runs by the rule of step 4; a proposal is fitted only where every fold's calibration runs hold
    at least 2 measured numbers per free parameter (a summary log of a few runs fits none, and says so).
    report.json 'discrepancy' ranks them (terms in words and symbols, coefficients with sd, held-out error against

@@ -13,7 +13,7 @@ declarations at import (``site_source``: a Horner form in the site's first varia
 coefficients of the whole block once (``terms_at(p, first)``, ``first`` from ``vocabulary_at``): a new term is one
 line here, its reference in tests/reference_solutions.py and its visible strengths.
 
-Four *structured* candidates sit beside the terms.  ``load_path_mode`` is a hidden mass on a spring and damper at the
+Eight *structured* candidates sit beside the terms.  ``load_path_mode`` is a hidden mass on a spring and damper at the
 impacting mass (an extra mode in the load path), three parameters (``MODE_PARAMS``: mass ratio, frequency, damping
 ratio) and two more states (``MODE_STATES``, after the model's own; off while the ratio is 0).  The second,
 ``contact_exponent``, makes the elastic part of a linear contact law a free power of the penetration (one parameter,
@@ -21,8 +21,14 @@ the exponent's shift, ``EXPONENT_SHIFT``; its reference penetration ``EXPONENT_R
 the models whose contact's elastic part is linear (``exponent_params``, ``shaped``).  The third,
 ``rock_rate_strength``, raises a failing rock's threshold with its failure rate (the drill's slider;
 ``strength_params``); the fourth, ``link_power_loss``, a loss in the impacting mass's suspension with a free power
-of the relative velocity (``link_params``, ``link_loss``).  Not in the vocabulary: a first-order lag on the forcing (where a model has ``shaker_coil``, its τ is that lag); a cubic spring
-is §6 ``suspension_hardening``.
+of the relative velocity (``link_params``, ``link_loss``); the fifth, ``contact_drift``, a contact position that
+moves at a steady rate through a run (``drift_params``, ``drifted``); the sixth, ``support_friction``, a dry
+friction at a support other than the tool's guides (``support_params``; the kernels call
+``sim.models.terms.guide_friction``'s regularised Coulomb law there).  ``stop_mode`` and ``drive_mode`` put the
+hidden mode's mass elsewhere in the load path: under the stop (a compliant mount: ``stop_state``, ``stop_accel``) or
+on the body that carries the drive (``mode_force``, ``mode_accel`` there); they use the same two hidden states, one
+mode at a time (``HIDDEN_MODES``).  Not in the vocabulary: a first-order lag on
+the forcing (where a model has ``shaker_coil``, its τ is that lag); a cubic spring is §6 ``suspension_hardening``.
 """
 from __future__ import annotations
 
@@ -180,7 +186,53 @@ STRUCTURED[LINK] = Structured(
     "a loss in the impacting mass's suspension that grows as a power of the relative velocity (an elastomer or "
     "squeeze-film loss)")
 
-COMPANION: dict[str, str] = {EXPONENT_REF: EXPONENT_SHIFT, LINK_REF: LINK_PARAMS[0]}
+DRIFT = "contact_drift"
+DRIFT_RATE = "contact_drift_m_s"
+"""The contact position's drift rate a [m/s] (0 = off; > 0 the contact recedes, as a worn tip or sample face does)."""
+DRIFT_MAX = 1.0
+"""Largest drift rate accepted [m/s]: far beyond the fit bounds, below typos."""
+STRUCTURED[DRIFT] = Structured(
+    DRIFT, (DRIFT_RATE,), ("m/s",), CONTACT, "x_c(t) = G + a t: δ = x − x_c(t), δ̇ = ẋ − a", "drift",
+    "a contact position that moves steadily through a run (wear of the tip or the sample face, creep of the mount, "
+    "thermal growth), from the run's start at rest")
+
+SUPPORT = "support_friction"
+SUPPORT_FORCE = "support_friction_n"
+"""The support's dry friction force μ [N] (0 = off)."""
+SUPPORT_VEPS = "support_friction_v_eps_m_s"
+"""Its regularisation speed [m/s] (MODELS.md §1's Coulomb law, tanh(v / v_eps)); not fitted."""
+SUPPORT_MAX = 1e4
+"""Largest support friction accepted [N]: far beyond the fit bounds, below typos."""
+STRUCTURED[SUPPORT] = Structured(
+    SUPPORT, (SUPPORT_FORCE,), ("N",), TOOL, "F_s −= μ tanh(v / v_ε) at a support (not the tool's guides)",
+    "friction",
+    "dry friction at a support other than the tool's guides (a pivot, a clamp, a body's carriages on the ground)")
+
+STOP_MODE = "stop_mode"
+STOP_MODE_PARAMS = ("stop_mode_ratio", "stop_mode_hz", "stop_mode_zeta")
+"""A compliant mount under the stop: its mass ms over the impacting mass's [-] (0 = off), its frequency on its mount
+fs [Hz] and damping ratio ζs [-]: ks = ms (2π fs)², cs = 2 ζs ms 2π fs.  Its states are ``MODE_STATES`` (the mount's
+displacement from rest [m] and rate): a model's hidden states hold one mode at a time."""
+STRUCTURED[STOP_MODE] = Structured(
+    STOP_MODE, STOP_MODE_PARAMS, ("-", "Hz", "-"), CONTACT,
+    "m_s ẍ_s = F_c − k_s x_s − c_s ẋ_s, δ = x − G − x_s, δ̇ = ẋ − ẋ_s", "mode",
+    "a compliant mount with inertia under the stop or the sample: the struck surface is a mass on a spring and "
+    "damper to the ground")
+
+DRIVE_MODE = "drive_mode"
+DRIVE_MODE_PARAMS = ("drive_mode_ratio", "drive_mode_hz", "drive_mode_zeta")
+"""A mode inside the drive: a hidden mass md over the driving body's [-] (0 = off) on a spring and damper at the body
+that carries the forcing, its frequency with the body held fd [Hz] and damping ratio ζd [-].  Its states are
+``MODE_STATES`` (relative to the driving body)."""
+STRUCTURED[DRIVE_MODE] = Structured(
+    DRIVE_MODE, DRIVE_MODE_PARAMS, ("-", "Hz", "-"), TOOL,
+    "m_d (ẍ_d + a_drive) = −k_d x_d − c_d ẋ_d, F_drive += k_d x_d + c_d ẋ_d", "mode",
+    "a mode inside the drive: a hidden mass on a spring and damper at the body that carries the forcing")
+
+HIDDEN_MODES = (MODE, STOP_MODE, DRIVE_MODE)
+"""The candidates that use the hidden states ``MODE_STATES``: at most one on at a time."""
+
+COMPANION: dict[str, str] = {EXPONENT_REF: EXPONENT_SHIFT, LINK_REF: LINK_PARAMS[0], SUPPORT_VEPS: SUPPORT_FORCE}
 """Parameters that shape a candidate without being fitted -> the candidate's parameter they belong to."""
 
 CANDIDATES: dict[str, Term | Structured] = {**TERMS, **STRUCTURED}
@@ -229,15 +281,17 @@ def probe_value(b: FitBound) -> float:
     return float(10 ** (lo + PROBE_AT * (hi - lo)))
 
 
-def mode_bounds(hz_lo: float, hz_hi: float) -> dict[str, FitBound]:
+def mode_bounds(hz_lo: float, hz_hi: float, names: Sequence[str] = MODE_PARAMS,
+                ratio: tuple[float, float] = (0.02, 2.0)) -> dict[str, FitBound]:
     """Fit bounds of the hidden mode: its frequency in [hz_lo, hz_hi] [Hz] (a model's own: from below its forcing to
     well above its contact's harmonics), a mass of 2 % to 2x the impacting mass's and a damping ratio 0.5-50 %.
     The residual is multimodal in the frequency (each harmonic the mode meets): its start grid takes ~7 points per
-    decade, the mass 3 and the damping 2."""
+    decade, the mass 3 and the damping 2.  ``names``: the mode's three parameters (a stop or drive mode's), ``ratio``
+    the mass ratio's bounds (a mount may outweigh the impacting mass)."""
     n_hz = max(4, round(7 * math.log10(hz_hi / hz_lo)))
-    return {"load_path_mode_ratio": FitBound("load_path_mode_ratio", 0.02, 2.0, "-", grid=3),
-            "load_path_mode_hz": FitBound("load_path_mode_hz", hz_lo, hz_hi, "Hz", grid=n_hz),
-            "load_path_mode_zeta": FitBound("load_path_mode_zeta", 0.005, 0.5, "-", grid=2)}
+    r, hz, zeta = names
+    return {r: FitBound(r, ratio[0], ratio[1], "-", grid=3), hz: FitBound(hz, hz_lo, hz_hi, "Hz", grid=n_hz),
+            zeta: FitBound(zeta, 0.005, 0.5, "-", grid=2)}
 
 
 def exponent_bounds() -> dict[str, FitBound]:
@@ -263,6 +317,16 @@ def discrepancy_params(acts_on: Mapping[str, str]) -> tuple[Param, ...]:
         out.append(Param(name, 0.0, unit, f"discrepancy {MODE} ({mode.words}, {acts_on.get(TOOL, '')}): its {w}",
                          nonnegative=True, most=hi))
     return tuple(out)
+
+
+def site_mode_params(name: str, acts_on: str) -> tuple[Param, ...]:
+    """The parameters of a hidden mode at another site than the impacting mass (``STOP_MODE``, ``DRIVE_MODE``;
+    ``acts_on``: which body and what the mass ratio is of), 0 (off) by default and ≥ 0."""
+    mode = STRUCTURED[name]
+    what = ("mass ratio (0 = off)", "frequency", "damping ratio")
+    return tuple(Param(q, 0.0, unit, f"discrepancy {name} ({mode.words}; {acts_on}): its {w}", nonnegative=True,
+                       most=hi)
+                 for q, unit, w, hi in zip(mode.params, mode.units, what, (MODE_MAX_RATIO, math.inf, MODE_MAX_ZETA)))
 
 
 def exponent_params(ref_m: float, acts_on: str) -> tuple[Param, ...]:
@@ -306,6 +370,35 @@ def link_bounds(force_lo: float, force_hi: float) -> dict[str, FitBound]:
     from 1 (viscous) to 4, each fitted in log10 from a start grid of 3."""
     return {LINK_PARAMS[0]: FitBound(LINK_PARAMS[0], force_lo, force_hi, "N", grid=3),
             LINK_PARAMS[1]: FitBound(LINK_PARAMS[1], 1.0, 4.0, "-", grid=3)}
+
+
+def drift_params(acts_on: str) -> tuple[Param, ...]:
+    """The contact-drift candidate's parameter of a model with a contact at a fixed position (``acts_on``: which
+    position and penetration), 0 (off) by default."""
+    return (Param(DRIFT_RATE, 0.0, "m/s", f"discrepancy {DRIFT} ({acts_on}): the rate a of {STRUCTURED[DRIFT].form}, "
+                  "t from the run's start; 0 = off", nonnegative=True, most=DRIFT_MAX),)
+
+
+def drift_bounds(lo: float, hi: float) -> dict[str, FitBound]:
+    """Fit bounds [m/s] of the contact's drift rate (a model's own: from ~5 % to ~30x its typical penetration over
+    a run), fitted in log10 from a start grid of 3."""
+    return {DRIFT_RATE: FitBound(DRIFT_RATE, lo, hi, "m/s", grid=3)}
+
+
+def support_params(acts_on: str) -> tuple[Param, ...]:
+    """The support-friction candidate's parameters of a model with a support that can rub (``acts_on``: which body,
+    v its velocity): the force, 0 (off) by default, and its regularisation speed (MODELS.md §1's 1e-4 m/s)."""
+    form = STRUCTURED[SUPPORT].form
+    return (Param(SUPPORT_FORCE, 0.0, "N", f"discrepancy {SUPPORT} ({acts_on}): the force μ of {form}; 0 = off",
+                  nonnegative=True, most=SUPPORT_MAX),
+            Param(SUPPORT_VEPS, 1e-4, "m/s", f"discrepancy {SUPPORT}: the regularisation speed v_ε of {form} (not "
+                  "fitted)", positive=True))
+
+
+def support_bounds(lo: float, hi: float) -> dict[str, FitBound]:
+    """Fit bounds [N] of the support's friction force (a model's own, for the forces on that body), fitted in
+    log10 from a start grid of 3."""
+    return {SUPPORT_FORCE: FitBound(SUPPORT_FORCE, lo, hi, "N", grid=3)}
 
 
 def vocabulary_at(params: Sequence[Param]) -> int:
@@ -390,6 +483,12 @@ def shaped(d, s, dref):
 
 
 @njit(cache=True, error_model="numpy")
+def drifted(gap, a, t):
+    """The contact position [m] at time t [s] of a contact at gap [m] drifting at a [m/s]: exactly gap while a = 0."""
+    return gap + a * t
+
+
+@njit(cache=True, error_model="numpy")
 def link_loss(c, pw, vref, dv):
     """The link loss [N] opposing the relative velocity dv [m/s]: c (|dv|/v_r)^p sgn dv (c [N], p [-], v_r [m/s]);
     exactly 0.0 while c = 0."""
@@ -405,6 +504,23 @@ def mode_force(ratio, fh, zeta, m_imp, xh, vh):
     ch = 2 ζ mh 2π fh (xh [m], vh [m/s] the hidden mass relative to the impacting one); exactly 0.0 while off."""
     wh = 2.0 * math.pi * fh
     return ratio * m_imp * wh * (wh * xh + 2.0 * zeta * vh)
+
+
+@njit(cache=True, error_model="numpy")
+def stop_state(ratio, s):
+    """The mounted stop's displacement [m] or rate [m/s] held in the hidden state s while the stop mode is on (its
+    mass ratio ≠ 0), else exactly 0.0 (the hidden states may then hold another mode)."""
+    return s if ratio != 0.0 else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def stop_accel(ratio, fh, zeta, m_imp, f, xs, vs):
+    """ẍs [m/s²] of the mounted stop (ms = ratio m_imp [kg] on ks = ms (2π fh)², cs = 2 ζ ms 2π fh) pushed by the
+    contact force f [N]: f / ms − ωs² xs − 2 ζ ωs vs; 0.0 while off."""
+    if ratio == 0.0:
+        return 0.0
+    ws = 2.0 * math.pi * fh
+    return f / (ratio * m_imp) - ws * (ws * xs + 2.0 * zeta * vs)
 
 
 @njit(cache=True, error_model="numpy")

@@ -26,7 +26,8 @@ Discrepancy terms (sim.models.discrepancy; off at 0): contact_quadratic, contact
 (so the guards, the phase check and the slider law see them); tool_viscous, tool_quadratic_drag act on M1 (v = ẋ1);
 load_path_mode hangs its hidden mass on M1; rock_rate_strength η raises the failing rock's threshold with its
 failure rate in phase III: ẋb = (Pc − Pr)/(C1 + η Pr), the bit feels Pr (1 + η ẋb) (the switching surfaces are
-unchanged: ẋb = 0 where Pc = Pr); link_power_loss adds c (|v|/v_r)^p sgn v to the bit-exciter link (v = ẋ1 − ẋ2).
+unchanged: ẋb = 0 where Pc = Pr); link_power_loss adds c (|v|/v_r)^p sgn v to the bit-exciter link (v = ẋ1 − ẋ2);
+drive_mode hangs the hidden mass in the exciter M2 instead (md = ratio M2, the hidden states relative to M2).
 """
 from __future__ import annotations
 
@@ -36,9 +37,10 @@ import numpy as np
 from sim.jit import interpreted, njit  # numba is imported on first use (sim/jit.py)
 
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
-from sim.models.discrepancy import (LINK_PARAMS, LINK_REF, MODE_PARAMS, MODE_STATES, STRENGTH, contact_extra,
-                                    discrepancy_params, link_bounds, link_loss, link_params, mode_accel, mode_bounds,
-                                    mode_force, strength_bounds, strength_params, terms_at, tool_loss, vocabulary_at)
+from sim.models.discrepancy import (DRIVE_MODE, DRIVE_MODE_PARAMS, LINK_PARAMS, LINK_REF, MODE_PARAMS, MODE_STATES,
+                                    STRENGTH, contact_extra, discrepancy_params, link_bounds, link_loss, link_params,
+                                    mode_accel, mode_bounds, mode_force, site_mode_params, strength_bounds,
+                                    strength_params, terms_at, tool_loss, vocabulary_at)
 from sim.models.effects import effect_params
 from sim.models.param import index_of
 from sim.models.contact import kelvin_voigt, rock_slider_rate, rock_surface_rate
@@ -129,7 +131,9 @@ def _rhs_at(t, y, ph, p, dy):
     a1 = (fh - s12 - pc - tool_loss(dc, v1) + fm) / m1
     dy[IV1] = a1
     dy[IX2] = v2
-    dy[IV2] = (fs + s12 - s23) / m2
+    fmd = mode_force(p[IDRIVE], p[IDRIVE + 1], p[IDRIVE + 2], m2, y[IXH], vh)
+    a2 = (fs + s12 - s23 + fmd) / m2
+    dy[IV2] = a2
     dy[IX3] = v3
     dy[IV3] = s23 / m3
     dy[IXT] = dxt
@@ -137,7 +141,7 @@ def _rhs_at(t, y, ph, p, dy):
     dy[IFH] = dfh
     dy[IW] = fh * v1
     dy[IXH] = vh
-    dy[IVH] = mode_accel(ratio, m1, fm, a1)
+    dy[IVH] = mode_accel(ratio, m1, fm, a1) + mode_accel(p[IDRIVE], m2, fmd, a2)
     return pc
 
 
@@ -265,9 +269,13 @@ PARAMS = (
     *discrepancy_params({"contact": "in Pc of phase II, δ = x1 − xb, δ̇ = ẋ1", "tool": "on M1, v = ẋ1"}),
     *strength_params("the slider's threshold Pr in phase III, ẋb its rate"),
     *link_params(0.01, "the bit-exciter link, v = ẋ1 − ẋ2"),
+    *site_mode_params(DRIVE_MODE, "a hidden mass in the exciter M2 (the RED module that houses the drive); md "
+                      "over M2"),
 )
 DISC = vocabulary_at(PARAMS)   # the discrepancy terms' coefficients from here on (terms_at)
 IMODE = index_of(PARAMS, *MODE_PARAMS)[0]   # then its frequency and damping ratio
+IDRIVE = index_of(PARAMS, *DRIVE_MODE_PARAMS)[0]
+HIDDEN_SWITCHES = (IMODE, IDRIVE)   # the parameters that switch on a mode in the hidden states (sim.compiled)
 (ISTRENGTH,) = index_of(PARAMS, STRENGTH)
 ILINK, ILINK_EXP, ILINK_REF = index_of(PARAMS, *LINK_PARAMS, LINK_REF)
 GAMMA, TAU, BETA, ALPHA, MU, KAPPA, FC = index_of(PARAMS, "gamma", "tau", "beta", "alpha", "mu", "kappa", "fc")
@@ -404,12 +412,14 @@ SPEC = ModelSpec(
     # and the onset guard x1 − xt fires at once (event storms at some strengths); the independent reference treats
     # that overlap with two more events — the kernel's phase I would need the same before the term can be offered
     discrepancy=("contact_quadratic", "contact_cubic", "tool_viscous", "tool_quadratic_drag", *MODE_PARAMS, STRENGTH,
-                 *LINK_PARAMS),
+                 *LINK_PARAMS, *DRIVE_MODE_PARAMS),
     # the hidden mode from below the lab forcing (100-450 Hz) to above the lab contact mode (~500 Hz) x 10; the
     # rock's rate strength: the lab rock fails at ẋb ~ 0.013 m/s through C1 + η Pr, so η 1-1000 s/m is η Pr / C1
     # from 0.75 % to 7.5x
     # the link loss at the lab link's rms velocity 0.01 m/s, where its damping C2 carries ~500 N: 2-700 N
+    # the drive's mode from below the forcing to the exciter's structural modes (50-3000 Hz)
     discrepancy_bounds={**mode_bounds(100.0, 5000.0), **strength_bounds(1.0, 1000.0), **link_bounds(2.0, 700.0),
+                        **mode_bounds(50.0, 3000.0, DRIVE_MODE_PARAMS),
                         "contact_quadratic": FitBound("contact_quadratic", 2e12, 2e15, "N/m^2"),
                         "contact_cubic": FitBound("contact_cubic", 5e17, 5e20, "N/m^3"),
                         "tool_viscous": FitBound("tool_viscous", 300.0, 3e4, "N s/m"),

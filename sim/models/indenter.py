@@ -16,9 +16,12 @@ Effects (MODELS.md §6; all off at their default 0):
   sensor_lowpass (fc [Hz]: applied to the recorded acceleration, ``sim.models.sensor``).
 
 Discrepancy terms (sim.models.discrepancy; off at 0): the metal's Kelvin–Voigt expression gains the contact terms
-(δ = x1 − G, δ̇ = ẋ1, also in its force indicator) and contact_exponent's shift on its elastic part's δ; both
+(δ = x1 − G, δ̇ = ẋ1, also in its force indicator), contact_exponent's shift on its elastic part's δ and
+contact_drift's moving face x_c = G + a t (δ = x1 − x_c, δ̇ = ẋ1 − a); both
 samples take the tool terms on m1 (v = ẋ1), the load_path_mode's hidden mass on m1 and link_power_loss
-c (|v|/v_r)^p sgn v in the armature's flexure (v = ẋ1 − ẋ2).
+c (|v|/v_r)^p sgn v in the armature's flexure (v = ẋ1 − ẋ2), and support_friction μ tanh(ẋ2 / v_ε) on the shaker
+body m2 (its carriages on the ground); stop_mode puts the metal sample on a mount, ms = ratio m1 on a spring and
+damper to the ground (the hidden states: its xs, ẋs; δ = x1 − G − xs, ms ẍs = Fr − ks xs − cs ẋs).
 """
 from __future__ import annotations
 
@@ -29,10 +32,12 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import FitBound, ModelSpec, Param, SynthRig
-from sim.models.discrepancy import (EXPONENT_REF, EXPONENT_SHIFT, LINK_PARAMS, LINK_REF, MODE_PARAMS, MODE_STATES,
-                                    contact_extra, discrepancy_params, exponent_bounds, exponent_params, link_bounds,
-                                    link_loss, link_params, mode_accel, mode_bounds, mode_force, shaped, terms_at,
-                                    tool_loss, vocabulary_at)
+from sim.models.discrepancy import (DRIFT_RATE, EXPONENT_REF, EXPONENT_SHIFT, LINK_PARAMS, LINK_REF, MODE_PARAMS,
+                                    MODE_STATES, SUPPORT_FORCE, SUPPORT_VEPS, contact_extra, discrepancy_params,
+                                    drift_bounds, drift_params, drifted, exponent_bounds, exponent_params, link_bounds,
+                                    link_loss, link_params, mode_accel, mode_bounds, mode_force, shaped,
+                                    site_mode_params, stop_accel, stop_state, support_bounds, support_params,
+                                    terms_at, tool_loss, vocabulary_at, STOP_MODE, STOP_MODE_PARAMS)
 from sim.models.effects import effect_params
 from sim.models.param import index_of
 from sim.models.contact import branch_depth, branch_force, coulomb_sign, kelvin_voigt, released_force
@@ -47,7 +52,8 @@ IXP, IXF = 0, 1
 N_BOUNDED = 4
 # the kernel checks N_GUARDS guards, as many as `guards` fills (sandstone loading and unloading have two; metal one)
 N_GUARDS = 2
-GUARD_STATES = (IX1, IV1)     # the states the guards read (x1, v1): the only ones interpolated for them
+GUARD_STATES = (IX1, IV1, IXH, IVH)   # the states the guards read (x1, v1; the metal's mount xs, ẋs): the only
+                                      # ones interpolated for them
 
 
 def air_damping(fa_n: float, f_hz: float) -> float:
@@ -108,22 +114,29 @@ def _body(t, y, p, fr, dy):
     a1 = (fem - inner - fr - tool_loss(dc, v1) + fm) / m1
     dy[IV1] = a1
     dy[IX2] = v2
-    dy[IV2] = (-fem + inner - c3 * dphi2 - k3 * phi2) / m2
+    dy[IV2] = (-fem + inner - c3 * dphi2 - k3 * phi2 - guide_friction(p[ISUP], v2, p[ISUP_EPS])) / m2
     dy[IX3] = v3
     dy[IV3] = (fp + c3 * dphi2 + k3 * phi2 - pm * coulomb_sign(v2, veps)) / m3
     dy[IFEM] = dfem
     dy[IW] = fem * dphi1
     dy[IXH] = vh
-    dy[IVH] = mode_accel(ratio, m1, fm, a1)
+    dy[IVH] = mode_accel(ratio, m1, fm, a1) + stop_accel(p[ISTOP], p[ISTOP + 1], p[ISTOP + 2], m1, fr, y[IXH], vh)
 
 
 # ----------------------------------------------------------------------------- metal sample
 @njit(cache=True, inline="always")
-def _metal_expr(y, p):
+def _metal_delta(t, y, p):
+    """The metal's penetration δ = x1 − x_c − xs [m] (x_c = G + a t, a the contact drift's rate; xs the sample's
+    mount; each 0 unless its discrepancy is on)."""
+    return y[IX1] - drifted(p[GAP], p[IDRIFT], t) - stop_state(p[ISTOP], y[IXH])
+
+
+@njit(cache=True, inline="always")
+def _metal_expr(t, y, p):
     """Kelvin–Voigt force expression of the metal sample [N] (unclamped), with rate stiffening and the discrepancy
-    contact terms (δ = x1 − G, δ̇ = ẋ1)."""
-    d = y[IX1] - p[GAP]
-    v1 = y[IV1]
+    contact terms (δ = x1 − x_c − xs, δ̇ = ẋ1 − a − ẋs)."""
+    d = _metal_delta(t, y, p)
+    v1 = y[IV1] - p[IDRIFT] - stop_state(p[ISTOP], y[IVH])
     return (kelvin_voigt(rate_stiffened(p[K1], p[ALPHA], v1), p[C1], shaped(d, p[IEXP], p[IEXP_REF]), v1)
             + contact_extra(terms_at(p, DISC), d, v1))
 
@@ -131,7 +144,7 @@ def _metal_expr(y, p):
 @njit(cache=True, inline="always")
 def _metal_rhs_at(t, y, ph, p, dy):
     """The equations of motion with the metal's contact; returns its force expression [N] (``metal_observe``)."""
-    fe = _metal_expr(y, p)          # read before the branch (``_body``)
+    fe = _metal_expr(t, y, p)          # read before the branch (``_body``)
     _body(t, y, p, fe if ph > 0 else 0.0, dy)
     return fe
 
@@ -143,12 +156,12 @@ def metal_rhs(t, y, z, ph, p, dy):
 
 @njit(cache=True)
 def metal_guards(t, y, z, ph, p, g):
-    two_indicator_guard(g, y[IX1] - p[GAP], _metal_expr(y, p) * 1e-7, ph)
+    two_indicator_guard(g, _metal_delta(t, y, p), _metal_expr(t, y, p) * 1e-7, ph)
 
 
 @njit(cache=True)
 def metal_on_event(t, y, z, ph, p, k):
-    return two_indicator_phase(y[IX1] - p[GAP], _metal_expr(y, p))
+    return two_indicator_phase(_metal_delta(t, y, p), _metal_expr(t, y, p))
 
 
 @njit(cache=True)
@@ -359,11 +372,18 @@ COMMON = (
                          "tool": "on m1, v = ẋ1"}),
     *exponent_params(1.4e-4, "the metal's k1 δ, δ = x1 − G (not the sandstone)"),
     *link_params(0.08, "the armature's flexure, v = ẋ1 − ẋ2"),
+    *drift_params("the metal's face G, δ = x1 − x_c (not the sandstone)"),
+    *support_params("the shaker body's carriages on the ground, on m2, v = ẋ2"),
+    *site_mode_params(STOP_MODE, "the metal sample on a mount: ms over m1, δ = x1 − G − xs (not the sandstone)"),
 )
 DISC = vocabulary_at(COMMON)   # the discrepancy terms' coefficients from here on (terms_at)
 IMODE = index_of(COMMON, *MODE_PARAMS)[0]   # then its frequency and damping ratio
+ISTOP = index_of(COMMON, *STOP_MODE_PARAMS)[0]
+HIDDEN_SWITCHES = (IMODE, ISTOP)   # the parameters that switch on a mode in the hidden states (sim.compiled)
 IEXP, IEXP_REF = index_of(COMMON, EXPONENT_SHIFT, EXPONENT_REF)   # the contact exponent's shift and δ_r
 ILINK, ILINK_EXP, ILINK_REF = index_of(COMMON, *LINK_PARAMS, LINK_REF)
+(IDRIFT,) = index_of(COMMON, DRIFT_RATE)
+ISUP, ISUP_EPS = index_of(COMMON, SUPPORT_FORCE, SUPPORT_VEPS)
 TAU, BETA, ALPHA, MU, GAMMA, KAPPA, FC = index_of(COMMON, "tau", "beta", "alpha", "mu", "gamma", "kappa", "fc")
 # The kernel's parameter vector ends with the effects' parameters; P and D only feed static_force_n.
 
@@ -382,12 +402,16 @@ def _derive(values: dict) -> dict:
 # its power-law branches (kl, ku, nl, nu): only the tool terms apply there.
 # The hidden mode from below the forcing (30-100 Hz) to above the impacts' ~1 kHz ring.
 # The link loss at the flexure's rms velocity 0.08 m/s (sandstone, 60 Hz), where its damping carries ~175 N: 1-300 N.
-_TOOL_BOUNDS = {**mode_bounds(20.0, 3000.0), **link_bounds(1.0, 300.0),
+# The metal face's drift from ~6 µm to ~3 mm over a 0.3 s run.  The shaker body's carriages rub with 1-500 N (the
+# guides' friction range, the body's forces are the coil's and the flexure's hundreds of N).  The metal's mount from
+# a twentieth to 20x the armature's mass, from the forcing's harmonics to above the impacts' ring.
+_TOOL_BOUNDS = {**mode_bounds(20.0, 3000.0), **link_bounds(1.0, 300.0), **support_bounds(1.0, 500.0),
                 "tool_viscous": FitBound("tool_viscous", 5.0, 4e3, "N s/m"),
                 "tool_quadratic_drag": FitBound("tool_quadratic_drag", 50.0, 1e5, "N s^2/m^2")}
 _METAL_BOUNDS = {"contact_quadratic": FitBound("contact_quadratic", 3e8, 3e11, "N/m^2"),
                  "contact_cubic": FitBound("contact_cubic", 2e12, 2e15, "N/m^3"),
                  "contact_rate_product": FitBound("contact_rate_product", 1e5, 1e8, "N s/m^2"), **exponent_bounds(),
+                 **drift_bounds(2e-5, 1e-2), **mode_bounds(50.0, 5000.0, STOP_MODE_PARAMS, (0.05, 20.0)),
                  **_TOOL_BOUNDS}
 
 

@@ -19,7 +19,10 @@ Effects (MODELS.md §6): ``rate_stiffening`` α [s/m], ``suspension_hardening`` 
 ``sensor_lowpass`` fc [Hz] on the recorded acceleration (``sim.models.sensor``).
 Discrepancy terms (sim.models.discrepancy; off at 0): contact_quadratic, contact_cubic join Fi (clamped at 0, the
 indicators unchanged); tool_viscous, tool_quadratic_drag act on the hammer m2 (v = ẋ2); load_path_mode hangs its
-hidden mass on m2; link_power_loss adds c (|v|/v_r)^p sgn v to the hammer's suspension (v = ẋ2 − ẋ1).
+hidden mass on m2; link_power_loss adds c (|v|/v_r)^p sgn v to the hammer's suspension (v = ẋ2 − ẋ1);
+support_friction is the beam clamp's dry friction μ tanh(ẋ1 / v_ε) on m1; stop_mode mounts the stop on a mass
+ms = ratio m2 with a spring and damper to the ground (the hidden states: its xs, ẋs; δ = x2 − gap − xs, δ̇ = ẋ2 − ẋs,
+ms ẍs = Fi − ks xs − cs ẋs); drive_mode hangs the hidden mass on the beam m1 (md = ratio m1).
 Off the stop (κ = 0) the equations are linear: ``sim/exact/rimd.py`` propagates the free flight exactly and leaves
 the contact to the DOPRI5 steps (``method`` "auto" and "exact"; "dopri5" integrates both phases numerically).
 """
@@ -33,13 +36,15 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
 from sim.models.param import index_of
-from sim.models.discrepancy import (LINK_PARAMS, LINK_REF, MODE_PARAMS, MODE_STATES, contact_extra,
+from sim.models.discrepancy import (DRIVE_MODE, DRIVE_MODE_PARAMS, LINK_PARAMS, LINK_REF, MODE_PARAMS, MODE_STATES,
+                                    STOP_MODE, STOP_MODE_PARAMS, SUPPORT_FORCE, SUPPORT_VEPS, contact_extra,
                                     discrepancy_params, link_bounds, link_loss, link_params, mode_accel, mode_bounds,
-                                    mode_force, terms_at, tool_loss, vocabulary_at)
+                                    mode_force, site_mode_params, stop_accel, stop_state, support_bounds,
+                                    support_params, terms_at, tool_loss, vocabulary_at)
 from sim.models.effects import effect_params
 from sim.models.contact import hunt_crossley, hunt_crossley_damping
 from sim.models.sensor import sensor_lowpass
-from sim.models.terms import hardened_spring, rate_stiffened
+from sim.models.terms import guide_friction, hardened_spring, rate_stiffened
 
 M1, K1, C1, M2, K2, C2, KI, LAM, NI, F0, GAP, FREQ = range(12)   # then the effects' parameters (PARAMS)
 IX1, IV1, IX2, IV2, IW, IXH, IVH = range(7)
@@ -48,20 +53,29 @@ NY = 7
 N_BOUNDED = 4
 # the kernel checks N_GUARDS guards, as many as `guards` fills (the two-indicator contact)
 N_GUARDS = 1
-GUARD_STATES = (IX2, IV2)     # the states the guards read (x2, ẋ2): the only ones interpolated for them
+GUARD_STATES = (IX2, IV2, IXH, IVH)   # the states the guards read (x2, ẋ2; the mounted stop's xs, ẋs): the only
+                                      # ones interpolated for them
 LS = 1e-3   # length scale [m] turning the dimensionless indicator 1 + λi ẋ2 into a guard in metres
 
 
 @njit(cache=True, inline="always")
 def _hc_factor(y, p):
-    """Hunt–Crossley damping factor 1 + λi ẋ2 [-] (second contact indicator)."""
-    return hunt_crossley_damping(p[LAM], y[IV2])
+    """Hunt–Crossley damping factor 1 + λi δ̇ [-] (second contact indicator; δ̇ = ẋ2 − ẋs, the stop's ẋs 0 unless
+    its mount's mode is on)."""
+    return hunt_crossley_damping(p[LAM], y[IV2] - stop_state(p[ISTOP], y[IVH]))
+
+
+@njit(cache=True, inline="always")
+def _delta(y, p):
+    """Penetration δ = x2 − gap − xs [m] (xs the mounted stop's displacement, 0 unless its mode is on)."""
+    return y[IX2] - p[GAP] - stop_state(p[ISTOP], y[IXH])
 
 
 @njit(cache=True, error_model="numpy")
-def _force_at(ki, alpha, ni, lam, gap, x2, v2):
-    """Hunt–Crossley force expression [N] with rate stiffening, from scalars (``sim.models.contact.hunt_crossley``)."""
-    return hunt_crossley(rate_stiffened(ki, alpha, v2), ni, lam, x2 - gap, v2)
+def _force_at(ki, alpha, ni, lam, d, dd):
+    """Hunt–Crossley force expression [N] with rate stiffening at the penetration d [m] and its rate dd [m/s], from
+    scalars (``sim.models.contact.hunt_crossley``)."""
+    return hunt_crossley(rate_stiffened(ki, alpha, dd), ni, lam, d, dd)
 
 
 @njit(cache=True, inline="always")
@@ -76,25 +90,32 @@ def _rhs_at(t, y, ph, p, dy):
     om = 2.0 * math.pi * p[FREQ]
     dc = terms_at(p, DISC)
     ratio = p[IMODE]
-    fm = mode_force(ratio, p[IMODE + 1], p[IMODE + 2], m2, y[IXH], y[IVH])
-    vh = y[IVH]
-    # the discrepancy contact terms join the Hunt–Crossley force, clamped at 0 (the indicators stay δ, 1 + λi ẋ2);
+    xh, vh = y[IXH], y[IVH]
+    fm = mode_force(ratio, p[IMODE + 1], p[IMODE + 2], m2, xh, vh)
+    dratio = p[IDRIVE]
+    fmd = mode_force(dratio, p[IDRIVE + 1], p[IDRIVE + 2], m1, xh, vh)
+    sratio = p[ISTOP]
+    d = x2 - gap - stop_state(sratio, xh)
+    dd = v2 - stop_state(sratio, vh)
+    # the discrepancy contact terms join the Hunt–Crossley force, clamped at 0 (the indicators stay δ, 1 + λi δ̇);
     # without them the force is the base model's, unclamped, bit for bit
-    hc = _force_at(ki, alpha, ni, lam, gap, x2, v2)
-    extra = contact_extra(dc, x2 - gap, v2)
+    hc = _force_at(ki, alpha, ni, lam, d, dd)
+    extra = contact_extra(dc, d, dd)
     fi = (hc if extra == 0.0 else max(hc + extra, 0.0)) if ph > 0 else 0.0
     phi = x2 - x1
     dphi = v2 - v1
     inner = c2 * dphi + hardened_spring(k2, phi, kappa) + link_loss(p[ILINK], p[ILINK_EXP], p[ILINK_REF], dphi)
     f = f0 * math.sin(om * t)
     dy[IX1] = v1
-    dy[IV1] = (f - c1 * v1 - k1 * x1 + inner) / m1
+    a1 = (f - c1 * v1 - k1 * x1 + inner - guide_friction(p[ISUP], v1, p[ISUP_EPS]) + fmd) / m1
+    dy[IV1] = a1
     dy[IX2] = v2
     a2 = (-inner - fi - tool_loss(dc, v2) + fm) / m2
     dy[IV2] = a2
     dy[IW] = f * v1
     dy[IXH] = vh
-    dy[IVH] = mode_accel(ratio, m2, fm, a2)
+    dy[IVH] = (mode_accel(ratio, m2, fm, a2) + mode_accel(dratio, m1, fmd, a1)
+               + stop_accel(sratio, p[ISTOP + 1], p[ISTOP + 2], m2, fi, xh, vh))
     return fi
 
 
@@ -105,12 +126,12 @@ def rhs(t, y, z, ph, p, dy):
 
 @njit(cache=True)
 def guards(t, y, z, ph, p, g):
-    two_indicator_guard(g, y[IX2] - p[GAP], LS * _hc_factor(y, p), ph)
+    two_indicator_guard(g, _delta(y, p), LS * _hc_factor(y, p), ph)
 
 
 @njit(cache=True)
 def on_event(t, y, z, ph, p, k):
-    return two_indicator_phase(y[IX2] - p[GAP], _hc_factor(y, p))
+    return two_indicator_phase(_delta(y, p), _hc_factor(y, p))
 
 
 @njit(cache=True)
@@ -165,11 +186,18 @@ PARAMS = (
     *discrepancy_params({"contact": "joining the Hunt–Crossley force (clamped at 0), δ = x2 − gap, δ̇ = ẋ2",
                          "tool": "on the hammer m2, v = ẋ2"}),
     *link_params(0.04, "the hammer's suspension, v = ẋ2 − ẋ1"),
+    *support_params("the beam's clamp, on m1, v = ẋ1"),
+    *site_mode_params(STOP_MODE, "the stop on a mount: ms over the hammer's m2, δ = x2 − gap − xs"),
+    *site_mode_params(DRIVE_MODE, "a hidden mass on the beam m1, which carries the forcing; md over m1"),
 )
 ALPHA, KAPPA = index_of(PARAMS, "alpha", "kappa")
 DISC = vocabulary_at(PARAMS)   # the discrepancy terms' coefficients from here on (terms_at)
 IMODE = index_of(PARAMS, *MODE_PARAMS)[0]   # then its frequency and damping ratio
+ISTOP = index_of(PARAMS, *STOP_MODE_PARAMS)[0]
+IDRIVE = index_of(PARAMS, *DRIVE_MODE_PARAMS)[0]
+HIDDEN_SWITCHES = (IMODE, ISTOP, IDRIVE)   # the parameters that switch on a mode in the hidden states (sim.compiled)
 ILINK, ILINK_EXP, ILINK_REF = index_of(PARAMS, *LINK_PARAMS, LINK_REF)
+ISUP, ISUP_EPS = index_of(PARAMS, SUPPORT_FORCE, SUPPORT_VEPS)
 
 STATES = ("x1", "v1", "x2", "v2", "work", *MODE_STATES)
 BOUNDED = ("x1", "v1", "x2", "v2")
@@ -224,12 +252,16 @@ SPEC = ModelSpec(
     # discrepancy terms: penetration ~ 8e-5 m, hammer speed ~0.1 m/s; contact_rate_product is left out: the
     # Hunt–Crossley λi ki δ^ni δ̇ (calibratable) is that term already
     discrepancy=("contact_quadratic", "contact_cubic", "tool_viscous", "tool_quadratic_drag", *MODE_PARAMS,
-                 *LINK_PARAMS),
+                 *LINK_PARAMS, SUPPORT_FORCE, *STOP_MODE_PARAMS, *DRIVE_MODE_PARAMS),
     # (bounds measured at the default point: each probe strength moves the peak force by ~3-10 %; the resonant
     # hammer is very sensitive to a loss on it)
     # the hidden mode from below the forcing (5-9 Hz) to well above the beam's and the hammer's modes
     # the link loss at the suspension's rms velocity 0.04 m/s, where its spring carries ~0.3 N: 1 mN-0.3 N
-    discrepancy_bounds={**mode_bounds(3.0, 300.0), **link_bounds(1e-3, 0.3),
+    # the clamp's friction from ~0.3 % to ~1x the forcing's 1 N; the stop's mount from a twentieth to 20x the
+    # hammer's mass, from the beam's modes to well above the impacts' ring; the drive's mode as the hidden one
+    discrepancy_bounds={**mode_bounds(3.0, 300.0), **link_bounds(1e-3, 0.3), **support_bounds(3e-3, 1.0),
+                        **mode_bounds(10.0, 1000.0, STOP_MODE_PARAMS, (0.05, 20.0)),
+                        **mode_bounds(3.0, 300.0, DRIVE_MODE_PARAMS),
                         "contact_quadratic": FitBound("contact_quadratic", 1e7, 3e9, "N/m^2"),
                         "contact_cubic": FitBound("contact_cubic", 1e11, 3e13, "N/m^3"),
                         "tool_viscous": FitBound("tool_viscous", 0.01, 10.0, "N s/m"),

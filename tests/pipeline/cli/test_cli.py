@@ -93,3 +93,6 @@ def test_models_lists_a_candidates_parameters_only_where_the_model_offers_it(cap
     assert main(["models", "indenter-sandstone"]) == 0
     out = capsys.readouterr().out
     assert "contact_exponent" not in out and "load_path_mode_hz" in out
+    assert "contact_drift_m_s" not in out and "support_friction_v_eps_m_s" in out
+    assert main(["models", "drill"]) == 0
+    assert "support_friction" not in capsys.readouterr().out

@@ -94,17 +94,23 @@ def test_proposal_names_round_trip():
 def test_the_hidden_mode_is_a_structured_candidate_of_every_model(system):
     """The hidden load-path mode is fitted as a proposal of its own (three parameters, with bounds), never screened
     as a regression column; so are the contact exponent where the contact's elastic part is linear, the rock's
-    rate strength where a rock fails and the link loss where the impacting mass hangs on a suspension."""
-    from sim.models.discrepancy import EXPONENT, EXPONENT_SHIFT, LINK, LINK_PARAMS, MODE, MODE_PARAMS, STRENGTH
+    rate strength where a rock fails, the link loss where the impacting mass hangs on a suspension, the contact's
+    drift where it sits at a fixed position and the support friction where a support can rub."""
+    from sim.models.discrepancy import (DRIFT, DRIFT_RATE, DRIVE_MODE, DRIVE_MODE_PARAMS, EXPONENT, EXPONENT_SHIFT, LINK,
+                                        LINK_PARAMS, MODE, MODE_PARAMS, STOP_MODE, STOP_MODE_PARAMS, STRENGTH, SUPPORT,
+                                        SUPPORT_FORCE)
 
     structured = D.structured_candidates(system)
-    own = {"indenter-metal": [EXPONENT, LINK], "indenter-sandstone": [LINK], "pendulum": [EXPONENT],
-           "drill": [STRENGTH, LINK], "rimd": [LINK]}[system]
+    own = {"indenter-metal": [EXPONENT, LINK, DRIFT, SUPPORT, STOP_MODE], "indenter-sandstone": [LINK, SUPPORT],
+           "pendulum": [EXPONENT, DRIFT, SUPPORT], "drill": [STRENGTH, LINK, DRIVE_MODE],
+           "rimd": [LINK, SUPPORT, STOP_MODE, DRIVE_MODE]}[system]
     assert list(structured) == [MODE, *own]
     assert tuple(b.name for b in structured[MODE]) == MODE_PARAMS
     for name in structured:
         assert all(0.0 < 10 ** b.bounds[0] < 10 ** b.bounds[1] for b in structured[name])
-    assert not (set(MODE_PARAMS) | {EXPONENT_SHIFT, STRENGTH, *LINK_PARAMS}) & set(D.term_candidates(system))
+    assert not ((set(MODE_PARAMS) | {EXPONENT_SHIFT, STRENGTH, *LINK_PARAMS, DRIFT_RATE, SUPPORT_FORCE,
+                                     *STOP_MODE_PARAMS, *DRIVE_MODE_PARAMS})
+                & set(D.term_candidates(system)))
 
 
 def test_a_structured_proposal_reports_its_parameters():
