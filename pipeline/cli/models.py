@@ -34,15 +34,16 @@ def describe(name: str, full: bool) -> list[str]:
     if spec.effects:
         lines.append("  effects: " + "; ".join(f"{k} ({', '.join(v)})" for k, v in spec.effects.items()))
     presets = list(spec.presets) if full else []
-    head = f"    {'parameter':<16} {'default':>10} " + "".join(f"{p:>14} " for p in presets) + f"{'unit':<8} meaning"
+    # a term this model does not offer: its parameter must stay 0, so it is not listed
+    shown = [prm for prm in spec.params if not ((prm.name in DISCREPANCY_PARAMS or prm.name in COMPANION)
+                                                and COMPANION.get(prm.name, prm.name) not in spec.discrepancy)]
+    w = max(16, *(len(prm.name) for prm in shown))
+    head = f"    {'parameter':<{w}} {'default':>10} " + "".join(f"{p:>14} " for p in presets) + f"{'unit':<8} meaning"
     lines.append(head)
-    for prm in spec.params:
-        if (prm.name in DISCREPANCY_PARAMS or prm.name in COMPANION) and \
-                COMPANION.get(prm.name, prm.name) not in spec.discrepancy:
-            continue            # a term this model does not offer: its parameter must stay 0, so it is not listed
+    for prm in shown:
         cells = "".join(f"{_g(spec.presets[p][prm.name]) if prm.name in spec.presets[p] else '':>14} "
                         for p in presets)
-        lines.append(f"    {prm.name:<16} {_g(prm.default):>10} {cells}{prm.unit:<8} {prm.description}")
+        lines.append(f"    {prm.name:<{w}} {_g(prm.default):>10} {cells}{prm.unit:<8} {prm.description}")
     if not full:
         return lines
     units = {p.name: p.unit for p in spec.params}
