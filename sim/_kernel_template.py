@@ -4,7 +4,8 @@ Not imported directly.  The generated module defines, before this text, the mode
 numba functions as globals ``rhs, guards, on_event, observe, bounded`` (``rhs`` and ``guards`` inlined where the
 step calls them; ``rhs_once`` and ``guards_once``, the same functions called once per cycle or switch), the
 counts ``N_BOUNDED`` and ``N_GUARDS``, the tuple ``GUARD_STATES``, the index ``IW`` of the excitation work in the
-state and ``HIDDEN_SWITCHES``, the parameters that switch on a mode in the hidden states (mass ratios) (see the model interface in sim.integrator).
+state and the tuple ``HIDDEN_SWITCHES`` of the parameters (mass ratios) that switch on a mode in the hidden states
+(see the model interface in sim.integrator).
 Binding them as globals, rather than passing them as arguments, is what lets numba cache the compiled kernel on disk
 and release the GIL.
 """

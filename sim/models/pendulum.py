@@ -21,8 +21,8 @@ The pendulum does not progress (observed progression 0).
 Effects (MODELS.md §6): ``rate_stiffening`` α [s/m] (0 = off); ``sensor_lowpass`` fc [Hz] on the recorded
 acceleration (``sim.models.sensor``).
 Discrepancy terms (sim.models.discrepancy; off at 0): the contact terms join Fi (and its indicator), as does
-contact_exponent's shift of the elastic part's δ; contact_drift moves the load cell to x_c = gap + a t (δ = l sin θ − x_c,
-δ̇ = l θ̇ cos θ − a); support_friction is the pivot's dry friction, a tangential force μ tanh(l θ̇ / v_ε) on the
+contact_exponent's shift of the elastic part's δ; contact_drift moves the load cell to x_c = gap + a t
+(δ = l sin θ − x_c, δ̇ = l θ̇ cos θ − a); support_friction is the pivot's dry friction, a tangential force μ tanh(l θ̇ / v_ε) on the
 hammer (a torque μ l), θ̈ −= μ tanh(l θ̇ / v_ε) / (m l);
 tool_quadratic_drag is a tangential force −c (l θ̇)|l θ̇| on the hammer, θ̈ −= c l θ̇|θ̇| / m; load_path_mode's
 hidden mass pulls tangentially at the hammer, θ̈ += f / (m l), and shares the hammer's tangential acceleration

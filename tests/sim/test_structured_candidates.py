@@ -135,7 +135,8 @@ def test_contact_drift_against_the_reference(model, scale):
                                         ("rimd", dict(zip(DRIVE_MODE_PARAMS, (0.0, 20.0, 0.05)))),
                                         ("drill", dict(zip(DRIVE_MODE_PARAMS, (0.0, 300.0, 0.05)))),
                                         ("indenter-metal", dict(zip(STOP_MODE_PARAMS, (0.0, 500.0, 0.05)))),
-                                        ("indenter-metal", {SUPPORT_FORCE: 0.0, SUPPORT_VEPS: 1.0}),("indenter-metal", {EXPONENT_SHIFT: 0.0, EXPONENT_REF: 3.0e-3}),
+                                        ("indenter-metal", {SUPPORT_FORCE: 0.0, SUPPORT_VEPS: 1.0}),
+                                        ("indenter-metal", {EXPONENT_SHIFT: 0.0, EXPONENT_REF: 3.0e-3}),
                                         ("pendulum", {EXPONENT_SHIFT: 0.0, EXPONENT_REF: 3.0e-3}),
                                         ("drill", {STRENGTH: 0.0}),
                                         ("drill", {LINK_PARAMS[0]: 0.0, LINK_PARAMS[1]: 3.0}),
@@ -179,7 +180,8 @@ def test_a_stronger_rock_drills_slower_and_the_bit_feels_at_least_the_threshold(
                                           ("drill", EXPONENT_SHIFT), ("pendulum", STRENGTH), ("rimd", STRENGTH),
                                           ("pendulum", LINK_PARAMS[0]), ("indenter-sandstone", DRIFT_RATE),
                                           ("drill", DRIFT_RATE), ("rimd", DRIFT_RATE), ("drill", SUPPORT_FORCE),
-                                          ("pendulum", STOP_MODE_PARAMS[0]), ("indenter-sandstone", STOP_MODE_PARAMS[0]),
+                                          ("pendulum", STOP_MODE_PARAMS[0]),
+                                          ("indenter-sandstone", STOP_MODE_PARAMS[0]),
                                           ("indenter-metal", DRIVE_MODE_PARAMS[0])])
 def test_a_model_without_the_candidate_refuses_it(model, param):
     with pytest.raises(sim.ParameterError, match=param):

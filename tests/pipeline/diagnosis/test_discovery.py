@@ -96,9 +96,9 @@ def test_the_hidden_mode_is_a_structured_candidate_of_every_model(system):
     as a regression column; so are the contact exponent where the contact's elastic part is linear, the rock's
     rate strength where a rock fails, the link loss where the impacting mass hangs on a suspension, the contact's
     drift where it sits at a fixed position and the support friction where a support can rub."""
-    from sim.models.discrepancy import (DRIFT, DRIFT_RATE, DRIVE_MODE, DRIVE_MODE_PARAMS, EXPONENT, EXPONENT_SHIFT, LINK,
-                                        LINK_PARAMS, MODE, MODE_PARAMS, STOP_MODE, STOP_MODE_PARAMS, STRENGTH, SUPPORT,
-                                        SUPPORT_FORCE)
+    from sim.models.discrepancy import (DRIFT, DRIFT_RATE, DRIVE_MODE, DRIVE_MODE_PARAMS, EXPONENT, EXPONENT_SHIFT,
+                                        LINK, LINK_PARAMS, MODE, MODE_PARAMS, STOP_MODE, STOP_MODE_PARAMS, STRENGTH,
+                                        SUPPORT, SUPPORT_FORCE)
 
     structured = D.structured_candidates(system)
     own = {"indenter-metal": [EXPONENT, LINK, DRIFT, SUPPORT, STOP_MODE], "indenter-sandstone": [LINK, SUPPORT],
