@@ -310,22 +310,22 @@ def discrepancy_params(acts_on: Mapping[str, str]) -> tuple[Param, ...]:
         out.append(Param(t.name, 0.0, t.unit, f"discrepancy term: {t.words}, {t.form} ({where}); 0 = off",
                          nonnegative=True))
     mode = STRUCTURED[MODE]
-    what = ("mass over the impacting mass's (0 = off)", "frequency with the impacting mass held",
-            "damping ratio")
-    most = (MODE_MAX_RATIO, math.inf, MODE_MAX_ZETA)
-    for name, unit, w, hi in zip(mode.params, mode.units, what, most):
-        out.append(Param(name, 0.0, unit, f"discrepancy {MODE} ({mode.words}, {acts_on.get(TOOL, '')}): its {w}",
-                         nonnegative=True, most=hi))
-    return tuple(out)
+    what = ("mass over the impacting mass's (0 = off)", "frequency with the impacting mass held", "damping ratio")
+    return (*out, *_mode_params(MODE, f"{mode.words}, {acts_on.get(TOOL, '')}", what))
 
 
 def site_mode_params(name: str, acts_on: str) -> tuple[Param, ...]:
     """The parameters of a hidden mode at another site than the impacting mass (``STOP_MODE``, ``DRIVE_MODE``;
     ``acts_on``: which body and what the mass ratio is of), 0 (off) by default and ≥ 0."""
+    return _mode_params(name, f"{STRUCTURED[name].words}; {acts_on}", ("mass ratio (0 = off)", "frequency",
+                                                                        "damping ratio"))
+
+
+def _mode_params(name: str, context: str, what: Sequence[str]) -> tuple[Param, ...]:
+    """A hidden mode's three parameters (mass ratio, frequency, damping ratio: ``what`` each is, in words), 0 (off)
+    by default, ≥ 0 and below the typo ceilings; ``context`` the words in their descriptions' brackets."""
     mode = STRUCTURED[name]
-    what = ("mass ratio (0 = off)", "frequency", "damping ratio")
-    return tuple(Param(q, 0.0, unit, f"discrepancy {name} ({mode.words}; {acts_on}): its {w}", nonnegative=True,
-                       most=hi)
+    return tuple(Param(q, 0.0, unit, f"discrepancy {name} ({context}): its {w}", nonnegative=True, most=hi)
                  for q, unit, w, hi in zip(mode.params, mode.units, what, (MODE_MAX_RATIO, math.inf, MODE_MAX_ZETA)))
 
 
