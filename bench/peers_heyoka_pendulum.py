@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 
 from bench import heyoka_contact as hc
+from sim.models.discrepancy import COMPANION
 
 PENDULUM_PARAMS = ("m", "l", "amplitude_m", "ki", "ci", "zeta", "gap_m", "frequency_hz", "g")
 INFORMATIONAL = ("M",)   # the cart mass: the cart motion is prescribed
@@ -22,7 +23,9 @@ L = hc.layout(9)
 
 def values(params: dict) -> dict:
     """The pendulum parameters the peer needs, as floats (``params`` = a complete resolved dict)."""
-    on = [k for k, v in params.items() if k not in PENDULUM_PARAMS + INFORMATIONAL and float(v) != 0.0]
+    # a candidate's companion (e.g. its regularisation speed) shapes it while it is on and sits at its default off
+    on = [k for k, v in params.items()
+          if k not in PENDULUM_PARAMS + INFORMATIONAL and k not in COMPANION and float(v) != 0.0]
     if on:
         raise ValueError(f"the peer implements the base pendulum model only (MODELS.md §3); effect or "
                          f"discrepancy parameters set: {on}")

@@ -15,7 +15,7 @@ from sim.compile_notice import announce_compile
 from vibrobase.errors import did_you_mean
 from sim.invariants import violation
 from sim.models.base import ModelSpec, ParameterError
-from sim.models.discrepancy import any_on
+from sim.models.discrepancy import any_on, run_cycles
 from sim.registry import get_model
 from vibrobase.statuses import BOUNDED_STATUSES
 
@@ -120,6 +120,16 @@ class Settings:
 
 
 SETTING_NAMES = tuple(f for f in Settings.__dataclass_fields__)
+
+
+def run_settings(st: Settings, values: dict) -> Settings:
+    """``st`` for the run of ``values``: a run left to settle (min_transient < max_transient) of a rig that never
+    settles and says how long it ran before its record (``sim.models.discrepancy.run_cycles``) has that transient;
+    a transient the caller fixed stands (e.g. 0: a record from rest)."""
+    n = run_cycles(values)
+    if n and st.min_transient < st.max_transient:
+        return replace(st, min_transient=n, max_transient=n).validate()
+    return st
 
 
 def make_settings(spec: ModelSpec, settings: Settings | dict | None) -> Settings:
@@ -298,7 +308,7 @@ def simulate(model: str, preset: str | None = None, settings: Settings | dict | 
     """
     spec = get_model(model)
     values = spec.resolve(preset, **params)
-    st = make_settings(spec, settings)
+    st = run_settings(make_settings(spec, settings), values)
     p, y0, z0, ph0, period, atol = _prepare(spec, values, st.rtol)
     msg = spec.precheck(p)
     s = st.to_array(runaway_check=msg is not None)
@@ -378,12 +388,12 @@ def simulate_batch(model: str, table, preset: str | None = None, settings: Setti
     for e in set(exact):
         announce_compile(spec, e)
     runners = {e: kernels(spec.funcs, spec.n_bounded, e) for e in set(exact)}
-    arrays = {flag: st.to_array(runaway_check=flag) for flag in (False, True)}
+    arrays = [run_settings(st, v).to_array(runaway_check=bool(flag)) for v, flag in zip(rows, flagged)]
     empty = (np.empty(0), np.empty((0, Y0.shape[1])), np.empty((0, I.N_OBS)), np.empty(0, dtype=np.int64))
 
     def work(i: int) -> None:  # run_one releases the GIL: threads run on all cores
         out[i] = runners[exact[i]](P[i], Y0[i].copy(), Z0[i].copy(), PH0[i:i + 1].copy(), periods[i],
-                         arrays[bool(flagged[i])], ATOL[i], *empty)
+                         arrays[i], ATOL[i], *empty)
 
     workers = n_threads or os.cpu_count() or 1
     if workers == 1 or len(rows) == 1:

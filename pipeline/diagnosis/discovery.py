@@ -73,15 +73,16 @@ def term_candidates(system: str) -> dict[str, FreeParam]:
     return {t: spec.discrepancy_bounds[t] for t in spec.discrepancy if t in TERMS}
 
 
-def structured_candidates(system: str) -> dict[str, tuple[FreeParam, ...]]:
+def structured_candidates(system: str, steady: bool = True) -> dict[str, tuple[FreeParam, ...]]:
     """The structured candidates of ``system`` (``sim.models.discrepancy.STRUCTURED`` whose parameters the model
-    has) -> their parameters' fit bounds."""
+    has) -> their parameters' fit bounds; without the parameters that act only on steady-state records
+    (``STEADY_ONLY``) unless the log has some (``steady``)."""
     import sim
-    from sim.models.discrepancy import STRUCTURED
+    from sim.models.discrepancy import STEADY_ONLY, STRUCTURED
 
     spec = sim.get_model(system)
-    return {n: tuple(spec.discrepancy_bounds[p] for p in c.params) for n, c in STRUCTURED.items()
-            if all(p in spec.discrepancy for p in c.params)}
+    return {n: tuple(spec.discrepancy_bounds[p] for p in c.params if steady or p not in STEADY_ONLY)
+            for n, c in STRUCTURED.items() if all(p in spec.discrepancy for p in c.params)}
 
 
 @dataclass(frozen=True)
@@ -195,7 +196,7 @@ def discover(ev: Evaluator, cfg: DiagnoseConfig, scheme: FoldScheme, calibrated:
     the proposals start from), re-fit the proposals on every fold and judge them on the held-out runs
     (``cfg.max_proposals`` of them; None when the model has no terms)."""
     terms = term_candidates(ev.system)
-    structured = structured_candidates(ev.system)
+    structured = structured_candidates(ev.system, any(tg.record_start_s is None for tg in ev.targets))
     if not (terms or structured) or cfg.max_proposals < 1:
         return None
     base = calibrated.fits["base"]
@@ -259,7 +260,7 @@ def report(d: Discovery, base_err: HeldOut, cal_names: list[str]):
     rows = []
     for m in sorted(d.err, key=lambda m: (d.err[m].nrms, d.stats[m].bic)):
         fr, c, terms, e = d.fits[m], d.checks[m], proposal_terms(m), d.err[m]
-        params = [q for t in terms for q in cand[t].params]
+        params = [q for t in terms for q in cand[t].params if q in fr.free]   # the fitted ones
         rows.append(Proposal(
             name=m, terms=tuple(terms), words=tuple(cand[t].words for t in terms),
             forms=tuple(cand[t].form for t in terms), kinds=tuple(sorted({cand[t].kind for t in terms})),

@@ -9,7 +9,7 @@ import numpy as np
 
 from sim.models.param import ParameterError  # noqa: F401  (re-exported: the models and sim.api raise it from here)
 from vibrobase.errors import did_you_mean
-from sim.models.discrepancy import CANDIDATES, HIDDEN_MODES, MODE_STATES, PARAM_OF as DISCREPANCY_PARAMS
+from sim.models.discrepancy import CANDIDATES, HIDDEN_MODES, HIDDEN_USERS, MODE_STATES, PARAM_OF as DISCREPANCY_PARAMS
 from sim.models.effects import EFFECT_FIT_BOUNDS, EFFECTS, effect
 from sim.models.fitbound import FitBound  # noqa: F401  (re-exported: the models build their bounds from here)
 from sim.models.param import Param  # noqa: F401  (re-exported: the models declare their parameters from here)
@@ -241,17 +241,16 @@ class ModelSpec:
             if out.get(name) and name not in self.discrepancy:
                 raise ParameterError(f"discrepancy term '{name}' does not apply to model '{self.name}' "
                                      f"(its terms: {', '.join(self.discrepancy) or 'none'})")
-        on = []
         for mode in HIDDEN_MODES:
             ratio_name, hz_name, _ = CANDIDATES[mode].params
             ratio, hz = out.get(ratio_name), out.get(hz_name)
             if ratio and not hz:       # a hidden mass on no spring: not a mode
                 raise ParameterError(f"discrepancy {mode}: parameter '{hz_name}' must be > 0 [Hz] when "
                                      f"'{ratio_name}' is > 0, got {hz!r}")
-            on += [mode] if ratio else []
+        on = [c for c in HIDDEN_USERS if out.get(CANDIDATES[c].params[0])]
         if len(on) > 1:            # they share the model's two hidden states
-            raise ParameterError(f"discrepancy {' and '.join(on)}: one hidden mode at a time (they share the "
-                                 f"states {', '.join(MODE_STATES)})")
+            raise ParameterError(f"discrepancy {' and '.join(on)}: one at a time (they share the hidden states "
+                                 f"{', '.join(MODE_STATES)})")
         if self.derive is not None:
             out = self.derive(out)
         for name, v in out.items():

@@ -13,7 +13,7 @@ declarations at import (``site_source``: a Horner form in the site's first varia
 coefficients of the whole block once (``terms_at(p, first)``, ``first`` from ``vocabulary_at``): a new term is one
 line here, its reference in tests/reference_solutions.py and its visible strengths.
 
-Eight *structured* candidates sit beside the terms.  ``load_path_mode`` is a hidden mass on a spring and damper at the
+Ten *structured* candidates sit beside the terms.  ``load_path_mode`` is a hidden mass on a spring and damper at the
 impacting mass (an extra mode in the load path), three parameters (``MODE_PARAMS``: mass ratio, frequency, damping
 ratio) and two more states (``MODE_STATES``, after the model's own; off while the ratio is 0).  The second,
 ``contact_exponent``, makes the elastic part of a linear contact law a free power of the penetration (one parameter,
@@ -26,9 +26,12 @@ moves at a steady rate through a run (``drift_params``, ``drifted``); the sixth,
 friction at a support other than the tool's guides (``support_params``; the kernels call
 ``sim.models.terms.guide_friction``'s regularised Coulomb law there).  ``stop_mode`` and ``drive_mode`` put the
 hidden mode's mass elsewhere in the load path: under the stop (a compliant mount: ``stop_state``, ``stop_accel``) or
-on the body that carries the drive (``mode_force``, ``mode_accel`` there); they use the same two hidden states, one
-mode at a time (``HIDDEN_MODES``).  Not in the vocabulary: a first-order lag on
-the forcing (where a model has ``shaker_coil``, its τ is that lag); a cubic spring is §6 ``suspension_hardening``.
+on the body that carries the drive (``mode_force``, ``mode_accel`` there).  ``contact_wear`` lets the struck surface
+recede with the work pressed into it (``wear_params``, ``wear_speed``), its depth in the first hidden state: the
+modes and the wear use the same two hidden states, as does ``contact_unloading``, a contact that unloads along a
+lower curve than it loads (``unloading_params``, ``unloaded``, ``peak_rate``: the peak penetration in the first), one
+candidate at a time (``HIDDEN_USERS``).  Not in the vocabulary: a first-order lag on the forcing (where a model has
+``shaker_coil``, its τ is that lag); a cubic spring is §6 ``suspension_hardening``.
 """
 from __future__ import annotations
 
@@ -212,7 +215,7 @@ STOP_MODE = "stop_mode"
 STOP_MODE_PARAMS = ("stop_mode_ratio", "stop_mode_hz", "stop_mode_zeta")
 """A compliant mount under the stop: its mass ms over the impacting mass's [-] (0 = off), its frequency on its mount
 fs [Hz] and damping ratio ζs [-]: ks = ms (2π fs)², cs = 2 ζs ms 2π fs.  Its states are ``MODE_STATES`` (the mount's
-displacement from rest [m] and rate): a model's hidden states hold one mode at a time."""
+displacement from rest [m] and rate): the hidden states hold one candidate at a time (``HIDDEN_USERS``)."""
 STRUCTURED[STOP_MODE] = Structured(
     STOP_MODE, STOP_MODE_PARAMS, ("-", "Hz", "-"), CONTACT,
     "m_s ẍ_s = F_c − k_s x_s − c_s ẋ_s, δ = x − G − x_s, δ̇ = ẋ − ẋ_s", "mode",
@@ -229,8 +232,44 @@ STRUCTURED[DRIVE_MODE] = Structured(
     "m_d (ẍ_d + a_drive) = −k_d x_d − c_d ẋ_d, F_drive += k_d x_d + c_d ẋ_d", "mode",
     "a mode inside the drive: a hidden mass on a spring and damper at the body that carries the forcing")
 
+WEAR = "contact_wear"
+WEAR_RATE = "contact_wear_m_j"
+"""The wear coefficient k_w [m/J] (0 = off): the struck surface recedes by k_w per joule pressed into it."""
+WEAR_MAX = 1.0
+"""Largest wear coefficient accepted [m/J]: far beyond the fit bounds, below typos."""
+WEAR_RUN = "contact_wear_before_m_j"
+"""How long a wearing rig ran before a steady-state record, as k_w N [m/J] (N its forcing cycles; 0 = the settings'
+transient): the face never settles, so what such a record shows depends on it (the depth there is about k_w N times
+the work pressed in per cycle; ``run_cycles``, ``wear_coef``).  Fitted as k_w N rather than N: the depth at the
+record then stays put while k_w moves, so the two are nearly independent in a fit."""
+STRUCTURED[WEAR] = Structured(
+    WEAR, (WEAR_RATE, WEAR_RUN), ("m/J", "-"), CONTACT, "ṡ = k_w F_c max(v, 0), δ = x − G − s, v = ẋ − ẋ_c", "drift",
+    "a struck surface that wears or dents away with the work pressed into it (impact wear, Archard-like): the "
+    "contact position recedes through a run, faster where the impacts are harder")
+# The contact law's rate stays the approach rate v: its dashpot spans the whole indentation, the elastic part δ and the
+# worn depth s (the permanent part of the same deformation), so the wear moves only the law's δ.
+
+UNLOADING = "contact_unloading"
+UNLOADING_SHIFT = "contact_unloading_shift"
+"""The unloading curve's exponent above the loading law's, s_u = n_u − 1 [-] (0 = off): below the impact's peak
+penetration δ_m the elastic part falls as (δ/δ_m)^(1+s_u) from its value there."""
+UNLOADING_MAX_SHIFT = 50.0
+"""Largest unloading shift accepted: far beyond the fit bounds, below typos."""
+STRUCTURED[UNLOADING] = Structured(
+    UNLOADING, (UNLOADING_SHIFT,), ("-",), CONTACT,
+    "F_e(δ) = F_e(δ_m) (δ/δ_m)^(1+s_u) while δ < δ_m, δ_m the contact's peak penetration", "contact",
+    "a contact that unloads along a lower curve than it loads (hysteretic or plastic work lost at every impact), the "
+    "surface recovering between impacts")
+
+STEADY_ONLY = frozenset({WEAR_RUN})
+"""Parameters that act only on a run left to settle (a steady-state record), not on a record from rest: discovery
+fits them only where a log has steady-state records."""
+
 HIDDEN_MODES = (MODE, STOP_MODE, DRIVE_MODE)
-"""The candidates that use the hidden states ``MODE_STATES``: at most one on at a time."""
+"""The modes that use the hidden states ``MODE_STATES``."""
+HIDDEN_USERS = (*HIDDEN_MODES, WEAR, UNLOADING)
+"""Every candidate that uses the hidden states (the modes; the wear holds its depth s in the first, the unloading
+curve its contact's peak penetration δ_m): at most one on at a time."""
 
 COMPANION: dict[str, str] = {EXPONENT_REF: EXPONENT_SHIFT, LINK_REF: LINK_PARAMS[0], SUPPORT_VEPS: SUPPORT_FORCE}
 """Parameters that shape a candidate without being fitted -> the candidate's parameter they belong to."""
@@ -339,6 +378,19 @@ def exponent_params(ref_m: float, acts_on: str) -> tuple[Param, ...]:
                   "law has the linear law's force (not fitted: the calibrated stiffness absorbs it)", positive=True))
 
 
+def unloading_params(acts_on: str) -> tuple[Param, ...]:
+    """The unloading candidate's parameter of a model whose contact's elastic part has a loading law (``acts_on``:
+    what δ is there), 0 (off) by default; the contact's peak penetration is the first hidden state."""
+    return (Param(UNLOADING_SHIFT, 0.0, "-", f"discrepancy {UNLOADING} ({acts_on}): the exponent n_u − 1 of "
+                  f"{STRUCTURED[UNLOADING].form}; 0 = off", nonnegative=True, most=UNLOADING_MAX_SHIFT),)
+
+
+def unloading_bounds() -> dict[str, FitBound]:
+    """Fit bounds of the unloading shift: n_u from 1.05 (a faint loop) to 11 (nearly all the elastic energy lost),
+    in log10 from a start grid of 3."""
+    return {UNLOADING_SHIFT: FitBound(UNLOADING_SHIFT, 0.05, 10.0, "-", grid=3)}
+
+
 def strength_params(acts_on: str) -> tuple[Param, ...]:
     """The rock rate-strength candidate's parameter of a model with a failing rock (``acts_on``: its threshold and
     failure rate), 0 (off) by default."""
@@ -383,6 +435,36 @@ def drift_bounds(lo: float, hi: float) -> dict[str, FitBound]:
     """Fit bounds [m/s] of the contact's drift rate (a model's own: from ~5 % to ~30x its typical penetration over
     a run), fitted in log10 from a start grid of 3."""
     return {DRIFT_RATE: FitBound(DRIFT_RATE, lo, hi, "m/s", grid=3)}
+
+
+def wear_params(acts_on: str) -> tuple[Param, ...]:
+    """The contact-wear candidate's parameters of a model with a contact at a fixed position (``acts_on``: which
+    surface and penetration): its coefficient, 0 (off) by default (its depth s is the first hidden state), and the
+    cycles run before a steady-state record (``run_cycles``)."""
+    return (Param(WEAR_RATE, 0.0, "m/J", f"discrepancy {WEAR} ({acts_on}): the coefficient k_w of "
+                  f"{STRUCTURED[WEAR].form}, s from 0 at rest; 0 = off", nonnegative=True, most=WEAR_MAX),
+            Param(WEAR_RUN, 0.0, "m/J", f"discrepancy {WEAR}: k_w N, N the forcing cycles the rig ran from rest "
+                  "before a steady-state record (the transient of a run left to settle); 0 = the settings' transient",
+                  nonnegative=True, most=1e7))
+
+
+def wear_bounds(lo: float, hi: float, cycles: tuple[float, float] = (20.0, 2000.0)) -> dict[str, FitBound]:
+    """Fit bounds of the wear: its coefficient [m/J] (a model's own: from a recession of ~5 % of its typical
+    penetration to ~30x it over a run) and k_w N [m/J] for N in ``cycles`` (from a short settling to minutes of
+    running) at a mid coefficient, both in log10 from a start grid of 3."""
+    mid = math.sqrt(lo * hi)
+    return {WEAR_RATE: FitBound(WEAR_RATE, lo, hi, "m/J", grid=3),
+            WEAR_RUN: FitBound(WEAR_RUN, mid * cycles[0], mid * cycles[1], "m/J", grid=3)}
+
+
+def run_cycles(values: Mapping[str, float]) -> int:
+    """The transient [cycles] a run left to settle has instead of its settings' (a candidate whose rig never settles
+    and that says how long it ran: the wear's ``WEAR_RUN``, up to whole pairs, ``wear_coef``), or 0 (the settings'
+    transient)."""
+    kw = float(values.get(WEAR_RATE, 0.0) or 0.0)
+    if not kw:
+        return 0
+    return 2 * int(math.ceil(float(values.get(WEAR_RUN, 0.0) or 0.0) / kw / 2.0))
 
 
 def support_params(acts_on: str) -> tuple[Param, ...]:
@@ -483,6 +565,25 @@ def shaped(d, s, dref):
 
 
 @njit(cache=True, error_model="numpy")
+def unloaded(e, em, d, dm, su):
+    """The elastic part's penetration measure [m] on the unloading curve: em (δ/δ_m)^(1+s_u) while 0 < δ < δ_m (em
+    the loading law's measure at the peak δ_m, e at δ), else e (loading, out of contact); exactly e while s_u = 0."""
+    if su == 0.0 or d >= dm or d <= 0.0:
+        return e
+    return em * (d / dm) ** (1.0 + su)
+
+
+@njit(cache=True, error_model="numpy")
+def peak_rate(su, ph, d, dm, dd):
+    """The rate [m/s] of the contact's peak penetration δ_m (the unloading candidate's hidden state): δ̇ in contact
+    (phase ph > 0) while loading at the peak (δ̇ > 0, δ ≥ δ_m to round-off: a reload below it follows the unloading
+    curve back), else 0; 0 while off."""
+    if su == 0.0 or ph <= 0 or dd <= 0.0 or d < dm - 1e-9 * abs(dm):
+        return 0.0
+    return dd
+
+
+@njit(cache=True, error_model="numpy")
 def drifted(gap, a, t):
     """The contact position [m] at time t [s] of a contact at gap [m] drifting at a [m/s]: exactly gap while a = 0."""
     return gap + a * t
@@ -507,10 +608,32 @@ def mode_force(ratio, fh, zeta, m_imp, xh, vh):
 
 
 @njit(cache=True, error_model="numpy")
-def stop_state(ratio, s):
-    """The mounted stop's displacement [m] or rate [m/s] held in the hidden state s while the stop mode is on (its
-    mass ratio ≠ 0), else exactly 0.0 (the hidden states may then hold another mode)."""
-    return s if ratio != 0.0 else 0.0
+def stop_state(switch, s):
+    """The hidden state s (the mounted stop's displacement [m] or rate [m/s], the wear's depth [m]) while the
+    candidate that holds it is on (its first parameter ``switch`` ≠ 0), else exactly 0.0 (the hidden states may then
+    hold another candidate)."""
+    return s if switch != 0.0 else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def wear_coef(kw, before, freq, t):
+    """k_w [m/J] at time t [s] of a run that ran N = ``before`` / k_w cycles before its record (``run_cycles``: its
+    transient is n = 2 ⌈N / 2⌉ cycles at ``freq`` [Hz], whole pairs, so that the record starts in the same half of a
+    period-2 orbit whatever N): through the last pair k_w (N − n + 2) / 2, so that the depth at the record moves
+    continuously with N, exactly the run's at even N (a fit's derivative sees it); else k_w."""
+    if before <= 0.0 or kw == 0.0:
+        return kw
+    run = before / kw
+    n = 2.0 * math.ceil(run / 2.0)
+    c = t * freq
+    return kw * (run - n + 2.0) / 2.0 if n - 2.0 <= c < n else kw
+
+
+@njit(cache=True, error_model="numpy")
+def wear_speed(kw, f, dd):
+    """ṡ = k_w F_c max(v, 0) [m/s], the worn depth's rate: the work pressed into the surface (f the contact force [N],
+    0 out of contact; v the approach rate ẋ − ẋ_c [m/s], the rate the contact law reads)."""
+    return kw * f * max(dd, 0.0)
 
 
 @njit(cache=True, error_model="numpy")

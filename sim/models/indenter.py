@@ -37,7 +37,9 @@ from sim.models.discrepancy import (DRIFT_RATE, EXPONENT_REF, EXPONENT_SHIFT, LI
                                     drift_bounds, drift_params, drifted, exponent_bounds, exponent_params, link_bounds,
                                     link_loss, link_params, mode_accel, mode_bounds, mode_force, shaped,
                                     site_mode_params, stop_accel, stop_state, support_bounds, support_params,
-                                    terms_at, tool_loss, vocabulary_at, STOP_MODE, STOP_MODE_PARAMS)
+                                    terms_at, tool_loss, vocabulary_at, wear_bounds, wear_coef, wear_params,
+                                    wear_speed, peak_rate, unloaded, unloading_bounds, unloading_params,
+                                    STOP_MODE, STOP_MODE_PARAMS, UNLOADING_SHIFT, WEAR_RATE, WEAR_RUN)
 from sim.models.effects import effect_params
 from sim.models.param import index_of
 from sim.models.contact import branch_depth, branch_force, coulomb_sign, kelvin_voigt, released_force
@@ -52,8 +54,8 @@ IXP, IXF = 0, 1
 N_BOUNDED = 4
 # the kernel checks N_GUARDS guards, as many as `guards` fills (sandstone loading and unloading have two; metal one)
 N_GUARDS = 2
-GUARD_STATES = (IX1, IV1, IXH, IVH)   # the states the guards read (x1, v1; the metal's mount xs, ẋs): the only
-                                      # ones interpolated for them
+GUARD_STATES = (IX1, IV1, IXH, IVH)   # the states the guards read (x1, v1; the metal's mount xs, ẋs or worn depth):
+                                      # the only ones interpolated for them
 
 
 def air_damping(fa_n: float, f_hz: float) -> float:
@@ -126,26 +128,32 @@ def _body(t, y, p, fr, dy):
 # ----------------------------------------------------------------------------- metal sample
 @njit(cache=True, inline="always")
 def _metal_delta(t, y, p):
-    """The metal's penetration δ = x1 − x_c − xs [m] (x_c = G + a t, a the contact drift's rate; xs the sample's
-    mount; each 0 unless its discrepancy is on)."""
-    return y[IX1] - drifted(p[GAP], p[IDRIFT], t) - stop_state(p[ISTOP], y[IXH])
+    """The metal's penetration δ = x1 − x_c − xs − s_w [m] (x_c = G + a t, a the contact drift's rate; xs the sample's
+    mount; s_w the face's worn depth; each 0 unless its discrepancy is on)."""
+    return y[IX1] - drifted(p[GAP], p[IDRIFT], t) - stop_state(p[ISTOP], y[IXH]) - stop_state(p[IWEAR], y[IXH])
 
 
 @njit(cache=True, inline="always")
 def _metal_expr(t, y, p):
     """Kelvin–Voigt force expression of the metal sample [N] (unclamped), with rate stiffening and the discrepancy
-    contact terms (δ = x1 − x_c − xs, δ̇ = ẋ1 − a − ẋs)."""
+    contact terms (δ = x1 − x_c − xs − s_w, δ̇ = ẋ1 − a − ẋs: the wear leaves the law's rate the approach rate)."""
     d = _metal_delta(t, y, p)
     v1 = y[IV1] - p[IDRIFT] - stop_state(p[ISTOP], y[IVH])
-    return (kelvin_voigt(rate_stiffened(p[K1], p[ALPHA], v1), p[C1], shaped(d, p[IEXP], p[IEXP_REF]), v1)
-            + contact_extra(terms_at(p, DISC), d, v1))
+    su = p[IUNL]
+    dm = stop_state(su, y[IXH])
+    e = unloaded(shaped(d, p[IEXP], p[IEXP_REF]), shaped(dm, p[IEXP], p[IEXP_REF]), d, dm, su)
+    return kelvin_voigt(rate_stiffened(p[K1], p[ALPHA], v1), p[C1], e, v1) + contact_extra(terms_at(p, DISC), d, v1)
 
 
 @njit(cache=True, inline="always")
 def _metal_rhs_at(t, y, ph, p, dy):
     """The equations of motion with the metal's contact; returns its force expression [N] (``metal_observe``)."""
     fe = _metal_expr(t, y, p)          # read before the branch (``_body``)
-    _body(t, y, p, fe if ph > 0 else 0.0, dy)
+    fr = fe if ph > 0 else 0.0
+    _body(t, y, p, fr, dy)
+    v = y[IV1] - p[IDRIFT]
+    dy[IXH] += (wear_speed(wear_coef(p[IWEAR], p[IWEAR_RUN], p[FREQ], t), fr, v)
+                + peak_rate(p[IUNL], ph, _metal_delta(t, y, p), stop_state(p[IUNL], y[IXH]), v))
     return fe
 
 
@@ -161,7 +169,11 @@ def metal_guards(t, y, z, ph, p, g):
 
 @njit(cache=True)
 def metal_on_event(t, y, z, ph, p, k):
-    return two_indicator_phase(_metal_delta(t, y, p), _metal_expr(t, y, p))
+    d = _metal_delta(t, y, p)
+    new = two_indicator_phase(d, _metal_expr(t, y, p))
+    if p[IUNL] != 0.0 and new > ph:     # each contact's peak penetration starts afresh (the surface recovered);
+        y[IXH] = max(d, 0.0)            # kept through the flight, so the indicator stays continuous at release
+    return new
 
 
 @njit(cache=True)
@@ -375,11 +387,15 @@ COMMON = (
     *drift_params("the metal's face G, δ = x1 − x_c (not the sandstone)"),
     *support_params("the shaker body's carriages on the ground, on m2, v = ẋ2"),
     *site_mode_params(STOP_MODE, "the metal sample on a mount: ms over m1, δ = x1 − G − xs (not the sandstone)"),
+    *wear_params("the metal's face, δ = x1 − G − s (not the sandstone)"),
+    *unloading_params("the metal's k1 δ, δ = x1 − G (not the sandstone)"),
 )
 DISC = vocabulary_at(COMMON)   # the discrepancy terms' coefficients from here on (terms_at)
 IMODE = index_of(COMMON, *MODE_PARAMS)[0]   # then its frequency and damping ratio
 ISTOP = index_of(COMMON, *STOP_MODE_PARAMS)[0]
-HIDDEN_SWITCHES = (IMODE, ISTOP)   # the parameters that switch on a mode in the hidden states (sim.compiled)
+IWEAR, IWEAR_RUN = index_of(COMMON, WEAR_RATE, WEAR_RUN)   # the wear and the cycles run before a record
+(IUNL,) = index_of(COMMON, UNLOADING_SHIFT)
+HIDDEN_SWITCHES = (IMODE, ISTOP, IWEAR, IUNL)   # the parameters that switch on a hidden-state user (sim.compiled)
 IEXP, IEXP_REF = index_of(COMMON, EXPONENT_SHIFT, EXPONENT_REF)   # the contact exponent's shift and δ_r
 ILINK, ILINK_EXP, ILINK_REF = index_of(COMMON, *LINK_PARAMS, LINK_REF)
 (IDRIFT,) = index_of(COMMON, DRIFT_RATE)
@@ -402,7 +418,8 @@ def _derive(values: dict) -> dict:
 # its power-law branches (kl, ku, nl, nu): only the tool terms apply there.
 # The hidden mode from below the forcing (30-100 Hz) to above the impacts' ~1 kHz ring.
 # The link loss at the flexure's rms velocity 0.08 m/s (sandstone, 60 Hz), where its damping carries ~175 N: 1-300 N.
-# The metal face's drift from ~6 µm to ~3 mm over a 0.3 s run.  The shaker body's carriages rub with 1-500 N (the
+# The metal face's drift from ~6 µm to ~3 mm over a 0.3 s run; its wear from a recession of ~5 % of the penetration to
+# ~30x it over such a run (~1.8 J pressed in).  The shaker body's carriages rub with 1-500 N (the
 # guides' friction range, the body's forces are the coil's and the flexure's hundreds of N).  The metal's mount from
 # a twentieth to 20x the armature's mass, from the forcing's harmonics to above the impacts' ring.
 _TOOL_BOUNDS = {**mode_bounds(20.0, 3000.0), **link_bounds(1.0, 300.0), **support_bounds(1.0, 500.0),
@@ -411,7 +428,8 @@ _TOOL_BOUNDS = {**mode_bounds(20.0, 3000.0), **link_bounds(1.0, 300.0), **suppor
 _METAL_BOUNDS = {"contact_quadratic": FitBound("contact_quadratic", 3e8, 3e11, "N/m^2"),
                  "contact_cubic": FitBound("contact_cubic", 2e12, 2e15, "N/m^3"),
                  "contact_rate_product": FitBound("contact_rate_product", 1e5, 1e8, "N s/m^2"), **exponent_bounds(),
-                 **drift_bounds(2e-5, 1e-2), **mode_bounds(50.0, 5000.0, STOP_MODE_PARAMS, (0.05, 20.0)),
+                 **drift_bounds(2e-5, 1e-2), **wear_bounds(4e-6, 2.5e-3), **unloading_bounds(),
+                 **mode_bounds(50.0, 5000.0, STOP_MODE_PARAMS, (0.05, 20.0)),
                  **_TOOL_BOUNDS}
 
 

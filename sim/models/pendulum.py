@@ -1,8 +1,9 @@
 """Impact pendulum in a moving cart (MODELS.md §3, seed 001, Aguiar & Weber 2012).
 
 States y = [theta, theta_dot, W, xh, vh]: hammer angle relative to the cart [rad], its rate [rad/s], the
-work done by the prescribed cart motion [J] and the hidden load-path mode along the hammer's tangent (discrepancy
-``load_path_mode``; at rest while off).  Phases: 0 free swing, 1 contact with the load cell.
+work done by the prescribed cart motion [J] and the hidden states: the load-path mode along the hammer's tangent
+(discrepancy ``load_path_mode``) or the load cell's worn depth in xh (``contact_wear``); at rest while off.
+Phases: 0 free swing, 1 contact with the load cell.
 
 Equation of motion (MODELS.md §3)::
 
@@ -22,8 +23,9 @@ Effects (MODELS.md §6): ``rate_stiffening`` α [s/m] (0 = off); ``sensor_lowpas
 acceleration (``sim.models.sensor``).
 Discrepancy terms (sim.models.discrepancy; off at 0): the contact terms join Fi (and its indicator), as does
 contact_exponent's shift of the elastic part's δ; contact_drift moves the load cell to x_c = gap + a t
-(δ = l sin θ − x_c, δ̇ = l θ̇ cos θ − a); support_friction is the pivot's dry friction, a tangential force μ tanh(l θ̇ / v_ε) on the
-hammer (a torque μ l), θ̈ −= μ tanh(l θ̇ / v_ε) / (m l);
+(δ = l sin θ − x_c, δ̇ = l θ̇ cos θ − a); contact_wear wears the load cell's face by s,
+ṡ = k_w Fi max(δ̇, 0) (δ = l sin θ − x_c − s, the law's rate still l θ̇ cos θ − a); support_friction is the pivot's
+dry friction, a tangential force μ tanh(l θ̇ / v_ε) on the hammer (a torque μ l), θ̈ −= μ tanh(l θ̇ / v_ε) / (m l);
 tool_quadratic_drag is a tangential force −c (l θ̇)|l θ̇| on the hammer, θ̈ −= c l θ̇|θ̇| / m; load_path_mode's
 hidden mass pulls tangentially at the hammer, θ̈ += f / (m l), and shares the hammer's tangential acceleration
 l θ̈ − A0 Ω² sin Ωt cos θ + g sin θ (the cart's and gravity's tangential parts, which act on it as on the hammer).
@@ -38,9 +40,12 @@ from sim.jit import njit  # numba is imported on first use (sim/jit.py)
 from sim.integrator import two_indicator_guard, two_indicator_phase
 from sim.models.base import SynthRig, FitBound, ModelSpec, Param
 from sim.models.discrepancy import (DRIFT_RATE, EXPONENT_REF, EXPONENT_SHIFT, MODE_PARAMS, MODE_STATES, SUPPORT_FORCE,
-                                    SUPPORT_VEPS, contact_extra, discrepancy_params, drift_bounds, drift_params,
-                                    drifted, exponent_bounds, exponent_params, mode_accel, mode_bounds, mode_force,
-                                    shaped, support_bounds, support_params, terms_at, tool_loss, vocabulary_at)
+                                    SUPPORT_VEPS, UNLOADING_SHIFT, WEAR_RATE, WEAR_RUN, contact_extra,
+                                    discrepancy_params, drift_bounds, drift_params, drifted, exponent_bounds,
+                                    exponent_params, mode_accel, mode_bounds, mode_force, peak_rate, shaped,
+                                    stop_state, support_bounds, support_params, terms_at, tool_loss, unloaded,
+                                    unloading_bounds, unloading_params, vocabulary_at, wear_bounds, wear_coef,
+                                    wear_params, wear_speed)
 from sim.models.effects import effect_params
 from sim.models.param import index_of
 from sim.models.contact import kelvin_voigt, released_force
@@ -54,7 +59,7 @@ NY = 5
 N_BOUNDED = 2
 # the kernel checks N_GUARDS guards, as many as `guards` fills (the two-indicator contact)
 N_GUARDS = 1
-GUARD_STATES = (ITH, IOM)     # the states the guards read (θ, θ̇): the only ones interpolated for them
+GUARD_STATES = (ITH, IOM, IXH)   # the states the guards read (θ, θ̇; the worn depth or peak penetration)
 
 
 # sin θ, cos θ and sin Ωt are libm calls, the largest cost of this model's evaluations: each is computed once per
@@ -62,26 +67,31 @@ GUARD_STATES = (ITH, IOM)     # the states the guards read (θ, θ̇): the only 
 
 
 @njit(cache=True, error_model="numpy")
-def _force_at(ki, alpha, ci, d, dd, dc, s, dref):
+def _force_at(ki, alpha, ci, d, dd, dc, s, dref, dm, su):
     """Spring–dashpot force expression ki (1 + α max(δ̇,0)) δ + ci δ̇ [N] (unclamped), from scalars, with the
-    discrepancy contact terms (dc: the vocabulary's coefficients) and the contact exponent's shift s on the elastic
-    part's δ (reference penetration dref [m]; sim.models.discrepancy)."""
-    return kelvin_voigt(rate_stiffened(ki, alpha, dd), ci, shaped(d, s, dref), dd) + contact_extra(dc, d, dd)
+    discrepancy contact terms (dc: the vocabulary's coefficients), the contact exponent's shift s on the elastic
+    part's δ (reference penetration dref [m]) and the unloading curve's shift su below the contact's peak
+    penetration dm [m] (sim.models.discrepancy)."""
+    e = unloaded(shaped(d, s, dref), shaped(dm, s, dref), d, dm, su)
+    return kelvin_voigt(rate_stiffened(ki, alpha, dd), ci, e, dd) + contact_extra(dc, d, dd)
 
 
 @njit(cache=True, inline="always")
 def _delta(t, y, p, s, c):
-    """Penetration δ = l sin θ − x_c [m] and its rate δ̇ = l θ̇ cos θ − a [m/s] (s, c = sin θ, cos θ; the load cell at
-    x_c = gap + a t, a the contact drift's rate, 0 unless the discrepancy is on)."""
+    """Penetration δ = l sin θ − x_c − s_w [m] and its rate δ̇ = l θ̇ cos θ − a [m/s] (s, c = sin θ, cos θ; the load
+    cell's face at x_c = gap + a t, a the contact drift's rate, worn by s_w, the contact wear's depth: the law's rate
+    stays the approach rate, sim.models.discrepancy; each 0 unless its discrepancy is on)."""
     a = p[IDRIFT]
-    return p[LEN] * s - drifted(p[GAP], a, t), p[LEN] * y[IOM] * c - a
+    return p[LEN] * s - drifted(p[GAP], a, t) - stop_state(p[IWEAR], y[IXH]), p[LEN] * y[IOM] * c - a
 
 
 @njit(cache=True, inline="always")
 def _force_expr(t, y, p, s, c):
-    """``_force_at`` of the state (s, c = sin θ, cos θ)."""
+    """``_force_at`` of the state (s, c = sin θ, cos θ) [N], the penetration δ [m] and its rate δ̇ [m/s]."""
     d, dd = _delta(t, y, p, s, c)
-    return _force_at(p[KI], p[ALPHA], p[CI], d, dd, terms_at(p, DISC), p[IEXP], p[IEXP_REF])
+    su = p[IUNL]
+    return _force_at(p[KI], p[ALPHA], p[CI], d, dd, terms_at(p, DISC), p[IEXP], p[IEXP_REF],
+                     stop_state(su, y[IXH]), su), d, dd
 
 
 @njit(cache=True, inline="always")
@@ -97,8 +107,10 @@ def _thdd(y, p, fi, s, c, sin_wt, fm):
 @njit(cache=True, inline="always")
 def _rhs_at(t, y, ph, p, dy, s, c, sin_wt):
     """Fill dy given s, c = sin θ, cos θ and sin Ωt; returns the contact force expression fi [N] (0 out of contact)."""
-    fe = _force_expr(t, y, p, s, c)       # before the branch: a branch that splits an array's live range costs numba a
-    fi = fe if ph > 0 else 0.0          # reference-count increment and decrement per array (a few flops cost less)
+    # before the branch: a branch that splits an array's live range costs numba a reference-count increment and
+    # decrement per array (a few flops cost less)
+    fe, d, dd = _force_expr(t, y, p, s, c)
+    fi = fe if ph > 0 else 0.0
     om = 2.0 * math.pi * p[FREQ]
     ratio = p[IMODE]
     fm = mode_force(ratio, p[IMODE + 1], p[IMODE + 2], p[MASS], y[IXH], y[IVH])
@@ -106,7 +118,8 @@ def _rhs_at(t, y, ph, p, dy, s, c, sin_wt):
     dy[ITH] = y[IOM]
     dy[IOM] = thdd
     dy[IW] = p[MASS] * p[LEN] * p[A0] * om * om * sin_wt * c * y[IOM]
-    dy[IXH] = y[IVH]
+    dy[IXH] = (y[IVH] + wear_speed(wear_coef(p[IWEAR], p[IWEAR_RUN], p[FREQ], t), fi, dd)
+               + peak_rate(p[IUNL], ph, d, stop_state(p[IUNL], y[IXH]), dd))
     dy[IVH] = mode_accel(ratio, p[MASS], fm, p[LEN] * thdd - p[A0] * om * om * sin_wt * c + p[GRAV] * s)
     return fi
 
@@ -124,21 +137,20 @@ def guards(t, y, z, ph, p, g):
     lenp, gap, ki, ci, alpha = p[LEN], p[GAP], p[KI], p[CI], p[ALPHA]     # read before the branches (``_rhs_at``)
     dc = terms_at(p, DISC)
     sh, dref = p[IEXP], p[IEXP_REF]
-    a = p[IDRIFT]
     if ph == 0 and th > -math.pi and lenp * th < gap:
         # free flight, certainly short of the stop: for θ ∈ (−π, 0) sin θ < 0, and for θ ≥ 0 sin θ ≤ θ, so
         # δ = l sin θ − gap < 0 and the guard min(δ, ·) is negative.  l θ − gap [m] is then returned instead of the
         # exact guard (same sign, no sin/cos: most free-flight guard checks, 4 per step, cost no libm call; the
         # exact guard is evaluated from l θ ≥ gap on, where a crossing can be, so every switch is still found and
         # located within event_tol).
-        # The bound stands for both indicators of the shared two-indicator guard (and for a drifting contact, which
-        # only recedes: a ≥ 0)
+        # The bound stands for both indicators of the shared two-indicator guard (and for a drifting or worn contact,
+        # which only recedes: a ≥ 0, ṡ_w ≥ 0)
         d = lenp * th - gap
         ind = d
     else:
-        s, c = math.sin(th), math.cos(th)
-        d = lenp * s - drifted(gap, a, t)
-        ind = _force_at(ki, alpha, ci, d, lenp * om_ * c - a, dc, sh, dref) / ki
+        d, dd = _delta(t, y, p, math.sin(th), math.cos(th))
+        su = p[IUNL]
+        ind = _force_at(ki, alpha, ci, d, dd, dc, sh, dref, stop_state(su, y[IXH]), su) / ki
     two_indicator_guard(g, d, ind, ph)
 
 
@@ -146,7 +158,10 @@ def guards(t, y, z, ph, p, g):
 def on_event(t, y, z, ph, p, k):
     s, c = math.sin(y[ITH]), math.cos(y[ITH])
     d, _ = _delta(t, y, p, s, c)
-    return two_indicator_phase(d, _force_expr(t, y, p, s, c))
+    new = two_indicator_phase(d, _force_expr(t, y, p, s, c)[0])
+    if p[IUNL] != 0.0 and new > ph:     # each contact's peak penetration starts afresh (the surface recovered);
+        y[IXH] = max(d, 0.0)            # kept through the flight, so the indicator stays continuous at release
+    return new
 
 
 @njit(cache=True)
@@ -204,11 +219,15 @@ PARAMS = (
     *exponent_params(1.7e-5, "the load cell's ki δ, δ = l sin θ − gap"),
     *drift_params("the load cell's position gap, δ = l sin θ − x_c"),
     *support_params("the pivot, a torque μ l: tangential on the hammer, v = l θ̇"),
+    *wear_params("the load cell's face, δ = l sin θ − gap − s"),
+    *unloading_params("the load cell's ki δ, δ = l sin θ − gap"),
 )
 (ALPHA,) = index_of(PARAMS, "alpha")
 DISC = vocabulary_at(PARAMS)   # the discrepancy terms' coefficients from here on (terms_at)
 IMODE = index_of(PARAMS, *MODE_PARAMS)[0]   # then its frequency and damping ratio
-HIDDEN_SWITCHES = (IMODE,)   # the parameters that switch on a mode in the hidden states (sim.compiled)
+IWEAR, IWEAR_RUN = index_of(PARAMS, WEAR_RATE, WEAR_RUN)   # the wear and the cycles run before a record
+(IUNL,) = index_of(PARAMS, UNLOADING_SHIFT)
+HIDDEN_SWITCHES = (IMODE, IWEAR, IUNL)   # the parameters that switch on a hidden-state user (sim.compiled)
 IEXP, IEXP_REF = index_of(PARAMS, EXPONENT_SHIFT, EXPONENT_REF)   # the contact exponent's shift and δ_r
 (IDRIFT,) = index_of(PARAMS, DRIFT_RATE)
 ISUP, ISUP_EPS = index_of(PARAMS, SUPPORT_FORCE, SUPPORT_VEPS)
@@ -270,13 +289,15 @@ SPEC = ModelSpec(
     # discrepancy terms: penetration ~ 1.7e-5 m, hammer speed ~0.3 m/s; tool_viscous is left out: on l θ̇ it is
     # the calibratable free-swing damping zeta exactly
     discrepancy=("contact_quadratic", "contact_cubic", "contact_rate_product", "tool_quadratic_drag", *MODE_PARAMS,
-                 EXPONENT_SHIFT, DRIFT_RATE, SUPPORT_FORCE),
+                 EXPONENT_SHIFT, DRIFT_RATE, SUPPORT_FORCE, WEAR_RATE, WEAR_RUN, UNLOADING_SHIFT),
     # (bounds measured at the default point: each probe strength moves the peak force by ~3-8 %)
     # the hidden mode from below the cart forcing (2.5-7.5 Hz) to well above the swing's harmonics; the contact's
-    # drift from ~1 µm to ~0.5 mm over a 5 s run; the pivot's friction (as a force at the hammer) from ~1 % to ~2x
+    # drift from ~1 µm to ~0.5 mm over a 5 s run, its wear from ~5 % of the penetration to ~30x it over such a run
+    # (~0.014 J pressed in); the pivot's friction (as a force at the hammer) from ~1 % to ~2x
     # the cart's inertial forcing m A0 Ω² ≈ 0.15 N
     discrepancy_bounds={**mode_bounds(2.0, 200.0), **exponent_bounds(), **drift_bounds(2e-7, 1e-4),
-                        **support_bounds(1e-3, 0.3),
+                        **support_bounds(1e-3, 0.3), **wear_bounds(5e-5, 3e-2),
+                        **unloading_bounds(),
                         "contact_quadratic": FitBound("contact_quadratic", 1e10, 5e12, "N/m^2"),
                         "contact_cubic": FitBound("contact_cubic", 1e15, 3e17, "N/m^3"),
                         "contact_rate_product": FitBound("contact_rate_product", 3e6, 3e9, "N s/m^2"),

@@ -13,7 +13,11 @@ At the strengths of the independent rigs (tests/independent/rigs.py ``outside[ki
 by 10-20 %) and at a stronger one, on the fixed cycles from rest of tests/sim/test_reference_effects.py, simulator at
 rtol 1e-10: every label within 1e-6 of the reference (the tolerance of the §6 effects' comparison).  The fifth,
 ``contact_drift``, against the reference's own drifting contact; the sixth, ``support_friction`` (pendulum, RIMD,
-indenters), against the generator's ``support_friction`` with μ = mu_s, v_ε = 1e-4 m/s.
+indenters), against the generator's ``support_friction`` with μ = mu_s, v_ε = 1e-4 m/s; ``stop_mode`` and
+``drive_mode`` against its ``mount_mode`` and ``drive_mode``; ``contact_wear`` (pendulum, metal indenter: ṡ = k_w F_c
+max(v, 0), δ = x − G − s) against its ``contact_wear`` with k_w = kw; ``contact_unloading`` (pendulum, metal
+indenter: below the contact's peak penetration the elastic part falls as (δ/δ_m)^n_u) against its
+``unloading_hysteresis`` with n_u = nu_h.
 """
 from __future__ import annotations
 
@@ -24,7 +28,8 @@ import sim
 import math
 
 from sim.models.discrepancy import (DRIFT_RATE, DRIVE_MODE_PARAMS, EXPONENT_REF, EXPONENT_SHIFT, LINK_PARAMS, LINK_REF,
-                                    STOP_MODE_PARAMS, STRENGTH, SUPPORT_FORCE, SUPPORT_VEPS)
+                                    STOP_MODE_PARAMS, STRENGTH, SUPPORT_FORCE, SUPPORT_VEPS, UNLOADING_SHIFT, WEAR_RATE,
+                                    WEAR_RUN)
 from tests.independent.outside import model_for
 from tests.independent.rigs import RIGS
 from tests.reference_solutions import reference_run
@@ -47,10 +52,14 @@ CASES = {
     ("rimd", "mount_mode"): ("ms", "peak_force_n", lambda g: _mount("rimd", "m2", g)),
     ("rimd", "drive_mode"): ("md", "peak_force_n", lambda g: _drive("rimd", "m1", g)),
     ("drill", "drive_mode"): ("md", "rop_m_s", lambda g: _drive("drill", "M2", g)),
+    **{(m, "contact_wear"): ("kw", "peak_force_n", lambda g: {WEAR_RATE: g["kw"]})
+       for m in ("indenter-metal", "pendulum")},
+    **{(m, "unloading_hysteresis"): ("nu_h", "peak_force_n", lambda g: {UNLOADING_SHIFT: g["nu_h"] - 1.0})
+       for m in ("indenter-metal", "pendulum")},
 }
-STRONGER = {"nc": 2.0, "eta_r": None, "cp": None, "mu_s": None, "ms": None, "md": None}
-"""The stronger case: a cone-like law n = 2; the rock's rate strength, the link loss, the support friction and the
-mounted or driving mode's mass at 3x the rig's (None)."""
+STRONGER = {"nc": 2.0, "eta_r": None, "cp": None, "mu_s": None, "ms": None, "md": None, "kw": None, "nu_h": 8.0}
+"""The stronger case: a cone-like law n = 2; an unloading curve n_u = 8; the rock's rate strength, the link loss,
+the support friction, the mounted or driving mode's mass and the wear coefficient at 3x the rig's (None)."""
 
 
 def _link(model: str, g: dict) -> dict:
@@ -182,7 +191,9 @@ def test_a_stronger_rock_drills_slower_and_the_bit_feels_at_least_the_threshold(
                                           ("drill", DRIFT_RATE), ("rimd", DRIFT_RATE), ("drill", SUPPORT_FORCE),
                                           ("pendulum", STOP_MODE_PARAMS[0]),
                                           ("indenter-sandstone", STOP_MODE_PARAMS[0]),
-                                          ("indenter-metal", DRIVE_MODE_PARAMS[0])])
+                                          ("indenter-metal", DRIVE_MODE_PARAMS[0]), ("rimd", WEAR_RATE),
+                                          ("indenter-sandstone", WEAR_RATE), ("drill", WEAR_RATE),
+                                          ("rimd", UNLOADING_SHIFT), ("drill", UNLOADING_SHIFT)])
 def test_a_model_without_the_candidate_refuses_it(model, param):
     with pytest.raises(sim.ParameterError, match=param):
         sim.get_model(model).resolve(**{param: 0.5})
@@ -191,7 +202,8 @@ def test_a_model_without_the_candidate_refuses_it(model, param):
 @pytest.mark.parametrize("model, entry", [("pendulum", {EXPONENT_SHIFT: 0.5}), ("drill", {STRENGTH: 20.0}),
                                           ("rimd", {LINK_PARAMS[0]: 0.05, LINK_PARAMS[1]: 2.5}),
                                           ("indenter-metal", {DRIFT_RATE: 4e-4}),
-                                          ("pendulum", {SUPPORT_FORCE: 0.02})])
+                                          ("pendulum", {SUPPORT_FORCE: 0.02}),
+                                          ("indenter-metal", {WEAR_RATE: 2e-4})])
 def test_a_rig_file_carries_the_candidate(model, entry):
     """A candidate's parameter is a rig's ``discrepancy:`` entry like any term, and round-trips."""
     rig = sim.Rig(model=model, discrepancy=entry)
@@ -208,13 +220,18 @@ def test_beyond_its_largest_meaningful_value_a_candidate_is_a_typo():
         sim.get_model("indenter-metal").resolve(**{DRIFT_RATE: 5.0})
     with pytest.raises(sim.ParameterError, match=f"'{SUPPORT_FORCE}' must be <= 10000"):
         sim.get_model("rimd").resolve(**{SUPPORT_FORCE: 2e4})
+    with pytest.raises(sim.ParameterError, match=f"'{WEAR_RATE}' must be <= 1"):
+        sim.get_model("pendulum").resolve(**{WEAR_RATE: 3.0})
 
 
-def test_one_hidden_mode_at_a_time():
-    """The load-path, stop and drive modes share the two hidden states: two at once is refused in one line."""
-    with pytest.raises(sim.ParameterError, match="one hidden mode at a time"):
+def test_one_user_of_the_hidden_states_at_a_time():
+    """The load-path, stop and drive modes and the wear share the two hidden states: two at once is refused in one
+    line."""
+    with pytest.raises(sim.ParameterError, match="load_path_mode and stop_mode: one at a time"):
         sim.get_model("rimd").resolve(load_path_mode_ratio=0.1, load_path_mode_hz=50.0,
                                       **dict(zip(STOP_MODE_PARAMS, (1.0, 100.0, 0.05))))
+    with pytest.raises(sim.ParameterError, match="stop_mode and contact_wear: one at a time"):
+        sim.get_model("indenter-metal").resolve(**{WEAR_RATE: 1e-4}, **dict(zip(STOP_MODE_PARAMS, (1.0, 500.0, 0.05))))
 
 
 def test_a_softer_mount_under_the_stop_lowers_the_peak_force():
@@ -247,5 +264,64 @@ def test_a_receding_contact_hits_softer_and_keeps_forces_non_negative():
     for a in (0.0, 1e-6, 3e-6, 1e-5):
         r = sim.simulate("pendulum", **{DRIFT_RATE: a}, history=True)
         assert np.all(r.history["force_n"] >= 0.0)
+        peaks.append(r.labels["peak_force_n"])
+    assert np.all(np.diff(peaks) < 0.0), peaks
+
+
+@pytest.mark.parametrize("model", ["pendulum", "indenter-metal"])
+def test_a_wearing_face_recedes_monotonically_and_hits_softer(model):
+    """Physics: the worn depth never decreases (it grows by k_w times the work pressed in); the receding face meets
+    the tool later and softer, so the peak force falls as k_w grows; forces stay ≥ 0."""
+    hi = sim.get_model(model).discrepancy_bounds[WEAR_RATE].hi
+    peaks = []
+    for kw in (0.0, hi / 300.0, hi / 30.0, hi / 3.0):
+        r = sim.simulate(model, **{WEAR_RATE: kw}, history=True)
+        h = r.history
+        depth = h["load_path_mode_x"].to_numpy()
+        ends = depth[::sim.Settings().samples_per_cycle]      # cycle ends: step ends, the states themselves
+        # between them the dense output's quartic may dip by its own error where ṡ has its kink (δ̇ = 0)
+        assert np.all(np.diff(ends) >= 0.0) and np.all(np.diff(depth) >= -1e-5 * depth[-1])
+        assert np.all(h["force_n"] >= 0.0)
+        assert (depth[-1] > 0.0) == (kw > 0.0)
+        peaks.append(r.labels["peak_force_n"])
+    assert np.all(np.diff(peaks) < 0.0), peaks
+
+
+def test_a_wearing_rig_runs_as_long_as_it_ran_before_a_steady_state_record():
+    """A wearing face never settles: a run left to settle has the transient the rig ran, N = k_w N / k_w cycles up to
+    whole pairs, the depth at the record continuous in N (exactly the run's at even N); a transient the caller fixed
+    (a record from rest) stands; a batch gives each row its own."""
+    kw = 2e-3
+    got = {n: sim.simulate("pendulum", **{WEAR_RATE: kw, WEAR_RUN: kw * n}) for n in (149.0, 150.0, 150.5)}
+    assert [r.labels["transient_cycles"] for r in got.values()] == [150, 150, 152]
+    fixed = sim.simulate("pendulum", settings={"min_transient": 150, "max_transient": 150}, **{WEAR_RATE: kw})
+    for k in ("peak_force_n", "energy_per_cycle_j"):
+        assert got[150.0].labels[k] == pytest.approx(fixed.labels[k], rel=1e-9)
+    depth = {n: r.final_state[0][-2] for n, r in got.items()}
+    assert depth[149.0] < depth[150.0] < depth[150.5]
+    rest = sim.simulate("pendulum", settings={"min_transient": 0, "max_transient": 0}, **{WEAR_RATE: kw, WEAR_RUN: 0.3})
+    assert rest.labels["transient_cycles"] == 0
+    batch = sim.simulate_batch("pendulum", [{WEAR_RATE: kw, WEAR_RUN: kw * 40}, {WEAR_RATE: kw, WEAR_RUN: kw * 80}])
+    assert batch["transient_cycles"].tolist() == [40, 80]
+
+
+@pytest.mark.parametrize("model", ["pendulum", "indenter-metal"])
+def test_a_contact_that_unloads_lower_loses_energy_each_impact_and_recovers_between(model):
+    """Physics: below the peak penetration the elastic force falls faster the larger n_u, so the tool leaves each
+    impact slower (the loop's area is lost): the peak force of the repeated impacts falls as n_u grows; forces stay
+    ≥ 0, and the peak penetration held in the hidden state starts afresh at each contact (the surface recovers) and
+    only grows through it."""
+    peaks = []
+    for su in (0.0, 0.5, 2.0, 6.0):
+        r = sim.simulate(model, **{UNLOADING_SHIFT: su}, history=True)
+        h = r.history
+        assert np.all(h["force_n"] >= 0.0)
+        peak, touching = h["load_path_mode_x"].to_numpy(), h["phase"].to_numpy() > 0
+        edges = np.flatnonzero(np.diff(touching.astype(int)))
+        contacts = [(a + 1, b + 1) for a, b in zip(edges[::2], edges[1::2])] if touching[0] == 0 else []
+        assert len(contacts) > 2 or su == 0.0
+        for a, b in [c for c in contacts if c[1] - c[0] > 2] if su else []:
+            # (between steps the dense output's quartic may dip by its own error where δ̇ turns)
+            assert peak[a] < peak[b - 1] and np.all(np.diff(peak[a:b]) >= -1e-4 * peak.max()), (su, a, b)
         peaks.append(r.labels["peak_force_n"])
     assert np.all(np.diff(peaks) < 0.0), peaks

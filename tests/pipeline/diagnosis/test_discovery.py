@@ -95,21 +95,22 @@ def test_the_hidden_mode_is_a_structured_candidate_of_every_model(system):
     """The hidden load-path mode is fitted as a proposal of its own (three parameters, with bounds), never screened
     as a regression column; so are the contact exponent where the contact's elastic part is linear, the rock's
     rate strength where a rock fails, the link loss where the impacting mass hangs on a suspension, the contact's
-    drift where it sits at a fixed position and the support friction where a support can rub."""
+    drift and wear where it sits at a fixed position and the support friction where a support can rub."""
     from sim.models.discrepancy import (DRIFT, DRIFT_RATE, DRIVE_MODE, DRIVE_MODE_PARAMS, EXPONENT, EXPONENT_SHIFT,
                                         LINK, LINK_PARAMS, MODE, MODE_PARAMS, STOP_MODE, STOP_MODE_PARAMS, STRENGTH,
-                                        SUPPORT, SUPPORT_FORCE)
+                                        SUPPORT, SUPPORT_FORCE, UNLOADING, UNLOADING_SHIFT, WEAR, WEAR_RATE)
 
     structured = D.structured_candidates(system)
-    own = {"indenter-metal": [EXPONENT, LINK, DRIFT, SUPPORT, STOP_MODE], "indenter-sandstone": [LINK, SUPPORT],
-           "pendulum": [EXPONENT, DRIFT, SUPPORT], "drill": [STRENGTH, LINK, DRIVE_MODE],
+    own = {"indenter-metal": [EXPONENT, LINK, DRIFT, SUPPORT, STOP_MODE, WEAR, UNLOADING],
+           "indenter-sandstone": [LINK, SUPPORT],
+           "pendulum": [EXPONENT, DRIFT, SUPPORT, WEAR, UNLOADING], "drill": [STRENGTH, LINK, DRIVE_MODE],
            "rimd": [LINK, SUPPORT, STOP_MODE, DRIVE_MODE]}[system]
     assert list(structured) == [MODE, *own]
     assert tuple(b.name for b in structured[MODE]) == MODE_PARAMS
     for name in structured:
         assert all(0.0 < 10 ** b.bounds[0] < 10 ** b.bounds[1] for b in structured[name])
     assert not ((set(MODE_PARAMS) | {EXPONENT_SHIFT, STRENGTH, *LINK_PARAMS, DRIFT_RATE, SUPPORT_FORCE,
-                                     *STOP_MODE_PARAMS, *DRIVE_MODE_PARAMS})
+                                     *STOP_MODE_PARAMS, *DRIVE_MODE_PARAMS, WEAR_RATE, UNLOADING_SHIFT})
                 & set(D.term_candidates(system)))
 
 
@@ -199,3 +200,13 @@ def test_a_proposal_needs_two_numbers_per_free_parameter():
     rep = D.report(d, base_err, ["k1", "c1", "pm"])
     assert rep.proposals == () and rep.accepted is None
     assert "hold 6 measured numbers" in rep.text and "more runs or series records" in rep.text
+
+
+def test_a_parameter_that_acts_on_steady_state_records_only_is_fitted_only_where_a_log_has_them():
+    """The wear's run before a steady-state record (k_w N) moves nothing on a record from rest: discovery fits it
+    only when the log has steady-state records."""
+    from sim.models.discrepancy import WEAR, WEAR_RATE, WEAR_RUN
+
+    steady = D.structured_candidates("pendulum", steady=True)[WEAR]
+    from_rest = D.structured_candidates("pendulum", steady=False)[WEAR]
+    assert [b.name for b in steady] == [WEAR_RATE, WEAR_RUN] and [b.name for b in from_rest] == [WEAR_RATE]
