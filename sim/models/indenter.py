@@ -134,26 +134,33 @@ def _metal_delta(t, y, p):
 
 
 @njit(cache=True, inline="always")
-def _metal_expr(t, y, p):
+def _metal_contact(t, y, p):
     """Kelvin–Voigt force expression of the metal sample [N] (unclamped), with rate stiffening and the discrepancy
-    contact terms (δ = x1 − x_c − xs − s_w, δ̇ = ẋ1 − a − ẋs: the wear leaves the law's rate the approach rate)."""
+    contact terms (δ = x1 − x_c − xs − s_w, δ̇ = ẋ1 − a − ẋs: the wear leaves the law's rate the approach rate), and
+    the penetration δ [m] and the contact's peak penetration δ_m [m] (0 unless the unloading curve is on)."""
     d = _metal_delta(t, y, p)
     v1 = y[IV1] - p[IDRIFT] - stop_state(p[ISTOP], y[IVH])
     su = p[IUNL]
     dm = stop_state(su, y[IXH])
     e = unloaded(shaped(d, p[IEXP], p[IEXP_REF]), shaped(dm, p[IEXP], p[IEXP_REF]), d, dm, su)
-    return kelvin_voigt(rate_stiffened(p[K1], p[ALPHA], v1), p[C1], e, v1) + contact_extra(terms_at(p, DISC), d, v1)
+    fe = kelvin_voigt(rate_stiffened(p[K1], p[ALPHA], v1), p[C1], e, v1) + contact_extra(terms_at(p, DISC), d, v1)
+    return fe, d, dm
+
+
+@njit(cache=True, inline="always")
+def _metal_expr(t, y, p):
+    """``_metal_contact``'s force expression [N]."""
+    return _metal_contact(t, y, p)[0]
 
 
 @njit(cache=True, inline="always")
 def _metal_rhs_at(t, y, ph, p, dy):
     """The equations of motion with the metal's contact; returns its force expression [N] (``metal_observe``)."""
-    fe = _metal_expr(t, y, p)          # read before the branch (``_body``)
+    fe, d, dm = _metal_contact(t, y, p)          # read before the branch (``_body``)
     fr = fe if ph > 0 else 0.0
     _body(t, y, p, fr, dy)
     v = y[IV1] - p[IDRIFT]
-    dy[IXH] += (wear_speed(wear_coef(p[IWEAR], p[IWEAR_RUN], p[FREQ], t), fr, v)
-                + peak_rate(p[IUNL], ph, _metal_delta(t, y, p), stop_state(p[IUNL], y[IXH]), v))
+    dy[IXH] += wear_speed(wear_coef(p[IWEAR], p[IWEAR_RUN], p[FREQ], t), fr, v) + peak_rate(p[IUNL], ph, d, dm, v)
     return fe
 
 
