@@ -52,8 +52,12 @@ Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<ru
    (drill, indenters, RIMD; link_power_loss_n c, _exponent p: c (|v|/v_r)^p sgn v), a contact that drifts
    through a run (pendulum, metal indenter; contact_drift_m_s a: x_c = G + a t) and dry friction at a support
    (pendulum pivot, RIMD clamp, indenter carriages; support_friction_n μ: μ tanh(v/v_ε)), the stop on a
-   compliant mount (RIMD, metal indenter; stop_mode_ratio, _hz, _zeta) and a mode in the drive (RIMD beam,
-   drill exciter; drive_mode_ratio, _hz, _zeta) are re-fitted and judged
+   compliant mount (RIMD, metal indenter; stop_mode_ratio, _hz, _zeta), a mode in the drive (RIMD beam,
+   drill exciter; drive_mode_ratio, _hz, _zeta), a face that wears with the work pressed into it (pendulum,
+   metal indenter; contact_wear_m_j k_w: ṡ = k_w F_c max(v, 0), and on steady-state records
+   contact_wear_before_m_j = k_w N, N the cycles run before the record) and a contact that unloads below its
+   loading law (pendulum, metal indenter; contact_unloading_shift s_u: (δ/δ_m)^(1+s_u) below the peak δ_m) are
+   re-fitted and judged
    on the held-out runs by the rule of step 4; a proposal is fitted only where every fold's calibration runs hold
    at least 2 measured numbers per free parameter (a summary log of a few runs fits none, and says so).
    report.json 'discrepancy' ranks them (terms in words and symbols, coefficients with sd, held-out error against
