@@ -25,7 +25,7 @@ of the relative velocity (``link_params``, ``link_loss``); the fifth, ``contact_
 moves at a steady rate through a run (``drift_params``, ``drifted``); the sixth, ``support_friction``, a dry
 friction at a support other than the tool's guides (``support_params``; the kernels call
 ``sim.models.terms.guide_friction``'s regularised Coulomb law there).  ``stop_mode`` and ``drive_mode`` put the
-hidden mode's mass elsewhere in the load path: under the stop (a compliant mount: ``stop_state``, ``stop_accel``) or
+hidden mode's mass elsewhere in the load path: under the stop (a compliant mount: ``hidden_state``, ``stop_accel``) or
 on the body that carries the drive (``mode_force``, ``mode_accel`` there).  ``contact_wear`` lets the struck surface
 recede with the work pressed into it (``wear_params``, ``wear_speed``), its depth in the first hidden state: the
 modes and the wear use the same two hidden states, as does ``contact_unloading``, a contact that unloads along a
@@ -243,7 +243,7 @@ transient): the face never settles, so what such a record shows depends on it (t
 the work pressed in per cycle; ``run_cycles``, ``wear_coef``).  Fitted as k_w N rather than N: the depth at the
 record then stays put while k_w moves, so the two are nearly independent in a fit."""
 STRUCTURED[WEAR] = Structured(
-    WEAR, (WEAR_RATE, WEAR_RUN), ("m/J", "-"), CONTACT, "ṡ = k_w F_c max(v, 0), δ = x − G − s, v = ẋ − ẋ_c", "drift",
+    WEAR, (WEAR_RATE, WEAR_RUN), ("m/J", "m/J"), CONTACT, "ṡ = k_w F_c max(v, 0), δ = x − G − s, v = ẋ − ẋ_c", "drift",
     "a struck surface that wears or dents away with the work pressed into it (impact wear, Archard-like): the "
     "contact position recedes through a run, faster where the impacts are harder")
 # The contact law's rate stays the approach rate v: its dashpot spans the whole indentation, the elastic part δ and the
@@ -439,8 +439,8 @@ def drift_bounds(lo: float, hi: float) -> dict[str, FitBound]:
 
 def wear_params(acts_on: str) -> tuple[Param, ...]:
     """The contact-wear candidate's parameters of a model with a contact at a fixed position (``acts_on``: which
-    surface and penetration): its coefficient, 0 (off) by default (its depth s is the first hidden state), and the
-    cycles run before a steady-state record (``run_cycles``)."""
+    surface and penetration): its coefficient, 0 (off) by default (its depth s is the first hidden state), and k_w N,
+    N the cycles run before a steady-state record (``run_cycles``)."""
     return (Param(WEAR_RATE, 0.0, "m/J", f"discrepancy {WEAR} ({acts_on}): the coefficient k_w of "
                   f"{STRUCTURED[WEAR].form}, s from 0 at rest; 0 = off", nonnegative=True, most=WEAR_MAX),
             Param(WEAR_RUN, 0.0, "m/J", f"discrepancy {WEAR}: k_w N, N the forcing cycles the rig ran from rest "
@@ -459,12 +459,9 @@ def wear_bounds(lo: float, hi: float, cycles: tuple[float, float] = (20.0, 2000.
 
 def run_cycles(values: Mapping[str, float]) -> int:
     """The transient [cycles] a run left to settle has instead of its settings' (a candidate whose rig never settles
-    and that says how long it ran: the wear's ``WEAR_RUN``, up to whole pairs, ``wear_coef``), or 0 (the settings'
-    transient)."""
-    kw = float(values.get(WEAR_RATE, 0.0) or 0.0)
-    if not kw:
-        return 0
-    return 2 * int(math.ceil(float(values.get(WEAR_RUN, 0.0) or 0.0) / kw / 2.0))
+    and that says how long it ran: the wear's ``WEAR_RUN``, up to whole pairs, ``run_pairs``), or 0 (the settings'
+    transient).  Plain Python (``py_func``): a run served by an ahead-of-time kernel imports no numba."""
+    return int(run_pairs.py_func(float(values.get(WEAR_RATE, 0.0) or 0.0), float(values.get(WEAR_RUN, 0.0) or 0.0)))
 
 
 def support_params(acts_on: str) -> tuple[Param, ...]:
@@ -608,23 +605,31 @@ def mode_force(ratio, fh, zeta, m_imp, xh, vh):
 
 
 @njit(cache=True, error_model="numpy")
-def stop_state(switch, s):
-    """The hidden state s (the mounted stop's displacement [m] or rate [m/s], the wear's depth [m]) while the
-    candidate that holds it is on (its first parameter ``switch`` ≠ 0), else exactly 0.0 (the hidden states may then
-    hold another candidate)."""
+def hidden_state(switch, s):
+    """The hidden state s (the mounted stop's displacement [m] or rate [m/s], the wear's depth [m], the contact's peak
+    penetration [m]) while the candidate that holds it is on (its first parameter ``switch`` ≠ 0), else exactly 0.0
+    (the hidden states may then hold another candidate)."""
     return s if switch != 0.0 else 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def wear_coef(kw, before, freq, t):
-    """k_w [m/J] at time t [s] of a run that ran N = ``before`` / k_w cycles before its record (``run_cycles``: its
-    transient is n = 2 ⌈N / 2⌉ cycles at ``freq`` [Hz], whole pairs, so that the record starts in the same half of a
-    period-2 orbit whatever N): through the last pair k_w (N − n + 2) / 2, so that the depth at the record moves
-    continuously with N, exactly the run's at even N (a fit's derivative sees it); else k_w."""
+def run_pairs(kw, before):
+    """The transient n = 2 ⌈N / 2⌉ [cycles] of a wearing run that ran N = ``before`` / k_w cycles before its record:
+    whole pairs, so that the record starts in the same half of a period-2 orbit whatever N; 0 while either is 0."""
     if before <= 0.0 or kw == 0.0:
+        return 0.0
+    return 2.0 * math.ceil(before / kw / 2.0)
+
+
+@njit(cache=True, error_model="numpy")
+def wear_coef(kw, before, freq, t):
+    """k_w [m/J] at time t [s] of a run that ran N = ``before`` / k_w cycles before its record (its transient n at
+    ``freq`` [Hz], ``run_pairs``): through the last pair k_w (N − n + 2) / 2, so that the depth at the record moves
+    continuously with N, exactly the run's at even N (a fit's derivative sees it); else k_w."""
+    n = run_pairs(kw, before)
+    if n == 0.0:
         return kw
     run = before / kw
-    n = 2.0 * math.ceil(run / 2.0)
     c = t * freq
     return kw * (run - n + 2.0) / 2.0 if n - 2.0 <= c < n else kw
 

@@ -36,7 +36,7 @@ from sim.models.discrepancy import (DRIFT_RATE, EXPONENT_REF, EXPONENT_SHIFT, LI
                                     MODE_STATES, SUPPORT_FORCE, SUPPORT_VEPS, contact_extra, discrepancy_params,
                                     drift_bounds, drift_params, drifted, exponent_bounds, exponent_params, link_bounds,
                                     link_loss, link_params, mode_accel, mode_bounds, mode_force, shaped,
-                                    site_mode_params, stop_accel, stop_state, support_bounds, support_params,
+                                    site_mode_params, stop_accel, hidden_state, support_bounds, support_params,
                                     terms_at, tool_loss, vocabulary_at, wear_bounds, wear_coef, wear_params,
                                     wear_speed, peak_rate, unloaded, unloading_bounds, unloading_params,
                                     STOP_MODE, STOP_MODE_PARAMS, UNLOADING_SHIFT, WEAR_RATE, WEAR_RUN)
@@ -130,7 +130,7 @@ def _body(t, y, p, fr, dy):
 def _metal_delta(t, y, p):
     """The metal's penetration δ = x1 − x_c − xs − s_w [m] (x_c = G + a t, a the contact drift's rate; xs the sample's
     mount; s_w the face's worn depth; each 0 unless its discrepancy is on)."""
-    return y[IX1] - drifted(p[GAP], p[IDRIFT], t) - stop_state(p[ISTOP], y[IXH]) - stop_state(p[IWEAR], y[IXH])
+    return y[IX1] - drifted(p[GAP], p[IDRIFT], t) - hidden_state(p[ISTOP], y[IXH]) - hidden_state(p[IWEAR], y[IXH])
 
 
 @njit(cache=True, inline="always")
@@ -139,9 +139,9 @@ def _metal_contact(t, y, p):
     contact terms (δ = x1 − x_c − xs − s_w, δ̇ = ẋ1 − a − ẋs: the wear leaves the law's rate the approach rate), and
     the penetration δ [m] and the contact's peak penetration δ_m [m] (0 unless the unloading curve is on)."""
     d = _metal_delta(t, y, p)
-    v1 = y[IV1] - p[IDRIFT] - stop_state(p[ISTOP], y[IVH])
+    v1 = y[IV1] - p[IDRIFT] - hidden_state(p[ISTOP], y[IVH])
     su = p[IUNL]
-    dm = stop_state(su, y[IXH])
+    dm = hidden_state(su, y[IXH])
     e = unloaded(shaped(d, p[IEXP], p[IEXP_REF]), shaped(dm, p[IEXP], p[IEXP_REF]), d, dm, su)
     fe = kelvin_voigt(rate_stiffened(p[K1], p[ALPHA], v1), p[C1], e, v1) + contact_extra(terms_at(p, DISC), d, v1)
     return fe, d, dm
@@ -400,7 +400,7 @@ COMMON = (
 DISC = vocabulary_at(COMMON)   # the discrepancy terms' coefficients from here on (terms_at)
 IMODE = index_of(COMMON, *MODE_PARAMS)[0]   # then its frequency and damping ratio
 ISTOP = index_of(COMMON, *STOP_MODE_PARAMS)[0]
-IWEAR, IWEAR_RUN = index_of(COMMON, WEAR_RATE, WEAR_RUN)   # the wear and the cycles run before a record
+IWEAR, IWEAR_RUN = index_of(COMMON, WEAR_RATE, WEAR_RUN)   # the wear and its k_w N before a record
 (IUNL,) = index_of(COMMON, UNLOADING_SHIFT)
 HIDDEN_SWITCHES = (IMODE, ISTOP, IWEAR, IUNL)   # the parameters that switch on a hidden-state user (sim.compiled)
 IEXP, IEXP_REF = index_of(COMMON, EXPONENT_SHIFT, EXPONENT_REF)   # the contact exponent's shift and δ_r

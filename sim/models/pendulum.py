@@ -2,7 +2,8 @@
 
 States y = [theta, theta_dot, W, xh, vh]: hammer angle relative to the cart [rad], its rate [rad/s], the
 work done by the prescribed cart motion [J] and the hidden states: the load-path mode along the hammer's tangent
-(discrepancy ``load_path_mode``) or the load cell's worn depth in xh (``contact_wear``); at rest while off.
+(discrepancy ``load_path_mode``), the load cell's worn depth (``contact_wear``) or the contact's peak penetration
+(``contact_unloading``) in xh; at rest while off.
 Phases: 0 free swing, 1 contact with the load cell.
 
 Equation of motion (MODELS.md §3)::
@@ -24,7 +25,8 @@ acceleration (``sim.models.sensor``).
 Discrepancy terms (sim.models.discrepancy; off at 0): the contact terms join Fi (and its indicator), as does
 contact_exponent's shift of the elastic part's δ; contact_drift moves the load cell to x_c = gap + a t
 (δ = l sin θ − x_c, δ̇ = l θ̇ cos θ − a); contact_wear wears the load cell's face by s,
-ṡ = k_w Fi max(δ̇, 0) (δ = l sin θ − x_c − s, the law's rate still l θ̇ cos θ − a); support_friction is the pivot's
+ṡ = k_w Fi max(δ̇, 0) (δ = l sin θ − x_c − s, the law's rate still l θ̇ cos θ − a); contact_unloading lowers the
+elastic part below the contact's peak penetration δ_m to ki δ_m (δ/δ_m)^(1+s_u); support_friction is the pivot's
 dry friction, a tangential force μ tanh(l θ̇ / v_ε) on the hammer (a torque μ l), θ̈ −= μ tanh(l θ̇ / v_ε) / (m l);
 tool_quadratic_drag is a tangential force −c (l θ̇)|l θ̇| on the hammer, θ̈ −= c l θ̇|θ̇| / m; load_path_mode's
 hidden mass pulls tangentially at the hammer, θ̈ += f / (m l), and shares the hammer's tangential acceleration
@@ -43,7 +45,7 @@ from sim.models.discrepancy import (DRIFT_RATE, EXPONENT_REF, EXPONENT_SHIFT, MO
                                     SUPPORT_VEPS, UNLOADING_SHIFT, WEAR_RATE, WEAR_RUN, contact_extra,
                                     discrepancy_params, drift_bounds, drift_params, drifted, exponent_bounds,
                                     exponent_params, mode_accel, mode_bounds, mode_force, peak_rate, shaped,
-                                    stop_state, support_bounds, support_params, terms_at, tool_loss, unloaded,
+                                    hidden_state, support_bounds, support_params, terms_at, tool_loss, unloaded,
                                     unloading_bounds, unloading_params, vocabulary_at, wear_bounds, wear_coef,
                                     wear_params, wear_speed)
 from sim.models.effects import effect_params
@@ -82,16 +84,17 @@ def _delta(t, y, p, s, c):
     cell's face at x_c = gap + a t, a the contact drift's rate, worn by s_w, the contact wear's depth: the law's rate
     stays the approach rate, sim.models.discrepancy; each 0 unless its discrepancy is on)."""
     a = p[IDRIFT]
-    return p[LEN] * s - drifted(p[GAP], a, t) - stop_state(p[IWEAR], y[IXH]), p[LEN] * y[IOM] * c - a
+    return p[LEN] * s - drifted(p[GAP], a, t) - hidden_state(p[IWEAR], y[IXH]), p[LEN] * y[IOM] * c - a
 
 
 @njit(cache=True, inline="always")
 def _force_expr(t, y, p, s, c):
-    """``_force_at`` of the state (s, c = sin θ, cos θ) [N], the penetration δ [m] and its rate δ̇ [m/s]."""
+    """``_force_at`` of the state (s, c = sin θ, cos θ) [N], the penetration δ [m], its rate δ̇ [m/s] and the contact's
+    peak penetration δ_m [m] (0 unless the unloading curve is on)."""
     d, dd = _delta(t, y, p, s, c)
     su = p[IUNL]
-    return _force_at(p[KI], p[ALPHA], p[CI], d, dd, terms_at(p, DISC), p[IEXP], p[IEXP_REF],
-                     stop_state(su, y[IXH]), su), d, dd
+    dm = hidden_state(su, y[IXH])
+    return _force_at(p[KI], p[ALPHA], p[CI], d, dd, terms_at(p, DISC), p[IEXP], p[IEXP_REF], dm, su), d, dd, dm
 
 
 @njit(cache=True, inline="always")
@@ -109,7 +112,7 @@ def _rhs_at(t, y, ph, p, dy, s, c, sin_wt):
     """Fill dy given s, c = sin θ, cos θ and sin Ωt; returns the contact force expression fi [N] (0 out of contact)."""
     # before the branch: a branch that splits an array's live range costs numba a reference-count increment and
     # decrement per array (a few flops cost less)
-    fe, d, dd = _force_expr(t, y, p, s, c)
+    fe, d, dd, dm = _force_expr(t, y, p, s, c)
     fi = fe if ph > 0 else 0.0
     om = 2.0 * math.pi * p[FREQ]
     ratio = p[IMODE]
@@ -119,7 +122,7 @@ def _rhs_at(t, y, ph, p, dy, s, c, sin_wt):
     dy[IOM] = thdd
     dy[IW] = p[MASS] * p[LEN] * p[A0] * om * om * sin_wt * c * y[IOM]
     dy[IXH] = (y[IVH] + wear_speed(wear_coef(p[IWEAR], p[IWEAR_RUN], p[FREQ], t), fi, dd)
-               + peak_rate(p[IUNL], ph, d, stop_state(p[IUNL], y[IXH]), dd))
+               + peak_rate(p[IUNL], ph, d, dm, dd))
     dy[IVH] = mode_accel(ratio, p[MASS], fm, p[LEN] * thdd - p[A0] * om * om * sin_wt * c + p[GRAV] * s)
     return fi
 
@@ -150,7 +153,7 @@ def guards(t, y, z, ph, p, g):
     else:
         d, dd = _delta(t, y, p, math.sin(th), math.cos(th))
         su = p[IUNL]
-        ind = _force_at(ki, alpha, ci, d, dd, dc, sh, dref, stop_state(su, y[IXH]), su) / ki
+        ind = _force_at(ki, alpha, ci, d, dd, dc, sh, dref, hidden_state(su, y[IXH]), su) / ki
     two_indicator_guard(g, d, ind, ph)
 
 
@@ -225,7 +228,7 @@ PARAMS = (
 (ALPHA,) = index_of(PARAMS, "alpha")
 DISC = vocabulary_at(PARAMS)   # the discrepancy terms' coefficients from here on (terms_at)
 IMODE = index_of(PARAMS, *MODE_PARAMS)[0]   # then its frequency and damping ratio
-IWEAR, IWEAR_RUN = index_of(PARAMS, WEAR_RATE, WEAR_RUN)   # the wear and the cycles run before a record
+IWEAR, IWEAR_RUN = index_of(PARAMS, WEAR_RATE, WEAR_RUN)   # the wear and its k_w N before a record
 (IUNL,) = index_of(PARAMS, UNLOADING_SHIFT)
 HIDDEN_SWITCHES = (IMODE, IWEAR, IUNL)   # the parameters that switch on a hidden-state user (sim.compiled)
 IEXP, IEXP_REF = index_of(PARAMS, EXPONENT_SHIFT, EXPONENT_REF)   # the contact exponent's shift and δ_r

@@ -39,7 +39,7 @@ from sim.models.param import index_of
 from sim.models.discrepancy import (DRIVE_MODE, DRIVE_MODE_PARAMS, LINK_PARAMS, LINK_REF, MODE_PARAMS, MODE_STATES,
                                     STOP_MODE, STOP_MODE_PARAMS, SUPPORT_FORCE, SUPPORT_VEPS, contact_extra,
                                     discrepancy_params, link_bounds, link_loss, link_params, mode_accel, mode_bounds,
-                                    mode_force, site_mode_params, stop_accel, stop_state, support_bounds,
+                                    mode_force, site_mode_params, stop_accel, hidden_state, support_bounds,
                                     support_params, terms_at, tool_loss, vocabulary_at)
 from sim.models.effects import effect_params
 from sim.models.contact import hunt_crossley, hunt_crossley_damping
@@ -62,13 +62,13 @@ LS = 1e-3   # length scale [m] turning the dimensionless indicator 1 + λi ẋ2 
 def _hc_factor(y, p):
     """Hunt–Crossley damping factor 1 + λi δ̇ [-] (second contact indicator; δ̇ = ẋ2 − ẋs, the stop's ẋs 0 unless
     its mount's mode is on)."""
-    return hunt_crossley_damping(p[LAM], y[IV2] - stop_state(p[ISTOP], y[IVH]))
+    return hunt_crossley_damping(p[LAM], y[IV2] - hidden_state(p[ISTOP], y[IVH]))
 
 
 @njit(cache=True, inline="always")
 def _delta(y, p):
     """Penetration δ = x2 − gap − xs [m] (xs the mounted stop's displacement, 0 unless its mode is on)."""
-    return y[IX2] - p[GAP] - stop_state(p[ISTOP], y[IXH])
+    return y[IX2] - p[GAP] - hidden_state(p[ISTOP], y[IXH])
 
 
 @njit(cache=True, error_model="numpy")
@@ -95,8 +95,8 @@ def _rhs_at(t, y, ph, p, dy):
     dratio = p[IDRIVE]
     fmd = mode_force(dratio, p[IDRIVE + 1], p[IDRIVE + 2], m1, xh, vh)
     sratio = p[ISTOP]
-    d = x2 - gap - stop_state(sratio, xh)
-    dd = v2 - stop_state(sratio, vh)
+    d = x2 - gap - hidden_state(sratio, xh)
+    dd = v2 - hidden_state(sratio, vh)
     # the discrepancy contact terms join the Hunt–Crossley force, clamped at 0 (the indicators stay δ, 1 + λi δ̇);
     # without them the force is the base model's, unclamped, bit for bit
     hc = _force_at(ki, alpha, ni, lam, d, dd)
