@@ -15,6 +15,8 @@ with ``max_effects: 2``.  Scored against the truth:
 
     python -m bench.discovery --n-runs 8                        # the matrix (hours on 2 cores; resumable)
     python -m bench.discovery --systems drill --cases outside:quadratic_damping --noise rig
+    python -m bench.discovery --systems drill indenter-metal pendulum rimd --cases held-out --noise rig \
+        --daq field --block held-out-field          # the held-out kinds recorded through a field DAQ chain
 
 Logs and rows are kept under ``bench/results/discovery/`` (resumes; ``--fresh`` diagnoses again); the tables go to
 docs/discovery.md between its generated-table markers and the summary to bench/results/discovery.json.
@@ -51,32 +53,37 @@ def cases(system: str) -> list[str]:
             "pair:" + "+".join(PAIRS[system])]
 
 
-def spec_of(system: str, case: str, noise: str, seed: int, n_runs: int | None):
+def spec_of(system: str, case: str, noise: str, seed: int, n_runs: int | None, daq: str | None = None):
+    """The generator's log of a case; ``daq``: a named chain of ``tests.independent.daq.DAQ_CHAINS`` (None: none)."""
+    from tests.independent.daq import DAQ_CHAINS
     from tests.independent.generator import LogSpec
     from tests.independent.rigs import RIGS
 
+    chain = None if daq is None else DAQ_CHAINS[daq]
     if case.startswith("outside:"):
-        return LogSpec(system, outside=case.split(":", 1)[1], noise=noise, seed=seed, n_runs=n_runs)
+        return LogSpec(system, outside=case.split(":", 1)[1], noise=noise, seed=seed, n_runs=n_runs, daq=chain)
     first, second = case.split(":", 1)[1].split("+")
     return LogSpec(system, effect=first, noise=noise, seed=seed, n_runs=n_runs,
-                   overrides=dict(RIGS[system].effects[second]))
+                   overrides=dict(RIGS[system].effects[second]), daq=chain)
 
 
-def row_name(system: str, case: str, noise: str, seed: int, n_runs: int | None) -> str:
+def row_name(system: str, case: str, noise: str, seed: int, n_runs: int | None, daq: str | None = None) -> str:
     what = case.replace(":", "-")
-    return f"{system}-{what}-{noise}-s{seed}" + ("" if n_runs is None else f"-n{n_runs}")
+    return (f"{system}-{what}-{noise}" + ("" if daq is None else f"-{daq}") + f"-s{seed}"
+            + ("" if n_runs is None else f"-n{n_runs}"))
 
 
-def run_case(system: str, case: str, noise: str, seed: int, threads: int, n_runs: int | None) -> dict:
+def run_case(system: str, case: str, noise: str, seed: int, threads: int, n_runs: int | None,
+             daq: str | None = None) -> dict:
     """Generate (or reuse) the log, diagnose it, and score the proposals / the pair against the truth."""
     from tests.independent.generator import generate
     from tests.independent.rigs import OUTSIDE_KIND
 
-    name = row_name(system, case, noise, seed, n_runs)
+    name = row_name(system, case, noise, seed, n_runs, daq)
     data, truth_file = WORK / "logs" / name, WORK / "logs" / f"{name}.truth.json"
     if not truth_file.exists():
         shutil.rmtree(data, ignore_errors=True)
-        generate(spec_of(system, case, noise, seed, n_runs), data, truth_file, threads=threads)
+        generate(spec_of(system, case, noise, seed, n_runs, daq), data, truth_file, threads=threads)
     from pipeline.datasets.measured import load_dataset
     from pipeline.diagnosis.outputs import diagnose_into
     from pipeline.diagnosis.run import DiagnoseConfig
@@ -91,7 +98,8 @@ def run_case(system: str, case: str, noise: str, seed: int, threads: int, n_runs
     disc, e = r.discrepancy, r.errors
     props = disc.proposals if disc else ()
     top = props[0] if props else None
-    row = {"system": system, "case": case, "noise": noise, "seed": seed, "name": name, "verdict": r.verdict,
+    row = {"system": system, "case": case, "noise": noise if daq is None else f"{noise}, {daq}", "seed": seed,
+           "name": name, "verdict": r.verdict,
            "selected": "+".join(r.selected) if r.selected else None, "selected_effects": list(r.selected or ()),
            "base_nrms": e.base.nrms, "final_nrms": e.final.nrms, "noise_floor": e.noise_floor,
            "base_error": e.base.error, "final_error": e.final.error, "accepted": disc.accepted if disc else None,
@@ -195,13 +203,20 @@ def table(rows: list[dict]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from tests.independent.daq import DAQ_CHAINS
+    from tests.independent.kinds import KINDS_SYSTEMS
+
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--systems", nargs="+", default=["drill", "indenter-metal", "indenter-sandstone", "pendulum", "rimd"])
-    p.add_argument("--cases", nargs="+", help="subset: outside:<name>, pair")
+    p.add_argument("--cases", nargs="+", help="subset: outside:<name>, pair, held-out (the held-out kinds of "
+                                              "tests/independent/kinds.py)")
     p.add_argument("--noise", nargs="+", default=list(NOISE))
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--n-runs", type=int, default=8, help="the first N runs spread over each rig's grid")
+    p.add_argument("--daq", metavar="CHAIN", choices=sorted(DAQ_CHAINS),
+                   help="record the logs through this named DAQ chain of the generator (e.g. field: an 8th-order "
+                        "Butterworth at 0.45 fs, a 50 ppm clock, a clipped accelerometer and 50 Hz hum)")
     p.add_argument("--fresh", action="store_true",
                    help="diagnose the selected cases again (their logs and the other cases' stored rows are kept)")
     p.add_argument("--no-doc", action="store_true",
@@ -214,20 +229,20 @@ def main(argv: list[str] | None = None) -> int:
     WORK.mkdir(parents=True, exist_ok=True)
     done_file = WORK / "rows.json"
     done = {r["name"]: r for r in json.loads(done_file.read_text())} if done_file.exists() else {}
-    per = {s: [c for c in cases(s) if a.cases is None or c in a.cases or (c.startswith("pair:") and "pair" in a.cases)]
-           for s in a.systems}
+    per = {s: [c for c in cases(s) if a.cases is None or c in a.cases or (c.startswith("pair:") and "pair" in a.cases)
+               or ("held-out" in a.cases and c.split(":", 1)[-1] in KINDS_SYSTEMS)] for s in a.systems}
     todo = [(s, per[s][k], n) for n in a.noise for k in range(max(map(len, per.values()), default=0))
             for s in a.systems if k < len(per[s])]
     if a.fresh:
         for s, c, n in todo:
-            done.pop(row_name(s, c, n, a.seed, a.n_runs), None)
+            done.pop(row_name(s, c, n, a.seed, a.n_runs, a.daq), None)
     rows = []
     for k, (s, c, n) in enumerate(todo, 1):
-        name = row_name(s, c, n, a.seed, a.n_runs)
+        name = row_name(s, c, n, a.seed, a.n_runs, a.daq)
         if name not in done and a.tables_only:
             continue
         if name not in done:
-            done[name] = run_case(s, c, n, a.seed, a.threads, a.n_runs)
+            done[name] = run_case(s, c, n, a.seed, a.threads, a.n_runs, a.daq)
             done_file.write_text(json.dumps(list(done.values()), indent=1, default=float))
             r = done[name]
             print(f"[{k}/{len(todo)}] {name}: {'✓' if r['correct'] else '✗'} {r['verdict']}, "

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Collection
 import numpy as np
 
 from pipeline.core.executors import Executor
-from pipeline.diagnosis.calibrate import fit_added
+from pipeline.diagnosis.calibrate import calibration_basis, calibration_sets, fit_added
 from pipeline.diagnosis.fit import FitResult
 from pipeline.diagnosis.heldout import HeldOut
 from pipeline.diagnosis.judge import Fitter, FoldScheme, Judged, judge
@@ -39,8 +39,6 @@ from sim.models.discrepancy import probe_value  # noqa: F401  (the strength the 
 if TYPE_CHECKING:
     from pipeline.diagnosis.config import DiagnoseConfig
 
-CAL_STEP = 0.01
-"""Step [log10] of the calibratable parameters' sensitivity columns."""
 MAX_SUPPORT = 2
 """At most this many terms in one proposal."""
 PREFIX = "discrepancy:"
@@ -104,16 +102,14 @@ def screen(ev: Evaluator, idx: list[int], base: dict, terms: dict[str, FreeParam
     from scipy.optimize import nnls
     from sklearn.linear_model import lars_path
 
-    cal = [p.name for p in calibratable(ev.system)]
+    cal = list(calibratable(ev.system))
     names = list(terms)
     probes = {t: probe_value(terms[t]) for t in names}
-    sets = ([dict(base)] + [{**base, n: base[n] * 10 ** CAL_STEP} for n in cal]
-            + [{**base, t: probes[t]} for t in names])
+    sets = calibration_sets(base, cal) + [{**base, t: probes[t]} for t in names]
     rs = ev.residuals(sets, idx)
     r0 = rs[0]
-    jc = np.column_stack([(r - r0) / CAL_STEP for r in rs[1:1 + len(cal)]])
+    q = calibration_basis(rs[:1 + len(cal)])
     jt = np.column_stack([r - r0 for r in rs[1 + len(cal):]])       # per unit of the probe strength
-    q, _ = np.linalg.qr(jc)
     jt = jt - q @ (q.T @ jt)                  # what a recalibration can absorb is no evidence for a term
     y = -(r0 - q @ (q.T @ r0))
     norms = np.linalg.norm(jt, axis=0)
@@ -220,7 +216,7 @@ def discover(ev: Evaluator, cfg: DiagnoseConfig, scheme: FoldScheme, calibrated:
     nominal = [proposal_name((n,)) for n in structured if proposal_name((n,)) in cands]
 
     def fit_on(runs: list[list[int]], start: list[FitResult]) -> list[dict[str, FitResult]]:
-        return fit_added(ev, runs, cfg, cands, start, executor, extra_starts=starts, nominal=nominal)
+        return fit_added(ev, runs, cfg, cands, start, executor, extra_starts=starts, nominal=nominal, projected=True)
     fitter = Fitter.from_starts(fit_on, scheme, [f["base"] for f in calibrated.fold_fits], base)
     j = judge(ev, scheme, fitter, cfg.rule(), against=base_stats)
     for m in j.stats:

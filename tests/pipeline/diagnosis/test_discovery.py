@@ -210,3 +210,63 @@ def test_a_parameter_that_acts_on_steady_state_records_only_is_fitted_only_where
     steady = D.structured_candidates("pendulum", steady=True)[WEAR]
     from_rest = D.structured_candidates("pendulum", steady=False)[WEAR]
     assert [b.name for b in steady] == [WEAR_RATE, WEAR_RUN] and [b.name for b in from_rest] == [WEAR_RATE]
+
+
+class AbsorbedRig:
+    """A stand-in Evaluator for a structured candidate with a narrow basin (a hidden mode near a forcing harmonic):
+    r = Jc (log p − log p_true) + a w(θ) + Jc[:, 0] b h(θ), θ the candidate's log10 parameter.  Its narrow part w
+    vanishes at θ_true and is ~1 elsewhere; its broad part h (0 at θ_true, 1 far from it) is a calibratable
+    direction, which a base fit without the candidate absorbs: at that base every grid point near θ_true reads
+    worse than the far ones, until a recalibration is allowed."""
+
+    def __init__(self, n: int = 300, seed: int = 1):
+        rng = np.random.default_rng(seed)
+        self.system = SYSTEM
+        self.free = list(calibratable(SYSTEM))
+        self.cal = [p.name for p in self.free]
+        self.jc = rng.standard_normal((n, len(self.cal)))
+        self.narrow = rng.standard_normal(n) * 0.6
+        self.true_cal = {p.name: 10 ** (0.5 * (p.bounds[0] + p.bounds[1])) for p in self.free}
+        self.theta = math.log10(400.0)
+        self.targets = [type("T", (), {"low": np.ones(n, bool)})()]
+
+    def shape(self, x: float) -> tuple[float, float]:
+        d = (x - self.theta) / 0.04
+        return 1.0 - math.exp(-d * d), 1.0 - math.exp(-d * d / 400.0)
+
+    def residuals(self, sets, idx):
+        out = []
+        for s in sets:
+            w, h = self.shape(math.log10(s["mode_hz"])) if s.get("mode_hz") else (1.0, 1.0)    # off: far
+            dp = np.array([math.log10(s[c] / self.true_cal[c]) for c in self.cal])
+            out.append(self.jc @ dp + self.narrow * w + self.jc[:, 0] * 3.0 * h)
+        return out
+
+    def absorbed_base(self) -> dict:
+        """The base fit without the candidate (θ far away): the calibratable offset that cancels the broad part."""
+        return {**self.true_cal, self.cal[0]: self.true_cal[self.cal[0]] * 10 ** -3.0}
+
+
+def test_a_narrow_basin_the_base_absorbed_is_found_by_projecting_out_the_recalibration():
+    """``candidate_start``'s ``projected`` ranking: at the absorbed base the grid point next to the truth (453 Hz
+    against 400) reads worse than every far one, so the profiles of the raw ranking miss it; with the recalibration
+    projected out it ranks first and its profile is the start."""
+    from types import SimpleNamespace
+
+    from pipeline.diagnosis.calibrate import candidate_start
+    from sim.models.fitbound import FitBound
+
+    rig = AbsorbedRig()
+    eff = (FitBound("mode_hz", 50.0, 3000.0, "Hz", grid=12),)
+    cfg = SimpleNamespace(grid=4, profile_points=2, profile_nfev=3, diff_step=0.01)
+    base = rig.absorbed_base()
+    axis = 10 ** np.linspace(*eff[0].bounds, 14)[1:-1]
+    near = float(axis[np.argmin(abs(np.log10(axis) - rig.theta))])
+    raw = [float(r @ r) for r in rig.residuals([{**base, "mode_hz": f} for f in axis], [0])]
+    assert np.argmin(raw) != np.argmin(abs(axis - near))             # the unprofiled grid misses it
+    plain = candidate_start(rig, [0], base, eff, rig.free, cfg)
+    found = candidate_start(rig, [0], base, eff, rig.free, cfg, projected=True)
+    assert plain["mode_hz"] != near
+    assert found["mode_hz"] == near
+    chi2 = [float(r @ r) for r in rig.residuals([plain, found], [0])]
+    assert chi2[1] < chi2[0]
