@@ -19,7 +19,8 @@ DESCRIPTION = """\
 Diagnose a model against a measured dataset (MODELS.md §7: runs.csv, series/<run_id>.csv, summary.csv).
 1. validate the dataset strictly (errors name file, line and column; nothing is written on error);
 2. split the runs deterministically into calibration and held-out runs (>= min_runs_holdout runs per system:
-   every holdout_every-th run held out; fewer: leave-one-run-out cross-validation);
+   every holdout_every-th run held out, never two at one forcing frequency where another run can be; fewer:
+   leave-one-run-out cross-validation);
 3. calibrate the base model's uncertain parameters (MODELS.md §6: metal k1, c1, pm; sandstone kl, ku, pm;
    drill K1, C1, Pr; pendulum ki, ci, zeta; rimd ki, lambda_i, c1), the rig's known parameters coming from the
    runs' preset / parameter columns
@@ -91,7 +92,8 @@ params.yaml section 'diagnose' (all optional; defaults in brackets):
   max_harmonic_hz [per system: indenter 1000, drill 3000, pendulum 100, rimd 200]
                            harmonics of f up to this frequency are features (least squares on the record's
                            own time base: any sampling rate, any record length >= 2 cycles)
-  holdout_every [4]        single split: every n-th run (sorted by static force, frequency) is held out
+  holdout_every [4]        single split: every n-th run (sorted by static force, frequency) is held out, moved
+                           to the next frequency of its level where that one is held out already
   min_runs_holdout [8]     a system with fewer runs is cross-validated leave-one-run-out
   n_starts [2]             base-model starts (defaults + seeded random points)
   grid [4]                 grid points per effect parameter for a candidate's starting point

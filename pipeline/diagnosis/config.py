@@ -71,7 +71,8 @@ class DiagnoseConfig:
 
     max_harmonic_hz: float | None = None  # harmonics of f up to this frequency are features (None: per system,
     #                                       model.default_max_harmonic_hz: indenter 1000, drill 3000, pendulum 100, rimd 200)
-    holdout_every: int = 4              # single split: every n-th run (sorted by static force, f) is held out
+    holdout_every: int = 4              # single split: every n-th run (sorted by static force, f) is held out, at
+    #                                     distinct frequencies where it can (judge.make_folds)
     min_runs_holdout: int = 8           # fewer runs of a system -> leave-one-run-out cross-validation
     n_starts: int = 2                   # base-model starts: defaults + (n_starts - 1) seeded random points
     grid: int = 4                       # candidate start search: grid points per effect parameter

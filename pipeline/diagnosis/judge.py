@@ -83,7 +83,9 @@ class LeaveOneRunOut:
 
 def make_folds(targets: list[Target], cfg: DiagnoseConfig) -> FoldScheme:
     """Deterministic split.  >= min_runs_holdout runs: ``Holdout``, every holdout_every-th run of the
-    (static force, gap, amplitude, frequency)-sorted list held out (offset 1, so both ends stay in calibration);
+    (static force, gap, amplitude, frequency)-sorted list held out (offset 1, so both ends stay in calibration), each
+    moved on to the next run of its static force and gap whose forcing frequency is not held out yet where one is
+    (``_held_out``);
     fewer: ``LeaveOneRunOut``."""
     n = len(targets)
     c = [targets[i].controls for i in range(n)]
@@ -91,12 +93,28 @@ def make_folds(targets: list[Target], cfg: DiagnoseConfig) -> FoldScheme:
                                             c[i].get("amplitude_n", c[i].get("amplitude_m", 0.0)),
                                             c[i]["frequency_hz"], targets[i].run_id))
     if n >= max(cfg.min_runs_holdout, 3):
-        test = sorted(order[j] for j in range(n) if j % cfg.holdout_every == 1)
+        test = _held_out(order, [c[i] for i in order], cfg.holdout_every)
         cal = sorted(set(range(n)) - set(test))
         return Holdout(((cal, test),))
     if n < 2:
         raise UserError(f"system '{targets[0].system}': only {n} run; need at least 2 to hold one out")
     return LeaveOneRunOut(tuple(([j for j in range(n) if j != i], [i]) for i in range(n)))
+
+
+def _held_out(order: list[int], controls: list[dict], every: int) -> list[int]:
+    """The held-out runs of the sorted ``order`` (their ``controls``): every ``every``-th from offset 1; a pick whose
+    forcing frequency is already held out moves to the next run of the same static force and gap whose frequency
+    is not, where there is one.  Two levels run at the same frequencies (a pendulum's two gaps) would otherwise both
+    be held out at one frequency, and the calibration would not see what happens there."""
+    def level(k: int) -> tuple:
+        return controls[k].get("static_force_n", 0.0), controls[k].get("gap_m", 0.0)
+
+    picked: list[int] = []
+    for j in range(1, len(order), every):
+        free = [k for k in range(j, len(order)) if level(k) == level(j) and k not in picked
+                and all(controls[k]["frequency_hz"] != controls[p]["frequency_hz"] for p in picked)]
+        picked.append(free[0] if free else j)
+    return sorted(order[k] for k in picked)
 
 
 def without_runs(scheme: FoldScheme, runs: set[int]) -> FoldScheme:

@@ -83,6 +83,27 @@ def test_folds_are_deterministic_and_disjoint():
     assert scheme.reported_runs == [0, 1, 2, 3]             # leave-one-run-out reports a fit on all runs
 
 
+def test_two_levels_at_the_same_frequencies_are_not_held_out_at_one_frequency():
+    """Two static forces run at the same four frequencies (the independent pendulum's two gaps, the indenters' two
+    forces): every 4th run of the sorted list would hold out both runs at the second frequency, and no calibration
+    run would show that frequency; the second pick moves to the next frequency of its level.  Where every run has
+    the same frequency nothing can move, and the split is every 4th run."""
+    def runs(freqs, forces):
+        return [Target(run_id=f"r{i}", system="indenter-metal", kind="series",
+                       controls={"frequency_hz": f, "amplitude_n": 1.0, "static_force_n": fs, "gap_m": 1e-3})
+                for i, (fs, f) in enumerate((fs, f) for fs in forces for f in freqs)]
+
+    tg = runs((40.0, 60.0, 70.0, 90.0), (200.0, 300.0))
+    (cal, test), = make_folds(tg, DiagnoseConfig()).folds
+    assert [(tg[i].controls["static_force_n"], tg[i].controls["frequency_hz"]) for i in test] == [(200.0, 60.0),
+                                                                                               (300.0, 70.0)]
+    assert {tg[i].controls["frequency_hz"] for i in cal} == {40.0, 60.0, 70.0, 90.0}
+    tg = runs((50.0,), (100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 700.0, 800.0))
+    assert make_folds(tg, DiagnoseConfig()).folds[0][1] == [1, 5]
+    tg = runs((40.0, 55.0, 70.0, 85.0), (200.0,)) + runs((45.0, 60.0, 75.0, 90.0), (300.0,))   # interleaved: as before
+    assert [tg[i].controls["frequency_hz"] for i in make_folds(tg, DiagnoseConfig()).folds[0][1]] == [55.0, 60.0]
+
+
 def _synth(tmp_path, name, *args):
     from pipeline.cli import main
 
