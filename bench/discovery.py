@@ -242,7 +242,7 @@ def main(argv: list[str] | None = None) -> int:
         if name not in done and a.tables_only:
             continue
         if name not in done:
-            done[name] = run_case(s, c, n, a.seed, a.threads, a.n_runs, a.daq)
+            done[name] = run_case(s, c, n, a.seed, a.threads, a.n_runs, daq=a.daq)
             done_file.write_text(json.dumps(list(done.values()), indent=1, default=float))
             r = done[name]
             print(f"[{k}/{len(todo)}] {name}: {'✓' if r['correct'] else '✗'} {r['verdict']}, "
