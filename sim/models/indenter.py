@@ -148,12 +148,6 @@ def _metal_contact(t, y, p):
 
 
 @njit(cache=True, inline="always")
-def _metal_expr(t, y, p):
-    """``_metal_contact``'s force expression [N]."""
-    return _metal_contact(t, y, p)[0]
-
-
-@njit(cache=True, inline="always")
 def _metal_rhs_at(t, y, ph, p, dy):
     """The equations of motion with the metal's contact; returns its force expression [N] (``metal_observe``)."""
     fe, d, dm = _metal_contact(t, y, p)          # read before the branch (``_body``)
@@ -171,13 +165,14 @@ def metal_rhs(t, y, z, ph, p, dy):
 
 @njit(cache=True)
 def metal_guards(t, y, z, ph, p, g):
-    two_indicator_guard(g, _metal_delta(t, y, p), _metal_expr(t, y, p) * 1e-7, ph)
+    fe, d, _ = _metal_contact(t, y, p)
+    two_indicator_guard(g, d, fe * 1e-7, ph)
 
 
 @njit(cache=True)
 def metal_on_event(t, y, z, ph, p, k):
-    d = _metal_delta(t, y, p)
-    new = two_indicator_phase(d, _metal_expr(t, y, p))
+    fe, d, _ = _metal_contact(t, y, p)
+    new = two_indicator_phase(d, fe)
     if p[IUNL] != 0.0 and new > ph:     # each contact's peak penetration starts afresh (the surface recovered);
         y[IXH] = max(d, 0.0)            # kept through the flight, so the indicator stays continuous at release
     return new

@@ -160,8 +160,8 @@ def guards(t, y, z, ph, p, g):
 @njit(cache=True)
 def on_event(t, y, z, ph, p, k):
     s, c = math.sin(y[ITH]), math.cos(y[ITH])
-    d, _ = _delta(t, y, p, s, c)
-    new = two_indicator_phase(d, _force_expr(t, y, p, s, c)[0])
+    fe, d, _, _ = _force_expr(t, y, p, s, c)
+    new = two_indicator_phase(d, fe)
     if p[IUNL] != 0.0 and new > ph:     # each contact's peak penetration starts afresh (the surface recovered);
         y[IXH] = max(d, 0.0)            # kept through the flight, so the indicator stays continuous at release
     return new
