@@ -32,6 +32,7 @@ import pandas as pd
 
 from pipeline.core.errors import UserError
 from pipeline.datasets.daq import DeclaredChain
+from pipeline.diagnosis import mains
 from pipeline.diagnosis.instrument import Nuisance, apply_gain, instrument_gain
 from sim.controls import CONTROLS as CONTROL_NAMES
 from sim.layout import G_ACCEL as G   # [m/s²] per g: the project's one value
@@ -310,7 +311,11 @@ class Target:
     pair_kw: np.ndarray | None = None              # each pair's angular frequency k Ω [rad/s]
     filter_gain: np.ndarray | None = None          # the declared filter's response at each pair (None: no filter)
     spans: tuple = ()                              # (mid record time, length) [s] of the record and of its halves
-    clipped: dict = field(default_factory=dict)    # signal -> fraction of samples left out (saturated)
+    clipped: dict = field(default_factory=dict)    # signal -> fraction of samples saturated
+    saturation: dict = field(default_factory=dict)  # signal -> Saturation (its range; the model is clipped there)
+    lines: dict = field(default_factory=dict)      # signal -> [mains.Line] measured apart from the harmonics
+    hum_lines: tuple = ()                          # (family, m) fitted beside the harmonics (mains hum found)
+    hum: dict = field(default_factory=dict)        # the log's mains hum (mains.Hum) allowed for on this run
     notes: list = field(default_factory=list)      # what the features left out, for the report
 
     @property
@@ -371,20 +376,19 @@ def record_time(tg: Target, t_record: np.ndarray) -> np.ndarray:
     return t_record + (tg.record_start_s or 0.0)
 
 
-def _operators(t: np.ndarray, f: float, k: int, keep: dict | None = None) -> dict:
+def _operators(t: np.ndarray, f: float, k: int, lines: tuple = ()) -> dict:
     """Least-squares operators of a time base: "harmonic" (cubic drift, DRIFT_DEGREE) for accelerations, forces and
-    displacements, "linear" (offset and rate) for the progression, and per signal of ``keep`` (signal -> mask of
-    its usable samples) one that leaves the others out."""
+    displacements, "linear" (offset and rate) for the progression.  ``lines``: mains hum lines (family, m) fitted
+    beside the harmonics (``mains``), their rows dropped from the operator."""
     a = _design(t, f, k, DRIFT_DEGREE)
-    ops = {"harmonic": np.linalg.pinv(a), "linear": np.linalg.pinv(_design(t, f, k, 1))}
-    for sig, m in (keep or {}).items():
-        ops[sig] = _masked(np.linalg.pinv(a[m]), m)
-    return ops
+    harmonic = np.linalg.pinv(np.column_stack([a, mains.line_columns(t, list(lines))]))[:a.shape[1]] if lines \
+        else np.linalg.pinv(a)
+    return {"harmonic": harmonic, "linear": np.linalg.pinv(_design(t, f, k, 1))}
 
 
 def _coefs(ops: dict, x: dict, sl: slice = slice(None)) -> dict:
     """Each signal's least-squares coefficients on its operator (samples ``sl`` of ``x``)."""
-    return {sig: ops.get(sig, ops["linear" if sig == "progression_m" else "harmonic"]) @ v[sl] for sig, v in x.items()}
+    return {sig: ops["linear" if sig == "progression_m" else "harmonic"] @ v[sl] for sig, v in x.items()}
 
 
 def _features(signals: tuple[str, ...], coef: dict, from_rest: bool) -> np.ndarray:
@@ -411,19 +415,19 @@ def steady_cycles(cycles: float, max_cycles: float = 0.0) -> int:
     return max((c // 4) * 4 if c >= 8 else (c // 2) * 2, 2)
 
 
-def _halves(t: np.ndarray, f: float, k: int, steady: bool, keep: dict | None = None) -> list:
+def _halves(t: np.ndarray, f: float, k: int, steady: bool, lines: tuple = ()) -> list:
     """The record's two halves (slices) and the least-squares operators of their own time bases; a steady-state
     record (whole pairs of cycles, ``steady_cycles``) is split between its pairs."""
     mid = t.size // 2
     if steady:
         mid = int(np.searchsorted(t, t[0] + 0.5 * (t[-1] - t[0] + (t[1] - t[0])) - 1e-9 * (t[1] - t[0])))
-    return [(sl, _operators(t[sl], f, k, {s_: m[sl] for s_, m in (keep or {}).items()}))
-            for sl in (slice(0, mid), slice(mid, t.size))]
+    return [(sl, _operators(t[sl], f, k, lines)) for sl in (slice(0, mid), slice(mid, t.size))]
 
 
-MAX_CLIPPED_FRACTION = 0.05
-"""A channel with more saturated samples than this fraction of its record is not used (named in the notes): the
-gaps sit at the impacts, and the harmonics of what is left lose the information that tells impacts apart."""
+MAX_CLIPPED_FRACTION = 0.5
+"""A channel saturated in more than this fraction of its samples is not used (named in the notes): the model is
+clipped at the same range (``Target.saturation``), so what is left is the instants the signal enters and leaves its
+range; past half the record those say little and the noise estimate rests on few samples."""
 
 
 MIN_AT_EXTREME = 3
@@ -444,13 +448,6 @@ def clipped_samples(x: np.ndarray) -> np.ndarray:
     return out
 
 
-def _masked(op: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """A least-squares operator on the samples ``keep`` only, as an operator on all of them (zero columns)."""
-    out = np.zeros((op.shape[0], keep.size))
-    out[:, keep] = op
-    return out
-
-
 def _whole_cycles(df: pd.DataFrame, f: float, max_cycles: float) -> pd.DataFrame:
     """A steady-state record cut to whole cycles (``steady_cycles``: a multiple of 4, at most ``max_cycles``)."""
     t_all = df["t_s"].to_numpy()
@@ -461,16 +458,48 @@ def _whole_cycles(df: pd.DataFrame, f: float, max_cycles: float) -> pd.DataFrame
     return df
 
 
+@dataclass(frozen=True)
+class Saturation:
+    """Where a record's channel saturated, for clipping the model alike: the ADC's range (low, high) [unit; -inf /
+    +inf on a side it never reached] and, to place the model in the sensor's frame (its offset and slow drift move
+    the signal against the range), the drift basis of the record and the measured values at its unsaturated
+    samples."""
+
+    low: float
+    high: float
+    keep: np.ndarray           # indices of the unsaturated samples
+    basis: np.ndarray          # (N, DRIFT_DEGREE + 1) polynomial drift over the record
+    basis_pinv: np.ndarray     # its least-squares operator on the unsaturated samples
+    measured: np.ndarray       # the record at the unsaturated samples [unit]
+
+    @classmethod
+    def of(cls, t: np.ndarray, x: np.ndarray, m: np.ndarray) -> "Saturation":
+        """From a record's times, values and saturated-sample mask (``clipped_samples``)."""
+        lo, hi = float(x.min()), float(x.max())
+        tau = (t - 0.5 * (t[0] + t[-1])) / max(0.5 * (t[-1] - t[0]), 1e-300)
+        basis = np.column_stack([tau ** j for j in range(DRIFT_DEGREE + 1)])
+        keep = np.flatnonzero(~m)
+        return cls(lo if np.any(m & (x == lo)) else -math.inf, hi if np.any(m & (x == hi)) else math.inf,
+                   keep, basis, np.linalg.pinv(basis[keep]), x[keep])
+
+    def clip(self, x: np.ndarray) -> np.ndarray:
+        """A model's signal at the record's instants as the saturating channel writes it: moved by the record's
+        drift against the model (fitted on the unsaturated samples), clipped at the range, moved back."""
+        d = self.basis @ (self.basis_pinv @ (self.measured - x[self.keep]))
+        return np.clip(x + d, self.low, self.high) - d
+
+
 def _unsaturated(tg: Target, df: pd.DataFrame) -> tuple[tuple[str, ...], dict[str, np.ndarray]]:
     """The record's signals without the channels saturated in more than ``MAX_CLIPPED_FRACTION`` of their samples,
-    and the samples to keep of those saturated less (saturated samples: out of the fits, and so of the model's
-    sampling); notes and clipped fractions on ``tg``."""
+    and the unsaturated samples of those saturated less (the noise is estimated on them); their range on
+    ``tg.saturation`` (the model is clipped there), notes and clipped fractions on ``tg``."""
     sigs = tuple(sig for sig in (*HARMONIC_SIGNALS, "progression_m") if sig in df.columns)
     keep = {}
     for sig in HARMONIC_SIGNALS:
         if sig not in sigs:
             continue
-        m = clipped_samples(df[sig].to_numpy())
+        x = df[sig].to_numpy()
+        m = clipped_samples(x)
         frac = float(m.mean())
         if frac > MAX_CLIPPED_FRACTION:
             sigs = tuple(x for x in sigs if x != sig)
@@ -479,8 +508,9 @@ def _unsaturated(tg: Target, df: pd.DataFrame) -> tuple[tuple[str, ...], dict[st
         elif frac > 0:
             keep[sig] = ~m
             tg.clipped[sig] = frac
+            tg.saturation[sig] = Saturation.of(df["t_s"].to_numpy(), x, m)
             tg.notes.append(f"run {tg.run_id}, channel {sig}: {frac:.2%} of the samples saturated (flat tops at the "
-                            f"channel's extreme), left out of the features")
+                            f"channel's extreme): the model is clipped at the same range")
     return sigs, keep
 
 
@@ -508,7 +538,7 @@ def _feature_sd(tg: Target, t: np.ndarray, a: np.ndarray, k: int, sigs: tuple[st
     pairs, pair_at = [], []
     for sig in sigs:
         dens, broad = record_noise(t, x_all[sig], f, k, SLOW_DEGREE if from_rest else 0, keep.get(sig))
-        n = int(np.count_nonzero(keep[sig])) if sig in keep else t.size
+        n = t.size
         tg.noise[sig] = broad
         c = coef[sig]
         if sig == "progression_m":
@@ -539,7 +569,7 @@ def _feature_sd(tg: Target, t: np.ndarray, a: np.ndarray, k: int, sigs: tuple[st
 
 
 def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segments: int = 4,
-                  model_floor: float = 0.0, max_cycles: float = 0.0) -> Target:
+                  model_floor: float = 0.0, max_cycles: float = 0.0, hum_hz: tuple[float, ...] = ()) -> Target:
     """Fill ``tg`` (run_id, system, controls, known, record_start_s set) from a measured series.
 
     Feature sd: the noise of each harmonic coefficient part, sqrt(2 S_k / N) with S_k the record's noise density
@@ -550,7 +580,9 @@ def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segmen
     A steady-state record is cut to whole cycles (``steady_cycles``: a multiple of 4, at most ``max_cycles``), so
     that each half holds whole pairs of cycles: a period-2 response (an impact every second cycle) then leaves the
     harmonics of f alone whichever of its two phases the record started in, and the model's orbit may be in the
-    other one (a steady state does not say).  A record from rest keeps every sample (its phase is the run's)."""
+    other one (a steady state does not say).  A record from rest keeps every sample (its phase is the run's).
+    Mains lines apart from the harmonics are measured on every harmonic signal (``Target.lines``); those of the
+    mains frequencies ``hum_hz`` (the log's hum, ``mains.detect``) are fitted beside the harmonics."""
     f = tg.frequency_hz
     if tg.record_start_s is None:
         df = _whole_cycles(df, f, max_cycles)
@@ -567,11 +599,16 @@ def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segmen
     if not sigs:
         raise UnusableRecord(f"run {tg.run_id}: every channel is saturated in more than {MAX_CLIPPED_FRACTION:.0%} "
                              f"of its samples; the run is skipped")
-    tg.pinv = _operators(t, f, k, keep)
+    apart, _ = mains.mains_lines(f, k, tg.duration_s, tg.fs_hz)
+    tg.hum_lines = tuple(ln for ln in apart if ln[0] in hum_hz)
+    tg.pinv = _operators(t, f, k, tg.hum_lines)
     x_all = {sig: df[sig].to_numpy() for sig in sigs}
     coef = _coefs(tg.pinv, x_all)
     from_rest = tg.record_start_s is not None
-    tg.halves = _halves(t, f, k, not from_rest, keep) if tg.cycles >= 2 * MIN_CYCLES else []
+    tg.halves = _halves(t, f, k, not from_rest, tg.hum_lines) if tg.cycles >= 2 * MIN_CYCLES else []
+    a_d = _design(t, f, k, DRIFT_DEGREE)
+    tg.lines = {sig: mains.measure(t, x_all[sig] - a_d @ coef[sig][:a_d.shape[1]], apart)
+                for sig in sigs if sig in HARMONIC_SIGNALS}
     spans = [(float(np.mean(t_rec)), tg.duration_s)]
     spans += [(float(np.mean(t_rec[sl])), float(t_rec[sl][-1] - t_rec[sl][0] + dt)) for sl, _ in tg.halves]
     tg.spans = tuple(spans)
@@ -766,8 +803,15 @@ def _record_rows(tg: Target, h: Columns) -> np.ndarray:
 
 def model_on_record(tg: Target, h: Columns, sig: str) -> np.ndarray:
     """A simulated signal (a history's columns) at the measured record's own instants (``sampling_plan``); through
-    the anti-alias filter (``antialias_taps``, centred on each instant) where the record passed one.  Before a
-    record from rest the model holds its rest value."""
+    the anti-alias filter (``antialias_taps``, centred on each instant) where the record passed one, and clipped at
+    the range where the record's channel saturated (``Target.saturation``; a DAQ's ADC comes after its filter).
+    Before a record from rest the model holds its rest value."""
+    x = _on_record(tg, h, sig)
+    return tg.saturation[sig].clip(x) if sig in tg.saturation else x
+
+
+def _on_record(tg: Target, h: Columns, sig: str) -> np.ndarray:
+    """``model_on_record`` before the ADC's range."""
     x = np.asarray(h[sig], dtype=float)
     rows = _record_rows(tg, h)
     if not tg.antialias:

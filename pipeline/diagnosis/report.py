@@ -479,6 +479,10 @@ def _recording_lines(rec: Recording | None) -> list[str]:
                    "through it before the comparison.")
     if rec.estimated:
         out.append("Recording: " + rec.estimated.text + ".")
+    if rec.hum:
+        out.append("Mains hum: " + "; ".join(f"{sig} " + ", ".join(f"{a:.3g} at {f} Hz" for f, a in lines.items())
+                                             for sig, lines in rec.hum.items())
+                   + " (fitted beside the forcing harmonics, in the sd of those a line sits on).")
     if rec.antialiased:
         out.append(f"Anti-alias filter: the model was low-passed below each record's Nyquist frequency before it was "
                    f"sampled, as the DAQ's filter did the signal, on {len(rec.antialiased)} run(s): "

@@ -467,14 +467,16 @@ class EstimatedChain(_Record):
 
 @dataclass(frozen=True)
 class Recording(_Record):
-    """What the recording did: the declared chains, the estimated one, the saturated samples left out."""
+    """What the recording did: the declared chains, the estimated one, the saturated channels, the mains hum."""
 
     declared: Mapping[str, DeclaredChain] = _f(_by_name(_rec(DeclaredChain)))
     """Declared chain per run id."""
     estimated: EstimatedChain | None = _f(_opt(_rec(EstimatedChain)))
     """The undeclared chain estimated (None: none)."""
     clipped: Mapping[str, Mapping[str, float]] = _f()
-    """Fraction of samples left out per run and channel [-]."""
+    """Fraction of samples saturated per run and channel [-] (the model is clipped at the same range)."""
+    hum: Mapping[str, Mapping[str, float]] | None = _f(omit=True, default=None)
+    """Mains hum found per channel: line frequency [Hz] -> amplitude [channel unit] (None: none; ``mains``)."""
     antialiased: tuple[str, ...] | None = _f(_opt(_seq()), omit=True, default=None)
     """Runs whose model was low-passed below the record's Nyquist frequency before it was sampled, as the DAQ's
     anti-alias filter (declared, or shown by the estimated delays) did the signal (None: none)."""

@@ -22,6 +22,7 @@ import numpy as np
 from pipeline.diagnosis.config import DiagnoseConfig  # noqa: F401  (re-exported: the commands import it from here)
 from pipeline.diagnosis.cost import CostRecorder, remote_cpu_of
 from pipeline.diagnosis.progress import NoProgress, Progress, fit_tasks
+from pipeline.diagnosis import mains
 from pipeline.diagnosis.features import (CONTROL_NAMES, Target, UnusableRecord, series_target, simulated_features,
                                          summary_target)
 from pipeline.core.executors import Executor, InlineExecutor
@@ -50,39 +51,59 @@ def build_targets(ds, cfg: DiagnoseConfig, skipped: dict[str, list[str]] | None 
     target carries its run's controls (the model's own control names), the known rig parameters
     (preset / parameter columns), ``record_start_s`` (None where not given: steady state) and the DAQ chain
     runs.csv declares for it.  A record that cannot be used (every channel saturated) is left out and named in
-    ``skipped`` (system -> notes)."""
+    ``skipped`` (system -> notes).  Where the series runs show mains hum (``mains.detect``), they are built again with
+    its lines fitted beside the harmonics and its amplitude in the sd of the harmonics it sits on."""
+    out: dict[str, list[Target]] = {}
+    for row in ds.runs.to_dict("records"):
+        tg = _target_of(ds, cfg, row, skipped)
+        if tg is not None:
+            out.setdefault(row["system"], []).append(tg)
+    for system, tgs in out.items():
+        hum = mains.detect([t.lines for t in tgs if t.kind == "series"])
+        if not hum:
+            continue
+        rows = {r["run_id"]: r for r in ds.runs.to_dict("records")}
+        families = tuple(sorted({fm for v in hum.values() for fm in v}))
+        for i, t in enumerate(tgs):
+            if t.kind == "series":
+                tgs[i] = _target_of(ds, cfg, rows[t.run_id], None, families)
+                mains.allow_for(tgs[i], hum)
+        tgs[0].notes.insert(0, f"mains hum: {mains.describe(hum)}; its lines apart from the forcing harmonics are "
+                               "fitted beside them, and the harmonics a line sits on carry its amplitude in their sd")
+    return out
+
+
+def _target_of(ds, cfg: DiagnoseConfig, row: dict, skipped: dict[str, list[str]] | None,
+               hum_hz: tuple[float, ...] = ()) -> Target | None:
+    """One run's target (``build_targets``); None for a record that cannot be used (named in ``skipped``)."""
     import sim
 
-    out: dict[str, list[Target]] = {}
-    sd = {k: tuple(v) for k, v in cfg.summary_sd.items()}
-    for row in ds.runs.to_dict("records"):
-        system = row["system"]
-        if system not in supported_systems():
-            raise UserError(f"runs.csv, run '{row['run_id']}': system '{system}' cannot be diagnosed "
-                            f"(supported: {', '.join(supported_systems())})")
-        names = sim.get_model(system).param_names
-        rs = row.get("record_start_s")
-        tg = Target(run_id=row["run_id"], system=system, kind="",
-                    controls={c: float(row[c]) for c in CONTROL_NAMES if c in names and c in row},
-                    known=dict(ds.known.get(row["run_id"], {})),
-                    record_start_s=None if rs is None or not np.isfinite(rs) else float(rs),
-                    duration_s=float(row["duration_s"]), chain=getattr(ds, "chains", {}).get(row["run_id"]))
-        mh = cfg.max_harmonic_hz or default_max_harmonic_hz(system)
-        if row["run_id"] in ds.series:
-            try:
-                tg = series_target(tg, ds.series[row["run_id"]], mh, model_floor=cfg.model_floor,
-                                   max_cycles=cfg.record_window)
-                declared = tg.chain is not None and tg.chain.filter is not None
-                tg.antialias = declared if cfg.antialias is None else cfg.antialias
-            except UnusableRecord as e:
-                if skipped is None:
-                    raise
-                skipped.setdefault(system, []).append(str(e))
-                continue
-        else:
-            tg = summary_target(tg, ds.summary.loc[row["run_id"]], mh, sd, floor=cfg.summary_floor)
-        out.setdefault(system, []).append(tg)
-    return out
+    system = row["system"]
+    if system not in supported_systems():
+        raise UserError(f"runs.csv, run '{row['run_id']}': system '{system}' cannot be diagnosed "
+                        f"(supported: {', '.join(supported_systems())})")
+    names = sim.get_model(system).param_names
+    rs = row.get("record_start_s")
+    tg = Target(run_id=row["run_id"], system=system, kind="",
+                controls={c: float(row[c]) for c in CONTROL_NAMES if c in names and c in row},
+                known=dict(ds.known.get(row["run_id"], {})),
+                record_start_s=None if rs is None or not np.isfinite(rs) else float(rs),
+                duration_s=float(row["duration_s"]), chain=getattr(ds, "chains", {}).get(row["run_id"]))
+    mh = cfg.max_harmonic_hz or default_max_harmonic_hz(system)
+    if row["run_id"] not in ds.series:
+        sd = {k: tuple(v) for k, v in cfg.summary_sd.items()}
+        return summary_target(tg, ds.summary.loc[row["run_id"]], mh, sd, floor=cfg.summary_floor)
+    try:
+        tg = series_target(tg, ds.series[row["run_id"]], mh, model_floor=cfg.model_floor,
+                           max_cycles=cfg.record_window, hum_hz=hum_hz)
+    except UnusableRecord as e:
+        if skipped is None:
+            raise
+        skipped.setdefault(system, []).append(str(e))
+        return None
+    declared = tg.chain is not None and tg.chain.filter is not None
+    tg.antialias = declared if cfg.antialias is None else cfg.antialias
+    return tg
 
 
 def absorbed_parameters(fits: dict[str, FitResult], v: Verdict, cal_names: list[str]) -> dict[str, R.Absorption]:
@@ -217,12 +238,13 @@ def _second_report(first: str, fits: dict, stats: dict, v2: Verdict, rule: Verdi
 def recording_report(targets: list[Target], chain: ChainEstimate | None) -> R.Recording:
     """report.json ``recording``: the DAQ chain each run declares, the undeclared chain estimated as nuisance
     (delay per channel and clock, with sd; None when every series run declares its chain or estimation is off),
-    and the fraction of saturated samples left out per run and channel."""
+    the fraction of saturated samples per run and channel, and the mains hum found."""
     declared = {t.run_id: R.DeclaredChain(None if t.chain.filter is None else t.chain.filter.text(), t.chain.delay_s,
                                           t.chain.clock_ppm)
                 for t in targets if t.chain is not None}
     return R.Recording(declared=declared, estimated=chain.to_record() if chain is not None else None,
                        clipped={t.run_id: dict(t.clipped) for t in targets if t.clipped},
+                       hum=next((mains.as_record(t.hum) for t in targets if t.hum), None),
                        antialiased=tuple(t.run_id for t in targets if t.antialias) or None)
 
 

@@ -40,7 +40,7 @@ def test_a_diverged_simulation_has_no_features_and_no_overflow_warning():
     series = SimpleNamespace(kind="series", signals=("accel_m_s2",), pinv=_operators(t, 50.0, 3), record_start_s=None,
                              t_rec=t, fs_hz=4000.0, frequency_hz=50.0, halves=[],
                              pairs=(), pair_at=np.array([], dtype=int), filter_gain=None, nuisance=None,  # no DAQ chain
-                             antialias=False)
+                             antialias=False, saturation={})
     summary = SimpleNamespace(kind="summary", names=["spectral_ratio"], record_start_s=None, t_rec=None,
                               frequency_hz=50.0, k_max=3, ratio_ref_hz=50.0)
     with warnings.catch_warnings():
