@@ -437,13 +437,19 @@ once; a clipped one sits there in flat tops (at 25.6 kHz an impact's flat top ma
 
 def clipped_samples(x: np.ndarray) -> np.ndarray:
     """Mask of the saturated samples of a channel: the samples at exactly its maximum or minimum, when at least
-    MIN_AT_EXTREME sit there and two of them are adjacent (a flat top); an extreme of exactly 0 is a contact force
-    at rest, not a sensor's range."""
+    MIN_AT_EXTREME sit there and either two of them are adjacent (a flat top) or the samples next to them differ
+    from one to the next (an impact's spike clipped for one sample at a time, with noise: a noise-free periodic
+    record may repeat its peak once a cycle, but then its neighbours too); an extreme of exactly 0 is a contact
+    force at rest, not a sensor's range."""
     out = np.zeros(x.size, dtype=bool)
     for v in (float(x.max()), float(x.min())):
         at = x == v
-        flat = bool(np.any(at[1:] & at[:-1]))     # a noise-free periodic record repeats its peak, never flat
-        if v != 0.0 and flat and np.count_nonzero(at) >= MIN_AT_EXTREME:
+        idx = np.flatnonzero(at)
+        if v == 0.0 or idx.size < MIN_AT_EXTREME or idx.size == x.size:
+            continue
+        flat = bool(np.any(at[1:] & at[:-1]))
+        side = [x[np.clip(idx + d, 0, x.size - 1)] for d in (-1, 1)]
+        if flat or max(float(np.ptp(s_)) for s_ in side) > 1e-9 * abs(v):
             out |= at
     return out
 

@@ -262,6 +262,20 @@ def test_saturated_samples_are_detected_and_the_model_is_clipped_alike():
     assert z[0].max() < 4.0 < 10.0 < z[1].max()
 
 
+def test_a_spike_clipped_one_sample_at_a_time_is_saturation_and_a_noise_free_peak_is_not():
+    """An impact's spike, narrower than two samples at the top, is clipped for one sample per cycle: no flat top,
+    but the values next to the range are each met once, where a noise-free periodic record repeats its peak and
+    the values next to it once a cycle alike."""
+    rng = np.random.default_rng(2)
+    t = np.arange(int(20.4 / F * FS)) / FS
+    clean = np.exp(-(((F * t) % 1.0 - 0.3) / 0.0006) ** 2)          # about 2 samples wide at half height
+    noisy = clean + 0.003 * rng.standard_normal(t.size)
+    top = 0.85 * float(clean.max())
+    m = clipped_samples(np.minimum(noisy, top))
+    assert 10 <= np.count_nonzero(m) <= 25 and not np.any(m[1:] & m[:-1])
+    assert not clipped_samples(clean).any() and not clipped_samples(noisy).any()
+
+
 def test_the_model_is_clipped_in_the_sensors_frame():
     """A saturating sensor with an offset and a slow drift (rig noise: noise proportional to the signal too): the
     range cuts the signal plus its offset, so the model is clipped after the record's drift against it (fitted on the
