@@ -13,9 +13,12 @@ written by the independent generator through a named chain of ``tests.independen
     python -m bench.identification_chain --systems drill indenter-metal --seeds 0 1
     python -m bench.identification_chain --cases control shaker_coil --chains off undeclared
 
-Rows are kept in bench/results/identification/rows_chain.json (an interrupted run resumes; ``--fresh`` starts
-over) and each system's tables go to docs/identification.md between that system's chain-table markers, with the
-machine's load; the other systems' tables stay as they were.
+    python -m bench.identification_chain --systems rimd --chains saturated --fresh --block saturated
+
+Rows are kept in bench/results/identification/rows_chain.json (an interrupted run resumes; ``--fresh`` diagnoses
+the selected cases again) and each system's tables go to docs/identification.md between that system's chain-table
+markers, with the machine's load; the other systems' tables stay as they were (``--block NAME``: all the selected
+rows' tables between that block's markers instead).
 """
 from __future__ import annotations
 
@@ -104,14 +107,21 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", nargs="+", type=int, default=[0])
     p.add_argument("--n-runs", type=int, default=8)
     p.add_argument("--threads", type=int, default=2)
-    p.add_argument("--fresh", action="store_true", help="diagnose every case again (the logs are kept)")
+    p.add_argument("--fresh", action="store_true",
+                   help="diagnose the selected cases again (the logs and the other cases' stored rows are kept)")
+    p.add_argument("--block", metavar="NAME",
+                   help="write all the selected rows' tables between docs/identification.md's identification-chain-NAME "
+                        "markers instead of each system's (e.g. one column measured again)")
     p.add_argument("--no-doc", action="store_true", help="do not rewrite docs/identification.md")
     p.add_argument("--tables-only", action="store_true", help="write the tables from the stored rows, diagnose nothing")
     a = p.parse_args(argv)
     WORK.mkdir(parents=True, exist_ok=True)
     done_file = WORK / "rows_chain.json"
-    done = {r["name"]: r for r in json.loads(done_file.read_text())} if done_file.exists() and not a.fresh else {}
+    done = {r["name"]: r for r in json.loads(done_file.read_text())} if done_file.exists() else {}
     todo = _todo(a)
+    if a.fresh:
+        for s, c, col, seed in todo:
+            done.pop(log_name(spec_of(s, c, a.noise, seed, a.n_runs, CHAINS[col]), c), None)
     rows = []
     for k, (s, c, col, seed) in enumerate(todo, 1):
         name = log_name(spec_of(s, c, a.noise, seed, a.n_runs, CHAINS[col]), c)
@@ -125,6 +135,15 @@ def main(argv: list[str] | None = None) -> int:
                   f" nrms {_fmt(r['base_nrms'])} -> {_fmt(r['final_nrms'])}, {r['wall_time_s']:.0f} s)", flush=True)
         rows.append(done[name])
     load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    if a.block:
+        text = table(rows) + f"\n\nLoad average when the tables were written (1, 5, 15 min): {load}; {len(rows)} logs."
+        print(text)
+        if not a.no_doc:
+            from bench import write_block
+
+            write_block(DOC, f"<!-- identification-chain-{a.block}:start -->",
+                        f"<!-- identification-chain-{a.block}:end -->", text)
+        return 0
     for system in dict.fromkeys(r["system"] for r in rows):
         mine = [r for r in rows if r["system"] == system]
         text = (table(mine) + f"\n\nLoad average when the tables were written (1, 5, 15 min): {load}; {len(mine)} "
