@@ -509,14 +509,14 @@ def _unsaturated(tg: Target, df: pd.DataFrame) -> tuple[tuple[str, ...], dict[st
         frac = float(m.mean())
         if frac > MAX_CLIPPED_FRACTION:
             sigs = tuple(x for x in sigs if x != sig)
-            tg.notes.append(f"run {tg.run_id}, channel {sig}: {frac:.1%} of the samples saturated (flat tops at the "
-                            f"channel's extreme), more than {MAX_CLIPPED_FRACTION:.0%}: the channel is not used")
+            tg.notes.append(f"run {tg.run_id}, channel {sig}: {frac:.1%} of the samples saturated (identical values "
+                            f"at the channel's extreme), more than {MAX_CLIPPED_FRACTION:.0%}: the channel is not used")
         elif frac > 0:
             keep[sig] = ~m
             tg.clipped[sig] = frac
             tg.saturation[sig] = Saturation.of(df["t_s"].to_numpy(), x, m)
-            tg.notes.append(f"run {tg.run_id}, channel {sig}: {frac:.2%} of the samples saturated (flat tops at the "
-                            f"channel's extreme): the model is clipped at the same range")
+            tg.notes.append(f"run {tg.run_id}, channel {sig}: {frac:.2%} of the samples saturated (identical values "
+                            f"at the channel's extreme): the model is clipped at the same range")
     return sigs, keep
 
 
