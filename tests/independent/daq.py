@@ -346,5 +346,10 @@ DAQ_CHAINS: dict[str, DaqChain] = {
     # all of it: a field chain
     "field": DaqChain("field", filter="butter", order=8, cutoff=0.45, clock_ppm=50.0,
                       clip_fraction={"accel_m_s2": 0.85}, hum_hz=50.0, hum={"force_n": (5.0, 2.0, 1.0)}),
+    # the field chain without its clipping, and without its hum: what each part costs
+    "field-noclip": DaqChain("field-noclip", filter="butter", order=8, cutoff=0.45, clock_ppm=50.0, hum_hz=50.0,
+                             hum={"force_n": (5.0, 2.0, 1.0)}),
+    "field-nohum": DaqChain("field-nohum", filter="butter", order=8, cutoff=0.45, clock_ppm=50.0,
+                            clip_fraction={"accel_m_s2": 0.85}),
 }
 """Named chains (the identification matrix's, and ``--daq NAME`` of the generator's command)."""
