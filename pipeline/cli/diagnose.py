@@ -83,12 +83,12 @@ run's DAQ chain, and the model's signals pass through it before they are compare
   delay per channel and a clock error are estimated as nuisance parameters, profiled out of every model's fit
   (never a §6 effect; setting estimate_chain); report.json 'recording' gives them as located at the final model's
   fit, each sd at least the jackknife's over the runs (a filter makes the clock uncertain by tens of ppm:
-  docs/identification.md).  Saturated samples (>= 3 identical values at a channel's extreme: flat tops) mark the
-  ADC's range: the model is clipped there too, in the sensor's frame (the record's offset and drift against the
-  model added), with a note; a channel saturated in more than 50 % of its samples is not used, a run with no
-  usable channel is skipped and named.  Mains hum (50 or 60 Hz lines standing out on two runs or more) is fitted
-  beside the forcing harmonics, and the harmonics a mains line sits on carry its amplitude in their sd
-  (report.json 'recording.hum')."""
+  docs/identification.md).  Saturated samples (>= 3 identical values at a channel's extreme, flat tops or single
+  samples with noisy neighbours) mark the ADC's range: the model is clipped there too, in the sensor's frame (the
+  record's offset and drift against the model added), with a note; a channel saturated in more than 50 % of its
+  samples is not used, a run with no usable channel is skipped and named.  Mains hum (50 or 60 Hz lines standing
+  out on two runs or more) is fitted beside the forcing harmonics, and the harmonics a mains line sits on carry its
+  amplitude in their sd (report.json 'recording.hum')."""
 
 EPILOG = """\
 params.yaml section 'diagnose' (all optional; defaults in brackets):
