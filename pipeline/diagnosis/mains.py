@@ -75,14 +75,13 @@ def measure(t: np.ndarray, res: np.ndarray, lines: list[tuple[float, int]]) -> l
     per_family = {}
     for fm, m in lines:
         per_family.setdefault(fm, []).append(m)
-    spec = np.fft.rfft((res - res.mean()) * np.hanning(n))
-    p = np.abs(spec) ** 2 / float(np.sum(np.hanning(n) ** 2))
+    win = np.hanning(n)
+    p = np.abs(np.fft.rfft((res - res.mean()) * win)) ** 2 / float(np.sum(win * win))
     df = fs / n
     out = []
     for fm, ms in per_family.items():
-        freqs = np.array([fm * m for m in ms])
-        a = np.column_stack([np.cos(2 * math.pi * np.outer(t, freqs)), np.sin(2 * math.pi * np.outer(t, freqs))])
-        c = np.linalg.lstsq(a, res, rcond=None)[0]
+        freqs = np.array([fm * m for m in ms])          # increasing, as line_columns orders them
+        c = np.linalg.lstsq(line_columns(t, [(fm, m) for m in ms]), res, rcond=None)[0]
         amp = np.hypot(c[:freqs.size], c[freqs.size:])
         for m, fl, am in zip(ms, freqs, amp):
             j = int(round(fl / df))
