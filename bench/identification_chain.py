@@ -49,6 +49,11 @@ def markers(system: str) -> tuple[str, str]:
     return f"<!-- identification-chain:{system}:start -->", f"<!-- identification-chain:{system}:end -->"
 
 
+def block_markers(name: str) -> tuple[str, str]:
+    """docs/identification.md's markers around a named block of tables (``--block``)."""
+    return f"<!-- identification-chain-{name}:start -->", f"<!-- identification-chain-{name}:end -->"
+
+
 DELAY_TOL_US, CLOCK_TOL_PPM = 5.0, 5.0
 
 
@@ -110,8 +115,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--fresh", action="store_true",
                    help="diagnose the selected cases again (the logs and the other cases' stored rows are kept)")
     p.add_argument("--block", metavar="NAME",
-                   help="write all the selected rows' tables between docs/identification.md's identification-chain-NAME "
-                        "markers instead of each system's (e.g. one column measured again)")
+                   help="write all the selected rows' tables between docs/identification.md's "
+                        "identification-chain-NAME markers instead of each system's (e.g. one column measured again)")
     p.add_argument("--no-doc", action="store_true", help="do not rewrite docs/identification.md")
     p.add_argument("--tables-only", action="store_true", help="write the tables from the stored rows, diagnose nothing")
     a = p.parse_args(argv)
@@ -135,24 +140,17 @@ def main(argv: list[str] | None = None) -> int:
                   f" nrms {_fmt(r['base_nrms'])} -> {_fmt(r['final_nrms'])}, {r['wall_time_s']:.0f} s)", flush=True)
         rows.append(done[name])
     load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
-    if a.block:
-        text = table(rows) + f"\n\nLoad average when the tables were written (1, 5, 15 min): {load}; {len(rows)} logs."
-        print(text)
-        if not a.no_doc:
-            from bench import write_block
-
-            write_block(DOC, f"<!-- identification-chain-{a.block}:start -->",
-                        f"<!-- identification-chain-{a.block}:end -->", text)
-        return 0
-    for system in dict.fromkeys(r["system"] for r in rows):
-        mine = [r for r in rows if r["system"] == system]
+    systems = dict.fromkeys(r["system"] for r in rows)
+    groups = ({block_markers(a.block): rows} if a.block else
+              {markers(system): [r for r in rows if r["system"] == system] for system in systems})
+    for where, mine in groups.items():
         text = (table(mine) + f"\n\nLoad average when the tables were written (1, 5, 15 min): {load}; {len(mine)} "
                               f"logs, noise '{a.noise}'.")
         print(text)
         if not a.no_doc:
             from bench import write_block
 
-            write_block(DOC, *markers(system), text)
+            write_block(DOC, *where, text)
     kinds = sorted({r["expected"] for r in rows})
     print(json.dumps({"rows": len(rows), "right": sum(r["correct"] for r in rows),
                       "expected": {e: sum(r["expected"] == e for r in rows) for e in kinds}}), file=sys.stderr)

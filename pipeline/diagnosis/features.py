@@ -314,7 +314,6 @@ class Target:
     clipped: dict = field(default_factory=dict)    # signal -> fraction of samples saturated
     saturation: dict = field(default_factory=dict)  # signal -> Saturation (its range; the model is clipped there)
     lines: dict = field(default_factory=dict)      # signal -> [mains.Line] measured apart from the harmonics
-    hum_lines: tuple = ()                          # (family, m) fitted beside the harmonics (mains hum found)
     hum: dict = field(default_factory=dict)        # the log's mains hum (mains.Hum) allowed for on this run
     notes: list = field(default_factory=list)      # what the features left out, for the report
 
@@ -504,17 +503,17 @@ def _unsaturated(tg: Target, df: pd.DataFrame) -> tuple[tuple[str, ...], dict[st
     for sig in HARMONIC_SIGNALS:
         if sig not in sigs:
             continue
-        x = df[sig].to_numpy()
-        m = clipped_samples(x)
+        vals = df[sig].to_numpy()
+        m = clipped_samples(vals)
         frac = float(m.mean())
         if frac > MAX_CLIPPED_FRACTION:
-            sigs = tuple(x for x in sigs if x != sig)
+            sigs = tuple(s_ for s_ in sigs if s_ != sig)
             tg.notes.append(f"run {tg.run_id}, channel {sig}: {frac:.1%} of the samples saturated (identical values "
                             f"at the channel's extreme), more than {MAX_CLIPPED_FRACTION:.0%}: the channel is not used")
         elif frac > 0:
             keep[sig] = ~m
             tg.clipped[sig] = frac
-            tg.saturation[sig] = Saturation.of(df["t_s"].to_numpy(), x, m)
+            tg.saturation[sig] = Saturation.of(df["t_s"].to_numpy(), vals, m)
             tg.notes.append(f"run {tg.run_id}, channel {sig}: {frac:.2%} of the samples saturated (identical values "
                             f"at the channel's extreme): the model is clipped at the same range")
     return sigs, keep
@@ -574,6 +573,21 @@ def _feature_sd(tg: Target, t: np.ndarray, a: np.ndarray, k: int, sigs: tuple[st
     return names, sd, noise, group, pairs, pair_at
 
 
+def _mains_lines(t: np.ndarray, f: float, k: int, x_all: dict, coef: dict, apart: list) -> dict:
+    """The mains lines ``apart`` from the harmonics measured on each harmonic signal's residual (``mains.measure``,
+    against the residual's ``_periodogram``)."""
+    sigs = [sig for sig in x_all if sig in HARMONIC_SIGNALS]
+    if not apart:
+        return {sig: [] for sig in sigs}
+    a = _design(t, f, k, DRIFT_DEGREE)
+    out = {}
+    for sig in sigs:
+        res = x_all[sig] - a @ coef[sig]
+        _, power, df = _periodogram(res, 1.0 / float(t[1] - t[0]))
+        out[sig] = mains.measure(t, res, apart, power, df)
+    return out
+
+
 def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segments: int = 4,
                   model_floor: float = 0.0, max_cycles: float = 0.0, hum_hz: tuple[float, ...] = ()) -> Target:
     """Fill ``tg`` (run_id, system, controls, known, record_start_s set) from a measured series.
@@ -606,15 +620,13 @@ def series_target(tg: Target, df: pd.DataFrame, max_harmonic_hz: float, n_segmen
         raise UnusableRecord(f"run {tg.run_id}: every channel is saturated in more than {MAX_CLIPPED_FRACTION:.0%} "
                              f"of its samples; the run is skipped")
     apart, _ = mains.mains_lines(f, k, tg.duration_s, tg.fs_hz)
-    tg.hum_lines = tuple(ln for ln in apart if ln[0] in hum_hz)
-    tg.pinv = _operators(t, f, k, tg.hum_lines)
+    hum_lines = tuple(ln for ln in apart if ln[0] in hum_hz)
+    tg.pinv = _operators(t, f, k, hum_lines)
     x_all = {sig: df[sig].to_numpy() for sig in sigs}
     coef = _coefs(tg.pinv, x_all)
     from_rest = tg.record_start_s is not None
-    tg.halves = _halves(t, f, k, not from_rest, tg.hum_lines) if tg.cycles >= 2 * MIN_CYCLES else []
-    a_d = _design(t, f, k, DRIFT_DEGREE)
-    tg.lines = {sig: mains.measure(t, x_all[sig] - a_d @ coef[sig][:a_d.shape[1]], apart)
-                for sig in sigs if sig in HARMONIC_SIGNALS}
+    tg.halves = _halves(t, f, k, not from_rest, hum_lines) if tg.cycles >= 2 * MIN_CYCLES else []
+    tg.lines = _mains_lines(t, f, k, x_all, coef, apart)
     spans = [(float(np.mean(t_rec)), tg.duration_s)]
     spans += [(float(np.mean(t_rec[sl])), float(t_rec[sl][-1] - t_rec[sl][0] + dt)) for sl, _ in tg.halves]
     tg.spans = tuple(spans)

@@ -65,19 +65,17 @@ def line_columns(t: np.ndarray, lines: list[tuple[float, int]]) -> np.ndarray:
     return np.column_stack([np.cos(w), np.sin(w)]) if freqs else np.zeros((t.size, 0))
 
 
-def measure(t: np.ndarray, res: np.ndarray, lines: list[tuple[float, int]]) -> list[Line]:
+def measure(t: np.ndarray, res: np.ndarray, lines: list[tuple[float, int]], power: np.ndarray,
+            df: float) -> list[Line]:
     """Each line's amplitude on the residual ``res`` of a harmonic fit (the lines apart from the harmonics are
-    nearly orthogonal to them) and its z against the residual's own level within LOCAL_BINS bins of it."""
+    nearly orthogonal to them) and its z against the level of the residual's periodogram ``power`` (bins ``df``
+    [Hz] apart, white noise of sd σ reading σ²) within LOCAL_BINS bins of it."""
     if not lines or res.size < 8:
         return []
-    fs = 1.0 / float(t[1] - t[0])
     n = res.size
     per_family = {}
     for fm, m in lines:
         per_family.setdefault(fm, []).append(m)
-    win = np.hanning(n)
-    p = np.abs(np.fft.rfft((res - res.mean()) * win)) ** 2 / float(np.sum(win * win))
-    df = fs / n
     out = []
     for fm, ms in per_family.items():
         freqs = np.array([fm * m for m in ms])          # increasing, as line_columns orders them
@@ -85,8 +83,8 @@ def measure(t: np.ndarray, res: np.ndarray, lines: list[tuple[float, int]]) -> l
         amp = np.hypot(c[:freqs.size], c[freqs.size:])
         for m, fl, am in zip(ms, freqs, amp):
             j = int(round(fl / df))
-            near = np.r_[max(j - LOCAL_BINS, 1):max(j - 3, 1), j + 4:min(j + LOCAL_BINS + 1, p.size)]
-            level = float(np.median(p[near])) / math.log(2.0) if near.size else float(np.mean(p[1:]))
+            near = np.r_[max(j - LOCAL_BINS, 1):max(j - 3, 1), j + 4:min(j + LOCAL_BINS + 1, power.size)]
+            level = float(np.median(power[near])) / math.log(2.0) if near.size else float(np.mean(power[1:]))
             sd = math.sqrt(2.0 * max(level, 1e-300) / n)
             out.append(Line(fm, int(m), float(am), float(am / sd)))
     return out

@@ -54,15 +54,15 @@ def build_targets(ds, cfg: DiagnoseConfig, skipped: dict[str, list[str]] | None 
     ``skipped`` (system -> notes).  Where the series runs show mains hum (``mains.detect``), they are built again with
     its lines fitted beside the harmonics and its amplitude in the sd of the harmonics it sits on."""
     out: dict[str, list[Target]] = {}
-    for row in ds.runs.to_dict("records"):
+    rows = {r["run_id"]: r for r in ds.runs.to_dict("records")}
+    for row in rows.values():
         tg = _target_of(ds, cfg, row, skipped)
         if tg is not None:
             out.setdefault(row["system"], []).append(tg)
-    for system, tgs in out.items():
+    for tgs in out.values():
         hum = mains.detect([t.lines for t in tgs if t.kind == "series"])
         if not hum:
             continue
-        rows = {r["run_id"]: r for r in ds.runs.to_dict("records")}
         families = tuple(sorted({fm for v in hum.values() for fm in v}))
         for i, t in enumerate(tgs):
             if t.kind == "series":
